@@ -126,13 +126,14 @@ def _solve(A, b, x):
 
 @njit(cache=True)
 def kane(base_joints, platform_joints, data, pose, rate, arg, base_pose, base_rate, base_acc,
-         base_mode, legs, twist_speeds, solve, M, h, J, ldot, out, det):
+         base_mode, legs, twist_speeds, solve, M, h, J, ldot, length, out, det):
     """Fill M, h, J, leg rates for every state n and solve for ``out``.
 
     data = [m_p, I_p(3), m_f, l_f, m_m, l_m, I_axial, I_transverse, g].
     rate: RPY-angle rates, or the twist (v, w) when twist_speeds.
     arg: pose_acc (or twist acceleration) for ID, leg forces for FD.
     out: forces (ID) or pose_acc (twist acceleration when twist_speeds) (FD).
+    length, ldot: leg lengths and rates.
     det: det(J) of each state, for the singularity check.
     """
     m_p, g0 = data[0], data[10]
@@ -191,6 +192,7 @@ def kane(base_joints, platform_joints, data, pose, rate, arg, base_pose, base_ra
             sd = _lin(1.0 / l, va, -ld / l, s)
             rs = _cross(rho, s)
             ldot[n, j] = ld
+            length[n, j] = l
             for k in range(3):
                 J[n, j, k] = s[k]
                 J[n, j, 3 + k] = rs[k]
@@ -275,3 +277,45 @@ def kane(base_joints, platform_joints, data, pose, rate, arg, base_pose, base_ra
                 rpy_acc = _rpy_rate(pose[n, 3:6], (x[3] - wd0[0], x[4] - wd0[1], x[5] - wd0[2]))
                 out[n, 0], out[n, 1], out[n, 2] = x[0], x[1], x[2]
                 out[n, 3], out[n, 4], out[n, 5] = rpy_acc
+
+
+@njit(cache=True)
+def _rhs(bj, pj, data, x, forces, base0, t0, t, base_mode, legs, base, M, h, J, ldot, length,
+         out, det, dx):
+    """dx/dt of the state x = [pose, twist] with the base extrapolated from base0 at t0
+    (second-order Taylor); returns |det J|."""
+    tau = t - t0
+    for k in range(6):
+        base[0, 0, k] = base0[0, k] + tau * base0[1, k] + 0.5 * tau * tau * base0[2, k]
+        base[1, 0, k] = base0[1, k] + tau * base0[2, k]
+        base[2, 0, k] = base0[2, k]
+    kane(bj, pj, data, x[:6].reshape((1, 6)), x[6:].reshape((1, 6)), forces, base[0], base[1],
+         base[2], base_mode, legs, True, FD, M, h, J, ldot, length, out, det)
+    rpy_rate = _rpy_rate(x[3:6], (x[9], x[10], x[11]))
+    for k in range(3):
+        dx[k] = x[6 + k]
+        dx[3 + k] = rpy_rate[k]
+    for k in range(6):
+        dx[6 + k] = out[0, k]
+    return abs(det[0])
+
+
+@njit(cache=True)
+def rhs(bj, pj, data, x, forces, base0, t0, t, base_mode, legs):
+    """dx/dt and |det J| of one state: for implicit integrators and tests."""
+    dx = np.empty(12)
+    det = _rhs(bj, pj, data, x, forces, base0, t0, t, base_mode, legs, np.empty((3, 1, 6)),
+               np.empty((1, 6, 6)), np.empty((1, 6)), np.empty((1, 6, 6)), np.empty((1, 6)),
+               np.empty((1, 6)), np.empty((1, 6)), np.empty(1), dx)
+    return dx, det
+
+
+@njit(cache=True)
+def leg_state(bj, pj, data, x):
+    """Leg lengths, leg rates and RPY-angle rates of the state x = [pose, twist]."""
+    M, h, J = np.empty((1, 6, 6)), np.empty((1, 6)), np.empty((1, 6, 6))
+    ldot, length, out, det = np.empty((1, 6)), np.empty((1, 6)), np.empty((1, 6)), np.empty(1)
+    zero = np.zeros((1, 6))
+    kane(bj, pj, data, x[:6].reshape((1, 6)), x[6:].reshape((1, 6)), zero, zero, zero, zero,
+         BASE_NONE, False, True, TERMS, M, h, J, ldot, length, out, det)
+    return length[0], ldot[0], np.array(_rpy_rate(x[3:6], (x[9], x[10], x[11])))

@@ -239,9 +239,9 @@ def _run(params, pose, rate, arg, base, fidelity, solve, twist_speeds=False, arg
     n = states[0].shape[0]
     base = [np.zeros((n, 6)) if np.ndim(x) == 0 else flat(x) for x in base]
     M, h, J = np.empty((n, 6, 6)), np.empty((n, 6)), np.empty((n, 6, 6))
-    ldot, out, det = np.empty((n, 6)), np.empty((n, 6)), np.empty(n)
+    ldot, length, out, det = np.empty((n, 6)), np.empty((n, 6)), np.empty((n, 6)), np.empty(n)
     kane.kane(params.base_joints, params.platform_joints, params.kernel_data, *states, *base,
-              base_mode, legs, twist_speeds, solve, M, h, J, ldot, out, det)
+              base_mode, legs, twist_speeds, solve, M, h, J, ldot, length, out, det)
     batch = shape[:-1]
     terms = DynamicsTerms(M.reshape(batch + (6, 6)), h.reshape(batch + (6,)),
                           J.reshape(batch + (6, 6)), ldot.reshape(batch + (6,)),
