@@ -249,7 +249,8 @@ def forward_position(P, rho):
 
 def assembly_mode(P, rho, p_near):
     """The mode (+1/-1) whose O' is nearest p_near."""
-    modes = [m for m in (1, -1) if not any(np.any(b) for b, _ in _forward(P, _finite("rho", rho), m)[2])]
+    rho = _finite("rho", rho).reshape(3)
+    modes = [m for m in (1, -1) if not any(np.any(b) for b, _ in _forward(P, rho, m)[2])]
     if not modes:
         forward_position(P, rho)  # raises with the reasons
     p_near = _finite("p_near", p_near)
@@ -351,9 +352,10 @@ class SingularityReport:
 
 def singularity(P, rho, mode=1, tol=SINGULAR_TOL):
     """Classify one configuration and measure its distance to the nearest output singularity."""
-    j_o, j_i = jacobians(P, _finite("rho", rho).reshape(3), mode)
+    rho = _finite("rho", rho).reshape(3)
+    j_o, j_i = jacobians(P, rho, mode)
     det_o, det_i = float(np.linalg.det(j_o)), float(np.linalg.det(j_i))
-    theta = _forward(P, np.asarray(rho, float), mode)[0]
+    theta = _forward(P, rho, mode)[0]
     at_w0 = (P.e - P.a - rho[0]) / P.l4  # cos theta where W = 0
     candidates = [0.0, np.pi] + ([float(np.arccos(at_w0))] if abs(at_w0) <= 1 else [])
     kind = {(False, False): "regular", (True, False): "input", (False, True): "output",

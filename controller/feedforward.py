@@ -1,0 +1,40 @@
+"""Model feedforward for the hexapod's leg forces, and reference leg lengths and rates.
+
+The feedforward supplies the force the reference motion needs (gravity above all: about
+5.2 kN of tension per leg at rest), so the PID only corrects model and tracking errors.
+The mode says how much of the base motion the controller knows about:
+
+* ``"none"``: zero; the PID's integrator has to find even the gravity load.
+* ``"fixed_base"``: inverse dynamics with the base ignored (gravity fixed in {B}), the
+  model a controller unaware of the telescope's motion would use.
+* ``"moving_base"``: full inverse dynamics with the measured or commanded base motion.
+"""
+import numpy as np
+
+from plant.stewart import inverse_dynamics, inverse_kinematics, pose_jacobian
+
+FEEDFORWARD_MODES = ("none", "fixed_base", "moving_base")
+
+
+def feedforward_forces(params, mode, pose, pose_rate, pose_acc, base_pose=0, base_rate=0, base_acc=0):
+    """Leg forces (..., 6) [N] for the reference motion (pose, rate, acc of {P} in {B}) and
+    the base motion ({B} in {W}); positive extends the leg."""
+    if mode not in FEEDFORWARD_MODES:
+        raise ValueError(f"unknown feedforward mode {mode!r}; choose one of {FEEDFORWARD_MODES}")
+    if mode == "none":
+        return np.zeros(np.shape(pose))
+    if mode == "fixed_base":
+        return inverse_dynamics(params, pose, pose_rate, pose_acc, fidelity="no_base")
+    return inverse_dynamics(params, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc,
+                            fidelity="full")
+
+
+def reference_legs(params, pose, pose_rate):
+    """Reference leg lengths and leg rates (..., 6) of a reference pose trajectory
+    (pose and its RPY-angle rates, (..., 6)): l = IK(pose), dl/dt = dl/d(pose) @ rate."""
+    pose_rate = np.asarray(pose_rate, dtype=float)
+    if not np.isfinite(pose_rate).all():
+        raise ValueError("pose_rate contains NaN or inf")
+    lengths = inverse_kinematics(params, pose)
+    rates = (pose_jacobian(params, pose) @ pose_rate[..., None])[..., 0]
+    return lengths, rates

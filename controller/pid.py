@@ -1,0 +1,72 @@
+"""Per-leg PID on leg length, vectorised over the legs, with explicit state.
+
+The state is one array, the integral of the length error [m s] per leg, so an FMU can
+save and restore it bit for bit. One step is
+
+    e = reference_length - length,   de = reference_rate - rate
+    I' = I + dt e                    (backward Euler: the current error counts)
+    F = clip(feedforward + kp e + ki I' + kd de, -force_limit, +force_limit)
+
+The derivative acts on measured leg rates (the actuator's velocity signal), never on a
+differenced length, so noise on the lengths is not amplified by 1/dt.
+
+Anti-windup: conditional integration (clamping). A leg's integral does not move on a
+step where the unclamped force is beyond the limit and the error pushes it further out;
+it keeps integrating when the error pulls the force back. Chosen over back-calculation
+because it needs no tracking time constant, and because back-calculation's discrete
+tracking gain dt/T_t would make the anti-windup behave differently (and overshoot once
+dt approaches T_t) as the co-simulation master changes the communication step.
+
+The force limit (default 50 kN per leg) is an assumption: the paper gives no actuator
+rating; 50 kN is about ten times the static leg load (~5.2 kN) and three times the
+largest load change the paper reports for its moving-base stress case (~14 kN).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+DEFAULT_FORCE_LIMIT = 50e3  # N per leg (assumed, see module docstring)
+
+
+@dataclass(frozen=True)
+class PIDGains:
+    """The same gains on every leg (the hexapod is symmetric): kp [N/m], ki [N/(m s)],
+    kd [N s/m], force_limit [N] (saturation at +-force_limit)."""
+
+    kp: float
+    ki: float
+    kd: float
+    force_limit: float = DEFAULT_FORCE_LIMIT
+
+    def __post_init__(self):
+        for name in ("kp", "ki", "kd"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"gain {name} must be finite and >= 0, got {value}")
+        if not (np.isfinite(self.force_limit) and self.force_limit > 0):
+            raise ValueError(f"force_limit must be finite and > 0, got {self.force_limit}")
+
+
+def _signal(value, name):
+    value = np.asarray(value, dtype=float)
+    if not np.isfinite(value).all():
+        raise ValueError(f"{name} contains NaN or inf: {value}")
+    return value
+
+
+def pid_step(gains, integral, reference_length, reference_rate, length, rate, feedforward, dt):
+    """One controller step: returns (force, new_integral), both shaped like the legs.
+
+    ``integral`` is the state (zeros at start); it is not modified in place."""
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"time step must be finite and > 0, got {dt}")
+    integral = _signal(integral, "integral state")
+    error = _signal(reference_length, "reference length") - _signal(length, "measured length")
+    error_rate = _signal(reference_rate, "reference rate") - _signal(rate, "measured rate")
+    fixed = _signal(feedforward, "feedforward") + gains.kp * error + gains.kd * error_rate
+    candidate = integral + dt * error
+    unclamped = fixed + gains.ki * candidate
+    winding = (np.abs(unclamped) > gains.force_limit) & (error * unclamped > 0)
+    new_integral = np.where(winding, integral, candidate)
+    force = np.clip(fixed + gains.ki * new_integral, -gains.force_limit, gains.force_limit)
+    return force, new_integral

@@ -1,0 +1,124 @@
+"""What every FMU of the kit shares: guarded stepping, vector variables with units.
+
+Why guarded: an exception escaping do_step gives fmi2Fatal, and the next doStep then
+crashes the importing process (shared/spec/fmi-notes.md). Every error is caught here,
+logged at error level with what went wrong and when, and answered with fmi2Discard
+(do_step returns False); the slave then stays failed and refuses further steps.
+
+Units: pythonfmu writes no units, so each variable's unit is recorded here and build.py
+adds them (with mm / deg display units) to modelDescription.xml.
+
+The FMU scripts import this module from the installed `movingbase` package (not from
+the FMU's resources): one copy in the process, and the plant's compiled kernels stay
+cached on disk instead of recompiling in every extracted FMU.
+"""
+import numpy as np
+from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability
+from pythonfmu.enums import Fmi2Status
+from pythonfmu.variables import Integer, Real
+
+PARAMETER, INPUT, OUTPUT = Fmi2Causality.parameter, Fmi2Causality.input, Fmi2Causality.output
+DISPLAY_UNITS = {"m": "mm", "rad": "deg", "m/s": "mm/s", "rad/s": "deg/s",
+                 "m/s2": "mm/s2", "rad/s2": "deg/s2"}
+POSE_UNITS = ("m", "m", "m", "rad", "rad", "rad")
+
+
+def rate_units(units):
+    return tuple(u + "/s" for u in units)
+
+
+def acc_units(units):
+    return tuple(u + "/s2" for u in units)
+
+
+class GuardedSlave(Fmi2Slave):
+    """A pythonfmu slave that never lets an exception reach the importer."""
+
+    author = "movingbase"
+    license = "MIT"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.units = {}
+        self.failure = ""
+        self.arrays = {}   # name -> numpy array saved with the FMU state
+
+    # ---------------------------------------------------------------- variables
+    def real(self, name, causality, description, unit, start=0.0, getter=None, setter=None):
+        """Register one Real; parameters are fixed, inputs/outputs continuous."""
+        variability = Fmi2Variability.fixed if causality == PARAMETER else Fmi2Variability.continuous
+        initial = Fmi2Initial.exact if causality == OUTPUT else None
+        var = Real(name, causality=causality, description=description, variability=variability,
+                   initial=initial, start=start, getter=getter, setter=setter)
+        self.register_variable(var, nested=False)
+        if unit:
+            self.units[name] = unit
+
+    def vector(self, name, size, causality, description, units, start=None):
+        """Register name[1..size] backed by a numpy array kept in self.arrays[name]."""
+        values = np.zeros(size) if start is None else np.array(start, dtype=float)
+        self.arrays[name] = values
+        units = (units,) * size if isinstance(units, str) else units
+        labels = description if isinstance(description, (list, tuple)) else [description] * size
+        for i in range(size):
+            setter = None if causality == OUTPUT else (lambda v, i=i: values.__setitem__(i, v))
+            self.real(f"{name}[{i + 1}]", causality, labels[i], units[i], float(values[i]),
+                      getter=lambda i=i: values[i], setter=setter)
+        return values
+
+    def integer(self, name, description, start):
+        setattr(self, name, start)
+        self.register_variable(Integer(name, causality=PARAMETER, variability=Fmi2Variability.fixed,
+                                       description=description, start=start))
+
+    # ----------------------------------------------------------------- guarding
+    def fail(self, exc, when):
+        self.failure = f"{type(exc).__name__} {when}: {exc}"
+        self.log(self.failure, Fmi2Status.error, "logStatusError")
+
+    def exit_initialization_mode(self):
+        try:
+            self.initialize()
+        except Exception as exc:   # noqa: BLE001 - reported through FMI status, see module doc
+            self.fail(exc, "in initialization")
+
+    def do_step(self, current_time, step_size):
+        if self.failure:
+            self.log(f"refusing doStep at t={current_time:.6g} s after: {self.failure}",
+                     Fmi2Status.error, "logStatusError")
+            return False
+        try:
+            self.step(current_time, step_size)
+            return True
+        except Exception as exc:   # noqa: BLE001 - reported through FMI status, see module doc
+            self.fail(exc, f"at t={current_time:.6g} s")
+            return False
+
+    def initialize(self):
+        """Compute the outputs at the start time (after parameters are set)."""
+
+    def step(self, t, h):
+        raise NotImplementedError
+
+    # -------------------------------------------------------------------- state
+    def _get_fmu_state(self):
+        state = super()._get_fmu_state()
+        state["__arrays__"] = {k: v.copy() for k, v in self.arrays.items()}
+        state["__extra__"] = self.extra_state()
+        state["__failure__"] = self.failure
+        return state
+
+    def _set_fmu_state(self, state):
+        state = dict(state)
+        for k, v in state.pop("__arrays__").items():
+            self.arrays[k][:] = v
+        self.set_extra_state(state.pop("__extra__"))
+        self.failure = state.pop("__failure__")
+        super()._set_fmu_state(state)
+
+    def extra_state(self):
+        """Internal state beyond the registered variables (integrator state)."""
+        return None
+
+    def set_extra_state(self, extra):
+        pass

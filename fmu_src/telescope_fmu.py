@@ -1,0 +1,89 @@
+"""FMU: telescope pointing as a base-motion source for the hexapod.
+
+Outputs the motion of the hexapod's base {B} in {W} (pose, rates, accelerations), the
+axis angles, and the platform's reference pose (home + the elevation-dependent
+subreflector correction) with its derivatives, all analytic (plant.telescope).
+"""
+from dataclasses import replace
+from datetime import datetime, timezone
+
+import numpy as np
+
+from fmu_src.slave import OUTPUT, PARAMETER, POSE_UNITS, GuardedSlave, acc_units, rate_units
+from plant import telescope
+
+PROFILES = ("slew", "sidereal", "paper")
+POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
+
+
+class TelescopeBase(GuardedSlave):
+    description = "Alt-azimuth telescope pointing (slew, sidereal tracking, paper manoeuvre) -> hexapod base motion"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        tianma = telescope.TelescopeParams.tianma()
+        self.integer("profile", "motion profile: " + ", ".join(f"{i} {p}" for i, p in enumerate(PROFILES)), 0)
+        self.settings = {}
+        for name, unit, default, text in (
+            ("start_azimuth", "rad", 0.0, "slew start azimuth"),
+            ("start_elevation", "rad", np.radians(30.0), "slew start elevation"),
+            ("target_azimuth", "rad", np.radians(90.0), "slew target azimuth"),
+            ("target_elevation", "rad", np.radians(60.0), "slew target elevation"),
+            ("az_rate_max", "rad/s", tianma.az_rate_max, "azimuth rate limit (assumed)"),
+            ("az_acc_max", "rad/s2", tianma.az_acc_max, "azimuth acceleration limit (assumed)"),
+            ("el_rate_max", "rad/s", tianma.el_rate_max, "elevation rate limit (assumed)"),
+            ("el_acc_max", "rad/s2", tianma.el_acc_max, "elevation acceleration limit (assumed)"),
+            ("lever_arm", "m", tianma.lever_arm, "axis intersection to base along boresight (assumed)"),
+            ("latitude", "rad", tianma.latitude, "site latitude"),
+            ("longitude", "rad", tianma.longitude, "site longitude (east +)"),
+            ("right_ascension", "rad", 0.0, "tracked source right ascension (apparent, of date)"),
+            ("declination", "rad", tianma.latitude + np.radians(0.2), "tracked source declination"),
+            ("utc_start", "s", 1.7e9, "UTC at t = 0, seconds since 1970-01-01"),
+            ("paper_duration", "s", 6.0, "duration of the paper's stress manoeuvre"),
+        ):
+            self.settings[name] = default
+            self.real(name, PARAMETER, text, unit, default,
+                      getter=lambda n=name: self.settings[n],
+                      setter=lambda v, n=name: self.settings.__setitem__(n, v))
+        pose_desc = lambda prefix: [f"{prefix} {n}" for n in POSE_NAMES]
+        self.base_pose = self.vector("base_pose", 6, OUTPUT, pose_desc("base, in {W},"), POSE_UNITS)
+        self.base_rate = self.vector("base_rate", 6, OUTPUT, pose_desc("d/dt base"), rate_units(POSE_UNITS))
+        self.base_acc = self.vector("base_acc", 6, OUTPUT, pose_desc("d2/dt2 base"), acc_units(POSE_UNITS))
+        self.axes = self.vector("axis", 2, OUTPUT, ["azimuth", "elevation"], "rad")
+        self.axis_rates = self.vector("axis_rate", 2, OUTPUT, ["azimuth rate", "elevation rate"], "rad/s")
+        self.ref_pose = self.vector("reference_pose", 6, OUTPUT, pose_desc("platform reference, in {B},"),
+                                    POSE_UNITS, tianma.home)
+        self.ref_rate = self.vector("reference_rate", 6, OUTPUT, pose_desc("d/dt reference"), rate_units(POSE_UNITS))
+        self.ref_acc = self.vector("reference_acc", 6, OUTPUT, pose_desc("d2/dt2 reference"), acc_units(POSE_UNITS))
+
+    def initialize(self):
+        s = self.settings
+        kind = PROFILES[self.profile]
+        self.params = replace(telescope.TelescopeParams.tianma(), lever_arm=s["lever_arm"],
+                              latitude=s["latitude"], longitude=s["longitude"],
+                              az_rate_max=s["az_rate_max"], az_acc_max=s["az_acc_max"],
+                              el_rate_max=s["el_rate_max"], el_acc_max=s["el_acc_max"])
+        if kind == "slew":
+            start = (s["start_azimuth"], s["start_elevation"])
+            target = (s["target_azimuth"], s["target_elevation"])
+            self.profile_at = lambda t: telescope.slew(self.params, start, target, t)
+        elif kind == "sidereal":
+            utc = datetime.fromtimestamp(s["utc_start"], tz=timezone.utc)
+            self.profile_at = lambda t: telescope.sidereal_track(
+                self.params, s["right_ascension"], s["declination"], utc, t)
+        else:
+            self.profile_at = lambda t: telescope.paper_manoeuvre(t, s["paper_duration"])
+        self._publish(0.0)
+
+    def step(self, t, h):
+        self._publish(t + h)
+
+    def _publish(self, t):
+        axes = self.profile_at(np.array([t]))
+        base = telescope.base_motion(self.params, axes)
+        ref = telescope.reference_pose(self.params, axes)
+        for target, value in zip((self.base_pose, self.base_rate, self.base_acc, self.ref_pose,
+                                  self.ref_rate, self.ref_acc), (*base, *ref)):
+            target[:] = value[0]
+        self.axes[:] = axes.A[0], axes.E[0]
+        self.axis_rates[:] = axes.A_dot[0], axes.E_dot[0]
