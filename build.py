@@ -90,10 +90,15 @@ def build(script, out):
     return fmu
 
 
+def available():
+    """The FMU scripts present in fmu_src/."""
+    return [s for s in SCRIPTS if (ROOT / "fmu_src" / f"{s}.py").exists()]
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=str(ROOT / "build" / "fmu"), help="output folder")
-    parser.add_argument("names", nargs="*", default=[s for s in SCRIPTS if (ROOT / "fmu_src" / f"{s}.py").exists()],
+    parser.add_argument("names", nargs="*", default=available(),
                         help="FMU scripts to build (default: all)")
     args = parser.parse_args(argv)
     out = pathlib.Path(args.out)

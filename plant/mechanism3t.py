@@ -25,6 +25,8 @@ Conventions (spec /work/shared/spec/mechanism-3t.md; SI inside: m, rad, kg, N)
   so points the paper calls reachable but that those limbs cannot reach raise
   ``UnreachableError``.  Their knees point outward (knee sign -1: the B_iC_i angle is the
   B_iD_i angle minus the triangle angle), the assembly that the paper's Table 1 implies.
+- Single loop (paper 1.2): same a, b, d, l1 and l2 = 220, l3 = 160 mm (the spec's fix of
+  the swapped lengths in 1.2.3); theta (of B1C1 to +x) is an input, limb II must close.
 - Singularities from J_o v = J_i rho_dot with the constraint rows
   f1 = x - x_A2, f2 = y - y_A1 - d, f3 = cos(theta) (W^2 + V^2 - l6^2) / (2 l6),
   V = y - y_A3:  J_o = [[1,0,0],[0,1,0],[W c/l6, V c/l6, -W s/l6]], J_i = diag(1, 1, V c/l6).
@@ -44,12 +46,12 @@ Dynamics (paper 4) by the virtual-work principle, F . delta_rho = sum over bodie
   (9.2 kg, taken to include the bar D1D2 and the arm E3O') and the 10 kg payload only
   translate, so where their mass sits and their inertias do not matter.
 - Table 1 inertias are about the axes of O at the numerical-check configuration, not about
-  the centres of mass: with mid-link centres the parallel-axis terms reproduce them to
-  within 1-5 % (B1C1 and B2C2, identical links, leave the same 19.8e3 kg mm^2 about their
-  swing axes), and a 220 mm link cannot have 0.5 kg m^2 about its own centre.  So each
-  rotating link's own inertia about its swing axis (y for limbs I and III, x for limb II,
-  z for D3E3) is the table value minus m * (distance of the mid-link point from that axis
-  of O)^2 at that configuration.  For D3E3 this leaves only 335 kg mm^2 (a slender rod
+  the centres of mass: with mid-link centres the parallel-axis terms reproduce every entry
+  within 6 % (B1C1 and B2C2, identical links, leave the same 19.8e3 kg mm^2 about their
+  swing axes), and a 220 mm, 4 kg link cannot have 0.5 kg m^2 about its own centre (at
+  most m (L/2)^2 = 0.05 kg m^2).  So each rotating link's own inertia about its swing axis
+  (y for limbs I and III, x for limb II, z for D3E3) is the table value minus
+  m * (distance of the mid-link point from that axis of O)^2 at that configuration.  For D3E3 this leaves only 335 kg mm^2 (a slender rod
   would have 7.3e3) and its Iyy residual is negative, so its centre is likely not
   mid-link; C3D3's residuals are negative too but it only translates.  Products of
   inertia do no work for these fixed-axis rotations.
@@ -96,7 +98,9 @@ class NonFiniteInputError(MechanismError):
 
 @dataclass(frozen=True)
 class Mechanism1Params:
-    """Dimensions (m), masses (kg), own inertias about the swing axes (kg m^2), gravity."""
+    """Dimensions (m), masses (kg), own inertias about the swing axes through the centres (kg m^2),
+    knee signs of the passive limbs I and II (-1: B_iC_i turned clockwise from B_iD_i in the
+    (x or y, z) plane, i.e. knee outward), gravity (m/s^2) and actuator ranges (m)."""
     a: float
     b: float
     d: float
@@ -142,7 +146,7 @@ class Mechanism1Params:
         for name, axis in SWING_AXIS.items():
             r = centres[name]
             at_o = PAPER_INERTIA_AT_O[name][axis] * KG_MM2
-            own["i_" + name] = at_o - getattr(base, "m_" + name) * (r @ r - r[axis] ** 2)
+            own["i_" + name] = float(at_o - getattr(base, "m_" + name) * (r @ r - r[axis] ** 2))
         return replace(base, **own)
 
 
@@ -151,6 +155,10 @@ def _finite(name, value):
     if not np.all(np.isfinite(arr)):
         raise NonFiniteInputError(f"{name} contains NaN or inf")
     return arr
+
+
+def _inputs(rho, rho_dot, rho_ddot):
+    return np.broadcast_arrays(*(_finite(n, v) for n, v in (("rho", rho), ("rho_dot", rho_dot), ("rho_ddot", rho_ddot))))
 
 
 def _eq8_disc(u, w, l_in, l_out):
@@ -240,8 +248,10 @@ def forward_position(P, rho):
     for mode in (1, -1):
         _, p, violations = _forward(P, rho, mode)
         failed = [message for bad, message in violations if bad]
-        found += [] if failed else [p]
-        reasons += [f"mode {mode:+d}: {failed[0]}"] if failed else []
+        if failed:
+            reasons.append(f"mode {mode:+d}: {failed[0]}")
+        else:
+            found.append(p)
     if not found:
         raise UnreachableError("; ".join(reasons))
     return np.array(found)
@@ -288,8 +298,7 @@ def inverse_position(P, p):
 def _limb3_motion(P, rho, rho_dot, rho_ddot, mode):
     """(theta, W, V, O') each as (value, rate, acceleration), by differentiating W^2 + V^2 = l6^2."""
     _check_mode(mode)
-    rho, rho_dot, rho_ddot = np.broadcast_arrays(*(_finite(n, v) for n, v in
-                                                  (("rho", rho), ("rho_dot", rho_dot), ("rho_ddot", rho_ddot))))
+    rho, rho_dot, rho_ddot = _inputs(rho, rho_dot, rho_ddot)
     theta, p, violations = _forward(P, rho, mode)
     _raise_first(violations)
     x_d, y1_d, y3_d = np.moveaxis(rho_dot, -1, 0)
@@ -319,12 +328,14 @@ def velocity(P, rho, rho_dot, mode=1):
 
 
 def acceleration(P, rho, rho_dot, rho_ddot, mode=1):
-    """Acceleration of O' (..., 3) (eq. 15, J_o^-1 (J_i rho_ddot - K0))."""
+    """Acceleration of O' (..., 3) (eq. 15, J_o^-1 (J_i rho_ddot - K0)); with rho_ddot = 0 it is the
+    velocity-product term -J_o^-1 K0."""
     return _limb3_motion(P, rho, rho_dot, rho_ddot, mode)[3][2]
 
 
 def jacobians(P, rho, mode=1):
     """(J_o, J_i), each (..., 3, 3), dimensionless, with J_o v = J_i rho_dot (see module docstring)."""
+    _check_mode(mode)
     rho = _finite("rho", rho)
     theta, p, violations = _forward(P, rho, mode)
     _raise_first(violations)
@@ -425,8 +436,8 @@ def _along(base, angle, length, u_axis, w_axis):
 
 def _bodies(P, rho, rho_dot, rho_ddot, mode):
     """name -> (mass, own inertia about swing axis, centre (pos, vel, acc), swing angle jet or None)."""
+    rho, rho_dot, rho_ddot = _inputs(rho, rho_dot, rho_ddot)
     theta, (w, w_d, w_dd), (v, v_d, v_dd), o = _limb3_motion(P, rho, rho_dot, rho_ddot, mode)
-    rho, rho_dot, rho_ddot = np.broadcast_arrays(rho, rho_dot, rho_ddot)
     x, y, z = (tuple(j[..., i] for j in o) for i in range(3))
     psi = (np.arctan2(v, w), (w * v_d - v * w_d) / P.l6 ** 2, (w * v_dd - v * w_dd) / P.l6 ** 2)
     th1, be1 = _two_link(((x[0] - P.a, x[1], x[2]), (z[0] - P.l1, z[1], z[2])), P.l2, P.l3, P.knee_1, "limb I")
@@ -469,8 +480,7 @@ def energy(P, rho, rho_dot, mode=1):
 
 def slider_forces(P, rho, rho_dot, rho_ddot, mode=1):
     """Actuator forces (..., 3) in N on the sliders (x_A2, y_A1, y_A3) along +x, +y, +y (virtual work)."""
-    rho, rho_dot, rho_ddot = np.broadcast_arrays(*(_finite(n, v) for n, v in
-                                                  (("rho", rho), ("rho_dot", rho_dot), ("rho_ddot", rho_ddot))))
+    rho, rho_dot, rho_ddot = _inputs(rho, rho_dot, rho_ddot)
     moving = _bodies(P, rho, rho_dot, rho_ddot, mode)
     unit = np.broadcast_to(np.eye(3), rho.shape[:-1] + (3, 3))  # rho_dot = e_i gives the velocity Jacobians
     virtual = _bodies(P, rho[..., None, :], unit, np.zeros(3), mode)

@@ -67,6 +67,20 @@ def test_forward_of_inverse_is_identity_for_every_branch():
         done += 1
 
 
+def test_single_loop_round_trip():
+    rng = np.random.default_rng(6)
+    done = 0
+    while done < 1000:
+        p = rng.uniform([-0.1, -0.3, 0.0], [0.66, 0.44, 0.5])
+        try:
+            branches = m3t.single_loop_inverse(P, p)
+        except m3t.UnreachableError:
+            continue
+        for x_A2, y_A1, theta in branches:
+            assert np.min(np.linalg.norm(m3t.single_loop_forward(P, x_A2, y_A1, theta) - p, axis=1)) < 1e-10
+        done += 1
+
+
 def test_inverse_of_forward_contains_the_input():
     rng = np.random.default_rng(2)
     for rho in RHO_REF + rng.uniform(-0.15, 0.15, (1500, 3)):

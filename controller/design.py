@@ -1,0 +1,201 @@
+"""Controller design with python-control: linearised plant, decoupled PID gains, and the
+stability of the sampled MIMO loop against the co-simulation's communication step.
+
+Timing model of the co-simulation (Jacobi master, step h): at t_k the master hands the
+plant's leg lengths and rates y_k to the controller and the controller's output, computed
+during its previous step from y_{k-1}, to the plant, which holds it (zero-order hold)
+over [t_k, t_k + h). So the loop has a ZOH and one step of delay:
+x_{k+1} = Ad x_k + Bd u_{k-1}, u_k = PID(y_k). The PID is discretised exactly as
+controller.pid does it (backward-Euler integral, derivative on the sampled leg rates).
+
+Decoupling: with the same PID on every leg, the leg-space loop is
+PID(s) M_leg^-1 / s^2 (M_leg = J^-T M J^-1, gravity stiffness neglected), which
+diagonalises exactly in the eigenvectors of the symmetric M_leg: each eigenvalue is one
+SISO loop PID(s) / (m_j s^2). The design therefore sets crossover and phase margin on
+the heaviest mode (largest eigenvalue; the diagonal, 1.85 t at home, is an average that
+hides the spread 0.59-3.42 t) and checks the margins of every mode: lighter modes cross
+over higher, where the PID has more phase lead but the delay eats more, and they set
+the gain margin.
+"""
+from dataclasses import dataclass
+
+import control
+import numpy as np
+
+from plant.stewart import HOME_POSE, dynamics_terms, forward_dynamics, inverse_dynamics, pose_jacobian
+
+from .pid import DEFAULT_FORCE_LIMIT, PIDGains
+
+# Shipped design (see default_gains): crossover of the heaviest leg-space mode and its
+# phase margin, integral zero a factor 5 below crossover.
+DEFAULT_CROSSOVER_HZ = 8.0
+DEFAULT_PHASE_MARGIN_DEG = 60.0
+DEFAULT_INTEGRAL_RATIO = 5.0
+
+_AXES = ("x", "y", "z", "roll", "pitch", "yaw")
+
+
+@dataclass(frozen=True)
+class Design:
+    """PID gains and what they achieve at the communication step ``comm_step`` [s].
+
+    Margins of the design loop (heaviest mode, mass ``design_mass`` [kg]): gain crossover
+    [Hz], phase margin [deg], gain margin [dB] (gain increase to instability) and lower gain
+    margin [dB] (gain decrease to instability: PID on a double integrator is conditionally
+    stable). ``modal_*``: the worst phase and (upper) gain margin over all leg-space modes
+    ``modal_masses`` [kg]."""
+
+    gains: PIDGains
+    comm_step: float
+    design_mass: float
+    crossover_hz: float
+    phase_margin_deg: float
+    gain_margin_db: float
+    lower_gain_margin_db: float
+    modal_masses: np.ndarray
+    modal_phase_margin_deg: float
+    modal_gain_margin_db: float
+
+
+def linearised_plant(params, pose=HOME_POSE, step=1e-6):
+    """Continuous StateSpace of the hexapod about static equilibrium at ``pose`` (fixed base).
+
+    States: pose deviation [x, y, z, roll, pitch, yaw] and its rate (12); inputs: leg force
+    deviations from the forces that hold the platform at rest (6); outputs: leg length
+    deviations (6). A and B by central differences of forward_dynamics (``step`` in m, rad,
+    m/s, rad/s; 1 N for forces, in which the accelerations are linear)."""
+    pose = np.asarray(pose, dtype=float)
+    rest = np.zeros(6)
+    hold = inverse_dynamics(params, pose, rest, rest)
+    zero, delta, push = np.zeros((6, 6)), step * np.eye(6), np.eye(6)
+    # Perturbation blocks: +-pose, +-rate, +-force.
+    poses = pose + np.concatenate([delta, -delta, zero, zero, zero, zero])
+    rates = np.concatenate([zero, zero, delta, -delta, zero, zero])
+    forces = hold + np.concatenate([zero, zero, zero, zero, push, -push])
+    acc = forward_dynamics(params, poses, rates, forces).reshape(3, 2, 6, 6)
+    d_pose, d_rate, d_force = ((acc[:, 0] - acc[:, 1]) / (2 * np.array([step, step, 1.0]))[:, None, None]
+                               ).transpose(0, 2, 1)
+    A = np.block([[zero, np.eye(6)], [d_pose, d_rate]])
+    B = np.vstack([zero, d_force])
+    C = np.hstack([pose_jacobian(params, pose), zero])
+    return control.ss(A, B, C, np.zeros((6, 6)), name="hexapod",
+                      states=[f"d{a}" for a in _AXES] + [f"d{a}_rate" for a in _AXES],
+                      inputs=[f"dF{i}" for i in range(1, 7)], outputs=[f"dl{i}" for i in range(1, 7)])
+
+
+def leg_mass_matrix(params, pose=HOME_POSE):
+    """M_leg = J^-T M J^-1 (6, 6) [kg]: the mass the leg forces accelerate, in leg space."""
+    terms = dynamics_terms(params, pose, np.zeros(6))
+    inverse = np.linalg.inv(terms.jacobian)
+    return inverse.T @ terms.mass @ inverse
+
+
+def leg_loop(mass, gains, comm_step):
+    """Discrete SISO loop transfer of one leg mode 1/(mass s^2): ZOH plant with sampled
+    length and rate, the PID of controller.pid, one step of delay."""
+    plant = control.c2d(control.ss([[0, 1], [0, 0]], [[0], [1 / mass]], np.eye(2), 0), comm_step, "zoh")
+    pid = control.ss([[1.0]], [[comm_step, 0.0]], [[gains.ki]],
+                     [[gains.kp + gains.ki * comm_step, gains.kd]], comm_step)
+    delay = control.ss([[0.0]], [[1.0]], [[1.0]], [[0.0]], comm_step)
+    return delay * pid * plant
+
+
+def loop_margins(loop, points=4000):
+    """(gain crossover [rad/s], phase margin [deg], upper and lower gain margin [ratio]) of a
+    discrete SISO loop, from its frequency response up to Nyquist.
+
+    Uses python-control's FRD margins: its polynomial method finds spurious crossings near
+    the loop's triple pole at z = 1. With several gain crossovers, the one with the smallest
+    phase margin counts. Lower gain margin 0 means there is none."""
+    nyquist = np.pi / loop.dt
+    omega = np.geomspace(1e-4 * nyquist, 0.999 * nyquist, points)
+    gm, pm, _, _, wgc, _ = control.stability_margins(control.FRD(loop, omega), returnall=True)
+    gm, pm, wgc = np.atleast_1d(gm), np.atleast_1d(pm), np.atleast_1d(wgc)
+    worst = np.argmin(pm)
+    upper = gm[gm > 1].min(initial=np.inf)
+    lower = gm[gm < 1].max(initial=0.0)
+    return wgc[worst], pm[worst], upper, lower
+
+
+def _db(ratio):
+    with np.errstate(divide="ignore"):
+        return 20 * np.log10(ratio)
+
+
+def design_pid(params, crossover_hz, phase_margin_deg, comm_step, integral_ratio=DEFAULT_INTEGRAL_RATIO,
+               force_limit=DEFAULT_FORCE_LIMIT, pose=HOME_POSE):
+    """PID gains that give the heaviest leg-space mode crossover ``crossover_hz`` with phase
+    margin ``phase_margin_deg`` in the sampled loop (leg_loop), ki = kp w_c / integral_ratio.
+
+    L(w_c) = kp a + kd c is linear in (kp, kd) once ki/kp is fixed, so |L| = 1 and
+    arg L = PM - 180 deg at w_c are solved exactly. Raises ValueError if that needs a
+    negative gain (crossover too high or margin too large for the step)."""
+    masses = np.linalg.eigvalsh(leg_mass_matrix(params, pose))
+    mass = masses[-1]
+    w_c = 2 * np.pi * crossover_hz
+    z = np.exp(1j * w_c * comm_step)
+    a = leg_loop(mass, PIDGains(1.0, w_c / integral_ratio, 0.0), comm_step)(z)
+    c = leg_loop(mass, PIDGains(0.0, 0.0, 1.0), comm_step)(z)
+    target = np.exp(1j * np.radians(phase_margin_deg - 180))
+    kp, kd = np.linalg.solve([[a.real, c.real], [a.imag, c.imag]], [target.real, target.imag])
+    if kp <= 0 or kd <= 0:
+        raise ValueError(f"crossover {crossover_hz} Hz with phase margin {phase_margin_deg} deg is "
+                         f"out of reach at comm step {comm_step} s (kp {kp:.3g}, kd {kd:.3g})")
+    gains = PIDGains(float(kp), float(kp * w_c / integral_ratio), float(kd), force_limit)
+    w_gc, pm, gm, lower = loop_margins(leg_loop(mass, gains, comm_step))
+    modal = np.array([loop_margins(leg_loop(m, gains, comm_step)) for m in masses])
+    return Design(gains, comm_step, float(mass), float(w_gc / (2 * np.pi)), float(pm), float(_db(gm)),
+                  float(_db(lower)), masses, float(modal[:, 1].min()), float(_db(modal[:, 2].min())))
+
+
+def default_gains(params, comm_step=1e-3):
+    """The shipped gains: heaviest mode at 8 Hz crossover with 60 deg phase margin for a
+    controller at ``comm_step`` (see design_pid; at 1 ms every mode keeps >= 60 deg and
+    >= 10 dB)."""
+    return design_pid(params, DEFAULT_CROSSOVER_HZ, DEFAULT_PHASE_MARGIN_DEG, comm_step).gains
+
+
+def _closed_loop_matrix(plant, gains, comm_step):
+    """Transition matrix of z_k = (x_k, u_{k-1}, I_{k-1}): plant state, held force, PID
+    integral, for reference zero and no feedforward (deviations about equilibrium)."""
+    sampled = control.c2d(plant, comm_step, "zoh")
+    lengths = plant.C
+    rates = plant.C @ plant.A  # dl/dt = C (A x + B u) and C B = 0: lengths depend on pose only
+    n, m = plant.nstates, plant.ninputs
+    feedback = (gains.kp + gains.ki * comm_step) * lengths + gains.kd * rates
+    return np.block([
+        [sampled.A, sampled.B, np.zeros((n, m))],
+        [-feedback, np.zeros((m, m)), gains.ki * np.eye(m)],
+        [-comm_step * lengths, np.zeros((m, m)), np.eye(m)],
+    ])
+
+
+def _spectral_radius(plant, gains, comm_step):
+    return np.max(np.abs(np.linalg.eigvals(_closed_loop_matrix(plant, gains, comm_step))))
+
+
+def closed_loop_stable(params, gains, comm_step, pose=HOME_POSE):
+    """(stable, spectral radius) of the sampled closed loop: the full 12-state linearised
+    plant, ZOH, one step of delay and the discrete PID on every leg."""
+    radius = _spectral_radius(linearised_plant(params, pose), gains, comm_step)
+    return bool(radius < 1), float(radius)
+
+
+def max_stable_step(params, gains, pose=HOME_POSE, start=1e-4, rtol=1e-4):
+    """Largest communication step [s] for which closed_loop_stable holds, by bisection.
+
+    Doubles from ``start`` to bracket the boundary; raises ValueError if the loop is
+    unstable already at ``start`` or still stable at 10 s."""
+    plant = linearised_plant(params, pose)
+    stable = lambda h: _spectral_radius(plant, gains, h) < 1
+    if not stable(start):
+        raise ValueError(f"closed loop unstable already at comm step {start} s")
+    low, high = start, 2 * start
+    while stable(high):
+        low, high = high, 2 * high
+        if high > 10:
+            raise ValueError("closed loop stable up to a 10 s comm step: no boundary found")
+    while high / low > 1 + rtol:
+        mid = np.sqrt(low * high)
+        low, high = (mid, high) if stable(mid) else (low, mid)
+    return low

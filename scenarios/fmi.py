@@ -1,0 +1,115 @@
+"""A thin layer over fmpy's FMU2Slave: one extracted copy per FMU file, variables by
+name, preallocated ctypes buffers for the per-step exchange, the FMU's log captured,
+and every failing call turned into an error that names the instance, time and log."""
+import ctypes
+from functools import lru_cache
+
+import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Real, fmi2ValueReference)
+from fmpy import calloc, free
+
+_LABELS = ("OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING")
+
+
+class FmuError(RuntimeError):
+    """An FMU answered Discard/Error/Fatal; the message names the instance, time and log."""
+
+
+@lru_cache(maxsize=None)
+def unpack(path):
+    """Model description and extraction folder of an FMU file, once per process."""
+    return read_model_description(str(path)), extract(str(path))
+
+
+class Instance:
+    """One FMU instance: instantiate, set parameters, initialise, step, read/write."""
+
+    def __init__(self, path, name, parameters=None):
+        self.name = name
+        self.md, folder = unpack(path)
+        self.variables = {v.name: v for v in self.md.modelVariables}
+        self.log = []
+        self._logger = fmi2CallbackLoggerTYPE(self._on_log)
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = self._logger
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        self._callbacks = callbacks
+        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=folder, instanceName=name,
+                             modelIdentifier=self.md.coSimulation.modelIdentifier)
+        self.time = 0.0
+        self.call("instantiate", loggingOn=True, callbacks=callbacks)
+        self.parameters = dict(parameters or {})
+
+    def _on_log(self, component, instance, status, category, message):
+        self.log.append(f"[{_LABELS[status]}] {message.decode(errors='replace')}")
+
+    def call(self, function, *args, **kwargs):
+        """Call an FMU2Slave method; on a bad status raise FmuError naming what happened."""
+        try:
+            return getattr(self.fmu, function)(*args, **kwargs)
+        except FMICallException as exc:
+            log = "\n  ".join(self.log[-5:]) or "(no log message)"
+            raise FmuError(f"FMU instance '{self.name}' failed in {function} at t = {self.time:.6g} s "
+                           f"({exc}). Log:\n  {log}") from None
+
+    def vr(self, name):
+        if name not in self.variables:
+            raise KeyError(f"FMU instance '{self.name}' has no variable '{name}'")
+        return self.variables[name].valueReference
+
+    def set(self, name, value):
+        """Set one variable by name, with the FMI type its description says."""
+        self.vr(name)
+        kind = self.variables[name].type
+        if kind == "Integer":
+            self.call("setInteger", [self.vr(name)], [int(value)])
+        elif kind == "Boolean":
+            self.call("setBoolean", [self.vr(name)], [bool(value)])
+        elif kind == "String":
+            self.call("setString", [self.vr(name)], [str(value)])
+        else:
+            self.call("setReal", [self.vr(name)], [float(value)])
+
+    def initialize(self, start_time):
+        self.time = start_time
+        self.call("setupExperiment", startTime=start_time)
+        self.call("enterInitializationMode")
+        for name, value in self.parameters.items():
+            self.set(name, value)
+        self.call("exitInitializationMode")
+
+    def do_step(self, t, h):
+        self.time = t
+        self.call("doStep", t, h)
+
+    def terminate(self):
+        try:
+            self.fmu.terminate()
+        finally:
+            self.fmu.freeInstance()
+
+
+class RealPort:
+    """A fixed list of Real variables of one instance, read or written in one FMI call
+    through preallocated ctypes buffers (half the cost of fmpy's list-based calls)."""
+
+    def __init__(self, instance, names):
+        self.instance = instance
+        self.names = list(names)
+        n = len(self.names)
+        self.n = n
+        self._vr = (fmi2ValueReference * n)(*[instance.vr(v) for v in self.names])
+        self._buf = (fmi2Real * n)()
+        self.values = np.ctypeslib.as_array(self._buf)
+
+    def read(self):
+        self.instance.call("fmi2GetReal", self.instance.fmu.component, self._vr, self.n, self._buf)
+        return self.values
+
+    def write(self, values):
+        self.values[:] = values
+        self.instance.call("fmi2SetReal", self.instance.fmu.component, self._vr, self.n, self._buf)

@@ -1,0 +1,73 @@
+"""Charts of the 3T mechanism: workspace (paper Fig. 11-12) and slider forces of the paper example (Fig. 13)."""
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from plant import mechanism3t as m3t  # noqa: E402
+
+PAPER_PEAK_FORCE_N = 142.2
+
+
+def _section(ax, points, axes, keep, **style):
+    sel = points[keep(points)] * 1e3
+    ax.scatter(sel[:, axes[0]], sel[:, axes[1]], s=2, **style)
+
+
+def write_charts(outdir, step=0.005):
+    """Write the PNG charts into outdir; return the headline figures and the chart paths."""
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    params = m3t.Mechanism1Params.paper()
+    full = m3t.workspace(params, step)
+    paper = m3t.workspace(params, step, passive_limbs=False)
+    history = m3t.paper_example(params)
+    paths = {}
+
+    fig = plt.figure(figsize=(7, 6))
+    ax = fig.add_subplot(projection="3d")
+    pts = full.points[::7] * 1e3
+    ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], c=pts[:, 2], s=1, cmap="viridis")
+    ax.set(xlabel="x / mm", ylabel="y / mm", zlabel="z / mm",
+           title=f"Workspace, all limbs closing: {full.volume:.4f} m$^3$")
+    paths["workspace_3d"] = outdir / "workspace_3d.png"
+    fig.savefig(paths["workspace_3d"], dpi=120)
+    plt.close(fig)
+
+    z_cut, y_cut = 0.35, 0.05
+    fig, (ax_xy, ax_xz) = plt.subplots(1, 2, figsize=(12, 5))
+    for ws, style in ((paper, dict(c="0.8", label=f"paper criterion, eq. 11 only ({paper.volume:.4f} m$^3$)")),
+                      (full, dict(c="tab:blue", label=f"limbs I and II closing too ({full.volume:.4f} m$^3$)"))):
+        _section(ax_xy, ws.points, (0, 1), lambda p: np.abs(p[:, 2] - z_cut) < step / 2, **style)
+        _section(ax_xz, ws.points, (0, 2), lambda p: np.abs(p[:, 1] - y_cut) < step / 2, **style)
+    ax_xy.set(xlabel="x / mm", ylabel="y / mm", title=f"section z = {z_cut * 1e3:.0f} mm", aspect="equal")
+    ax_xz.set(xlabel="x / mm", ylabel="z / mm", title=f"section y = {y_cut * 1e3:.0f} mm", aspect="equal")
+    fig.legend(*ax_xy.get_legend_handles_labels(), loc="lower center", ncol=2, markerscale=5)
+    fig.tight_layout(rect=(0, 0.08, 1, 1))
+    paths["workspace_sections"] = outdir / "workspace_sections.png"
+    fig.savefig(paths["workspace_sections"], dpi=120)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for k, name in enumerate(("x_A2", "y_A1", "y_A3")):
+        ax.plot(history.t, history.forces[:, k], label=f"slider {name}")
+    ax.axhline(PAPER_PEAK_FORCE_N, color="k", ls=":", label=f"paper peak {PAPER_PEAK_FORCE_N} N")
+    ax.set(xlabel="t / s", ylabel="slider force / N",
+           title=f"Paper example, sliders 10 sin(0.5 t) mm: peak {history.peak:.1f} N ({history.peak_slider})")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    paths["slider_forces"] = outdir / "slider_forces.png"
+    fig.savefig(paths["slider_forces"], dpi=120)
+    plt.close(fig)
+
+    return {"peak_force_N": history.peak, "peak_slider": history.peak_slider,
+            "force_at_reference_N": history.forces[0].tolist(), "paper_peak_force_N": PAPER_PEAK_FORCE_N,
+            "workspace_volume_m3": full.volume, "paper_criterion_volume_m3": paper.volume,
+            "charts": {k: str(v) for k, v in paths.items()}}
+
+
+if __name__ == "__main__":
+    print(write_charts(Path("out") / "mechanism3t"))

@@ -1,0 +1,242 @@
+"""Controller tests, each against a truth computed independently of the code under test."""
+import dataclasses
+
+import control
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+from scipy.linalg import expm
+from scipy.optimize import brentq
+
+from controller.design import (Design, closed_loop_stable, default_gains, design_pid, leg_mass_matrix,
+                               linearised_plant, max_stable_step)
+from controller.feedforward import FEEDFORWARD_MODES, feedforward_forces, reference_legs
+from controller.pid import PIDGains, pid_step
+from plant.stewart import (HOME_POSE, StewartParams, forward_dynamics, inverse_dynamics, inverse_kinematics,
+                           pose_jacobian)
+from plant.trajectory import quintic
+
+PARAMS = StewartParams.paper()
+STEP = 1e-3
+
+
+@pytest.fixture(scope="module")
+def plant():
+    return linearised_plant(PARAMS)
+
+
+@pytest.fixture(scope="module")
+def design():
+    return design_pid(PARAMS, 8.0, 60.0, STEP)
+
+
+# ------------------------------------------------------------------------ linearisation
+def test_linearised_plant_matches_nonlinear_step_response(plant):
+    """A small force step from equilibrium: linear model vs solve_ivp of forward_dynamics."""
+    rest = np.zeros(6)
+    hold = inverse_dynamics(PARAMS, HOME_POSE, rest, rest)
+    step = np.array([20.0, -10.0, 5.0, 0.0, 15.0, -8.0])
+    times = np.linspace(0, 0.5, 51)
+
+    def rhs(_, state):
+        return np.concatenate([state[6:], forward_dynamics(PARAMS, state[:6], state[6:], hold + step)])
+
+    truth = solve_ivp(rhs, (0, times[-1]), np.concatenate([HOME_POSE, rest]), t_eval=times,
+                      rtol=1e-10, atol=1e-13, method="DOP853")
+    legs = inverse_kinematics(PARAMS, truth.y[:6].T) - PARAMS.home_lengths
+    linear = control.forced_response(plant, times, np.tile(step[:, None], (1, times.size))).outputs.T
+    scale = np.abs(legs).max()
+    assert scale > 1e-4  # the step moved the legs measurably
+    assert np.abs(linear - legs).max() < 1e-3 * scale
+    # Gravity stiffness is in the model: without it the error is far larger.
+    floppy = control.ss(plant.A * np.r_[np.zeros(6), np.ones(6)][None, :], plant.B, plant.C, plant.D)
+    no_stiffness = control.forced_response(floppy, times, np.tile(step[:, None], (1, times.size))).outputs.T
+    assert np.abs(no_stiffness - legs).max() > 1e-2 * scale
+
+
+def test_linearised_plant_shape_and_output_is_leg_kinematics(plant):
+    assert (plant.nstates, plant.ninputs, plant.noutputs) == (12, 6, 6)
+    dpose = np.array([1e-6, -2e-6, 3e-6, 1e-6, 2e-6, -1e-6])
+    expected = inverse_kinematics(PARAMS, HOME_POSE + dpose) - PARAMS.home_lengths
+    assert np.allclose(plant.C @ np.r_[dpose, np.zeros(6)], expected, rtol=1e-5, atol=1e-14)
+
+
+# ------------------------------------------------------------------------------- PID
+def test_pid_hand_worked_sequence():
+    gains = PIDGains(kp=2.0, ki=3.0, kd=0.5, force_limit=100.0)
+    dt = 0.1
+    # Step 1: e = 1, de = 0 - 0.5, I = 0.1 -> 10 + 2 + 0.3 - 0.25
+    force, state = pid_step(gains, np.zeros(6), 1.0, 0.0, np.zeros(6), np.full(6, 0.5), 10.0, dt)
+    assert np.allclose(force, 12.05) and np.allclose(state, 0.1)
+    # Step 2: e = 0.5, de = 0.2 - 0.1, I = 0.15 -> 1 + 0.45 + 0.05
+    force, state = pid_step(gains, state, 1.0, 0.2, np.full(6, 0.5), np.full(6, 0.1), 0.0, dt)
+    assert np.allclose(force, 1.5) and np.allclose(state, 0.15)
+    # Legs are independent: leg i sees error i.
+    force, state = pid_step(gains, np.zeros(6), np.arange(6.0), 0.0, 0.0, 0.0, 0.0, dt)
+    assert np.allclose(force, np.arange(6.0) * (2 + 3 * dt)) and np.allclose(state, np.arange(6.0) * dt)
+
+
+def test_pid_saturates_both_ways():
+    gains = PIDGains(kp=1e3, ki=0.0, kd=0.0, force_limit=50.0)
+    force, _ = pid_step(gains, np.zeros(6), np.array([1, -1, 0.01, -0.01, 0, 0.0]), 0.0, 0.0, 0.0, 0.0, 1e-3)
+    assert np.allclose(force, [50, -50, 10, -10, 0, 0])
+
+
+def test_pid_anti_windup_freezes_integral_and_recovers_at_once():
+    gains = PIDGains(kp=10.0, ki=100.0, kd=0.0, force_limit=20.0)
+    state = np.zeros(6)
+    for _ in range(200):  # a large error keeps the output saturated for 0.2 s
+        force, state = pid_step(gains, state, 5.0, 0.0, 0.0, 0.0, 0.0, 1e-3)
+        assert np.allclose(force, 20.0)
+    assert np.allclose(state, 0.0)  # no windup (a free integrator would hold 1.0 m s -> 100 N)
+    force, state = pid_step(gains, state, 0.0, 0.0, 0.01, 0.0, 0.0, 1e-3)  # error reverses
+    assert np.all(np.abs(force) < 20.0) and np.all(force < 0)  # out of saturation on the first step
+
+
+def test_pid_integrates_when_error_pulls_out_of_saturation():
+    gains = PIDGains(kp=0.0, ki=1e3, kd=0.0, force_limit=20.0)
+    # Feedforward alone saturates; a negative error reduces the force, so it must integrate.
+    force, state = pid_step(gains, np.zeros(6), 0.0, 0.0, 0.01, 0.0, 30.0, 1e-3)
+    assert np.allclose(state, -1e-5) and np.allclose(force, 20.0)
+
+
+@pytest.mark.parametrize("position, name", [(2, "reference length"), (3, "reference rate"),
+                                            (4, "measured length"), (5, "measured rate"),
+                                            (6, "feedforward"), (1, "integral state")])
+def test_pid_rejects_nan_naming_the_signal(position, name):
+    args = [PIDGains(1.0, 1.0, 1.0), np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6),
+            np.zeros(6), 1e-3]
+    args[position] = np.array([0, 0, np.nan, 0, 0, 0.0])
+    with pytest.raises(ValueError, match=name):
+        pid_step(*args)
+
+
+def test_pid_rejects_bad_step_and_gains():
+    with pytest.raises(ValueError, match="time step"):
+        pid_step(PIDGains(1.0, 1.0, 1.0), np.zeros(6), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    with pytest.raises(ValueError, match="kd"):
+        PIDGains(1.0, 1.0, -1.0)
+
+
+# ---------------------------------------------------------------------------- design
+def _loop_response(mass, gains, h, omega):
+    """Independent closed form of the sampled per-leg loop: exact ZOH of 1/(m s^2) (length
+    h^2 (z+1) / (2 m (z-1)^2), rate h / (m (z-1))), backward-Euler PID, one step delay."""
+    z = np.exp(1j * omega * h)
+    length = h ** 2 * (z + 1) / (2 * mass * (z - 1) ** 2)
+    rate = h / (mass * (z - 1))
+    return ((gains.kp + gains.ki * h * z / (z - 1)) * length + gains.kd * rate) / z
+
+
+def _upper_gain_margin(mass, gains, h, above):
+    """1/|L| where L crosses the negative real axis above ``above`` rad/s."""
+    omega = np.linspace(above, 0.999 * np.pi / h, 20000)
+    imag = _loop_response(mass, gains, h, omega).imag
+    i = np.flatnonzero(np.diff(np.sign(imag)))[0]
+    w180 = brentq(lambda w: _loop_response(mass, gains, h, w).imag, omega[i], omega[i + 1], xtol=1e-12)
+    response = _loop_response(mass, gains, h, w180)
+    assert response.real < 0
+    return -1 / response.real
+
+
+def test_design_margins_match_independent_loop(design):
+    gains, mass, h = design.gains, design.design_mass, design.comm_step
+    assert mass == pytest.approx(np.linalg.eigvalsh(leg_mass_matrix(PARAMS)).max())
+    w_c = 2 * np.pi * design.crossover_hz
+    at_crossover = _loop_response(mass, gains, h, w_c)
+    assert abs(at_crossover) == pytest.approx(1.0, abs=1e-6)
+    assert np.degrees(np.angle(at_crossover)) + 180 == pytest.approx(design.phase_margin_deg, abs=1e-4)
+    assert design.crossover_hz == pytest.approx(8.0, rel=1e-6)
+    assert design.phase_margin_deg == pytest.approx(60.0, abs=1e-4)
+    gm = _upper_gain_margin(mass, gains, h, w_c)
+    assert 20 * np.log10(gm) == pytest.approx(design.gain_margin_db, abs=1e-3)
+    lightest = design.modal_masses.min()
+    gm_light = _upper_gain_margin(lightest, gains, h, w_c)
+    assert 20 * np.log10(gm_light) == pytest.approx(design.modal_gain_margin_db, abs=1e-3)
+
+
+def test_default_design_meets_its_requirements(design):
+    assert default_gains(PARAMS, STEP) == design.gains
+    assert isinstance(design, Design)
+    assert 5 <= design.crossover_hz <= 10
+    assert design.modal_phase_margin_deg >= 45 and design.modal_gain_margin_db >= 6
+    # Every mode's loop is stable in closed loop: 1 + L has no zeros outside the unit circle.
+    for mass in design.modal_masses:
+        loop = design_loop = control.ss2tf(
+            control.c2d(control.ss([[0, 1], [0, 0]], [[0], [1 / mass]], np.eye(2), 0), STEP, "zoh")[0, 0])
+        assert loop is design_loop
+    assert closed_loop_stable(PARAMS, design.gains, STEP)[0]
+
+
+def test_design_rejects_unreachable_crossover():
+    with pytest.raises(ValueError, match="out of reach"):
+        design_pid(PARAMS, 100.0, 80.0, 10e-3)
+
+
+# ------------------------------------------------------------------- closed-loop stability
+def _simulate(plant, gains, h, steps):
+    """Co-simulation of the linearised plant (exact ZOH) with controller.pid in a Jacobi
+    loop: the plant holds the force the controller computed from the previous samples."""
+    n = plant.nstates
+    phi = expm(np.block([[plant.A, plant.B], [np.zeros((6, n + 6))]]) * h)
+    Ad, Bd = phi[:n, :n], phi[:n, n:]
+    rates_of = pose_jacobian(PARAMS, HOME_POSE)
+    x = np.r_[1e-4, -2e-4, 1e-4, 1e-5, -1e-5, 2e-5, np.zeros(6)]
+    held, integral, norms = np.zeros(6), np.zeros(6), []
+    for _ in range(steps):
+        length, rate = plant.C @ x, rates_of @ x[6:]
+        force, integral = pid_step(gains, integral, 0.0, 0.0, length, rate, 0.0, h)
+        x = Ad @ x + Bd @ held
+        held = force
+        norms.append(np.linalg.norm(np.r_[x, held * 1e-6, integral]))
+    return np.array(norms)
+
+
+def test_closed_loop_stability_matches_simulation(plant, design):
+    h_max = max_stable_step(PARAMS, design.gains)
+    gains = dataclasses.replace(design.gains, force_limit=1e12)  # stay linear
+    for h, expect_stable in ((0.9 * h_max, True), (1.1 * h_max, False)):
+        stable, radius = closed_loop_stable(PARAMS, gains, h)
+        assert stable == expect_stable
+        norms = _simulate(plant, gains, h, 3000)
+        growth = (norms[-1] / norms[-1001]) ** (1 / 1000)
+        assert growth == pytest.approx(radius, abs=2e-3)
+        assert (norms[-1] < 1e-2 * norms[0]) if expect_stable else (norms[-1] > 1e2 * norms[0])
+
+
+# ---------------------------------------------------------------------------- feedforward
+def _moving_reference(t):
+    pose, rate, acc = quintic(HOME_POSE, HOME_POSE + [0.005, 0.02, 0.03, 0.002, -0.002, 0.0], 6.0, t)
+    base = quintic(np.zeros(6), np.radians([0, 0, 0, 45, 0, 30]), 6.0, t)
+    return (pose, rate, acc), base
+
+
+def test_feedforward_modes_reproduce_reference_acceleration():
+    (pose, rate, acc), base = _moving_reference(np.array([1.0, 2.5, 4.0]))
+    moving = feedforward_forces(PARAMS, "moving_base", pose, rate, acc, *base)
+    fixed = feedforward_forces(PARAMS, "fixed_base", pose, rate, acc, *base)
+    # Each drives the plant model it assumes along the reference.
+    assert np.allclose(forward_dynamics(PARAMS, pose, rate, moving, *base), acc, atol=1e-9)
+    assert np.allclose(forward_dynamics(PARAMS, pose, rate, fixed, fidelity="no_base"), acc, atol=1e-9)
+    assert np.allclose(fixed, inverse_dynamics(PARAMS, pose, rate, acc))
+    assert np.abs(moving - fixed).max() > 1e3  # the base motion matters (kN)
+    assert np.array_equal(feedforward_forces(PARAMS, "none", pose, rate, acc, *base), np.zeros((3, 6)))
+
+
+def test_feedforward_rejects_unknown_mode_naming_choices():
+    with pytest.raises(ValueError, match="moving_base") as info:
+        feedforward_forces(PARAMS, "full", HOME_POSE, np.zeros(6), np.zeros(6))
+    assert all(mode in str(info.value) for mode in FEEDFORWARD_MODES)
+
+
+def test_reference_legs_match_differenced_inverse_kinematics():
+    (pose, rate, _), _ = _moving_reference(np.array([1.0, 3.0, 5.0]))
+    lengths, rates = reference_legs(PARAMS, pose, rate)
+    dt = 1e-5
+    (ahead, _, _), _ = _moving_reference(np.array([1.0, 3.0, 5.0]) + dt)
+    (behind, _, _), _ = _moving_reference(np.array([1.0, 3.0, 5.0]) - dt)
+    differenced = (inverse_kinematics(PARAMS, ahead) - inverse_kinematics(PARAMS, behind)) / (2 * dt)
+    assert np.allclose(lengths, inverse_kinematics(PARAMS, pose))
+    assert np.allclose(rates, differenced, rtol=1e-6, atol=1e-10)
+    with pytest.raises(ValueError, match="pose_rate"):
+        reference_legs(PARAMS, pose, np.full((3, 6), np.nan))

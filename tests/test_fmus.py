@@ -1,0 +1,132 @@
+"""The FMUs under fmpy: validation, agreement with the plant called directly, state
+save/restore, several instances in one process, and failure through FMI status."""
+import re
+
+import numpy as np
+import pytest
+from fmpy import read_model_description, simulate_fmu
+from fmpy.validation import validate_fmu
+
+from plant import telescope
+from plant.hexapod_ode import HexapodODE
+from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
+from scenarios.fmi import FmuError, Instance, RealPort
+
+PARAMS = StewartParams.paper()
+STATIC = inverse_dynamics(PARAMS, HOME_POSE, np.zeros(6), np.zeros(6))
+
+
+def open_fmu(path, name="a", **parameters):
+    instance = Instance(path, name, parameters)
+    instance.initialize(0.0)
+    return instance
+
+
+def vec(instance, name, n=6):
+    return RealPort(instance, [f"{name}[{i + 1}]" for i in range(n)]).read().copy()
+
+
+def set_vec(instance, name, values):
+    RealPort(instance, [f"{name}[{i + 1}]" for i in range(len(values))]).write(values)
+
+
+def test_every_fmu_validates_and_has_units(fmus):
+    for path in fmus.values():
+        assert validate_fmu(str(path)) == []
+        md = read_model_description(path)
+        reals = [v for v in md.modelVariables if v.type == "Real"]
+        assert all(v.description for v in md.modelVariables)
+        assert all(v.unit for v in reals), [v.name for v in reals if not v.unit]
+
+
+def test_plant_fmu_matches_the_plant_called_directly(fmus):
+    """simulate_fmu with a force step against HexapodODE stepped by hand: same numbers."""
+    forces = STATIC + np.array([300.0, -200.0, 100.0, 0.0, 50.0, -400.0])
+    base = np.array([0.0, 0.0, 0.0, 0.3, 0.0, 0.2])
+    start = {f"leg_force[{i + 1}]": forces[i] for i in range(6)}
+    start.update({f"base_pose[{i + 1}]": base[i] for i in range(6)})
+    result = simulate_fmu(fmus["hexapod_plant_fmu"], stop_time=0.2, output_interval=1e-3,
+                          start_values=start, output=[f"pose[{i + 1}]" for i in range(6)])
+    ode = HexapodODE(PARAMS)
+    x = np.r_[HOME_POSE, np.zeros(6)]
+    for k in range(200):
+        ode.set_inputs(k * 1e-3, forces, base, np.zeros(6), np.zeros(6))
+        x = ode.advance(x, 1e-3)
+    fmu_pose = np.array(list(result[-1])[1:])
+    np.testing.assert_allclose(fmu_pose, x[:6], rtol=0, atol=1e-12)
+    assert np.abs(fmu_pose - HOME_POSE).max() > 1e-5   # it did move
+
+
+def test_state_save_restore_replays_bit_identically(fmus):
+    plant = open_fmu(fmus["hexapod_plant_fmu"], moving_base=0)
+    set_vec(plant, "leg_force", STATIC + 500.0)
+    for k in range(20):
+        plant.do_step(k * 1e-3, 1e-3)
+    saved = plant.fmu.getFMUState()
+    first = []
+    for k in range(20, 40):
+        plant.do_step(k * 1e-3, 1e-3)
+        first.append(vec(plant, "pose"))
+    plant.fmu.setFMUState(saved)
+    for k in range(20, 40):
+        plant.do_step(k * 1e-3, 1e-3)
+        np.testing.assert_array_equal(vec(plant, "pose"), first[k - 20])
+    plant.fmu.freeFMUState(saved)
+    plant.terminate()
+
+
+def test_several_fmus_and_two_instances_in_one_process(fmus):
+    a = open_fmu(fmus["hexapod_plant_fmu"], "a", moving_base=0)
+    b = open_fmu(fmus["hexapod_plant_fmu"], "b", moving_base=0)
+    source = open_fmu(fmus["telescope_fmu"], "source")
+    set_vec(a, "leg_force", STATIC + 1000.0)
+    set_vec(b, "leg_force", STATIC)
+    for k in range(10):
+        for s in (a, b, source):
+            s.do_step(k * 1e-3, 1e-3)
+    assert np.abs(vec(a, "pose") - HOME_POSE).max() > 1e-6       # pushed
+    np.testing.assert_allclose(vec(b, "pose"), HOME_POSE, atol=1e-9)  # held at rest
+    assert vec(source, "axis", 2)[1] > np.radians(29.0)
+
+
+def test_telescope_fmu_matches_the_module(fmus):
+    result = simulate_fmu(fmus["telescope_fmu"], stop_time=20.0, output_interval=0.5,
+                          output=["base_rate[4]", "base_acc[6]", "reference_pose[3]"])
+    params = telescope.TelescopeParams.tianma()
+    axes = telescope.slew(params, (0.0, np.radians(30)), (np.radians(90), np.radians(60)), result["time"])
+    _, rate, acc = telescope.base_motion(params, axes)
+    ref, _, _ = telescope.reference_pose(params, axes)
+    np.testing.assert_allclose(result["base_rate[4]"], rate[:, 3], atol=1e-15)
+    np.testing.assert_allclose(result["base_acc[6]"], acc[:, 5], atol=1e-15)
+    np.testing.assert_allclose(result["reference_pose[3]"], ref[:, 2], atol=1e-15)
+
+
+def _failing_step(slave, forces, steps=100, h=1e-3):
+    """Step until the FMU refuses; return the error. A failed FMU keeps refusing."""
+    set_vec(slave, "leg_force", forces)
+    with pytest.raises(FmuError) as first:
+        for k in range(steps):
+            slave.do_step(k * h, h)
+    with pytest.raises(FmuError, match="refusing doStep"):
+        slave.do_step(steps * h, h)
+    return str(first.value)
+
+
+@pytest.mark.parametrize("start, forces, h, message", [
+    ({}, np.r_[np.nan, STATIC[1:]], 1e-3, "leg forces input contains NaN"),
+    ({"stroke": 0.01}, STATIC + 4e4, 1e-3, r"StrokeError.*leg \d length"),
+    ({"integrator": 1, "max_step": 0.05, "stroke": 1e3}, STATIC + 1e7, 0.05, "diverged|singular"),
+], ids=["nan input", "leg past its stroke", "runaway platform without stroke limit"])
+def test_failures_end_the_step_with_fmi_status_and_a_message(fmus, start, forces, h, message):
+    slave = open_fmu(fmus["hexapod_plant_fmu"], moving_base=0, **start)
+    error = _failing_step(slave, forces, h=h)
+    assert "doStep" in error and "t = " in error
+    assert re.search(message, error), error
+
+
+def test_singular_initial_pose_is_refused(fmus):
+    singular = np.r_[HOME_POSE[:5], np.pi / 2]
+    slave = open_fmu(fmus["hexapod_plant_fmu"], moving_base=0, stroke=10.0,
+                     **{f"initial_pose[{i + 1}]": singular[i] for i in range(6)})
+    error = _failing_step(slave, STATIC, steps=1)
+    assert "SingularConfigurationError" in error
