@@ -128,8 +128,12 @@ def design_pid(params, crossover_hz, phase_margin_deg, comm_step, integral_ratio
     margin ``phase_margin_deg`` in the sampled loop (leg_loop), ki = kp w_c / integral_ratio.
 
     L(w_c) = kp a + kd c is linear in (kp, kd) once ki/kp is fixed, so |L| = 1 and
-    arg L = PM - 180 deg at w_c are solved exactly. Raises ValueError if that needs a
-    negative gain (crossover too high or margin too large for the step)."""
+    arg L = PM - 180 deg at w_c are solved exactly. Raises ValueError if the crossover is
+    not below Nyquist, if that needs a negative gain (crossover too high or margin too
+    large for the step), or if the gains destabilise a lighter mode."""
+    if not 0 < crossover_hz < 0.5 / comm_step:
+        raise ValueError(f"crossover {crossover_hz} Hz must lie between 0 and the Nyquist frequency "
+                         f"{0.5 / comm_step} Hz of comm step {comm_step} s")
     masses = np.linalg.eigvalsh(leg_mass_matrix(params, pose))
     mass = masses[-1]
     w_c = 2 * np.pi * crossover_hz
@@ -142,8 +146,14 @@ def design_pid(params, crossover_hz, phase_margin_deg, comm_step, integral_ratio
         raise ValueError(f"crossover {crossover_hz} Hz with phase margin {phase_margin_deg} deg is "
                          f"out of reach at comm step {comm_step} s (kp {kp:.3g}, kd {kd:.3g})")
     gains = PIDGains(float(kp), float(kp * w_c / integral_ratio), float(kd), force_limit)
-    w_gc, pm, gm, lower = loop_margins(leg_loop(mass, gains, comm_step))
-    modal = np.array([loop_margins(leg_loop(m, gains, comm_step)) for m in masses])
+    loops = [leg_loop(m, gains, comm_step) for m in masses]
+    unstable = [f"{m:.0f}" for m, loop in zip(masses, loops)
+                if np.abs(control.feedback(loop).poles()).max() >= 1]
+    if unstable:
+        raise ValueError(f"crossover {crossover_hz} Hz with phase margin {phase_margin_deg} deg at comm "
+                         f"step {comm_step} s destabilises the leg-space modes of {', '.join(unstable)} kg")
+    w_gc, pm, gm, lower = loop_margins(loops[-1])
+    modal = np.array([loop_margins(loop) for loop in loops])
     return Design(gains, comm_step, float(mass), float(w_gc / (2 * np.pi)), float(pm), float(_db(gm)),
                   float(_db(lower)), masses, float(modal[:, 1].min()), float(_db(modal[:, 2].min())))
 

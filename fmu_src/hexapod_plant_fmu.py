@@ -2,7 +2,9 @@
 
 The physics is plant.hexapod_ode / plant.stewart; this file maps FMI variables onto it.
 Over a communication step the leg forces are held and the base motion is extrapolated
-by its rates and accelerations; the state survives get/set FMU state.
+by its rates and accelerations (with moving_base = 0 the base inputs are ignored); the
+FMU variables are views of the ODE's input/output arrays, so a step copies nothing.
+The state survives get/set FMU state.
 """
 import numpy as np
 
@@ -10,7 +12,7 @@ from fmu_src.slave import (INPUT, OUTPUT, PARAMETER, POSE_UNITS, GuardedSlave, a
                            rate_units)
 from plant.hexapod_ode import HexapodODE
 from plant.integrators import INTEGRATORS
-from plant.stewart import FIDELITIES, HOME_POSE, StewartParams, check_stroke
+from plant.stewart import FIDELITIES, HOME_POSE, StewartParams
 
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 
@@ -30,43 +32,34 @@ class HexapodPlant(GuardedSlave):
         self.initial_pose = self.vector("initial_pose", 6, PARAMETER,
                                         [f"initial platform {n} in {{B}}" for n in POSE_NAMES], POSE_UNITS,
                                         HOME_POSE)
-        self.forces = self.vector("leg_force", 6, INPUT, "actuator force along the leg, + extends", "N")
-        self.base_pose = self.vector("base_pose", 6, INPUT, [f"base {n} in {{W}}" for n in POSE_NAMES], POSE_UNITS)
-        self.base_rate = self.vector("base_rate", 6, INPUT, [f"d/dt base {n}" for n in POSE_NAMES],
-                                     rate_units(POSE_UNITS))
-        self.base_acc = self.vector("base_acc", 6, INPUT, [f"d2/dt2 base {n}" for n in POSE_NAMES],
-                                    acc_units(POSE_UNITS))
-        self.lengths = self.vector("leg_length", 6, OUTPUT, "leg length B_i to a_i", "m",
-                                   StewartParams.paper().home_lengths)
-        self.leg_rates = self.vector("leg_rate", 6, OUTPUT, "leg extension rate", "m/s")
-        self.pose = self.vector("pose", 6, OUTPUT, [f"platform {n} in {{B}}" for n in POSE_NAMES], POSE_UNITS,
-                                HOME_POSE)
-        self.pose_rate = self.vector("pose_rate", 6, OUTPUT, [f"d/dt platform {n}" for n in POSE_NAMES],
-                                     rate_units(POSE_UNITS))
-        self.x = np.zeros(12)
+        self.inputs, self.outputs = np.zeros((4, 6)), np.zeros((3, 6))   # shared with the ODE
+        self.vector("leg_force", 6, INPUT, "actuator force along the leg, + extends", "N", values=self.inputs[0])
+        self.vector("base_pose", 6, INPUT, [f"base {n} in {{W}}" for n in POSE_NAMES], POSE_UNITS,
+                    values=self.inputs[1])
+        self.vector("base_rate", 6, INPUT, [f"d/dt base {n}" for n in POSE_NAMES], rate_units(POSE_UNITS),
+                    values=self.inputs[2])
+        self.vector("base_acc", 6, INPUT, [f"d2/dt2 base {n}" for n in POSE_NAMES], acc_units(POSE_UNITS),
+                    values=self.inputs[3])
+        self.outputs[0] = StewartParams.paper().home_lengths
+        self.vector("leg_length", 6, OUTPUT, "leg length B_i to a_i", "m", values=self.outputs[0])
+        self.vector("leg_rate", 6, OUTPUT, "leg extension rate", "m/s", values=self.outputs[1])
+        self.vector("pose_rate", 6, OUTPUT, [f"d/dt platform {n}" for n in POSE_NAMES], rate_units(POSE_UNITS),
+                    values=self.outputs[2])
+        self.x = np.r_[HOME_POSE, np.zeros(6)]
+        self.vector("pose", 6, OUTPUT, [f"platform {n} in {{B}}" for n in POSE_NAMES], POSE_UNITS,
+                    values=self.x[:6])
         self.ode = None
 
     def initialize(self):
-        self.params = StewartParams.paper(stroke=(-self.stroke, self.stroke))
-        self.ode = HexapodODE(self.params, FIDELITIES[self.fidelity], bool(self.moving_base),
-                              INTEGRATORS[self.integrator], self.max_step)
+        params = StewartParams.paper(stroke=(-self.stroke, self.stroke))
+        self.ode = HexapodODE(params, FIDELITIES[self.fidelity], bool(self.moving_base),
+                              INTEGRATORS[self.integrator], self.max_step, self.inputs, self.outputs)
         self.x[:] = np.r_[self.initial_pose, np.zeros(6)]
-        self._publish()
+        self.ode.advance(self.x, 0.0)
 
     def step(self, t, h):
-        if self.moving_base:
-            self.ode.set_inputs(t, self.forces, self.base_pose, self.base_rate, self.base_acc)
-        else:
-            self.ode.set_inputs(t, self.forces)
-        self.x[:] = self.ode.advance(self.x, h)
-        self._publish()
-
-    def _publish(self):
-        lengths, rates, rpy_rates = self.ode.outputs(self.x)
-        check_stroke(self.params, lengths)
-        self.lengths[:], self.leg_rates[:] = lengths, rates
-        self.pose[:] = self.x[:6]
-        self.pose_rate[:3], self.pose_rate[3:] = self.x[6:9], rpy_rates
+        self.ode.t0 = t
+        self.ode.advance(self.x, h)
 
     def extra_state(self):
         return self.x.copy()

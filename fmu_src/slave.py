@@ -54,9 +54,11 @@ class GuardedSlave(Fmi2Slave):
         if unit:
             self.units[name] = unit
 
-    def vector(self, name, size, causality, description, units, start=None):
-        """Register name[1..size] backed by a numpy array kept in self.arrays[name]."""
-        values = np.zeros(size) if start is None else np.array(start, dtype=float)
+    def vector(self, name, size, causality, description, units, start=None, values=None):
+        """Register name[1..size] backed by a numpy array (``values``, a view the model
+        shares, or a new one) kept in self.arrays[name] and saved with the FMU state."""
+        if values is None:
+            values = np.zeros(size) if start is None else np.array(start, dtype=float)
         self.arrays[name] = values
         units = (units,) * size if isinstance(units, str) else units
         labels = description if isinstance(description, (list, tuple)) else [description] * size

@@ -8,20 +8,28 @@ Over one step the leg forces are held (zero-order hold) and the base motion is
 extrapolated from the step's start by its own rates and accelerations (second-order
 Taylor), so a base turning at constant acceleration is followed exactly.
 
-The right-hand side is one call into the compiled kernel (plant.kane.rhs, ~5 µs): the
-validated public API would cost ~30 µs a call, and RK4 calls it four times a substep.
+Why the fixed-step methods run compiled (plant.kane.advance_fixed): the FMU's budget per
+communication step is ~10x an empty FMU's doStep (~1.4 µs); RK4 in Python around the
+compiled right-hand side costs ~20 µs, one compiled call ~6 µs. Inputs and outputs live
+in two arrays the caller may share (the FMU maps its variables onto them), so a step
+copies nothing. "radau" goes through plant.integrators with the compiled right-hand
+side (plant.kane.rhs).
 """
 import numpy as np
 
 from . import integrators, kane
 from .errors import ConvergenceError, InvalidInputError, SingularConfigurationError
-from .stewart import _FIDELITY_MODES, SINGULAR_RATIO
+from .stewart import _FIDELITY_MODES, SINGULAR_RATIO, check_stroke, inverse_kinematics, jacobian
 
 
 class HexapodODE:
-    """The hexapod plant between communication points: hold inputs, advance, read out."""
+    """The hexapod plant between communication points: hold inputs, advance, read out.
 
-    def __init__(self, params, fidelity="full", moving_base=True, method="rk4", max_step=1e-3):
+    ``inputs`` (4, 6): leg forces, base pose, base rate, base acc (held over a step).
+    ``outputs`` (3, 6): leg lengths, leg rates, pose rates after the last step."""
+
+    def __init__(self, params, fidelity="full", moving_base=True, method="rk4", max_step=1e-3,
+                 inputs=None, outputs=None):
         if fidelity not in _FIDELITY_MODES:
             raise InvalidInputError(f"unknown fidelity {fidelity!r}; choose one of {tuple(_FIDELITY_MODES)}")
         if method not in integrators.INTEGRATORS:
@@ -31,23 +39,21 @@ class HexapodODE:
         self.params, self.method, self.max_step = params, method, max_step
         base_mode, self.legs = _FIDELITY_MODES[fidelity]
         self.base_mode = base_mode if moving_base else kane.BASE_NONE
-        self.forces = np.zeros((1, 6))
-        self.base0 = np.zeros((3, 6))          # base pose, rate, acc at t0
+        self.inputs = np.zeros((4, 6)) if inputs is None else inputs
+        self.outputs = np.zeros((3, 6)) if outputs is None else outputs
+        self.bounds = params.home_lengths + np.array(params.stroke)[:, None]
         self.t0 = 0.0
         self._args = (params.base_joints, params.platform_joints, params.kernel_data)
 
-    def set_inputs(self, t0, forces, base_pose=None, base_rate=None, base_acc=None):
+    def set_inputs(self, t0, forces, base_pose=0.0, base_rate=0.0, base_acc=0.0):
         """Hold ``forces`` and the base motion given at t0 for the coming step."""
         self.t0 = t0
-        self.forces[0] = forces
-        if base_pose is not None:
-            self.base0[:] = base_pose, base_rate, base_acc
-        for name, values in (("leg forces", self.forces), ("base motion", self.base0)):
-            if not np.all(np.isfinite(values)):
-                raise InvalidInputError(f"{name} input contains NaN or inf")
+        for row, values in zip(self.inputs, (forces, base_pose, base_rate, base_acc)):
+            row[:] = values
 
     def rhs(self, t, x):
-        dx, det = kane.rhs(*self._args, x, self.forces, self.base0, self.t0, t, self.base_mode, self.legs)
+        dx, det = kane.rhs(*self._args, x, self.inputs[0:1], self.inputs[1:4], self.t0, t,
+                           self.base_mode, self.legs)
         self._check_det(det)
         return dx
 
@@ -57,13 +63,34 @@ class HexapodODE:
                 f"singular pose reached: |det J| is {det / self.params.home_det:.2e} of home (< {SINGULAR_RATIO})")
 
     def advance(self, x, h):
-        """State at t0 + h from x at t0 (set_inputs first)."""
-        x_new = integrators.advance(self.method, self.rhs, self.t0, x, h, self.max_step)
-        if np.abs(x_new[:3]).max() > 100.0:
-            raise ConvergenceError(f"integrator {self.method} diverged over [{self.t0:.6g}, "
-                                   f"{self.t0 + h:.6g}] s: platform more than 100 m away")
-        return x_new
+        """Advance x (at t0) to t0 + h in place and fill ``outputs``. Raises a PlantError
+        naming the problem: NaN/inf inputs, divergence, a singular pose, a leg past its
+        stroke."""
+        if self.method == "radau":
+            return self._advance_radau(x, h)
+        substeps = max(1, int(np.ceil(h / self.max_step - 1e-9)))
+        det, status = kane.advance_fixed(self.method == "rk4", substeps, *self._args, x, self.inputs,
+                                         self.t0, h, self.base_mode, self.legs, self.bounds, self.outputs)
+        if status == kane.OK and det >= SINGULAR_RATIO * self.params.home_det:
+            return self.outputs
+        if status == kane.BAD_INPUT:
+            names = ("leg forces", "base pose", "base rate", "base acc")
+            bad = [n for n, row in zip(names, self.inputs) if not np.isfinite(row).all()]
+            raise InvalidInputError(f"{', '.join(bad)} input contains NaN or inf")
+        if status == kane.DIVERGED:
+            raise ConvergenceError(f"integrator {self.method} diverged over [{self.t0:.6g}, {self.t0 + h:.6g}] s "
+                                   f"(substep {h / substeps:.3g} s): the state is no longer finite or bounded")
+        self._check_det(det)
+        check_stroke(self.params, self.outputs[0])
+        return self.outputs
 
-    def outputs(self, x):
-        """Leg lengths, leg rates and the RPY-angle rates of state x."""
-        return kane.leg_state(*self._args, x)
+    def _advance_radau(self, x, h):
+        if not np.isfinite(self.inputs).all():
+            raise InvalidInputError("an input (leg forces or base motion) contains NaN or inf")
+        if h > 0:
+            x[:] = integrators.advance("radau", self.rhs, self.t0, x, h, self.max_step)
+        self.outputs[0] = inverse_kinematics(self.params, x[:6])
+        self.outputs[1] = jacobian(self.params, x[:6]) @ x[6:]
+        self.outputs[2] = self.rhs(self.t0 + h, x)[:6]
+        check_stroke(self.params, self.outputs[0])
+        return self.outputs

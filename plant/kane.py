@@ -300,6 +300,62 @@ def _rhs(bj, pj, data, x, forces, base0, t0, t, base_mode, legs, base, M, h, J, 
     return abs(det[0])
 
 
+OK, BAD_INPUT, DIVERGED, STROKE = 0, 1, 2, 3   # advance_fixed status codes
+
+
+@njit(cache=True)
+def advance_fixed(rk4, substeps, bj, pj, data, x, inputs, t0, h, base_mode, legs, bounds, outputs):
+    """Advance x = [pose, twist] over [t0, t0 + h] by ``substeps`` equal steps of classic
+    RK4 (or explicit Euler), all compiled: the plant FMU's hot path, one call per
+    communication step. The same methods as plant.integrators (a test holds them equal).
+
+    inputs (4, 6): leg forces, base pose, base rate, base acc, held over the step.
+    bounds (2, 6): lowest and highest leg lengths allowed (the stroke).
+    Writes x in place and outputs (3, 6) = leg lengths, leg rates, pose rates at t0 + h.
+    Returns (smallest |det J| met, status: OK, BAD_INPUT, DIVERGED or STROKE)."""
+    for k in range(4):
+        for j in range(6):
+            if not np.isfinite(inputs[k, j]):
+                return 0.0, BAD_INPUT
+    forces, base0 = inputs[0:1], inputs[1:4]
+    M, hb, J = np.empty((1, 6, 6)), np.empty((1, 6)), np.empty((1, 6, 6))
+    ldot, length, out, det = np.empty((1, 6)), np.empty((1, 6)), np.empty((1, 6)), np.empty(1)
+    base = np.empty((3, 1, 6))
+    k1, k2, k3, k4, xs = np.empty(12), np.empty(12), np.empty(12), np.empty(12), np.empty(12)
+    dt = h / substeps
+    det_min = np.inf
+    for n in range(substeps):
+        t = t0 + n * dt
+        det_min = min(det_min, _rhs(bj, pj, data, x, forces, base0, t0, t, base_mode, legs, base,
+                                    M, hb, J, ldot, length, out, det, k1))
+        if not rk4:
+            x += dt * k1
+            continue
+        xs[:] = x + 0.5 * dt * k1
+        det_min = min(det_min, _rhs(bj, pj, data, xs, forces, base0, t0, t + 0.5 * dt, base_mode,
+                                    legs, base, M, hb, J, ldot, length, out, det, k2))
+        xs[:] = x + 0.5 * dt * k2
+        det_min = min(det_min, _rhs(bj, pj, data, xs, forces, base0, t0, t + 0.5 * dt, base_mode,
+                                    legs, base, M, hb, J, ldot, length, out, det, k3))
+        xs[:] = x + dt * k3
+        det_min = min(det_min, _rhs(bj, pj, data, xs, forces, base0, t0, t + dt, base_mode, legs,
+                                    base, M, hb, J, ldot, length, out, det, k4))
+        x += dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    for k in range(12):
+        if not np.isfinite(x[k]) or (k < 3 and abs(x[k]) > 100.0):
+            return det_min, DIVERGED
+    det_min = min(det_min, _rhs(bj, pj, data, x, forces, base0, t0, t0 + h, base_mode, legs, base,
+                                M, hb, J, ldot, length, out, det, k1))
+    status = OK
+    for j in range(6):
+        outputs[0, j] = length[0, j]
+        outputs[1, j] = ldot[0, j]
+        outputs[2, j] = k1[j]
+        if length[0, j] < bounds[0, j] or length[0, j] > bounds[1, j]:
+            status = STROKE
+    return det_min, status
+
+
 @njit(cache=True)
 def rhs(bj, pj, data, x, forces, base0, t0, t, base_mode, legs):
     """dx/dt and |det J| of one state: for implicit integrators and tests."""
@@ -308,14 +364,3 @@ def rhs(bj, pj, data, x, forces, base0, t0, t, base_mode, legs):
                np.empty((1, 6, 6)), np.empty((1, 6)), np.empty((1, 6, 6)), np.empty((1, 6)),
                np.empty((1, 6)), np.empty((1, 6)), np.empty(1), dx)
     return dx, det
-
-
-@njit(cache=True)
-def leg_state(bj, pj, data, x):
-    """Leg lengths, leg rates and RPY-angle rates of the state x = [pose, twist]."""
-    M, h, J = np.empty((1, 6, 6)), np.empty((1, 6)), np.empty((1, 6, 6))
-    ldot, length, out, det = np.empty((1, 6)), np.empty((1, 6)), np.empty((1, 6)), np.empty(1)
-    zero = np.zeros((1, 6))
-    kane(bj, pj, data, x[:6].reshape((1, 6)), x[6:].reshape((1, 6)), zero, zero, zero, zero,
-         BASE_NONE, False, True, TERMS, M, h, J, ldot, length, out, det)
-    return length[0], ldot[0], np.array(_rpy_rate(x[3:6], (x[9], x[10], x[11])))

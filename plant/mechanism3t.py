@@ -61,6 +61,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .errors import InvalidInputError, SingularConfigurationError, UnreachablePoseError
+
 MM = 1e-3
 KG_MM2 = 1e-6
 SINGULAR_TOL = 1e-7  # |det| of the dimensionless J_o (or of a passive 2R limb) below which a solve is refused
@@ -80,20 +82,11 @@ PAPER_REFERENCE_RHO_MM = (94.25, -144.36, -47.68)  # (x_A2, y_A1, y_A3), paper 3
 SWING_AXIS = {"b1c1": 1, "c1d1": 1, "b2c2": 0, "c2d2": 0, "b3c3": 1, "d3e3": 2}
 
 
-class MechanismError(ValueError):
-    """Base of the errors raised on inputs the mechanism cannot take."""
+class UnreachableError(UnreachablePoseError):
+    """No real assembly: a square root (eq. 7, 8, 10-12) or arccos/arcsin argument is out of range.
 
-
-class UnreachableError(MechanismError):
-    """No real assembly: a square root (eq. 7, 8, 10-12) or arccos/arcsin argument is out of range."""
-
-
-class SingularConfigurationError(MechanismError):
-    """A velocity/acceleration/force solve was asked at a singular configuration."""
-
-
-class NonFiniteInputError(MechanismError):
-    """NaN or inf in the input."""
+    Bad shapes, NaN and inf raise plant.errors.InvalidInputError; solves at singular
+    configurations raise plant.errors.SingularConfigurationError."""
 
 
 @dataclass(frozen=True)
@@ -150,10 +143,14 @@ class Mechanism1Params:
         return replace(base, **own)
 
 
-def _finite(name, value):
+def _finite(name, value, point=False):
+    """value as a finite float array of shape (..., 3), (3,) if point, () if point is None."""
     arr = np.asarray(value, dtype=float)
+    expected = {None: (), True: (3,), False: (3,)}[point]
+    if (arr.shape[-1:] if point is False else arr.shape) != expected:
+        raise InvalidInputError(f"{name} has shape {arr.shape}, expected {'(..., 3)' if point is False else expected}")
     if not np.all(np.isfinite(arr)):
-        raise NonFiniteInputError(f"{name} contains NaN or inf")
+        raise InvalidInputError(f"{name} contains NaN or inf")
     return arr
 
 
@@ -187,7 +184,7 @@ def _raise_first(violations, error=UnreachableError):
 
 def single_loop_forward(P, x_A2, y_A1, theta):
     """Eq. 7: every real O' (k, 3) of the single-loop mechanism, '+' root first."""
-    x_A2, y_A1, theta = (float(_finite(n, v)) for n, v in (("x_A2", x_A2), ("y_A1", y_A1), ("theta", theta)))
+    x_A2, y_A1, theta = (float(_finite(n, v, None)) for n, v in (("x_A2", x_A2), ("y_A1", y_A1), ("theta", theta)))
     root2 = P.l3 ** 2 - (x_A2 - P.a - P.l2 * np.cos(theta)) ** 2
     if root2 < 0:
         raise UnreachableError("eq. 7: l3^2 - (x_A2 - a - l2 cos theta)^2 < 0")
@@ -201,7 +198,7 @@ def single_loop_forward(P, x_A2, y_A1, theta):
 
 def single_loop_inverse(P, p):
     """Eq. 8: every real (x_A2, y_A1, theta) (k, 3), theta wrapped to (-pi, pi], '+' root first."""
-    x, y, z = _finite("p", p)
+    x, y, z = _finite("p", p, True)
     n1, n2 = -2 * P.l2 * (z - P.l1), -2 * P.l2 * (x - P.a)
     n3 = P.l3 ** 2 - P.l2 ** 2 - (x - P.a) ** 2 - (z - P.l1) ** 2
     disc = n1 ** 2 + n2 ** 2 - n3 ** 2
@@ -230,7 +227,7 @@ def _forward(P, rho, mode):
 
 def _check_mode(mode):
     if mode not in (1, -1):
-        raise ValueError(f"mode must be +1 or -1 (sign before the eq. 11 square root), got {mode!r}")
+        raise InvalidInputError(f"mode must be +1 or -1 (sign before the eq. 11 square root), got {mode!r}")
 
 
 def forward_branch(P, rho, mode=1):
@@ -243,7 +240,7 @@ def forward_branch(P, rho, mode=1):
 
 def forward_position(P, rho):
     """Every real O' (k, 3), k = 1 or 2, for one rho = (x_A2, y_A1, y_A3); mode +1 first if real."""
-    rho = _finite("rho", rho).reshape(3)
+    rho = _finite("rho", rho, True)
     found, reasons = [], []
     for mode in (1, -1):
         _, p, violations = _forward(P, rho, mode)
@@ -259,11 +256,11 @@ def forward_position(P, rho):
 
 def assembly_mode(P, rho, p_near):
     """The mode (+1/-1) whose O' is nearest p_near."""
-    rho = _finite("rho", rho).reshape(3)
+    rho = _finite("rho", rho, True)
     modes = [m for m in (1, -1) if not any(np.any(b) for b, _ in _forward(P, rho, m)[2])]
     if not modes:
         forward_position(P, rho)  # raises with the reasons
-    p_near = _finite("p_near", p_near)
+    p_near = _finite("p_near", p_near, True)
     return min(modes, key=lambda m: np.linalg.norm(_forward(P, rho, m)[1] - p_near))
 
 
@@ -282,7 +279,7 @@ def _inverse_all(P, p):
 
 def inverse_position(P, p):
     """Every real rho = (x_A2, y_A1, y_A3) (k, 3), k <= 4, reaching O' = p (eq. 12 branches)."""
-    p = _finite("p", p).reshape(3)
+    p = _finite("p", p, True)
     sin = (p[2] - P.l1 - P.l5) / P.l4
     if not 0 <= sin <= 1:
         raise UnreachableError(f"eq. 12: arcsin argument (z - l1 - l5)/l4 = {sin:.6g} outside [0, 1] (theta in [0, pi])")
@@ -363,7 +360,7 @@ class SingularityReport:
 
 def singularity(P, rho, mode=1, tol=SINGULAR_TOL):
     """Classify one configuration and measure its distance to the nearest output singularity."""
-    rho = _finite("rho", rho).reshape(3)
+    rho = _finite("rho", rho, True)
     j_o, j_i = jacobians(P, rho, mode)
     det_o, det_i = float(np.linalg.det(j_o)), float(np.linalg.det(j_i))
     theta = _forward(P, rho, mode)[0]

@@ -281,12 +281,16 @@ def test_singular_configuration_raises():
             call()
 
 
-def test_non_finite_input_raises():
-    with pytest.raises(m3t.NonFiniteInputError):
+def test_bad_input_raises():
+    with pytest.raises(m3t.InvalidInputError):
         m3t.forward_position(P, [np.nan, 0, 0])
-    with pytest.raises(m3t.NonFiniteInputError):
+    with pytest.raises(m3t.InvalidInputError):
         m3t.inverse_position(P, [0, np.inf, 0.3])
-    with pytest.raises(m3t.NonFiniteInputError):
+    with pytest.raises(m3t.InvalidInputError):
         m3t.slider_forces(P, RHO_REF, [0, np.nan, 0], np.zeros(3))
-    with pytest.raises(m3t.NonFiniteInputError):
+    with pytest.raises(m3t.InvalidInputError):
         m3t.single_loop_forward(P, 0.1, 0.0, np.nan)
+    with pytest.raises(m3t.InvalidInputError, match="shape"):
+        m3t.forward_position(P, [0.1, 0.0])
+    with pytest.raises(m3t.InvalidInputError, match="mode"):
+        m3t.velocity(P, RHO_REF, np.ones(3), mode=0)
