@@ -9,6 +9,7 @@ needs at run time (pythonfmu's `deploy` installs from it).
 """
 import argparse
 import importlib
+import json
 import pathlib
 import sys
 import tempfile
@@ -24,12 +25,12 @@ from fmpy.validation import validate_fmu
 from pythonfmu.builder import FmuBuilder
 
 ROOT = pathlib.Path(__file__).resolve().parent
-SCRIPTS = ("hexapod_plant_fmu", "telescope_fmu", "leg_controller_fmu", "mechanism3t_fmu")
+SCRIPTS = ("hexapod_plant_fmu", "telescope_fmu", "leg_controller_fmu", "mechanism3t_fmu", "slider_controller_fmu")
 
 _BASE = {"m": {"m": "1"}, "rad": {"rad": "1"}, "s": {"s": "1"}, "N": {"kg": "1", "m": "1", "s": "-2"},
          "m/s": {"m": "1", "s": "-1"}, "rad/s": {"rad": "1", "s": "-1"}, "m/s2": {"m": "1", "s": "-2"},
          "rad/s2": {"rad": "1", "s": "-2"}, "N/m": {"kg": "1", "s": "-2"},
-         "N/(m.s)": {"kg": "1", "s": "-1"}, "N.s/m": {"kg": "1", "s": "-1"}, "N/(m/s)": {"kg": "1", "s": "-1"}}
+         "N/(m.s)": {"kg": "1", "s": "-3"}, "N.s/m": {"kg": "1", "s": "-1"}, "m.s": {"m": "1", "s": "1"}}
 _DISPLAY = {"m": ("mm", 1e3), "rad": ("deg", 57.29577951308232), "m/s": ("mm/s", 1e3),
             "rad/s": ("deg/s", 57.29577951308232), "m/s2": ("mm/s2", 1e3),
             "rad/s2": ("deg/s2", 57.29577951308232)}
@@ -64,6 +65,18 @@ def add_units(xml_text, units):
     return ET.tostring(root, encoding="unicode", xml_declaration=True)
 
 
+def _units(fmu):
+    """Units the slave recorded, from an instance made on the FMU's own resources."""
+    with tempfile.TemporaryDirectory() as tmp:
+        with zipfile.ZipFile(fmu) as z:
+            z.extractall(tmp)
+        resources = pathlib.Path(tmp) / "resources"
+        module = importlib.import_module((resources / "slavemodule.txt").read_text().strip())
+        slave_class = next(c for c in vars(module).values()
+                           if isinstance(c, type) and c.__module__ == module.__name__ and hasattr(c, "step"))
+        return slave_class(instance_name="build", resources=str(resources)).units
+
+
 def _rewrite(fmu, units):
     with zipfile.ZipFile(fmu) as z:
         files = {name: z.read(name) for name in z.namelist()}
@@ -73,17 +86,32 @@ def _rewrite(fmu, units):
             z.writestr(name, data)
 
 
+def controller_defaults():
+    """Default PID gains, designed with python-control at a 1 ms communication step."""
+    from controller.design import design_pid, DEFAULT_CROSSOVER_HZ, DEFAULT_PHASE_MARGIN_DEG
+    from plant.stewart import StewartParams
+    d = design_pid(StewartParams.paper(), DEFAULT_CROSSOVER_HZ, DEFAULT_PHASE_MARGIN_DEG, 1e-3)
+    text = (f"h = 1 ms: crossover {d.crossover_hz:.1f} Hz, phase margin {d.modal_phase_margin_deg:.0f} deg, "
+            f"gain margin {d.modal_gain_margin_db:.1f} dB")
+    gains = {k: getattr(d.gains, k) for k in ("kp", "ki", "kd", "force_limit")}
+    return json.dumps({"gains": gains, "design": text})
+
+
+EXTRA_RESOURCES = {"leg_controller_fmu": {"leg_controller_defaults.json": controller_defaults}}
+
+
 def build(script, out):
     """Build one FMU from fmu_src/<script>.py; returns its path."""
     path = ROOT / "fmu_src" / f"{script}.py"
     with tempfile.TemporaryDirectory() as tmp:
-        req = pathlib.Path(tmp) / "requirements.txt"
-        req.write_text(requirements())
-        fmu = FmuBuilder.build_FMU(path, dest=out, project_files=[req], canGetAndSetFMUstate=True)
-    module = importlib.import_module(script)
-    slave_class = next(c for c in vars(module).values()
-                       if isinstance(c, type) and c.__module__ == script and hasattr(c, "step"))
-    _rewrite(fmu, slave_class(instance_name="build").units)
+        files = {"requirements.txt": requirements}
+        files.update(EXTRA_RESOURCES.get(script, {}))
+        project_files = []
+        for name, make in files.items():
+            project_files.append(pathlib.Path(tmp) / name)
+            project_files[-1].write_text(make())
+        fmu = FmuBuilder.build_FMU(path, dest=out, project_files=project_files, canGetAndSetFMUstate=True)
+    _rewrite(fmu, _units(fmu))
     problems = validate_fmu(str(fmu))
     if problems:
         raise RuntimeError(f"{fmu.name} fails fmpy validation:\n" + "\n".join(problems))
