@@ -5,14 +5,13 @@ read through preallocated buffers (what the scenario master does), in µs and as
 ratio to the empty FMU's doStep. Median of repeated runs of 2000 steps at h = 1 ms."""
 import pathlib
 import statistics
-import sys
 import tempfile
 import time
 
 import numpy as np
 from pythonfmu.builder import FmuBuilder
 
-import build
+from fmu_src import builder
 from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
 from scenarios.fmi import Instance, RealPort
 
@@ -41,9 +40,8 @@ def time_steps(instance, inputs=None, outputs=None, repeats=5):
 
 def main():
     out = pathlib.Path(tempfile.mkdtemp())
-    sys.path.insert(0, str(build.ROOT / "fmu_src"))
     empty = FmuBuilder.build_FMU(HERE / "empty_fmu.py", dest=out)
-    fmus = {name: build.build(name, out) for name in build.available()}
+    fmus = builder.ensure_built(builder.available(), out)
     floor = Instance(empty, "empty")
     floor.initialize(0.0)
     floor_us = time_steps(floor)
@@ -59,8 +57,8 @@ def main():
     for name, (params, ins, values, outs) in cases.items():
         if name not in fmus:
             continue
-        inst = Instance(fmus[name], name, params)
-        inst.initialize(0.0)
+        inst = Instance(fmus[name], name)
+        inst.initialize(0.0, params)
         port_in = (RealPort(inst, ins), values) if ins else None
         if port_in:
             port_in[0].write(values)    # hold the platform at rest

@@ -11,7 +11,7 @@ The mode says how much of the base motion the controller knows about:
 """
 import numpy as np
 
-from plant.stewart import inverse_dynamics, inverse_kinematics, pose_jacobian
+from plant.stewart import inverse_dynamics, inverse_dynamics_terms, inverse_kinematics, pose_jacobian
 
 FEEDFORWARD_MODES = ("none", "fixed_base", "moving_base")
 
@@ -38,3 +38,15 @@ def reference_legs(params, pose, pose_rate):
     lengths = inverse_kinematics(params, pose)
     rates = (pose_jacobian(params, pose) @ pose_rate[..., None])[..., 0]
     return lengths, rates
+
+
+def feedforward_and_legs(params, mode, pose, pose_rate, pose_acc, base_pose=0, base_rate=0, base_acc=0):
+    """(feedforward forces, reference leg lengths, reference leg rates) from one call of
+    the compiled model: what the controller FMU needs every step."""
+    if mode not in FEEDFORWARD_MODES:
+        raise ValueError(f"unknown feedforward mode {mode!r}; choose one of {FEEDFORWARD_MODES}")
+    if mode == "moving_base":
+        forces, terms = inverse_dynamics_terms(params, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc)
+    else:
+        forces, terms = inverse_dynamics_terms(params, pose, pose_rate, pose_acc, fidelity="no_base")
+    return (forces if mode != "none" else np.zeros_like(forces)), terms.leg_lengths, terms.leg_rates

@@ -11,7 +11,7 @@ import pathlib
 
 import numpy as np
 
-from controller.feedforward import FEEDFORWARD_MODES, feedforward_forces, reference_legs
+from controller.feedforward import FEEDFORWARD_MODES, feedforward_and_legs
 from controller.pid import PIDGains, pid_step
 from fmu_src.slave import INPUT, OUTPUT, PARAMETER, POSE_UNITS, GuardedSlave, acc_units, rate_units
 from plant.stewart import StewartParams
@@ -64,12 +64,12 @@ class LegController(GuardedSlave):
 
     def _update(self, h):
         """Forces from the inputs now; the integral advances only on a real step."""
-        ff = feedforward_forces(self.params, self.mode, self.ref, self.ref_rate, self.ref_acc,
-                                self.base_pose, self.base_rate, self.base_acc)
-        if h is None:   # initialization: feedforward plus P and D, integral untouched
+        ff, ref_lengths, ref_rates = feedforward_and_legs(self.params, self.mode, self.ref, self.ref_rate,
+                                                          self.ref_acc, self.base_pose, self.base_rate,
+                                                          self.base_acc)
+        if h is None:   # initialization: the feedforward alone, integral untouched
             self.forces[:] = ff
         else:
-            ref_lengths, ref_rates = reference_legs(self.params, self.ref, self.ref_rate)
             self.forces[:], self.integral[:] = pid_step(self.pid, self.integral, ref_lengths, ref_rates,
                                                         self.lengths, self.rates, ff, h)
         self.feedforward_force[:] = ff

@@ -15,8 +15,10 @@ import numpy as np
 
 from fmu_src.slave import OUTPUT, PARAMETER, POSE_UNITS, GuardedSlave, acc_units, rate_units
 from plant import telescope
+from plant.stewart import HOME_POSE, S_BAND_POSE
+from plant.trajectory import quintic
 
-PROFILES = ("slew", "sidereal", "paper")
+PROFILES = ("slew", "sidereal", "paper")   # paper: the base and platform motion of Yao et al.
 BLOCK = 1000
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 
@@ -45,6 +47,7 @@ class TelescopeBase(GuardedSlave):
             ("declination", "rad", tianma.latitude + np.radians(0.2), "tracked source declination"),
             ("utc_start", "s", 1.7e9, "UTC at t = 0, seconds since 1970-01-01"),
             ("paper_duration", "s", 6.0, "duration of the paper's stress manoeuvre"),
+            ("start_delay", "s", 0.0, "the profile starts this late; before it, the start pointing holds"),
         ):
             self.settings[name] = default
             self.real(name, PARAMETER, text, unit, default,
@@ -78,6 +81,7 @@ class TelescopeBase(GuardedSlave):
                 self.params, s["right_ascension"], s["declination"], utc, t)
         else:
             self.profile_at = lambda t: telescope.paper_manoeuvre(t, s["paper_duration"])
+        self.paper = kind == "paper"
         self.outputs = (self.base_pose, self.base_rate, self.base_acc, self.ref_pose, self.ref_rate,
                         self.ref_acc, self.axes, self.axis_rates)
         self.block_t, self.block_h, self.block = np.inf, 0.0, None
@@ -96,7 +100,11 @@ class TelescopeBase(GuardedSlave):
 
     def _evaluate(self, times):
         """All outputs at the given times, as arrays (n, width) in self.outputs' order."""
+        times = times - self.settings["start_delay"]
         axes = self.profile_at(times)
         base = telescope.base_motion(self.params, axes)
-        ref = telescope.reference_pose(self.params, axes)
+        if self.paper:   # the paper's platform motion: home to the S-band pose, same quintic
+            ref = quintic(HOME_POSE, S_BAND_POSE, self.settings["paper_duration"], times)
+        else:
+            ref = telescope.reference_pose(self.params, axes)
         return (*base, *ref, np.stack([axes.A, axes.E], -1), np.stack([axes.A_dot, axes.E_dot], -1))

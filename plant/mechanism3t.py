@@ -509,3 +509,60 @@ def paper_example(P=None, t=None, amplitude=0.010, omega=0.5):
     forces = slider_forces(P, rho, rho_dot, -amplitude * omega ** 2 * s, mode=1)
     i, j = np.unravel_index(np.argmax(np.abs(forces)), forces.shape)
     return SliderForceHistory(t, rho, forces, float(abs(forces[i, j])), ("x_A2", "y_A1", "y_A3")[j])
+
+
+# ---------------------------------------------------------------- forward dynamics (slider coordinates)
+
+def dynamics_terms(P, rho, rho_dot, mode=1):
+    """(M, bias) with slider_forces(P, rho, rho_dot, rho_ddot) = M rho_ddot + bias.
+
+    M (..., 3, 3) [kg] is the generalised mass matrix in slider coordinates (symmetric,
+    positive definite away from singularities), bias (..., 3) [N] the velocity-product and
+    gravity forces.  Both come from the virtual-work sums of slider_forces, over one
+    evaluation of the bodies: row 0 moves with rho_dot and zero slider accelerations (its
+    accelerations are the velocity-product terms), rows 1-3 with unit slider rates (their
+    velocities are the velocity Jacobians of every centre of mass and swing angle)."""
+    rho = _finite("rho", rho)
+    rho_dot = _finite("rho_dot", rho_dot)
+    shape = np.broadcast_shapes(rho.shape, rho_dot.shape)
+    rates = np.concatenate([np.broadcast_to(rho_dot, shape)[..., None, :],
+                            np.broadcast_to(np.eye(3), shape[:-1] + (3, 3))], axis=-2)
+    bodies = _bodies(P, np.broadcast_to(rho, shape)[..., None, :], rates, np.zeros(3), mode).values()
+    m = np.array([b[0] for b in bodies])
+    vel = np.stack([b[2][1] for b in bodies])                       # (bodies, ..., 4, 3)
+    acc = np.stack([b[2][2][..., 0, :] for b in bodies]) + P.g * Z_AXIS
+    turning = [b for b in bodies if b[3] is not None]
+    inertia = np.array([b[1] for b in turning])
+    angle_rate = np.stack([b[3][1] for b in turning])               # (turning, ..., 4)
+    angle_acc = np.stack([b[3][2][..., 0] for b in turning])
+    jac, jac_angle = vel[..., 1:, :], angle_rate[..., 1:]          # velocity Jacobians per slider
+    mass = (np.einsum("b,b...ik,b...jk->...ij", m, jac, jac)
+            + np.einsum("b,b...i,b...j->...ij", inertia, jac_angle, jac_angle))
+    bias = (np.einsum("b,b...k,b...ik->...i", m, acc, jac)
+            + np.einsum("b,b...,b...i->...i", inertia, angle_acc, jac_angle))
+    return mass, bias
+
+
+def mass_matrix(P, rho, mode=1):
+    """Generalised mass matrix (..., 3, 3) [kg] in slider coordinates (x_A2, y_A1, y_A3)."""
+    return dynamics_terms(P, rho, np.zeros(3), mode)[0]
+
+
+def forward_dynamics(P, rho, rho_dot, forces, mode=1):
+    """Slider accelerations (..., 3) [m/s^2] under slider forces (..., 3) [N]: the inverse of
+    slider_forces, rho_ddot = M^-1 (forces - bias).  Raises InvalidInputError on NaN/inf,
+    UnreachableError / SingularConfigurationError where slider_forces would."""
+    forces = _finite("slider forces", forces)
+    mass, bias = dynamics_terms(P, rho, rho_dot, mode)
+    rhs = np.broadcast_to(forces - bias, np.broadcast_shapes(forces.shape, bias.shape))
+    return np.linalg.solve(mass, rhs[..., None])[..., 0]
+
+
+def paper_motion(t, centre=None, amplitude=0.010, omega=0.5):
+    """Slider motion of paper 4.3 at time(s) t: rho = centre + amplitude sin(omega t) on every
+    slider, with its rate and acceleration, each shaped t.shape + (3,). centre defaults to
+    the numerical-check configuration (m); amplitude in m, omega in rad/s."""
+    centre = np.array(PAPER_REFERENCE_RHO_MM) * MM if centre is None else _finite("centre", centre, True)
+    t = np.asarray(t, dtype=float)[..., None] * np.ones(3)
+    s, c = np.sin(omega * t), np.cos(omega * t)
+    return centre + amplitude * s, amplitude * omega * c, -amplitude * omega ** 2 * s

@@ -38,6 +38,8 @@ from .rotations import angular_velocity, cross, rpy_matrix, rpy_rate_matrix
 
 FIDELITIES = ("full", "massless_legs", "base_gravity", "no_base")
 HOME_POSE = np.array([0.0, 0.0, -2.6815, 0.0, 0.0, 0.0])
+# the paper's S-band pose, the end of its 6 s manoeuvre
+S_BAND_POSE = np.array([5.43e-3, 22.55e-3, -2655.07e-3, np.radians(0.07), np.radians(-0.07), 0.0])
 
 # Joint angles of spec Table (deg): base B_i and platform a_i, legs 1..6.
 _BASE_ANGLES = np.radians([85, 95, 205, 215, 325, 335])
@@ -103,6 +105,7 @@ class DynamicsTerms(NamedTuple):
     bias: np.ndarray      # (..., 6)
     jacobian: np.ndarray  # (..., 6, 6)
     leg_rates: np.ndarray  # (..., 6)
+    leg_lengths: np.ndarray  # (..., 6)
     det_ratio: np.ndarray  # (...,) |det J| / |det J at home|: near 0 means singular
 
 
@@ -244,7 +247,7 @@ def _run(params, pose, rate, arg, base, fidelity, solve, twist_speeds=False, arg
               base_mode, legs, twist_speeds, solve, M, h, J, ldot, length, out, det)
     batch = shape[:-1]
     terms = DynamicsTerms(M.reshape(batch + (6, 6)), h.reshape(batch + (6,)),
-                          J.reshape(batch + (6, 6)), ldot.reshape(batch + (6,)),
+                          J.reshape(batch + (6, 6)), ldot.reshape(batch + (6,)), length.reshape(batch + (6,)),
                           (np.abs(det) / params.home_det).reshape(batch))
     _check_det_ratio(terms.det_ratio)
     return out.reshape(batch + (6,)), terms
@@ -257,7 +260,14 @@ def inverse_dynamics(params, pose, pose_rate, pose_acc, base_pose=0, base_rate=0
     ``pose`` [x, y, z, roll, pitch, yaw] of {P} in {B}, ``pose_rate``/``pose_acc`` its
     time derivatives; ``base_*`` the same for {B} in {W} (all 0 = fixed base). Batched
     over leading dimensions. Raises SingularConfigurationError at a singular pose."""
-    return _run(params, pose, pose_rate, pose_acc, (base_pose, base_rate, base_acc), fidelity, kane.ID)[0]
+    return inverse_dynamics_terms(params, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc, fidelity)[0]
+
+
+def inverse_dynamics_terms(params, pose, pose_rate, pose_acc, base_pose=0, base_rate=0, base_acc=0,
+                           fidelity="full"):
+    """(leg forces, DynamicsTerms) from one kernel call: a controller gets its
+    feedforward and the reference leg lengths and rates together."""
+    return _run(params, pose, pose_rate, pose_acc, (base_pose, base_rate, base_acc), fidelity, kane.ID)
 
 
 def forward_dynamics(params, pose, pose_rate, forces, base_pose=0, base_rate=0, base_acc=0,

@@ -27,6 +27,7 @@ import numpy as np
 
 from .errors import InvalidInputError
 from .rotations import cross
+from .trajectory import quintic
 
 EARTH_RATE = 7.2921159e-5           # rad/s, the rate at which the hour angle advances
 _J2000 = datetime(2000, 1, 1, 12, tzinfo=timezone.utc)
@@ -271,13 +272,9 @@ def paper_manoeuvre(t, T=6.0):
     t = _times(t)
     if not _finite("T", T) > 0:
         raise InvalidInputError(f"T must be > 0, got {T!r}")
-    tau = np.clip(t / T, 0.0, 1.0)
-    s = tau**3 * (10 - 15 * tau + 6 * tau**2)
-    s_dot = 30 * tau**2 * (1 - tau)**2 / T
-    s_ddot = 60 * tau * (1 - tau) * (1 - 2 * tau) / T**2
-    roll, yaw = np.radians(45.0), np.radians(30.0)
-    return AxisMotion(t, yaw * s, yaw * s_dot, yaw * s_ddot,
-                      np.pi / 2 - roll * s, -roll * s_dot, -roll * s_ddot)
+    (roll, yaw), (roll_dot, yaw_dot), (roll_ddot, yaw_ddot) = (
+        x.T for x in quintic((0.0, 0.0), np.radians((45.0, 30.0)), T, t))
+    return AxisMotion(t, yaw, yaw_dot, yaw_ddot, np.pi / 2 - roll, -roll_dot, -roll_ddot)
 
 
 # --- what the axes do to the base and to the reference ---------------------------------

@@ -1,4 +1,38 @@
-"""Main job: the paper's two hexapod scenarios with their leg-force chart."""
-from .paper_forces import main
+"""Command line: run scenario files (or shipped scenario names) and write their reports.
 
-main()
+    python -m scenarios [SCENARIO ...] [--out DIR] [--ci] [--quiet]
+
+Without a scenario it runs the main job: the telescope slew (FMUs built first) and the
+paper's leg-force charts.
+"""
+import argparse
+import sys
+
+from .paper_forces import main as paper_charts
+from .runner import run_scenario
+from .spec import ScenarioError
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m scenarios", description=__doc__.splitlines()[0])
+    parser.add_argument("scenarios", nargs="*", help="scenario files or shipped names (default: telescope_slew)")
+    parser.add_argument("--out", default="out", help="output folder (default: out)")
+    parser.add_argument("--ci", action="store_true", help="apply each file's [ci] overrides (short runs)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    names = args.scenarios or ["telescope_slew"]
+    try:
+        for name in names:
+            scenario, runs, report = run_scenario(name, args.out, ci=args.ci, progress=not args.quiet)
+            print(f"{scenario.name}: report {report}")
+            for run in runs:
+                print(f"  {run.label}: {run.steps} steps in {run.wall_time:.1f} s "
+                      f"(real-time factor {run.real_time_factor:.1f})")
+    except ScenarioError as exc:
+        sys.exit(f"scenario error: {exc}")
+    if not args.scenarios:
+        paper_charts(f"{args.out}/paper")
+
+
+if __name__ == "__main__":
+    main()

@@ -27,7 +27,7 @@ def unpack(path):
 class Instance:
     """One FMU instance: instantiate, set parameters, initialise, step, read/write."""
 
-    def __init__(self, path, name, parameters=None):
+    def __init__(self, path, name):
         self.name = name
         self.md, folder = unpack(path)
         self.variables = {v.name: v for v in self.md.modelVariables}
@@ -42,7 +42,6 @@ class Instance:
                              modelIdentifier=self.md.coSimulation.modelIdentifier)
         self.time = 0.0
         self.call("instantiate", loggingOn=True, callbacks=callbacks)
-        self.parameters = dict(parameters or {})
 
     def _on_log(self, component, instance, status, category, message):
         self.log.append(f"[{_LABELS[status]}] {message.decode(errors='replace')}")
@@ -74,11 +73,15 @@ class Instance:
         else:
             self.call("setReal", [self.vr(name)], [float(value)])
 
-    def initialize(self, start_time):
+    def get_real(self, name):
+        return self.call("getReal", [self.vr(name)])[0]
+
+    def initialize(self, start_time, values=None):
+        """Set up, set ``values`` (parameters and start inputs) in initialization mode, exit."""
         self.time = start_time
         self.call("setupExperiment", startTime=start_time)
         self.call("enterInitializationMode")
-        for name, value in self.parameters.items():
+        for name, value in (values or {}).items():
             self.set(name, value)
         self.call("exitInitializationMode")
 
@@ -87,8 +90,11 @@ class Instance:
         self.call("doStep", t, h)
 
     def terminate(self):
+        """End the instance; a failed FMU may refuse terminate, it is freed regardless."""
         try:
             self.fmu.terminate()
+        except FMICallException:
+            pass
         finally:
             self.fmu.freeInstance()
 

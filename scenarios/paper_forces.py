@@ -9,11 +9,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
+from plant.stewart import HOME_POSE, S_BAND_POSE, StewartParams, inverse_dynamics
 from plant.trajectory import quintic
 
 DURATION = 6.0
-S_BAND_POSE = np.array([5.43e-3, 22.55e-3, -2655.07e-3, np.radians(0.07), np.radians(-0.07), 0.0])
 BASE_END = np.array([0.0, 0.0, 0.0, np.radians(45.0), 0.0, np.radians(30.0)])
 
 

@@ -1,14 +1,10 @@
 """Shared fixtures: the FMUs are built once per test session into a temporary folder."""
-import sys
-
 import pytest
 
-import build
+from fmu_src import builder
 
 
 @pytest.fixture(scope="session")
 def fmus(tmp_path_factory):
-    """Paths of every built FMU, by script name."""
-    out = tmp_path_factory.mktemp("fmu")
-    sys.path.insert(0, str(build.ROOT / "fmu_src"))
-    return {name: build.build(name, out) for name in build.available()}
+    """Paths of every FMU, built once per session into a temporary folder, by script name."""
+    return builder.ensure_built(builder.available(), tmp_path_factory.mktemp("fmu"))

@@ -17,8 +17,8 @@ STATIC = inverse_dynamics(PARAMS, HOME_POSE, np.zeros(6), np.zeros(6))
 
 
 def open_fmu(path, name="a", **parameters):
-    instance = Instance(path, name, parameters)
-    instance.initialize(0.0)
+    instance = Instance(path, name)
+    instance.initialize(0.0, parameters)
     return instance
 
 

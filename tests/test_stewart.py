@@ -7,9 +7,8 @@ import pytest
 from plant import stewart
 from plant.errors import InvalidInputError, SingularConfigurationError, UnreachablePoseError
 from plant.rotations import rpy_matrix
-from plant.stewart import HOME_POSE, StewartParams
+from plant.stewart import HOME_POSE, S_BAND_POSE, StewartParams
 from plant.trajectory import quintic
-from scenarios.paper_forces import S_BAND_POSE
 
 PARAMS = StewartParams.paper()
 RNG = np.random.default_rng(2)

@@ -1,0 +1,167 @@
+"""Build every FMU of the kit into build/fmu/ and check each with fmpy's validator
+(the CLI is build.py at the top of the repository: python build.py [--out DIR] [names]).
+
+pythonfmu packs each script of fmu_src/ (class __init__ runs here, at build time); this
+script then adds what pythonfmu leaves out: SI units with mm/deg display units in
+modelDescription.xml, and resources/requirements.txt naming the Python packages the FMU
+needs at run time (pythonfmu's `deploy` installs from it).
+"""
+import argparse
+import importlib
+import json
+import pathlib
+import sys
+import tempfile
+import zipfile
+import xml.etree.ElementTree as ET
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
+from fmpy.validation import validate_fmu
+from pythonfmu.builder import FmuBuilder
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+OUT = ROOT / "build" / "fmu"
+SCRIPTS = ("hexapod_plant_fmu", "telescope_fmu", "leg_controller_fmu", "mechanism3t_fmu", "slider_controller_fmu")
+
+_BASE = {"m": {"m": "1"}, "rad": {"rad": "1"}, "s": {"s": "1"}, "N": {"kg": "1", "m": "1", "s": "-2"},
+         "m/s": {"m": "1", "s": "-1"}, "rad/s": {"rad": "1", "s": "-1"}, "m/s2": {"m": "1", "s": "-2"},
+         "rad/s2": {"rad": "1", "s": "-2"}, "N/m": {"kg": "1", "s": "-2"},
+         "N/(m.s)": {"kg": "1", "s": "-3"}, "N.s/m": {"kg": "1", "s": "-1"}, "m.s": {"m": "1", "s": "1"}}
+_DISPLAY = {"m": ("mm", 1e3), "rad": ("deg", 57.29577951308232), "m/s": ("mm/s", 1e3),
+            "rad/s": ("deg/s", 57.29577951308232), "m/s2": ("mm/s2", 1e3),
+            "rad/s2": ("deg/s2", 57.29577951308232)}
+
+
+def requirements():
+    """Runtime requirements of the FMUs: the pinned dependencies plus this kit."""
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    lines = [f"# install into the Python that runs the FMU, e.g. pip install {ROOT}"]
+    lines += [f"{project['name']}=={project['version']}", *project["dependencies"]]
+    return "\n".join(lines) + "\n"
+
+
+def add_units(xml_text, units):
+    """modelDescription.xml with UnitDefinitions and unit/displayUnit on every Real."""
+    root = ET.fromstring(xml_text)
+    definitions = ET.Element("UnitDefinitions")
+    for name in sorted(set(units.values())):
+        unit = ET.SubElement(definitions, "Unit", name=name)
+        ET.SubElement(unit, "BaseUnit", _BASE[name])
+        if name in _DISPLAY:
+            ET.SubElement(unit, "DisplayUnit", name=_DISPLAY[name][0], factor=repr(_DISPLAY[name][1]))
+    position = list(root).index(root.find("CoSimulation")) + 1
+    root.insert(position, definitions)
+    for var in root.iter("ScalarVariable"):
+        real = var.find("Real")
+        if real is not None and var.get("name") in units:
+            unit = units[var.get("name")]
+            real.set("unit", unit)
+            if unit in _DISPLAY:
+                real.set("displayUnit", _DISPLAY[unit][0])
+    return ET.tostring(root, encoding="unicode", xml_declaration=True)
+
+
+def _units(fmu):
+    """Units the slave recorded, from an instance made on the FMU's own resources."""
+    with tempfile.TemporaryDirectory() as tmp:
+        with zipfile.ZipFile(fmu) as z:
+            z.extractall(tmp)
+        resources = pathlib.Path(tmp) / "resources"
+        module = importlib.import_module((resources / "slavemodule.txt").read_text().strip())
+        slave_class = next(c for c in vars(module).values()
+                           if isinstance(c, type) and c.__module__ == module.__name__ and hasattr(c, "step"))
+        return slave_class(instance_name="build", resources=str(resources)).units
+
+
+def _rewrite(fmu, units):
+    with zipfile.ZipFile(fmu) as z:
+        files = {name: z.read(name) for name in z.namelist()}
+    files["modelDescription.xml"] = add_units(files["modelDescription.xml"].decode(), units).encode()
+    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as z:
+        for name, data in files.items():
+            z.writestr(name, data)
+
+
+def controller_defaults():
+    """Default PID gains, designed with python-control at a 1 ms communication step."""
+    from controller.design import design_pid, DEFAULT_CROSSOVER_HZ, DEFAULT_PHASE_MARGIN_DEG
+    from plant.stewart import StewartParams
+    d = design_pid(StewartParams.paper(), DEFAULT_CROSSOVER_HZ, DEFAULT_PHASE_MARGIN_DEG, 1e-3)
+    text = (f"h = 1 ms: crossover {d.crossover_hz:.1f} Hz, phase margin {d.modal_phase_margin_deg:.0f} deg, "
+            f"gain margin {d.modal_gain_margin_db:.1f} dB")
+    gains = {k: getattr(d.gains, k) for k in ("kp", "ki", "kd", "force_limit")}
+    return json.dumps({"gains": gains, "design": text})
+
+
+EXTRA_RESOURCES = {"leg_controller_fmu": {"leg_controller_defaults.json": controller_defaults}}
+
+
+def build(script, out):
+    """Build one FMU from fmu_src/<script>.py; returns its path."""
+    path = ROOT / "fmu_src" / f"{script}.py"
+    with tempfile.TemporaryDirectory() as tmp:
+        files = {"requirements.txt": requirements}
+        files.update(EXTRA_RESOURCES.get(script, {}))
+        project_files = []
+        for name, make in files.items():
+            project_files.append(pathlib.Path(tmp) / name)
+            project_files[-1].write_text(make())
+        fmu = FmuBuilder.build_FMU(path, dest=out, project_files=project_files, canGetAndSetFMUstate=True)
+    _rewrite(fmu, _units(fmu))
+    problems = validate_fmu(str(fmu))
+    if problems:
+        raise RuntimeError(f"{fmu.name} fails fmpy validation:\n" + "\n".join(problems))
+    return fmu
+
+
+def available():
+    """The FMU scripts present in fmu_src/."""
+    return [s for s in SCRIPTS if (ROOT / "fmu_src" / f"{s}.py").exists()]
+
+
+def _sources():
+    return [p for folder in ("fmu_src", "controller") for p in (ROOT / folder).glob("*.py")] + [ROOT / "pyproject.toml"]
+
+
+def ensure_built(scripts, out=OUT):
+    """Paths of the FMUs of ``scripts``, (re)building those missing or older than the
+    kit's FMU and controller sources."""
+    out.mkdir(parents=True, exist_ok=True)
+    newest = max(p.stat().st_mtime for p in _sources())
+    paths = {}
+    for script in scripts:
+        stamp = out / f"{script}.built"
+        if stamp.exists() and stamp.stat().st_mtime >= newest and pathlib.Path(stamp.read_text()).exists():
+            paths[script] = pathlib.Path(stamp.read_text())
+            continue
+        _import_path()
+        paths[script] = build(script, out)
+        stamp.write_text(str(paths[script]))
+    return paths
+
+
+def _import_path():
+    """The FMU scripts are imported by their own module names while building."""
+    folder = str(ROOT / "fmu_src")
+    if folder not in sys.path:
+        sys.path.insert(0, folder)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", default=str(OUT), help="output folder")
+    parser.add_argument("names", nargs="*", default=available(),
+                        help="FMU scripts to build (default: all)")
+    args = parser.parse_args(argv)
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    _import_path()
+    for name in args.names:
+        fmu = build(name, out)
+        print(f"built {fmu}")
+    print(f"FMUs are in {out}")
+    return out

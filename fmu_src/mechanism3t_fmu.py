@@ -1,0 +1,77 @@
+"""FMU: the 3T parallel mechanism of Shen et al. 2024 ("mechanism 1"), slider forces in,
+slider and platform motion out.
+
+The physics is plant.mechanism3t; this file maps FMI variables onto it. State: the slider
+positions rho = (x_A2, y_A1, y_A3) and rates; dynamics M(rho) rho_ddot = F - bias(rho, rho_dot)
+(plant.mechanism3t.forward_dynamics: the virtual-work model of slider_forces, solved for the
+accelerations). Over a communication step the forces are held and the state is advanced by
+plant.integrators.advance with the chosen method; O' follows from forward_branch in the
+chosen assembly mode. The state lives in the output arrays (views of one state vector), so
+get/set FMU state restores it.
+
+Default max_step 5 ms: held forces leave only the open-loop dynamics inside a step (gravity
+mode 7.4 rad/s, swing 9.8 rad/s at the paper configuration), where RK4 at 5 ms is within
+~1e-9 m of Radau over 0.5 s; co-simulation steps up to 5 ms then cost one substep.
+
+Errors (each a plant.errors.PlantError, reported by GuardedSlave as fmi2Discard with the
+message logged): NaN/inf forces (InvalidInputError), a configuration with no assembly in
+the chosen mode (UnreachableError, also for unreachable initial positions), an output
+singularity or a stretched passive limb (SingularConfigurationError), a non-finite state
+(ConvergenceError).
+"""
+import numpy as np
+
+from fmu_src.slave import INPUT, OUTPUT, PARAMETER, GuardedSlave
+from plant.errors import InvalidInputError
+from plant.integrators import INTEGRATORS, advance
+from plant.mechanism3t import MM, PAPER_REFERENCE_RHO_MM, Mechanism1Params, forward_branch, forward_dynamics
+
+SLIDERS = ("x_A2", "y_A1", "y_A3")
+AXES = ("x", "y", "z")
+
+
+class Mechanism3TPlant(GuardedSlave):
+    description = "3T decoupled parallel mechanism (Shen et al. 2024, mechanism 1), virtual-work dynamics in slider coordinates"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.integer("integrator", "integrator: " + ", ".join(f"{i} {m}" for i, m in enumerate(INTEGRATORS)), 0)
+        self.integer("mode", "assembly mode, +1 or -1: sign before the square root of eq. 11 (paper check: +1)", 1)
+        self.max_step = 5e-3
+        self.real("max_step", PARAMETER, "largest internal integration step", "s", self.max_step)
+        rho0 = np.array(PAPER_REFERENCE_RHO_MM) * MM
+        self.initial_position = self.vector("initial_position", 3, PARAMETER,
+                                            [f"initial slider position {s}" for s in SLIDERS], "m", rho0)
+        self.initial_rate = self.vector("initial_rate", 3, PARAMETER,
+                                        [f"initial slider rate d/dt {s}" for s in SLIDERS], "m/s")
+        self.force = self.vector("slider_force", 3, INPUT,
+                                 ["actuator force on slider x_A2 along +x", "actuator force on slider y_A1 along +y",
+                                  "actuator force on slider y_A3 along +y"], "N")
+        self.x = np.r_[rho0, np.zeros(3)]
+        self.vector("slider_position", 3, OUTPUT, [f"slider position {s}" for s in SLIDERS], "m",
+                    values=self.x[:3])
+        self.vector("slider_rate", 3, OUTPUT, [f"slider rate d/dt {s}" for s in SLIDERS], "m/s",
+                    values=self.x[3:])
+        self.params = Mechanism1Params.paper()
+        self.platform = self.vector("platform_position", 3, OUTPUT,
+                                    [f"moving platform centre O' {a} in frame O" for a in AXES], "m",
+                                    forward_branch(self.params, rho0))
+        self.method = INTEGRATORS[0]
+
+    def initialize(self):
+        if not 0 <= self.integrator < len(INTEGRATORS):
+            raise InvalidInputError(f"integrator index {self.integrator} is not one of 0..{len(INTEGRATORS) - 1} "
+                                    f"({', '.join(INTEGRATORS)})")
+        if not self.max_step > 0:
+            raise InvalidInputError(f"max_step must be positive, got {self.max_step}")
+        self.method = INTEGRATORS[self.integrator]
+        self.x[:] = np.r_[self.initial_position, self.initial_rate]
+        self.platform[:] = forward_branch(self.params, self.x[:3], self.mode)
+        self._rhs(0.0, self.x)   # refuses singular starts and NaN forces now, not at the first step
+
+    def _rhs(self, t, x):
+        return np.concatenate([x[3:], forward_dynamics(self.params, x[:3], x[3:], self.force, self.mode)])
+
+    def step(self, t, h):
+        self.x[:] = advance(self.method, self._rhs, t, self.x, h, self.max_step)
+        self.platform[:] = forward_branch(self.params, self.x[:3], self.mode)

@@ -1,0 +1,62 @@
+"""Run a scenario file end to end: check it, build the FMUs it needs, co-simulate each
+sweep value with a progress bar, and write results, charts and the report."""
+import json
+import pathlib
+
+from tqdm import tqdm
+
+from fmu_src.builder import ensure_built
+from . import master, metrics, report, spec
+from .fmi import unpack
+
+SHIPPED = pathlib.Path(__file__).resolve().parent / "files"
+
+
+def resolve(name):
+    """A scenario file path, or the name of a shipped scenario (scenarios/files/<name>.toml)."""
+    path = pathlib.Path(name)
+    if path.exists() or path.suffix == ".toml":
+        return path
+    return SHIPPED / f"{name}.toml"
+
+
+def prepare(path, ci=False):
+    """Scenario, FMU paths per instance and checked parameter values: all checks done
+    before anything runs. ``ci`` applies the file's [ci] overrides (a shorter run)."""
+    scenario = spec.load(path)
+    if ci and scenario.ci:
+        scenario = spec.load(path, overrides=scenario.ci)
+    scripts = ensure_built(sorted({spec.FMU_SCRIPTS[f] for f in scenario.fmus.values()}))
+    paths = {inst: scripts[spec.FMU_SCRIPTS[fmu]] for inst, fmu in scenario.fmus.items()}
+    descriptions = {inst: unpack(p)[0] for inst, p in paths.items()}
+    values = spec.bind(scenario, descriptions)
+    return scenario, paths, descriptions, values
+
+
+def run_scenario(path, out="out", ci=False, progress=True):
+    """Run every sweep value of a scenario; returns (scenario, runs, report path)."""
+    scenario, paths, descriptions, values = prepare(resolve(path), ci)
+    outdir = pathlib.Path(out) / scenario.name
+    outdir.mkdir(parents=True, exist_ok=True)
+    items = scenario.sweep[1] if scenario.sweep else [None]
+    runs = []
+    for item in items:
+        params = {inst: dict(v) for inst, v in values.items()}
+        label = "run"
+        if item is not None:
+            inst, name, value = spec.sweep_value(scenario, descriptions, item)
+            params[inst][name] = value
+            label = str(item)
+        bar = tqdm(total=100, desc=f"{scenario.name} [{label}]", unit="%", disable=not progress,
+                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
+        update = lambda fraction: bar.update(round(100 * fraction) - bar.n)
+        try:
+            runs.append(master.run(scenario, paths, params, outdir, label,
+                                   [metrics.make(m) for m in scenario.metrics], update))
+        finally:
+            bar.update(100 - bar.n)
+            bar.close()
+    summary = {r.label: {"metrics": r.metrics, "wall_time_s": r.wall_time, "steps": r.steps,
+                         "real_time_factor": r.real_time_factor} for r in runs}
+    (outdir / "metrics.json").write_text(json.dumps(summary, indent=2, default=float))
+    return scenario, runs, report.write(scenario, runs, outdir)

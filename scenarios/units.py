@@ -1,0 +1,46 @@
+"""Quantities as people write them in scenario files ("1 ms", "30 deg", "2681.5 mm"),
+converted to SI at the edge. A bare number is taken as SI."""
+import math
+import re
+
+# unit -> (SI factor, dimension)
+UNITS = {
+    "s": (1.0, "s"), "ms": (1e-3, "s"), "min": (60.0, "s"), "h": (3600.0, "s"),
+    "m": (1.0, "m"), "mm": (1e-3, "m"), "um": (1e-6, "m"), "µm": (1e-6, "m"),
+    "rad": (1.0, "rad"), "deg": (math.pi / 180, "rad"), "mrad": (1e-3, "rad"), "urad": (1e-6, "rad"),
+    "N": (1.0, "N"), "kN": (1e3, "N"),
+    "m/s": (1.0, "m/s"), "mm/s": (1e-3, "m/s"),
+    "rad/s": (1.0, "rad/s"), "deg/s": (math.pi / 180, "rad/s"),
+    "rad/s2": (1.0, "rad/s2"), "deg/s2": (math.pi / 180, "rad/s2"),
+    "m/s2": (1.0, "m/s2"), "mm/s2": (1e-3, "m/s2"),
+    "N/m": (1.0, "N/m"), "N/(m.s)": (1.0, "N/(m.s)"), "N.s/m": (1.0, "N.s/m"),
+    "Hz": (1.0, "1/s"),
+}
+_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(\S+)?\s*$")
+
+
+class UnitError(ValueError):
+    """A quantity with an unknown unit or a unit of the wrong dimension."""
+
+
+def to_si(value, dimension=None):
+    """SI float of a number or a "<number> <unit>" string; checks the unit's dimension
+    against ``dimension`` (an SI unit such as "m", "rad", "s") when given."""
+    if isinstance(value, bool):
+        raise UnitError(f"expected a number or quantity, got {value!r}")
+    if isinstance(value, (int, float)):
+        return float(value)
+    if not isinstance(value, str):
+        raise UnitError(f"expected a number or a quantity string like '1 ms', got {value!r}")
+    match = _QUANTITY.match(value)
+    if not match:
+        raise UnitError(f"cannot read quantity {value!r}: write '<number> <unit>'")
+    number, unit = float(match.group(1)), match.group(2)
+    if unit is None:
+        return number
+    if unit not in UNITS:
+        raise UnitError(f"unknown unit {unit!r} in {value!r}; known: {', '.join(UNITS)}")
+    factor, unit_dimension = UNITS[unit]
+    if dimension is not None and unit_dimension != dimension:
+        raise UnitError(f"{value!r} is in {unit_dimension}, expected a quantity in {dimension}")
+    return number * factor
