@@ -142,7 +142,7 @@ class Recorder:
     def record(self, t):
         for port, where in self.ports:
             self.row[where] = port.read()
-        self.writer.writerow([repr(t)] + [repr(v) for v in self.row])
+        self.writer.writerow([repr(t)] + [repr(v) for v in self.row.tolist()])
         values = {ref: self.row[s] for ref, s in self.slices.items()}
         for metric in self.metrics:
             if t >= metric.start - 1e-12:

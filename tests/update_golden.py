@@ -1,0 +1,44 @@
+"""Write tests/golden/<scenario>.json: the [ci] run's metrics with tolerances.
+
+Each tolerance is twice the change of the metric when the plant integrator's max_step is
+halved, i.e. the size of the integrator's own error in that number (floored at 1e-9 of
+the value): a regression beyond it is a change of behaviour, not of rounding.
+
+    python -m tests.update_golden [names]
+"""
+import json
+import pathlib
+import sys
+import tempfile
+
+from scenarios import runner
+
+GOLDEN = pathlib.Path(__file__).parent / "golden"
+
+
+def _metrics(name, out, max_step=None):
+    scenario, paths, descriptions, values = runner.prepare(runner.resolve(name), ci=True)
+    text = runner.resolve(name).read_text()
+    if max_step:
+        text = text.replace('max_step = "1 ms"', f'max_step = "{max_step * 1e3:g} ms"')
+        assert 'max_step = "1 ms"' not in text
+    path = pathlib.Path(out) / f"{name}.toml"
+    path.write_text(text)
+    return {r.label: r.metrics for r in runner.run_scenario(path, out, ci=True, progress=False)[1]}
+
+
+def main(names):
+    GOLDEN.mkdir(exist_ok=True)
+    for name in names:
+        with tempfile.TemporaryDirectory() as tmp:
+            base = _metrics(name, tmp)
+            fine = _metrics(name, tmp, max_step=0.5e-3)
+        golden = {label: {metric: {key: (value, 2 * max(abs(value - fine[label][metric][key]), 1e-9 * abs(value)))
+                                   for key, value in values.items() if key != "unit"}
+                          for metric, values in run.items()} for label, run in base.items()}
+        (GOLDEN / f"{name}.json").write_text(json.dumps(golden, indent=1))
+        print(f"wrote {GOLDEN / name}.json")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:] or sorted(p.stem for p in runner.SHIPPED.glob("*.toml")))
