@@ -70,6 +70,7 @@ def write(scenario, runs, outdir):
             cells.append(", ".join(f"{k} {_fmt(v)}" for k, v in result.items() if k != "unit"))
         lines.append(f"| {run.label} | " + " | ".join(cells) + f" | {run.wall_time:.2f} | {run.real_time_factor:.1f} |")
     lines.append("")
+    lines += [f"- {note}" for note in scenario.notes]
     lines += _findings(scenario, runs, tracked)
     for metric in tracked:
         chart = outdir / f"{metric.name.replace(' ', '_')}_vs_time.png"

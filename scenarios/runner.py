@@ -6,7 +6,8 @@ import pathlib
 from tqdm import tqdm
 
 from fmu_src.builder import ensure_built
-from . import master, metrics, report, spec
+from plant.stewart import FIDELITIES
+from . import fidelity, master, metrics, report, spec
 from .fmi import unpack
 
 SHIPPED = pathlib.Path(__file__).resolve().parent / "files"
@@ -29,8 +30,29 @@ def prepare(path, ci=False):
     scripts = ensure_built(sorted({spec.FMU_SCRIPTS[f] for f in scenario.fmus.values()}))
     paths = {inst: scripts[spec.FMU_SCRIPTS[fmu]] for inst, fmu in scenario.fmus.items()}
     descriptions = {inst: unpack(p)[0] for inst, p in paths.items()}
+    auto = [inst for inst, params in scenario.parameters.items() if params.get("fidelity") == "auto"]
+    for inst in auto:
+        scenario.parameters[inst]["fidelity"] = "full"    # bound as full, then chosen below
     values = spec.bind(scenario, descriptions)
+    for inst in auto:
+        _choose_fidelity(scenario, paths, values, inst)
     return scenario, paths, descriptions, values
+
+
+def _choose_fidelity(scenario, paths, values, plant):
+    """Replace the plant's fidelity by the cheapest within the scenario's tolerance."""
+    sources = {src.split(".", 1)[0] for src, targets in scenario.connections if f"{plant}.base_pose" in targets}
+    telescope = next((s for s in sources if scenario.fmus[s] == "telescope"), None)
+    if telescope is None:
+        raise spec.ScenarioError(scenario.source, f"fmus.{plant}.parameters.fidelity",
+                                 '"auto" needs the plant\'s base_pose fed by a telescope FMU')
+    errors = fidelity.fidelity_errors(fidelity.scene_motion(scenario, paths, values, telescope))
+    choice = fidelity.choose(errors, scenario.fidelity_tolerance)
+    values[plant]["fidelity"] = FIDELITIES.index(choice)
+    scenario.parameters[plant]["fidelity"] = choice
+    listed = ", ".join(f"{f} {e:.3g} N" for f, e in errors.items())
+    scenario.notes.append(f"fidelity auto for {plant}: chose {choice!r} (tolerance {scenario.fidelity_tolerance:g} N; "
+                          f"largest leg-force error of each level along this scene: {listed})")
 
 
 def run_scenario(path, out="out", ci=False, progress=True):

@@ -37,7 +37,7 @@ METRIC_KINDS = {  # kind -> required keys
     "base_effect": ("base", "reference"),
 }
 _TOP_KEYS = {"name", "description", "start_time", "stop_time", "step", "master", "extrapolation",
-             "fmus", "connections", "record", "metrics", "sweep", "ci"}
+             "fmus", "connections", "record", "metrics", "sweep", "ci", "fidelity_tolerance"}
 
 
 class ScenarioError(ValueError):
@@ -81,6 +81,8 @@ class Scenario:
     metrics: list
     sweep: tuple = None         # ("inst.var", [values])
     ci: dict = field(default_factory=dict)   # shortened settings for CI: {"stop_time": ...}
+    fidelity_tolerance: float = None         # [N], for a plant with fidelity = "auto"
+    notes: list = field(default_factory=list)  # what the runner decided (shown in the report)
 
 
 def _quantity(source, key, value, dimension):
@@ -204,9 +206,16 @@ def parse(text, source="<string>", overrides=None):
             raise ScenarioError(source, "sweep.values", "expected a non-empty list")
         sweep = (_reference(source, "sweep.parameter", table["parameter"], fmus), table["values"])
     ci = _table(source, "ci", data.get("ci", {}))
+    tolerance = None
+    if "fidelity_tolerance" in data:
+        tolerance = _quantity(source, "fidelity_tolerance", data["fidelity_tolerance"], "N")
+    for inst, params in parameters.items():
+        if params.get("fidelity") == "auto" and (fmus[inst] != "hexapod_plant" or tolerance is None):
+            raise ScenarioError(source, f"fmus.{inst}.parameters.fidelity",
+                                '"auto" needs a hexapod_plant and a top-level fidelity_tolerance (a force)')
     name = data.get("name", pathlib.Path(source).stem)
     return Scenario(source, name, data.get("description", ""), start, stop, step, master, extrapolation,
-                    fmus, parameters, connections, interval, recorded, metrics, sweep, ci)
+                    fmus, parameters, connections, interval, recorded, metrics, sweep, ci, tolerance)
 
 
 def load(path, overrides=None):

@@ -7,7 +7,7 @@ import pathlib
 import numpy as np
 import pytest
 
-from scenarios import master, metrics, runner, spec
+from scenarios import fidelity, master, metrics, runner, spec
 from scenarios.fmi import FmuError, unpack
 
 GOLDEN = pathlib.Path(__file__).parent / "golden"
@@ -181,3 +181,38 @@ def test_shipped_scenario_matches_its_golden_metrics(name, tmp_path):
         for metric, values in golden[run.label].items():
             for key, (expected, tolerance) in values.items():
                 assert run.metrics[metric][key] == pytest.approx(expected, abs=tolerance), (run.label, metric, key)
+
+
+# ----------------------------------------------------------------------- fidelity auto
+def test_fidelity_rule_picks_the_cheapest_level_within_tolerance():
+    errors = {"full": 0.0, "massless_legs": 900.0, "base_gravity": 0.1, "no_base": 150.0}
+    assert fidelity.choose(errors, 1.0) == "base_gravity"
+    assert fidelity.choose(errors, 200.0) == "no_base"
+    assert fidelity.choose(errors, 1e3) == "massless_legs"
+    assert fidelity.choose(errors, 0.0) == "full"
+
+
+def test_auto_needs_a_tolerance():
+    text = MINIMAL.replace("moving_base = 1,", "moving_base = 1, fidelity = \"auto\",")
+    with pytest.raises(spec.ScenarioError, match="fidelity: \"auto\" needs .* fidelity_tolerance"):
+        spec.parse(text, "test.toml")
+
+
+def test_auto_fidelity_keeps_the_plant_within_its_tolerance(tmp_path):
+    """Keyhole track near the zenith: the rule drops the transport terms; co-simulated
+    with the chosen level, the actuator forces stay within the tolerance of the full model's."""
+    text = runner.resolve("keyhole_tracking").read_text().replace('values = ["none", "fixed_base", "moving_base"]',
+                                                                 'values = ["moving_base"]')
+    runs = {}
+    for level in ("auto", "full"):
+        path = tmp_path / f"{level}.toml"
+        path.write_text(text.replace('fidelity = "full"', f'fidelity = "{level}"').replace(
+            'name = "keyhole_tracking"', f'name = "{level}"\nfidelity_tolerance = "1 N"'))
+        scenario, ran, _ = runner.run_scenario(path, tmp_path, ci=True, progress=False)
+        runs[level] = np.loadtxt(ran[0].csv_path, delimiter=",", skiprows=1)
+        header = ran[0].csv_path.read_text().splitlines()[0].split(",")
+        if level == "auto":
+            assert scenario.parameters["plant"]["fidelity"] == "base_gravity"
+    force = [i for i, h in enumerate(header) if h.startswith("controller.leg_force")]
+    assert np.abs(runs["auto"][:, force] - runs["full"][:, force]).max() < 1.0
+    assert not np.array_equal(runs["auto"], runs["full"])

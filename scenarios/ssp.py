@@ -1,0 +1,335 @@
+"""A scenario as an SSP (System Structure and Parameterization 1.0) file, and a run of
+that file with fmpy's SSP master: an independent master to check ours against.
+
+``export_ssp`` writes a zip holding SystemStructure.ssd (SSP 1.0, the version
+fmpy.ssp reads) and the FMUs under resources/. The SSD has
+
+- one Component per FMU instance (source resources/<file>.fmu), listed in our
+  initialization order (master.step_order), so a tool that initialises in document order
+  (fmpy does) initialises as we do;
+- Connectors: every connected input and every output of each FMU (parameters get no
+  connector; SSP requires connectors only for connected variables);
+- every scalar connection (vector connections expanded with spec.expand);
+- the parameter values as an inline ParameterSet in a ParameterBinding per Component,
+  named by the FMU's variable names, in the FMU's units (SI): other FMI/SSP tools
+  apply them. "@inst.var" links are resolved to numbers (the source FMU is initialised
+  as master.run does and its output read at the start time), enumeration Integers are
+  written as their numbers;
+- Units from the FMUs' unit definitions, DefaultExperiment start/stop, and an
+  annotation with our master settings (algorithm, step, extrapolation).
+
+fmpy.ssp.simulate_ssp (fmpy 0.3.32), read in its source, differs from an SSP tool
+and from our master in these ways; ``simulate_exported`` deals with each:
+
+- it IGNORES the SSD's ParameterBindings (it parses them but applies only its
+  ``parameter_set`` argument). ``simulate_exported`` reads the bindings back out of the
+  SSD and passes them as ``parameter_set``, so the numbers simulated are those written.
+  fmpy applies them before enterInitializationMode (the SSP rule); our master sets
+  them in initialization mode: no difference for our FMUs, which compute everything in
+  exitInitializationMode.
+- it matches parameters to components by ``name.startswith(component)``: an instance
+  name that is a prefix of another (``base``, ``base2``) breaks it; refused here.
+- NO INITIAL EXCHANGE: every connector value starts at 0.0, the FMUs are initialised
+  without any input set, and the first macro step [t0, t0 + h] is taken with every
+  connected input 0.0. Only after the first step are outputs copied to inputs. Our
+  master sets the connected inputs fed by FMUs already initialised in initialization
+  mode, and steps first with the outputs at t0. ``initial_exchange=True`` adds our
+  initial exchange to fmpy's run (see ``_initial_exchange``); everything else
+  (parsing, connection resolution, stepping, input/output transfer) stays fmpy's.
+- an input connector without a connection silently takes the connection of the input
+  declared before it (or fails): only connected inputs are declared here.
+- time: ``time += step`` accumulates, and the loop runs ``while time < stop``, so the
+  number of steps can be off by one (0 -> 1.2 s at 1 ms takes 1201 steps); each row is
+  labelled with the step's start time although it holds the values after the step.
+  ``simulate_exported`` passes stop - h/2 (exactly round((stop - start) / h) steps; the
+  FMUs never see the stop time) and labels rows with the end of the step.
+- results: one row per step (no row at the start time), columns "inst.connector" of
+  every declared connector; inputs show the value they get for the next step.
+"""
+import contextlib
+import math
+import pathlib
+import xml.etree.ElementTree as ET
+import zipfile
+
+import numpy as np
+
+from . import spec
+from .fmi import Instance, unpack
+from .master import Exchange, step_order
+from .spec import Link, expand
+
+SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
+SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
+SSV = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+MB = "urn:movingbase:scenario"
+for _prefix, _uri in (("ssd", SSD), ("ssc", SSC), ("ssv", SSV), ("mb", MB)):
+    ET.register_namespace(_prefix, _uri)
+FMU_TYPE = "application/x-fmu-sharedlibrary"
+_BASE_UNIT = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+
+
+def _q(namespace, tag):
+    return f"{{{namespace}}}{tag}"
+
+
+def _double(value):
+    """An xs:double literal that reads back to the same float."""
+    value = float(value)
+    if math.isnan(value):
+        return "NaN"
+    if math.isinf(value):
+        return "INF" if value > 0 else "-INF"
+    return repr(value)
+
+
+# ------------------------------------------------------------------------- parameters
+def resolve_links(scenario, fmu_paths, parameters):
+    """``parameters`` (instance -> {variable: value}) with every ``Link`` replaced by its
+    number: the instances are initialised as master.run does (step_order; parameters and
+    the connected inputs fed by instances already initialised), and each link is read from
+    its source when its target is reached. Nothing is instantiated without links."""
+    resolved = {inst: dict(values) for inst, values in parameters.items()}
+    pending = {inst for inst, values in parameters.items() if any(isinstance(v, Link) for v in values.values())}
+    if not pending:
+        return resolved
+    instances = {}
+    try:
+        for inst in scenario.fmus:
+            instances[inst] = Instance(fmu_paths[inst], inst)
+        exchange = Exchange(scenario, instances)
+        ready = set()
+        for inst in step_order(scenario, parameters):
+            if not pending:
+                break
+            values = resolved.get(inst, {})
+            for name, value in values.items():
+                if isinstance(value, Link):
+                    values[name] = instances[value.instance].get_real(value.variable)
+            pending.discard(inst)
+            values = dict(values)
+            values.update(exchange.initial_inputs(inst, ready))
+            instances[inst].initialize(scenario.start_time, values)
+            ready.add(inst)
+    finally:
+        for instance in instances.values():
+            instance.terminate()
+    return resolved
+
+
+def _typed(inst, variable, value):
+    """(SSV type tag, value literal) of a parameter value for an FMU variable."""
+    kind = variable.type
+    if kind == "Real":
+        return "Real", _double(value)
+    if kind in ("Integer", "Enumeration"):
+        if isinstance(value, str):   # an enumeration name, as in a scenario file
+            choices = spec._enumeration(variable.description)
+            if value not in choices:
+                raise ValueError(f"{inst}.{variable.name}: {value!r} is not one of {', '.join(choices)}")
+            value = choices[value]
+        if isinstance(value, float) and not value.is_integer():
+            raise ValueError(f"{inst}.{variable.name}: Integer parameter given {value!r}")
+        return "Integer", str(int(value))
+    if kind == "Boolean":
+        return "Boolean", "true" if value else "false"
+    if kind == "String":
+        return "String", str(value)
+    raise ValueError(f"{inst}.{variable.name}: unsupported type {kind}")
+
+
+# ----------------------------------------------------------------------------- export
+def scalar_connections(scenario, variables):
+    """[(source inst, source var, target inst, target var)] of every scalar connection."""
+    pairs = []
+    for source, targets in scenario.connections:
+        s_inst = source.split(".", 1)[0]
+        for target in targets:
+            t_inst = target.split(".", 1)[0]
+            s_names, t_names = expand(variables[s_inst], source), expand(variables[t_inst], target)
+            if not s_names or len(s_names) != len(t_names):
+                raise ValueError(f"connection {source} -> {target}: sizes {len(s_names)} and {len(t_names)}")
+            pairs += [(s_inst, s, t_inst, t) for s, t in zip(s_names, t_names)]
+    return pairs
+
+
+def build_ssd(scenario, fmu_paths, parameters, sources):
+    """The SystemStructureDescription element; ``parameters`` without links,
+    ``sources``: instance -> path of its FMU inside the SSP."""
+    mds = {inst: unpack(fmu_paths[inst])[0] for inst in scenario.fmus}
+    variables = {inst: {v.name: v for v in md.modelVariables} for inst, md in mds.items()}
+    pairs = scalar_connections(scenario, variables)
+    connected_inputs = {(t_inst, t) for _, _, t_inst, t in pairs}
+
+    root = ET.Element(_q(SSD, "SystemStructureDescription"),
+                      {"version": "1.0", "name": scenario.name, "generationTool": "movingbase scenarios.ssp"})
+    if scenario.description:
+        root.set("description", scenario.description)
+    system = ET.SubElement(root, _q(SSD, "System"), {"name": scenario.name})
+    elements = ET.SubElement(system, _q(SSD, "Elements"))
+    units = {}
+    for inst in step_order(scenario, parameters):
+        component = ET.SubElement(elements, _q(SSD, "Component"),
+                                  {"name": inst, "type": FMU_TYPE, "source": sources[inst]})
+        connectors = ET.SubElement(component, _q(SSD, "Connectors"))
+        declared = [v for v in mds[inst].modelVariables if (inst, v.name) in connected_inputs] + \
+                   [v for v in mds[inst].modelVariables if v.causality == "output"]
+        for var in declared:
+            connector = ET.SubElement(connectors, _q(SSD, "Connector"), {"name": var.name, "kind": var.causality})
+            kind = "Integer" if var.type == "Enumeration" else var.type
+            attributes = {"unit": var.unit} if var.type == "Real" and var.unit else {}
+            ET.SubElement(connector, _q(SSC, kind), attributes)
+            if attributes:
+                units[var.unit] = next((u for u in mds[inst].unitDefinitions if u.name == var.unit), None)
+        values = parameters.get(inst, {})
+        if values:
+            binding = ET.SubElement(ET.SubElement(component, _q(SSD, "ParameterBindings")),
+                                    _q(SSD, "ParameterBinding"))
+            holder = ET.SubElement(binding, _q(SSD, "ParameterValues"))
+            pset = ET.SubElement(holder, _q(SSV, "ParameterSet"), {"version": "1.0", "name": inst})
+            plist = ET.SubElement(pset, _q(SSV, "Parameters"))
+            for name, value in values.items():
+                if isinstance(value, Link):
+                    raise ValueError(f"{inst}.{name}: unresolved link {value}; call resolve_links first")
+                if name not in variables[inst]:
+                    raise ValueError(f"{inst}: FMU {sources[inst]} has no variable {name!r}")
+                tag, literal = _typed(inst, variables[inst][name], value)
+                ET.SubElement(ET.SubElement(plist, _q(SSV, "Parameter"), {"name": name}),
+                              _q(SSV, tag), {"value": literal})
+    connections = ET.SubElement(system, _q(SSD, "Connections"))
+    for s_inst, s, t_inst, t in pairs:
+        ET.SubElement(connections, _q(SSD, "Connection"),
+                      {"startElement": s_inst, "startConnector": s, "endElement": t_inst, "endConnector": t})
+    annotation = ET.SubElement(ET.SubElement(system, _q(SSD, "Annotations")), _q(SSC, "Annotation"),
+                               {"type": "movingbase.scenario"})
+    ET.SubElement(annotation, _q(MB, "Master"), {"algorithm": scenario.master, "step": _double(scenario.step),
+                                                 "extrapolation": scenario.extrapolation,
+                                                 "source": str(scenario.source)})
+    defined = {name: unit for name, unit in units.items() if unit is not None}
+    if defined:
+        unit_list = ET.SubElement(root, _q(SSD, "Units"))
+        for name in sorted(defined):
+            base = defined[name].baseUnit
+            attributes = {k: str(getattr(base, k)) for k in _BASE_UNIT if getattr(base, k, 0)}
+            if base.factor != 1.0:
+                attributes["factor"] = _double(base.factor)
+            if base.offset != 0.0:
+                attributes["offset"] = _double(base.offset)
+            ET.SubElement(ET.SubElement(unit_list, _q(SSC, "Unit"), {"name": name}), _q(SSC, "BaseUnit"), attributes)
+    ET.SubElement(root, _q(SSD, "DefaultExperiment"),
+                  {"startTime": _double(scenario.start_time), "stopTime": _double(scenario.stop_time)})
+    return root
+
+
+def export_ssp(scenario, fmu_paths, parameters, path):
+    """Write ``scenario`` with ``parameters`` (instance -> {variable: value}, as from
+    spec.bind, possibly with a sweep value set; links allowed) as an SSP 1.0 zip at
+    ``path``: SystemStructure.ssd plus resources/<file>.fmu. Returns the path.
+
+    The parameter values are written as SSD ParameterBindings (inline ParameterSets per
+    Component), which SSP tools apply; fmpy.ssp.simulate_ssp ignores them: run the file
+    with ``simulate_exported``, which passes them to fmpy as ``parameter_set``."""
+    path = pathlib.Path(path)
+    files, sources = {}, {}
+    for inst in scenario.fmus:
+        fmu = pathlib.Path(fmu_paths[inst]).resolve()
+        name = f"resources/{fmu.name}"
+        if files.get(name, fmu) != fmu:   # another FMU file of the same name
+            name = f"resources/{inst}_{fmu.name}"
+        files[name] = fmu
+        sources[inst] = name
+    values = resolve_links(scenario, fmu_paths, parameters)
+    root = build_ssd(scenario, fmu_paths, values, sources)
+    ET.indent(root)
+    text = ET.tostring(root, encoding="utf-8", xml_declaration=True)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("SystemStructure.ssd", text, compress_type=zipfile.ZIP_DEFLATED)
+        for name, fmu in files.items():
+            z.write(fmu, name, compress_type=zipfile.ZIP_STORED)   # an FMU is a zip already
+    return path
+
+
+# ------------------------------------------------------------------------ fmpy's run
+def bound_parameters(ssp_path):
+    """The SSD's ParameterBindings as an fmpy ParameterSet with names "component.variable"
+    (what simulate_ssp's ``parameter_set`` expects). Only inline and SSV-file bindings
+    of top-level Components without prefix or mapping are supported (what export_ssp writes)."""
+    from fmpy.ssp.ssd import Parameter, ParameterSet, find_components, read_ssd
+    ssd = read_ssd(str(ssp_path))
+    parameters = []
+    for component in find_components(ssd.system):
+        if component.parent is not ssd.system:
+            raise ValueError(f"{component.name}: nested systems are not supported")
+        for binding in component.parameterBindings:
+            if binding.prefix or binding.parameterMapping:
+                raise ValueError(f"{component.name}: parameter binding with prefix or mapping not supported")
+            for parameter_set in binding.parameterValues:
+                for p in parameter_set.parameters:
+                    parameters.append(Parameter(name=f"{component.name}.{p.name}", type=p.type, value=p.value))
+    return ParameterSet(name=ssd.name, parameters=parameters), [c.name for c in find_components(ssd.system)]
+
+
+@contextlib.contextmanager
+def _initial_exchange():
+    """Within the block, fmpy.ssp.simulate_ssp initialises as our master does: each
+    component (in the SSD's order) gets, before its initialization, the connected inputs
+    fed by components already initialised (values read from fmpy's own instances), and
+    after the last one every connection is applied once, so the first macro step sees
+    the outputs at the start time instead of 0.0. Done by wrapping fmpy's
+    instantiate_fmu; fmpy's stepping loop is untouched."""
+    from fmpy.ssp import simulation
+    from fmpy.ssp.ssd import Parameter, ParameterSet, find_components, get_connections
+    original = simulation.instantiate_fmu
+
+    def instantiate(component, ssp_unzipdir, start_time, stop_time=None, parameter_set=None):
+        system = component.parent
+        connections = get_connections(system)
+        source_of = {end: start for start, end in connections}
+        components = find_components(system)
+        ready = [c for c in components if getattr(c, "fmu", None) is not None]
+        start_inputs = [Parameter(name=f"{component.name}.{c.name}", value=source_of[c].value)
+                        for c in component.connectors
+                        if c.kind == "input" and c in source_of and any(source_of[c].parent is r for r in ready)]
+        merged = ParameterSet(parameters=list(parameter_set.parameters if parameter_set else []) + start_inputs)
+        original(component, ssp_unzipdir, start_time, stop_time, merged)
+        for connector in component.connectors:
+            if connector.kind == "output":
+                connector.value = simulation.get_value(component, connector.name)
+        if all(getattr(c, "fmu", None) is not None for c in components):
+            for start, end in connections:
+                end.value = start.value
+
+    simulation.instantiate_fmu = instantiate
+    try:
+        yield
+    finally:
+        simulation.instantiate_fmu = original
+
+
+def simulate_exported(ssp_path, scenario, initial_exchange=False):
+    """Run an SSP written by export_ssp with fmpy.ssp.simulate_ssp: start/step/stop of
+    ``scenario``, parameters from the SSD's bindings passed as ``parameter_set``.
+
+    ``initial_exchange=False`` is fmpy as it is (first step with all connected inputs 0.0,
+    see the module doc); True adds our master's initialization (``_initial_exchange``).
+
+    Returns fmpy's structured array (one row per step, columns "inst.connector") with
+    "time" the END of each step (the time the values belong to: t0 + (k+1) h) and fmpy's
+    own label, the step's start time accumulated by repeated addition, as "fmpy_time"."""
+    from fmpy.ssp.simulation import simulate_ssp
+    from numpy.lib import recfunctions
+    parameter_set, names = bound_parameters(ssp_path)
+    clash = [(a, b) for a in names for b in names if a != b and b.startswith(a)]
+    if clash:
+        raise ValueError(f"fmpy matches parameters by name prefix: instance {clash[0][0]!r} is a prefix of "
+                         f"{clash[0][1]!r}; rename one")
+    t0, h = scenario.start_time, scenario.step
+    steps = int(round((scenario.stop_time - t0) / h))
+    with _initial_exchange() if initial_exchange else contextlib.nullcontext():
+        result = simulate_ssp(str(ssp_path), start_time=t0, stop_time=t0 + (steps - 0.5) * h, step_size=h,
+                              parameter_set=parameter_set)
+    if len(result) != steps:
+        raise RuntimeError(f"fmpy took {len(result)} steps, expected {steps}")
+    result = recfunctions.rename_fields(result, {"time": "fmpy_time"})
+    return recfunctions.append_fields(result, "time", t0 + h * np.arange(1, steps + 1), usemask=False)
