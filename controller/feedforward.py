@@ -11,7 +11,8 @@ The mode says how much of the base motion the controller knows about:
 """
 import numpy as np
 
-from plant.stewart import inverse_dynamics, inverse_dynamics_terms, inverse_kinematics, pose_jacobian
+from plant.stewart import (StateInverseDynamics, inverse_dynamics, inverse_dynamics_terms, inverse_kinematics,
+                           pose_jacobian)
 
 FEEDFORWARD_MODES = ("none", "fixed_base", "moving_base")
 
@@ -50,3 +51,19 @@ def feedforward_and_legs(params, mode, pose, pose_rate, pose_acc, base_pose=0, b
     else:
         forces, terms = inverse_dynamics_terms(params, pose, pose_rate, pose_acc, fidelity="no_base")
     return (forces if mode != "none" else np.zeros_like(forces)), terms.leg_lengths, terms.leg_rates
+
+
+class Feedforward:
+    """feedforward_and_legs for one state at a time, on the plant's preallocated
+    single-state path: what the controller FMU calls every step."""
+
+    def __init__(self, params, mode):
+        if mode not in FEEDFORWARD_MODES:
+            raise ValueError(f"unknown feedforward mode {mode!r}; choose one of {FEEDFORWARD_MODES}")
+        self.mode = mode
+        self.model = StateInverseDynamics(params, "full" if mode == "moving_base" else "no_base")
+
+    def __call__(self, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc):
+        """(forces, reference leg lengths, reference leg rates), each (6,)."""
+        forces, lengths, rates = self.model(pose, pose_rate, pose_acc, base_pose, base_rate, base_acc)
+        return (forces[0] if self.mode != "none" else np.zeros(6)), lengths[0], rates[0]

@@ -63,10 +63,16 @@ def pid_step(gains, integral, reference_length, reference_rate, length, rate, fe
     integral = _signal(integral, "integral state")
     error = _signal(reference_length, "reference length") - _signal(length, "measured length")
     error_rate = _signal(reference_rate, "reference rate") - _signal(rate, "measured rate")
-    fixed = _signal(feedforward, "feedforward") + gains.kp * error + gains.kd * error_rate
+    return pid_update(gains, integral, error, error_rate, _signal(feedforward, "feedforward"), dt)
+
+
+def pid_update(gains, integral, error, error_rate, feedforward, dt):
+    """pid_step on errors already formed and checked (the FMU checks all its inputs for
+    NaN/inf at once): returns (force, new_integral)."""
+    fixed = feedforward + gains.kp * error + gains.kd * error_rate
     candidate = integral + dt * error
     unclamped = fixed + gains.ki * candidate
     winding = (np.abs(unclamped) > gains.force_limit) & (error * unclamped > 0)
     new_integral = np.where(winding, integral, candidate)
-    force = np.clip(fixed + gains.ki * new_integral, -gains.force_limit, gains.force_limit)
+    force = np.minimum(np.maximum(fixed + gains.ki * new_integral, -gains.force_limit), gains.force_limit)
     return force, new_integral

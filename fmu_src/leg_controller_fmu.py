@@ -11,13 +11,16 @@ import pathlib
 
 import numpy as np
 
-from controller.feedforward import FEEDFORWARD_MODES, feedforward_and_legs
-from controller.pid import PIDGains, pid_step
+from controller.feedforward import FEEDFORWARD_MODES, Feedforward
+from controller.pid import PIDGains, pid_update
 from fmu_src.slave import INPUT, OUTPUT, PARAMETER, POSE_UNITS, GuardedSlave, acc_units, rate_units
+from plant.errors import InvalidInputError
 from plant.stewart import StewartParams
 
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 DEFAULTS_FILE = "leg_controller_defaults.json"
+INPUTS = ("reference_pose", "reference_rate", "reference_acc", "leg_length", "leg_rate", "base_pose",
+          "base_rate", "base_acc")
 
 
 class LegController(GuardedSlave):
@@ -39,16 +42,20 @@ class LegController(GuardedSlave):
             self.real(name, PARAMETER, f"{text}; default designed for {design}", unit, self.gains[name],
                       getter=lambda n=name: self.gains[n], setter=lambda v, n=name: self.gains.__setitem__(n, v))
         pose_desc = lambda prefix: [f"{prefix} {n}" for n in POSE_NAMES]
-        self.ref = self.vector("reference_pose", 6, INPUT, pose_desc("platform reference, in {B},"), POSE_UNITS,
-                               StewartParams.paper().home_pose)
-        self.ref_rate = self.vector("reference_rate", 6, INPUT, pose_desc("d/dt reference"), rate_units(POSE_UNITS))
-        self.ref_acc = self.vector("reference_acc", 6, INPUT, pose_desc("d2/dt2 reference"), acc_units(POSE_UNITS))
-        self.lengths = self.vector("leg_length", 6, INPUT, "measured leg length", "m",
-                                   StewartParams.paper().home_lengths)
-        self.rates = self.vector("leg_rate", 6, INPUT, "measured leg rate", "m/s")
-        self.base_pose = self.vector("base_pose", 6, INPUT, pose_desc("base, in {W},"), POSE_UNITS)
-        self.base_rate = self.vector("base_rate", 6, INPUT, pose_desc("d/dt base"), rate_units(POSE_UNITS))
-        self.base_acc = self.vector("base_acc", 6, INPUT, pose_desc("d2/dt2 base"), acc_units(POSE_UNITS))
+        home = StewartParams.paper()
+        self.inputs = np.zeros((8, 6))   # all inputs in one array: one NaN/inf check per step
+        self.inputs[0], self.inputs[3] = home.home_pose, home.home_lengths
+        for row, (name, desc, units) in enumerate((
+            (INPUTS[0], pose_desc("platform reference, in {B},"), POSE_UNITS),
+            ("reference_rate", pose_desc("d/dt reference"), rate_units(POSE_UNITS)),
+            ("reference_acc", pose_desc("d2/dt2 reference"), acc_units(POSE_UNITS)),
+            ("leg_length", "measured leg length", "m"),
+            ("leg_rate", "measured leg rate", "m/s"),
+            ("base_pose", pose_desc("base, in {W},"), POSE_UNITS),
+            ("base_rate", pose_desc("d/dt base"), rate_units(POSE_UNITS)),
+            ("base_acc", pose_desc("d2/dt2 base"), acc_units(POSE_UNITS)),
+        )):
+            self.vector(name, 6, INPUT, desc, units, values=self.inputs[row])
         self.forces = self.vector("leg_force", 6, OUTPUT, "commanded actuator force, + extends", "N")
         self.integral = self.vector("integral", 6, OUTPUT, "integral of the leg-length error", "m.s")
         self.feedforward_force = self.vector("feedforward_force", 6, OUTPUT, "model feedforward part of leg_force", "N")
@@ -56,7 +63,7 @@ class LegController(GuardedSlave):
     def initialize(self):
         self.params = StewartParams.paper()
         self.pid = PIDGains(**self.gains)
-        self.mode = FEEDFORWARD_MODES[self.feedforward]
+        self.feedforward_model = Feedforward(self.params, FEEDFORWARD_MODES[self.feedforward])
         self._update(None)
 
     def step(self, t, h):
@@ -64,12 +71,14 @@ class LegController(GuardedSlave):
 
     def _update(self, h):
         """Forces from the inputs now; the integral advances only on a real step."""
-        ff, ref_lengths, ref_rates = feedforward_and_legs(self.params, self.mode, self.ref, self.ref_rate,
-                                                          self.ref_acc, self.base_pose, self.base_rate,
-                                                          self.base_acc)
+        if not np.isfinite(self.inputs).all():
+            bad = [n for n, row in zip(INPUTS, self.inputs) if not np.isfinite(row).all()]
+            raise InvalidInputError(f"{', '.join(bad)} input contains NaN or inf")
+        ref, ref_rate, ref_acc, lengths, rates, *base = self.inputs
+        ff, ref_lengths, ref_rates = self.feedforward_model(ref, ref_rate, ref_acc, *base)
         if h is None:   # initialization: the feedforward alone, integral untouched
             self.forces[:] = ff
         else:
-            self.forces[:], self.integral[:] = pid_step(self.pid, self.integral, ref_lengths, ref_rates,
-                                                        self.lengths, self.rates, ff, h)
+            self.forces[:], self.integral[:] = pid_update(self.pid, self.integral, ref_lengths - lengths,
+                                                          ref_rates - rates, ff, h)
         self.feedforward_force[:] = ff

@@ -226,24 +226,42 @@ _FIDELITY_MODES = {  # fidelity -> (base motion kept, legs have mass)
 
 
 def _run(params, pose, rate, arg, base, fidelity, solve, twist_speeds=False, arg_name="pose_acc"):
-    """Validate, broadcast and flatten the states, run the Kane kernel, reshape back."""
+    """Validate, broadcast and flatten the states, run the Kane kernel, reshape back.
+
+    Written for the single-state call too (a controller calls it every step): arrays of
+    one shape skip broadcasting, and NaN/inf is looked for once over all arguments (the
+    argument is named only when there is one)."""
     if fidelity not in _FIDELITY_MODES:
         raise InvalidInputError(f"unknown fidelity {fidelity!r}; choose one of {tuple(_FIDELITY_MODES)}")
     base_mode, legs = _FIDELITY_MODES[fidelity]
-    states = [_state(pose, "pose"), _state(rate, "twist" if twist_speeds else "pose_rate"),
-              _state(arg, arg_name)]
-    given = [_state(x, name) for x, name in zip(base, ("base_pose", "base_rate", "base_acc"))
-             if not (np.ndim(x) == 0 and x == 0)]
+    names = ["pose", "twist" if twist_speeds else "pose_rate", arg_name, "base_pose", "base_rate", "base_acc"]
+    given = [k for k, x in enumerate(base) if not (np.ndim(x) == 0 and x == 0)]
     if not given:
         base_mode = kane.BASE_NONE
-    shape = np.broadcast_shapes(*(x.shape for x in states + given))
-    flat = lambda x: np.ascontiguousarray(np.broadcast_to(x, shape)).reshape(-1, 6)
-    states = [flat(x) for x in states]
-    n = states[0].shape[0]
-    base = [np.zeros((n, 6)) if np.ndim(x) == 0 else flat(x) for x in base]
+    arrays = [np.asarray(x, dtype=float) for x in (pose, rate, arg, *(base[k] for k in given))]
+    labels = names[:3] + [names[3 + k] for k in given]
+    for x, name in zip(arrays, labels):
+        if x.ndim == 0 or x.shape[-1] != 6:
+            raise InvalidInputError(f"{name} must have shape (..., 6), got {x.shape}")
+    shape = arrays[0].shape
+    if any(x.shape != shape for x in arrays):
+        try:
+            shape = np.broadcast_shapes(*(x.shape for x in arrays))
+        except ValueError:
+            raise InvalidInputError("arguments do not broadcast: " + ", ".join(
+                f"{n} {x.shape}" for n, x in zip(labels, arrays))) from None
+        arrays = [np.broadcast_to(x, shape) for x in arrays]
+    flat = [np.ascontiguousarray(x).reshape(-1, 6) for x in arrays]
+    if not np.isfinite(np.concatenate(flat)).all():
+        bad = [n for n, x in zip(labels, flat) if not np.isfinite(x).all()]
+        raise InvalidInputError(f"{', '.join(bad)} contains NaN or inf")
+    n = flat[0].shape[0]
+    base = [np.zeros((n, 6))] * 3
+    for k, x in zip(given, flat[3:]):
+        base[k] = x
     M, h, J = np.empty((n, 6, 6)), np.empty((n, 6)), np.empty((n, 6, 6))
     ldot, length, out, det = np.empty((n, 6)), np.empty((n, 6)), np.empty((n, 6)), np.empty(n)
-    kane.kane(params.base_joints, params.platform_joints, params.kernel_data, *states, *base,
+    kane.kane(params.base_joints, params.platform_joints, params.kernel_data, *flat[:3], *base,
               base_mode, legs, twist_speeds, solve, M, h, J, ldot, length, out, det)
     batch = shape[:-1]
     terms = DynamicsTerms(M.reshape(batch + (6, 6)), h.reshape(batch + (6,)),
@@ -294,6 +312,33 @@ def twist_acceleration(params, pose, twist, forces, base_pose=0, base_rate=0, ba
     Returns (du/dt, DynamicsTerms) so the caller also has the leg rates."""
     return _run(params, pose, twist, forces, (base_pose, base_rate, base_acc), fidelity,
                 kane.FD, twist_speeds=True, arg_name="forces")
+
+
+class StateInverseDynamics:
+    """Inverse dynamics of one state at a time into preallocated buffers, for a
+    controller that calls it every step: no broadcasting and no per-argument checks (the
+    caller checks its inputs for NaN/inf once), ~5 µs against the batched API's ~30 µs.
+    Still raises SingularConfigurationError at a singular pose."""
+
+    def __init__(self, params, fidelity="full"):
+        if fidelity not in _FIDELITY_MODES:
+            raise InvalidInputError(f"unknown fidelity {fidelity!r}; choose one of {tuple(_FIDELITY_MODES)}")
+        self.params = params
+        self.base_mode, self.legs = _FIDELITY_MODES[fidelity]
+        self._buffers = [np.empty((1, 6, 6)), np.empty((1, 6)), np.empty((1, 6, 6)), np.empty((1, 6)),
+                         np.empty((1, 6)), np.empty((1, 6)), np.empty(1)]
+        M, h, J, self.leg_rates, self.leg_lengths, self.forces, self._det = self._buffers
+
+    def __call__(self, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc):
+        """Forces, leg lengths and leg rates, each (1, 6) (buffers, overwritten next call);
+        all arguments float arrays of shape (6,)."""
+        p = self.params
+        kane.kane(p.base_joints, p.platform_joints, p.kernel_data, pose.reshape(1, 6), pose_rate.reshape(1, 6),
+                  pose_acc.reshape(1, 6), base_pose.reshape(1, 6), base_rate.reshape(1, 6),
+                  base_acc.reshape(1, 6), self.base_mode, self.legs, False, kane.ID, *self._buffers)
+        if abs(self._det[0]) < SINGULAR_RATIO * p.home_det:
+            _check_det_ratio(abs(self._det) / p.home_det)
+        return self.forces, self.leg_lengths, self.leg_rates
 
 
 def twist_from_rates(pose, pose_rate):

@@ -1,6 +1,10 @@
 """A thin layer over fmpy's FMU2Slave: one extracted copy per FMU file, variables by
 name, preallocated ctypes buffers for the per-step exchange, the FMU's log captured,
-and every failing call turned into an error that names the instance, time and log."""
+and every failing call turned into an error that names the instance, time and log.
+
+The per-step calls (doStep, getReal, setReal) go to fmpy's loaded C functions directly
+and check the returned status here: fmpy's Python wrapper around each call costs more
+than the call itself at a 1 ms step (benchmarks/bench_scenarios.py)."""
 import ctypes
 from functools import lru_cache
 
@@ -51,9 +55,16 @@ class Instance:
         try:
             return getattr(self.fmu, function)(*args, **kwargs)
         except FMICallException as exc:
-            log = "\n  ".join(self.log[-5:]) or "(no log message)"
-            raise FmuError(f"FMU instance '{self.name}' failed in {function} at t = {self.time:.6g} s "
-                           f"({exc}). Log:\n  {log}") from None
+            self.fail(function, exc)
+
+    def fail(self, function, status):
+        log = "\n  ".join(self.log[-5:]) or "(no log message)"
+        raise FmuError(f"FMU instance '{self.name}' failed in {function} at t = {self.time:.6g} s "
+                       f"({status}). Log:\n  {log}") from None
+
+    def raw(self, function):
+        """fmpy's ctypes function itself: call it with the component, check the status."""
+        return self.fmu._functions[function]
 
     def vr(self, name):
         if name not in self.variables:
@@ -84,10 +95,13 @@ class Instance:
         for name, value in (values or {}).items():
             self.set(name, value)
         self.call("exitInitializationMode")
+        self._do_step = self.raw("fmi2DoStep")
 
     def do_step(self, t, h):
         self.time = t
-        self.call("doStep", t, h)
+        status = self._do_step(self.fmu.component, t, h, 1)
+        if status > 1:
+            self.fail("doStep", f"status {_LABELS[status]}")
 
     def terminate(self):
         """End the instance; a failed FMU may refuse terminate, it is freed regardless."""
@@ -111,11 +125,16 @@ class RealPort:
         self._vr = (fmi2ValueReference * n)(*[instance.vr(v) for v in self.names])
         self._buf = (fmi2Real * n)()
         self.values = np.ctypeslib.as_array(self._buf)
+        self._get, self._set = instance.raw("fmi2GetReal"), instance.raw("fmi2SetReal")
 
     def read(self):
-        self.instance.call("fmi2GetReal", self.instance.fmu.component, self._vr, self.n, self._buf)
+        status = self._get(self.instance.fmu.component, self._vr, self.n, self._buf)
+        if status > 1:
+            self.instance.fail("getReal", f"status {_LABELS[status]}")
         return self.values
 
     def write(self, values):
         self.values[:] = values
-        self.instance.call("fmi2SetReal", self.instance.fmu.component, self._vr, self.n, self._buf)
+        status = self._set(self.instance.fmu.component, self._vr, self.n, self._buf)
+        if status > 1:
+            self.instance.fail("setReal", f"status {_LABELS[status]}")

@@ -100,13 +100,13 @@ def resolve_links(scenario, fmu_paths, parameters):
         exchange = Exchange(scenario, instances)
         ready = set()
         for inst in step_order(scenario, parameters):
-            if not pending:
-                break
             values = resolved.get(inst, {})
             for name, value in values.items():
                 if isinstance(value, Link):
                     values[name] = instances[value.instance].get_real(value.variable)
             pending.discard(inst)
+            if not pending:
+                break
             values = dict(values)
             values.update(exchange.initial_inputs(inst, ready))
             instances[inst].initialize(scenario.start_time, values)
@@ -204,7 +204,7 @@ def build_ssd(scenario, fmu_paths, parameters, sources):
                                {"type": "movingbase.scenario"})
     ET.SubElement(annotation, _q(MB, "Master"), {"algorithm": scenario.master, "step": _double(scenario.step),
                                                  "extrapolation": scenario.extrapolation,
-                                                 "source": str(scenario.source)})
+                                                 "scenario": pathlib.Path(str(scenario.source)).name})
     defined = {name: unit for name, unit in units.items() if unit is not None}
     if defined:
         unit_list = ET.SubElement(root, _q(SSD, "Units"))
@@ -313,6 +313,8 @@ def simulate_exported(ssp_path, scenario, initial_exchange=False):
 
     ``initial_exchange=False`` is fmpy as it is (first step with all connected inputs 0.0,
     see the module doc); True adds our master's initialization (``_initial_exchange``).
+    fmpy's master is always plain Jacobi: ``scenario.master`` and ``scenario.extrapolation``
+    are not reproduced (compare with our master run as jacobi, extrapolation none).
 
     Returns fmpy's structured array (one row per step, columns "inst.connector") with
     "time" the END of each step (the time the values belong to: t0 + (k+1) h) and fmpy's

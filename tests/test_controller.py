@@ -10,7 +10,8 @@ from scipy.optimize import brentq
 
 from controller.design import (Design, closed_loop_stable, default_gains, design_pid, leg_mass_matrix,
                                linearised_plant, max_stable_step)
-from controller.feedforward import FEEDFORWARD_MODES, feedforward_forces, reference_legs
+from controller.feedforward import (FEEDFORWARD_MODES, Feedforward, feedforward_and_legs, feedforward_forces,
+                                   reference_legs)
 from controller.pid import PIDGains, pid_step
 from plant.stewart import (HOME_POSE, StewartParams, forward_dynamics, inverse_dynamics, inverse_kinematics,
                            pose_jacobian)
@@ -248,3 +249,17 @@ def test_reference_legs_match_differenced_inverse_kinematics():
     assert np.allclose(rates, differenced, rtol=1e-6, atol=1e-10)
     with pytest.raises(ValueError, match="pose_rate"):
         reference_legs(PARAMS, pose, np.full((3, 6), np.nan))
+
+
+def test_single_state_feedforward_equals_the_batched_one():
+    params = StewartParams.paper()
+    rng = np.random.default_rng(5)
+    for mode in FEEDFORWARD_MODES:
+        fast = Feedforward(params, mode)
+        for _ in range(5):
+            pose = HOME_POSE + rng.normal(size=6) * 0.01
+            rate, acc, base_pose = rng.normal(size=6) * 0.1, rng.normal(size=6), rng.normal(size=6)
+            base_rate, base_acc = rng.normal(size=6), rng.normal(size=6)
+            expected = feedforward_and_legs(params, mode, pose, rate, acc, base_pose, base_rate, base_acc)
+            for got, want in zip(fast(pose, rate, acc, base_pose, base_rate, base_acc), expected):
+                np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-9)
