@@ -54,15 +54,19 @@ class TelescopeBase(GuardedSlave):
                       getter=lambda n=name: self.settings[n],
                       setter=lambda v, n=name: self.settings.__setitem__(n, v))
         pose_desc = lambda prefix: [f"{prefix} {n}" for n in POSE_NAMES]
-        self.base_pose = self.vector("base_pose", 6, OUTPUT, pose_desc("base, in {W},"), POSE_UNITS)
-        self.base_rate = self.vector("base_rate", 6, OUTPUT, pose_desc("d/dt base"), rate_units(POSE_UNITS))
-        self.base_acc = self.vector("base_acc", 6, OUTPUT, pose_desc("d2/dt2 base"), acc_units(POSE_UNITS))
-        self.axes = self.vector("axis", 2, OUTPUT, ["azimuth", "elevation"], "rad")
-        self.axis_rates = self.vector("axis_rate", 2, OUTPUT, ["azimuth rate", "elevation rate"], "rad/s")
-        self.ref_pose = self.vector("reference_pose", 6, OUTPUT, pose_desc("platform reference, in {B},"),
-                                    POSE_UNITS, tianma.home)
-        self.ref_rate = self.vector("reference_rate", 6, OUTPUT, pose_desc("d/dt reference"), rate_units(POSE_UNITS))
-        self.ref_acc = self.vector("reference_acc", 6, OUTPUT, pose_desc("d2/dt2 reference"), acc_units(POSE_UNITS))
+        self.now = np.zeros(40)   # every output, one row of the evaluated block
+        self.now[18:24] = tianma.home
+        for start, (name, size, desc, units) in zip((0, 6, 12, 18, 24, 30, 36, 38), (
+            ("base_pose", 6, pose_desc("base, in {W},"), POSE_UNITS),
+            ("base_rate", 6, pose_desc("d/dt base"), rate_units(POSE_UNITS)),
+            ("base_acc", 6, pose_desc("d2/dt2 base"), acc_units(POSE_UNITS)),
+            ("reference_pose", 6, pose_desc("platform reference, in {B},"), POSE_UNITS),
+            ("reference_rate", 6, pose_desc("d/dt reference"), rate_units(POSE_UNITS)),
+            ("reference_acc", 6, pose_desc("d2/dt2 reference"), acc_units(POSE_UNITS)),
+            ("axis", 2, ["azimuth", "elevation"], "rad"),
+            ("axis_rate", 2, ["azimuth rate", "elevation rate"], "rad/s"),
+        )):
+            self.vector(name, size, OUTPUT, desc, units, values=self.now[start:start + size])
 
     def initialize(self):
         s = self.settings
@@ -82,8 +86,6 @@ class TelescopeBase(GuardedSlave):
         else:
             self.profile_at = lambda t: telescope.paper_manoeuvre(t, s["paper_duration"])
         self.paper = kind == "paper"
-        self.outputs = (self.base_pose, self.base_rate, self.base_acc, self.ref_pose, self.ref_rate,
-                        self.ref_acc, self.axes, self.axis_rates)
         self.block_t, self.block_h, self.block = np.inf, 0.0, None
         self._publish(0.0, 0.0)
 
@@ -95,11 +97,10 @@ class TelescopeBase(GuardedSlave):
         if not (0 <= index < BLOCK and abs(self.block_t + index * h - t) <= 1e-9 * max(1.0, abs(t))):
             self.block_t, self.block_h, index = t, h, 0
             self.block = self._evaluate(t + h * np.arange(BLOCK if h > 0 else 1))
-        for target, values in zip(self.outputs, self.block):
-            target[:] = values[index]
+        self.now[:] = self.block[index]
 
     def _evaluate(self, times):
-        """All outputs at the given times, as arrays (n, width) in self.outputs' order."""
+        """All outputs at the given times, (n, 40) in the order of self.now."""
         times = times - self.settings["start_delay"]
         axes = self.profile_at(times)
         base = telescope.base_motion(self.params, axes)
@@ -107,4 +108,4 @@ class TelescopeBase(GuardedSlave):
             ref = quintic(HOME_POSE, S_BAND_POSE, self.settings["paper_duration"], times)
         else:
             ref = telescope.reference_pose(self.params, axes)
-        return (*base, *ref, np.stack([axes.A, axes.E], -1), np.stack([axes.A_dot, axes.E_dot], -1))
+        return np.concatenate([*base, *ref, np.stack([axes.A, axes.E, axes.A_dot, axes.E_dot], -1)], axis=1)
