@@ -82,8 +82,10 @@ class PoseTracking(_Metric):
     def update(self, t, values):
         pose, ref = values[self.measured], values[self.reference]
         self._accumulate(t, np.linalg.norm(pose[:3] - ref[:3]))
-        relative = rpy_matrix(ref[3:]).T @ rpy_matrix(pose[3:])
-        self.rotation._accumulate(t, np.arccos(np.clip((np.trace(relative) - 1) / 2, -1.0, 1.0)))
+        r = rpy_matrix(ref[3:]).T @ rpy_matrix(pose[3:])
+        axis = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+        # atan2 keeps full precision for small angles, where arccos of the trace does not
+        self.rotation._accumulate(t, np.arctan2(np.linalg.norm(axis), np.trace(r) - 1.0))
 
     def result(self):
         position, rotation = super().result(), self.rotation.result()

@@ -216,3 +216,13 @@ def test_auto_fidelity_keeps_the_plant_within_its_tolerance(tmp_path):
     force = [i for i, h in enumerate(header) if h.startswith("controller.leg_force")]
     assert np.abs(runs["auto"][:, force] - runs["full"][:, force]).max() < 1.0
     assert not np.array_equal(runs["auto"], runs["full"])
+
+
+def test_pose_metric_resolves_sub_microradian_rotations():
+    metric = metrics.PoseTracking("pose", "p.pose", "r.pose")
+    reference = np.array([0.0, 0.0, -2.6815, 0.01, -0.02, 0.03])
+    for angle in (1e-9, 3e-9):
+        pose = reference.copy()
+        pose[5] += angle   # a yaw offset of `angle` rad about z of the reference's parent frame
+        metric.update(0.0, {"p.pose": pose, "r.pose": reference})
+    assert metric.result()["rotation_peak"] == pytest.approx(3e-3, rel=1e-6)   # µrad
