@@ -10,7 +10,6 @@ import tempfile
 import time
 
 from scenarios import master, runner
-from scenarios.fmi import Instance, RealPort
 
 
 def scenario_table(ci):
@@ -25,15 +24,8 @@ def scenario_table(ci):
 
 def _instances(scenario, paths, values):
     """Instances initialised as master.run does, with their exchange."""
-    instances = {inst: Instance(paths[inst], inst) for inst in scenario.fmus}
-    exchange = master.Exchange(scenario, instances)
-    ready = set()
-    for inst in master.step_order(scenario, values):
-        given = {n: instances[v.instance].get_real(v.variable) if isinstance(v, master.Link) else v
-                 for n, v in values.get(inst, {}).items()}
-        given.update(exchange.initial_inputs(inst, ready))
-        instances[inst].initialize(scenario.start_time, given)
-        ready.add(inst)
+    instances = {}
+    exchange, _ = master.start(scenario, paths, values, instances)
     exchange.read()
     return instances, exchange
 

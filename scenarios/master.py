@@ -152,6 +152,23 @@ class Recorder:
         self.file.close()
 
 
+def start(scenario, fmu_paths, parameters, instances):
+    """Instantiate every FMU into ``instances`` (the caller frees them, also on failure)
+    and initialise them in dependency order: parameters, links ("@inst.var") read from
+    instances already initialised, and connected inputs fed by them. Returns the
+    Exchange and the parameters with every Link replaced by its number."""
+    for inst in scenario.fmus:
+        instances[inst] = Instance(fmu_paths[inst], inst)
+    exchange = Exchange(scenario, instances)
+    ready, resolved = set(), {}
+    for inst in step_order(scenario, parameters):
+        resolved[inst] = {name: instances[v.instance].get_real(v.variable) if isinstance(v, Link) else v
+                          for name, v in parameters.get(inst, {}).items()}
+        instances[inst].initialize(scenario.start_time, {**resolved[inst], **exchange.initial_inputs(inst, ready)})
+        ready.add(inst)
+    return exchange, resolved
+
+
 def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progress=None):
     """Co-simulate ``scenario`` once. ``fmu_paths``: instance -> FMU file; ``parameters``:
     instance -> {variable: value} (already converted, see spec.bind); results go to
@@ -159,16 +176,7 @@ def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progre
     instances = {}
     recorder = None
     try:
-        for inst in scenario.fmus:
-            instances[inst] = Instance(fmu_paths[inst], inst)
-        exchange = Exchange(scenario, instances)
-        ready = set()
-        for inst in step_order(scenario, parameters):
-            values = {name: instances[v.instance].get_real(v.variable) if isinstance(v, Link) else v
-                      for name, v in parameters.get(inst, {}).items()}
-            values.update(exchange.initial_inputs(inst, ready))
-            instances[inst].initialize(scenario.start_time, values)
-            ready.add(inst)
+        exchange, _ = start(scenario, fmu_paths, parameters, instances)
         recorder = Recorder(outdir / f"{label}.csv", scenario, instances, list(metrics))
         h, t0 = scenario.step, scenario.start_time
         steps = int(round((scenario.stop_time - t0) / h))
@@ -179,7 +187,7 @@ def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progre
         exchange.read()
         exchange.y_prev[:] = exchange.y
         recorder.record(t0)
-        start = time.perf_counter()
+        began = time.perf_counter()
         for k in range(steps):
             t = t0 + k * h
             if scenario.master == "jacobi":
@@ -203,7 +211,7 @@ def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progre
                 recorder.record(t0 + (k + 1) * h)
             if progress and k % tick == 0:
                 progress(k / steps)
-        wall = time.perf_counter() - start
+        wall = time.perf_counter() - began
     finally:
         if recorder:
             recorder.close()

@@ -56,7 +56,7 @@ import numpy as np
 
 from . import spec
 from .fmi import Instance, unpack
-from .master import Exchange, step_order
+from .master import start, step_order
 from .spec import Link, expand
 
 SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
@@ -86,35 +86,16 @@ def _double(value):
 # ------------------------------------------------------------------------- parameters
 def resolve_links(scenario, fmu_paths, parameters):
     """``parameters`` (instance -> {variable: value}) with every ``Link`` replaced by its
-    number: the instances are initialised as master.run does (step_order; parameters and
-    the connected inputs fed by instances already initialised), and each link is read from
-    its source when its target is reached. Nothing is instantiated without links."""
-    resolved = {inst: dict(values) for inst, values in parameters.items()}
-    pending = {inst for inst, values in parameters.items() if any(isinstance(v, Link) for v in values.values())}
-    if not pending:
-        return resolved
+    number, read by initialising the instances exactly as master.run does (master.start).
+    Nothing is instantiated without links."""
+    if not any(isinstance(v, Link) for values in parameters.values() for v in values.values()):
+        return {inst: dict(values) for inst, values in parameters.items()}
     instances = {}
     try:
-        for inst in scenario.fmus:
-            instances[inst] = Instance(fmu_paths[inst], inst)
-        exchange = Exchange(scenario, instances)
-        ready = set()
-        for inst in step_order(scenario, parameters):
-            values = resolved.get(inst, {})
-            for name, value in values.items():
-                if isinstance(value, Link):
-                    values[name] = instances[value.instance].get_real(value.variable)
-            pending.discard(inst)
-            if not pending:
-                break
-            values = dict(values)
-            values.update(exchange.initial_inputs(inst, ready))
-            instances[inst].initialize(scenario.start_time, values)
-            ready.add(inst)
+        return start(scenario, fmu_paths, parameters, instances)[1]
     finally:
         for instance in instances.values():
             instance.terminate()
-    return resolved
 
 
 def _typed(inst, variable, value):
