@@ -13,7 +13,7 @@ import numpy as np
 
 from controller.feedforward import FEEDFORWARD_MODES, Feedforward
 from controller.pid import PIDGains, pid_update
-from fmu_src.slave import INPUT, OUTPUT, PARAMETER, POSE_UNITS, GuardedSlave, acc_units, rate_units
+from fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
 from plant.errors import InvalidInputError
 from plant.stewart import StewartParams
 
@@ -31,16 +31,7 @@ class LegController(GuardedSlave):
         defaults = json.loads((pathlib.Path(self.resources) / DEFAULTS_FILE).read_text())
         self.integer("feedforward", "model feedforward: " + ", ".join(
             f"{i} {m}" for i, m in enumerate(FEEDFORWARD_MODES)), 2)
-        self.gains = dict(defaults["gains"])
-        design = defaults["design"]
-        for name, unit, text in (
-            ("kp", "N/m", "proportional gain on leg length"),
-            ("ki", "N/(m.s)", "integral gain on leg length"),
-            ("kd", "N.s/m", "derivative gain on leg rate"),
-            ("force_limit", "N", "actuator force saturation per leg (assumed)"),
-        ):
-            self.real(name, PARAMETER, f"{text}; default designed for {design}", unit, self.gains[name],
-                      getter=lambda n=name: self.gains[n], setter=lambda v, n=name: self.gains.__setitem__(n, v))
+        self.gains = self.pid_gains(defaults["gains"], "leg length", f"designed for {defaults['design']}")
         pose_desc = lambda prefix: [f"{prefix} {n}" for n in POSE_NAMES]
         home = StewartParams.paper()
         self.inputs = np.zeros((8, 6))   # all inputs in one array: one NaN/inf check per step

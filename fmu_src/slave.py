@@ -118,6 +118,24 @@ class GuardedSlave(Fmi2Slave):
             groups[id(array)][2].append(position)
         return [(a, np.array(i), np.array(p)) for a, i, p in groups.values()]
 
+    def parameters(self, rows):
+        """Real parameters (name, unit, default, description) backed by a dict, returned."""
+        store = {}
+        for name, unit, default, text in rows:
+            store[name] = default
+            self.real(name, PARAMETER, text, unit, default, getter=lambda n=name: store[n],
+                      setter=lambda v, n=name: store.__setitem__(n, v))
+        return store
+
+    def pid_gains(self, defaults, subject, note):
+        """kp, ki, kd, force_limit parameters of a PID on ``subject`` (e.g. "leg length")."""
+        return self.parameters((
+            ("kp", "N/m", defaults["kp"], f"proportional gain on {subject}; default {note}"),
+            ("ki", "N/(m.s)", defaults["ki"], f"integral gain on {subject}; default {note}"),
+            ("kd", "N.s/m", defaults["kd"], f"derivative gain on the rate of {subject}; default {note}"),
+            ("force_limit", "N", defaults["force_limit"], "actuator force saturation (assumed)"),
+        ))
+
     def integer(self, name, description, start):
         setattr(self, name, start)
         self.register_variable(Integer(name, causality=PARAMETER, variability=Fmi2Variability.fixed,

@@ -56,15 +56,7 @@ class SliderController(GuardedSlave):
         rho0 = np.array(PAPER_REFERENCE_RHO_MM) * MM
         self.initial_position = self.vector("initial_position", 3, PARAMETER,
                                             [f"centre of the reference of slider {s}" for s in SLIDERS], "m", rho0)
-        self.gains = dict(DEFAULT_GAINS)
-        for name, unit, text in (
-            ("kp", "N/m", "proportional gain on slider position"),
-            ("ki", "N/(m.s)", "integral gain on slider position"),
-            ("kd", "N.s/m", "derivative gain on slider rate"),
-            ("force_limit", "N", "actuator force saturation per slider (assumed)"),
-        ):
-            self.real(name, PARAMETER, f"{text}; default: {DESIGN}", unit, self.gains[name],
-                      getter=lambda n=name: self.gains[n], setter=lambda v, n=name: self.gains.__setitem__(n, v))
+        self.gains = self.pid_gains(DEFAULT_GAINS, "slider position", DESIGN)
         self.measured = np.zeros((2, 3))
         self.measured[0] = rho0
         self.vector("slider_position", 3, INPUT, [f"measured slider position {s}" for s in SLIDERS], "m",

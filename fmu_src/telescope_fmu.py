@@ -13,7 +13,7 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from fmu_src.slave import OUTPUT, PARAMETER, POSE_UNITS, GuardedSlave, acc_units, rate_units
+from fmu_src.slave import OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
 from plant import telescope
 from plant.stewart import HOME_POSE, S_BAND_POSE
 from plant.trajectory import quintic
@@ -30,8 +30,7 @@ class TelescopeBase(GuardedSlave):
         super().__init__(**kwargs)
         tianma = telescope.TelescopeParams.tianma()
         self.integer("profile", "motion profile: " + ", ".join(f"{i} {p}" for i, p in enumerate(PROFILES)), 0)
-        self.settings = {}
-        for name, unit, default, text in (
+        self.settings = self.parameters((
             ("start_azimuth", "rad", 0.0, "slew start azimuth"),
             ("start_elevation", "rad", np.radians(30.0), "slew start elevation"),
             ("target_azimuth", "rad", np.radians(90.0), "slew target azimuth"),
@@ -48,11 +47,7 @@ class TelescopeBase(GuardedSlave):
             ("utc_start", "s", 1.7e9, "UTC at t = 0, seconds since 1970-01-01"),
             ("paper_duration", "s", 6.0, "duration of the paper's stress manoeuvre"),
             ("start_delay", "s", 0.0, "the profile starts this late; before it, the start pointing holds"),
-        ):
-            self.settings[name] = default
-            self.real(name, PARAMETER, text, unit, default,
-                      getter=lambda n=name: self.settings[n],
-                      setter=lambda v, n=name: self.settings.__setitem__(n, v))
+        ))
         pose_desc = lambda prefix: [f"{prefix} {n}" for n in POSE_NAMES]
         self.now = np.zeros(40)   # every output, one row of the evaluated block
         self.now[18:24] = tianma.home
