@@ -10,6 +10,7 @@ import json
 import pathlib
 
 import numpy as np
+from pythonfmu.enums import Fmi2Status
 
 from controller.feedforward import FEEDFORWARD_MODES, Feedforward
 from controller.pid import PIDGains, pid_update
@@ -55,10 +56,17 @@ class LegController(GuardedSlave):
         self.params = StewartParams.paper()
         self.pid = PIDGains(**self.gains)
         self.feedforward_model = Feedforward(self.params, FEEDFORWARD_MODES[self.feedforward])
+        self.saturated = False
         self._update(None)
 
     def step(self, t, h):
         self._update(h)
+        saturated = bool(np.any(np.abs(self.forces) >= self.pid.force_limit))
+        if saturated and not self.saturated:   # say so once per episode: an unstable loop saturates quietly
+            self.log(f"leg forces saturated at +-{self.pid.force_limit:g} N at t={t + h:.6g} s "
+                     f"(legs {', '.join(str(i + 1) for i in np.flatnonzero(np.abs(self.forces) >= self.pid.force_limit))})",
+                     Fmi2Status.warning, "logStatusWarning")
+        self.saturated = saturated
 
     def _update(self, h):
         """Forces from the inputs now; the integral advances only on a real step."""

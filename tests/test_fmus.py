@@ -130,3 +130,13 @@ def test_singular_initial_pose_is_refused(fmus):
                      **{f"initial_pose[{i + 1}]": singular[i] for i in range(6)})
     error = _failing_step(slave, STATIC, steps=1)
     assert "SingularConfigurationError" in error
+
+
+def test_controller_reports_saturation_in_its_log(fmus):
+    controller = open_fmu(fmus["leg_controller_fmu"], force_limit=1000.0)
+    set_vec(controller, "leg_length", PARAMS.home_lengths - 0.01)   # 10 mm short: saturates
+    for k in range(3):
+        controller.do_step(k * 1e-3, 1e-3)
+    assert np.all(np.abs(vec(controller, "leg_force")) == 1000.0)
+    warnings = [line for line in controller.log if "saturated" in line]
+    assert len(warnings) == 1 and warnings[0].startswith("[WARNING]") and "legs 1, 2, 3, 4, 5, 6" in warnings[0]
