@@ -52,6 +52,7 @@ class HexapodODE:
             row[:] = values
 
     def rhs(self, t, x):
+        x = np.ascontiguousarray(x)   # scipy's Jacobian differencing passes strided views
         dx, det = kane.rhs(*self._args, x, self.inputs[0:1], self.inputs[1:4], self.t0, t,
                            self.base_mode, self.legs)
         self._check_det(det)

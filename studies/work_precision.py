@@ -1,0 +1,568 @@
+"""Work-precision study: what each co-simulation setting costs in wall time and buys in
+accuracy, against a reference solution of the same scene (studies.reference).
+
+For each scene the user's choices are swept:
+
+* communication step h: 0.25, 0.5, 1, 2, 4 ms;
+* master: Jacobi, Gauss-Seidel, Jacobi with linear input extrapolation;
+* plant integrator and substeps: rk4 / euler / radau, max_step (substeps = ceil(h / max_step));
+* plant model fidelity: full, massless_legs, base_gravity, no_base;
+
+not as a full factorial but as the step sweep of every master with the shipped plant
+settings, plus integrator and fidelity variants with the Jacobi master (the shipped one).
+The controller always runs the shipped moving-base feedforward and default gains.
+
+Cost: wall time of the master's stepping loop (scenarios.master.Run.wall_time: FMU
+instantiation and initialisation excluded), the median of ``repeats`` runs made in
+interleaved rounds (every setting once per round, so a load change on the machine hits
+all settings alike), after one short untimed warm-up run of each setting (lazy imports and
+compiled-code loads land there); a setting whose first run takes over LONG_RUN seconds
+is not repeated. Only the platform pose and the leg forces are recorded, every 4 ms (a multiple
+of every step), so recording costs next to nothing.
+
+Error: against the reference, over the scene's window: platform position error RMS and
+max [µm], rotation error RMS and max [µrad], leg-force error RMS and max [N]. The chart
+and the Pareto front use the position RMS (left panel) and the leg-force RMS (right).
+
+Pareto front: the settings no other setting beats in both cost and error (lower or equal
+in both, lower in one). Failed runs and unstable ones (the leg forces reach the
+controller's force limit, which the reference never does) are listed but kept off the
+front. Distance of a setting (the shipped default) from the front, with the front
+interpolated linearly in log-log between its points (the step is continuous, so the
+settings between two front points exist):
+
+* cost at equal error: c / c_front(e), its wall time over the front's at its error;
+* error at equal cost: e / e_front(c), its error over the front's at its wall time;
+
+both 1 on the front; the same ratios against the runs made only (no interpolation) are
+reported beside them. The default counts as "within 10 % of the front" when its cost at
+equal error is at most 1.10 (the accuracy it delivers cannot be had for less than 91 %
+of its wall time); the verdict is given for the position RMS (what the hexapod is for)
+and, as a second opinion, for the leg-force RMS.
+
+Run ``python -m studies.work_precision [--scenes ...] [--repeats N] [--quick]``; it prints a
+table per scene and writes docs/figures/work_precision_<scene>.png.
+"""
+import argparse
+import csv
+import dataclasses
+import json
+import pathlib
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from plant.integrators import INTEGRATORS
+from plant.stewart import FIDELITIES
+from scenarios import master, runner, spec
+from scenarios.fmi import FmuError
+
+from . import reference
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+FIGURES = ROOT / "docs" / "figures"
+RECORD_INTERVAL = 4e-3
+RTOL_CHECK = 5e-11       # the reference is checked against one at half its tolerances
+LONG_RUN = 10.0          # s: a setting whose first run takes longer is not repeated
+STEPS = (0.25e-3, 0.5e-3, 1e-3, 2e-3, 4e-3)
+MASTERS = (("jacobi", "none"), ("gauss-seidel", "none"), ("jacobi", "linear"))
+MASTER_LABELS = {("jacobi", "none"): "Jacobi", ("gauss-seidel", "none"): "Gauss-Seidel",
+                 ("jacobi", "linear"): "Jacobi+lin"}
+FEEDFORWARD = 2          # moving_base, the shipped controller default
+
+
+# ------------------------------------------------------------------------------ scenes
+@dataclass(frozen=True)
+class SceneSpec:
+    """A shipped scene, possibly shortened to a window: stop_time, base parameters
+    changed (e.g. an earlier start of the slew), and the window errors are measured in."""
+
+    file: str
+    stop_time: float = None            # None: the file's
+    base: tuple = ()                   # (("parameter", value), ...) set on the telescope FMU
+    window_from: float = 0.0
+    note: str = ""
+
+
+SCENES = {
+    "paper_manoeuvre": SceneSpec("paper_manoeuvre", window_from=2.0,
+                                 note="as shipped: 2 s rest, the 6 s manoeuvre; errors over the manoeuvre"),
+    "telescope_slew": SceneSpec("telescope_slew", stop_time=5.0, base=(("start_delay", 0.5),), window_from=0.5,
+                                note="window: the slew starts at 0.5 s (shipped: 5 s); errors over its first 4.5 s "
+                                     "(both axes' acceleration phases and the start of their cruise)"),
+    "keyhole_tracking": SceneSpec("keyhole_tracking", stop_time=10.0, base=(("utc_start", 120.0),), window_from=1.0,
+                                  note="window: utc_start + 120 s, so the 0.2 deg keyhole transit falls at 5 s of a "
+                                       "10 s run (shipped: 125 s of 250 s); errors from 1 s on"),
+}
+
+
+@dataclass
+class Prepared:
+    name: str
+    scenario: object
+    paths: dict
+    descriptions: dict
+    values: dict
+    window: tuple
+    spec: SceneSpec
+
+    def scene(self):
+        return reference.Scene.from_prepared(self.scenario, self.descriptions, self.values)
+
+
+def prepare(name, stop_time=None):
+    """The scene ``name`` of SCENES ready to co-simulate (FMUs built, parameters bound)."""
+    spec = SCENES[name]
+    scenario, paths, descriptions, values = runner.prepare(runner.resolve(spec.file))
+    stop = stop_time or spec.stop_time or scenario.stop_time
+    scenario = dataclasses.replace(scenario, stop_time=stop, record=["plant.pose", "controller.leg_force"],
+                                   record_interval=RECORD_INTERVAL, metrics=[], sweep=None)
+    values = {inst: dict(v) for inst, v in values.items()}
+    base = next(i for i, f in scenario.fmus.items() if f == "telescope")
+    for key, value in spec.base:
+        if key == "utc_start":
+            value = values[base]["utc_start"] + value
+        values[base][key] = value
+    ctrl = next(i for i, f in scenario.fmus.items() if f == "leg_controller")
+    values[ctrl]["feedforward"] = FEEDFORWARD
+    return Prepared(name, scenario, paths, descriptions, values, (spec.window_from, stop), spec)
+
+
+# ---------------------------------------------------------------------------- settings
+@dataclass(frozen=True)
+class Config:
+    """One co-simulation setting."""
+
+    step: float
+    master: str = "jacobi"
+    extrapolation: str = "none"
+    integrator: str = "rk4"
+    max_step: float = 1e-3
+    fidelity: str = "full"
+
+    @property
+    def master_label(self):
+        return MASTER_LABELS[(self.master, self.extrapolation)]
+
+    @property
+    def substeps(self):
+        return max(1, int(np.ceil(self.step / self.max_step - 1e-9)))
+
+    @property
+    def label(self):
+        return (f"h={self.step * 1e3:g}ms {self.master_label} {self.integrator}x{self.substeps} "
+                f"{self.fidelity}")
+
+
+def _shipped():
+    """The shipped setting, read from the paper scenario: its step, master, extrapolation
+    (plant: rk4, max_step 1 ms, full fidelity, as the scenario files set it)."""
+    shipped = spec.load(runner.resolve("paper_manoeuvre"))
+    return Config(shipped.step, shipped.master, shipped.extrapolation)
+
+
+DEFAULT = _shipped()
+
+
+def sweep(steps=STEPS):
+    """The settings of the study (the default included once)."""
+    configs = []
+    for master_, extrapolation in MASTERS:                     # step x master, shipped plant
+        configs += [Config(h, master_, extrapolation) for h in steps]
+    for h in steps:                                            # integrators and substeps
+        configs += [Config(h, max_step=h), Config(h, integrator="euler", max_step=h)]
+    for h in (1e-3, 4e-3):
+        configs += [Config(h, max_step=h / 4), Config(h, integrator="euler", max_step=h / 4),
+                    Config(h, integrator="radau", max_step=h)]
+    for fidelity in ("massless_legs", "base_gravity", "no_base"):  # model fidelity
+        configs += [Config(h, fidelity=fidelity) for h in (0.5e-3, 1e-3, 2e-3)]
+    return _unique(c for c in configs if c.step in steps)
+
+
+def _unique(configs):
+    """First of the settings that run alike (same step, master, integrator, substeps, fidelity)."""
+    seen, out = set(), []
+    for c in configs:
+        key = (c.step, c.master, c.extrapolation, c.integrator, c.substeps, c.fidelity)
+        if key not in seen:
+            seen.add(key)
+            out.append(c)
+    return out
+
+
+def quick_sweep():
+    """A small sweep for a fast look: the default's neighbours."""
+    return _unique([Config(h) for h in (0.5e-3, 1e-3, 2e-3)] +
+                   [Config(1e-3, "gauss-seidel"), Config(1e-3, extrapolation="linear"),
+                    Config(1e-3, integrator="euler", max_step=1e-3)])
+
+
+# ------------------------------------------------------------------------ co-simulation
+def cosimulate(prep, config, outdir, stop_time=None):
+    """One co-simulation; returns (wall time [s], times, pose (n, 6), leg forces (n, 6))."""
+    scenario = dataclasses.replace(prep.scenario, step=config.step, master=config.master,
+                                   extrapolation=config.extrapolation,
+                                   stop_time=stop_time or prep.scenario.stop_time)
+    params = {inst: dict(v) for inst, v in prep.values.items()}
+    plant = next(i for i, f in scenario.fmus.items() if f == "hexapod_plant")
+    params[plant].update(integrator=INTEGRATORS.index(config.integrator), max_step=config.max_step,
+                         fidelity=FIDELITIES.index(config.fidelity))
+    run = master.run(scenario, prep.paths, params, pathlib.Path(outdir), "run")
+    with open(run.csv_path) as f:
+        header = next(csv.reader(f))
+    data = np.loadtxt(run.csv_path, delimiter=",", skiprows=1, ndmin=2)
+    pose = [k for k, c in enumerate(header) if c.startswith("plant.pose[")]
+    force = [k for k, c in enumerate(header) if c.startswith("controller.leg_force[")]
+    return run.wall_time, data[:, 0], data[:, pose], data[:, force]
+
+
+_PROBE = """
+import sys, tempfile
+from studies import work_precision as W
+prep = W.prepare(sys.argv[1])
+try:
+    with tempfile.TemporaryDirectory() as tmp:
+        W.cosimulate(prep, W.Config(1e-3, integrator=sys.argv[2], max_step=1e-3), tmp, stop_time=4e-3)
+    print("OK")
+except Exception as exc:
+    print(" ".join(str(exc).split())[:400])
+"""
+
+
+def probe(name, integrator):
+    """'OK' or the failure of a 4-step run with this plant integrator, tried in a child
+    process: an FMU that fails inside pythonfmu can corrupt its host process's heap
+    (seen as 'corrupted double-linked list' with integrator radau), which must not take
+    a long sweep down."""
+    import subprocess
+    done = subprocess.run([sys.executable, "-c", _PROBE, name, integrator], cwd=ROOT, capture_output=True,
+                          text=True, timeout=600)
+    lines = done.stdout.strip().splitlines()
+    return lines[-1] if lines else f"probe exited with {done.returncode}: {done.stderr.strip()[-300:]}"
+
+
+# ----------------------------------------------------------------------- Pareto front
+def pareto_front(costs, errors):
+    """Boolean mask of the points no other point dominates (both minimised; a point is
+    dominated by one at most as costly and at most as wrong, strictly better in one).
+    NaN points (failed runs) are never on the front."""
+    costs, errors = np.asarray(costs, dtype=float), np.asarray(errors, dtype=float)
+    ok = np.isfinite(costs) & np.isfinite(errors)
+    front = np.zeros(costs.size, dtype=bool)
+    for i in np.flatnonzero(ok):
+        others = ok & (costs <= costs[i]) & (errors <= errors[i]) & ((costs < costs[i]) | (errors < errors[i]))
+        front[i] = not others.any()
+    return front
+
+
+def _front_points(costs, errors):
+    """Front points (costs, errors) sorted by cost (so errors fall)."""
+    front = pareto_front(costs, errors)
+    order = np.argsort(costs[front])
+    return costs[front][order], errors[front][order]
+
+
+def front_cost(costs, errors, error):
+    """Cost of the front at ``error``: linear in log-log between the front's points
+    (steps are continuous, so a setting between two front points is reachable), the
+    cheapest front cost above its least accurate point, its most accurate point's cost
+    below."""
+    fc, fe = _front_points(np.asarray(costs, float), np.asarray(errors, float))
+    if error >= fe[0]:
+        return float(fc[0])
+    if error <= fe[-1]:
+        return float(fc[-1])
+    return float(np.exp(np.interp(np.log(error), np.log(fe[::-1]), np.log(fc[::-1]))))
+
+
+def front_error(costs, errors, cost):
+    """Error of the front at ``cost``, interpolated the same way."""
+    fc, fe = _front_points(np.asarray(costs, float), np.asarray(errors, float))
+    if cost <= fc[0]:
+        return float(fe[0])
+    if cost >= fc[-1]:
+        return float(fe[-1])
+    return float(np.exp(np.interp(np.log(cost), np.log(fc), np.log(fe))))
+
+
+def front_distance(costs, errors, index):
+    """How far point ``index`` is from the front (failed points, NaN, ignored):
+
+    * ``cost_ratio``: its cost / the front's cost at its error (cost at equal error);
+    * ``error_ratio``: its error / the front's error at its cost (error at equal cost);
+
+    both with the front interpolated in log-log (front_cost, front_error), both 1 on
+    the front; and the same two against the runs made only, no interpolation
+    (``attainable_*``: its cost / the least cost of a run at most as wrong, its error /
+    the least error of a run at most as costly)."""
+    costs, errors = np.asarray(costs, dtype=float), np.asarray(errors, dtype=float)
+    ok = np.isfinite(costs) & np.isfinite(errors)
+    c, e = costs[index], errors[index]
+    on_front = bool(pareto_front(costs, errors)[index])
+    at_error, at_cost = front_cost(costs, errors, e), front_error(costs, errors, c)
+    return {"on_front": on_front, "cost": float(c), "error": float(e),
+            "cost_ratio": 1.0 if on_front else float(c / at_error),
+            "error_ratio": 1.0 if on_front else float(e / at_cost),
+            "front_cost_at_error": at_error, "front_error_at_cost": at_cost,
+            "attainable_cost_ratio": float(c / costs[ok & (errors <= e)].min()),
+            "attainable_error_ratio": float(e / errors[ok & (costs <= c)].min())}
+
+
+def near_front(distance, tolerance=0.10):
+    """The study's criterion: on the front, or within ``tolerance`` of it in cost at
+    equal error (the front interpolated in log-log): cost_ratio <= 1 + tolerance."""
+    return distance["on_front"] or distance["cost_ratio"] <= 1.0 + tolerance + 1e-12
+
+
+# -------------------------------------------------------------------------------- study
+def check_reference(ref, prep, rtol=RTOL_CHECK):
+    """errors() between the reference and one solved at ``rtol`` (tighter; the absolute
+    tolerances scaled alike), over the window at the recording times: how converged the
+    reference is."""
+    other = reference.solve(ref.scene, rtol=rtol, atol_scale=rtol / ref.rtol)
+    times = np.arange(prep.window[0], prep.window[1] + 1e-9, RECORD_INTERVAL)
+    return reference.difference(ref, other, times)
+
+
+def study(name, configs=None, repeats=3, progress=True, reference_solution=None, stop_time=None, prep=None):
+    """Run the sweep on scene ``name``; returns (results, reference). ``results``: one
+    dict per setting with its Config, wall time (median), the times measured and the
+    errors against the reference (or the failure message)."""
+    from tqdm import tqdm
+    configs = configs or sweep()
+    prep = prep or prepare(name, stop_time)
+    t0 = time.perf_counter()
+    ref = reference_solution or reference.solve(prep.scene())
+    if progress:
+        print(f"{name}: reference (Radau, rtol {ref.rtol:g}) in {time.perf_counter() - t0:.1f} s, "
+              f"{ref.rhs_calls} right-hand sides; peak |force| {ref.peak_force / 1e3:.2f} kN"
+              f"{' (SATURATED)' if ref.saturated else ''}", flush=True)
+    results = [{"config": c, "times": [], "error": None, "failure": None, "unstable": None} for c in configs]
+    for integrator in sorted({c.integrator for c in configs} - {"rk4", "euler"}):
+        answer = probe(name, integrator)
+        if answer != "OK":
+            if progress:
+                print(f"{name}: plant integrator {integrator} fails, not run in this process: {answer}", flush=True)
+            for result in results:
+                if result["config"].integrator == integrator:
+                    result["failure"] = f"fails at once (probe): {answer}"
+    with tempfile.TemporaryDirectory() as tmp:
+        for result in results:     # warm-up: lazy imports and compiled-code loads happen here, untimed
+            if not result["failure"]:
+                try:
+                    cosimulate(prep, result["config"], tmp, stop_time=prep.scenario.start_time + 0.05)
+                except FmuError:
+                    pass
+        bar = tqdm(total=len(configs) * repeats, desc=f"{name}", unit="run", disable=not progress)
+        for round_ in range(repeats):
+            for result in results:
+                config = result["config"]
+                bar.set_postfix_str(config.label)
+                if result["failure"] or (round_ and (result["unstable"] or result["times"][0] > LONG_RUN)):
+                    bar.update(1)
+                    continue
+                try:
+                    wall, times, pose, forces = cosimulate(prep, config, tmp)
+                except FmuError as exc:
+                    result["failure"] = str(exc).splitlines()[-1].strip()[:160]
+                    bar.update(1)
+                    continue
+                result["times"].append(wall)
+                if result["error"] is None:
+                    result["error"] = reference.compare(ref, times, pose, forces, prep.window)
+                    peak = float(np.abs(forces).max())
+                    if peak >= (1 - 1e-9) * ref.scene.gains["force_limit"] > ref.peak_force:
+                        result["unstable"] = (f"unstable: leg forces at the {peak / 1e3:.0f} kN limit "
+                                              f"(reference peak {ref.peak_force / 1e3:.1f} kN)")
+                bar.update(1)
+        bar.close()
+    for result in results:
+        result["wall_time"] = float(np.median(result["times"])) if result["times"] else np.nan
+    return results, ref
+
+
+def measures(results, key):
+    """(costs, errors) arrays; NaN for failed and unstable runs, which the front ignores."""
+    usable = [bool(r["error"]) and not r["unstable"] for r in results]
+    costs = np.array([r["wall_time"] if ok else np.nan for r, ok in zip(results, usable)])
+    errors = np.array([r["error"][key] if ok else np.nan for r, ok in zip(results, usable)])
+    return costs, errors
+
+
+def verdict(results, key="pose_rms_um", default=DEFAULT):
+    """front_distance of the default among the results (None if it was not run or
+    failed), with ``near`` (the study's 10 % criterion, see near_front)."""
+    index = next((i for i, r in enumerate(results) if r["config"] == default), None)
+    if index is None or results[index]["failure"] or results[index]["unstable"]:
+        return None
+    distance = front_distance(*measures(results, key), index)
+    distance["near"] = near_front(distance)
+    distance["key"] = key
+    return distance
+
+
+def describe(v, what):
+    status = "ON the front" if v["on_front"] else (
+        "within 10 % of the front" if v["near"] else "NOT within 10 % of the front")
+    return (f"shipped default, {what}: {status}: cost at equal error x{v['cost_ratio']:.3f} "
+            f"({v['cost']:.3f} s against the front's {v['front_cost_at_error']:.3f} s at {v['error']:.3g}), "
+            f"error at equal cost x{v['error_ratio']:.3f} ({v['error']:.3g} against {v['front_error_at_cost']:.3g}); "
+            f"against the runs made only: cost x{v['attainable_cost_ratio']:.3f}, "
+            f"error x{v['attainable_error_ratio']:.3f}")
+
+
+def table(results):
+    """The results as a text table, sorted by fidelity, master, integrator and step.
+    front: P on the position-RMS front, F on the leg-force-RMS front."""
+    front_pose = pareto_front(*measures(results, "pose_rms_um"))
+    front_force = pareto_front(*measures(results, "force_rms_N"))
+    lines = [f"{'step':>6} {'master':<12} {'integrator':<10} {'fidelity':<13} {'wall':>7} "
+             f"{'pos rms':>9} {'pos max':>9} {'rot rms':>8} {'F rms':>9} {'F max':>9}  front",
+             f"{'[ms]':>6} {'':<12} {'x substeps':<10} {'':<13} {'[s]':>7} {'[µm]':>9} {'[µm]':>9} "
+             f"{'[µrad]':>8} {'[N]':>9} {'[N]':>9}"]
+    order = sorted(range(len(results)), key=lambda i: (
+        results[i]["config"].fidelity != "full", results[i]["config"].fidelity,
+        results[i]["config"].master_label, results[i]["config"].integrator, results[i]["config"].substeps,
+        results[i]["config"].step))
+    for i in order:
+        r, c = results[i], results[i]["config"]
+        head = (f"{c.step * 1e3:>6g} {c.master_label:<12} {c.integrator + ' x' + str(c.substeps):<10} "
+                f"{c.fidelity:<13}")
+        if r["failure"]:
+            lines.append(f"{head} {'failed':>7}  {r['failure'][:150]}")
+            continue
+        e = r["error"]
+        marks = ("P" if front_pose[i] else "-") + ("F" if front_force[i] else "-")
+        note = "  <- shipped default" if c == DEFAULT else ""
+        if r["unstable"]:
+            marks, note = "  ", f"  {r['unstable']}"
+        lines.append(f"{head} {r['wall_time']:>7.3f} {e['pose_rms_um']:>9.3g} {e['pose_max_um']:>9.3g} "
+                     f"{e['rot_rms_urad']:>8.3g} {e['force_rms_N']:>9.3g} {e['force_max_N']:>9.3g}  {marks}{note}")
+    return "\n".join(lines)
+
+
+# -------------------------------------------------------------------------------- chart
+COLOURS = {"Jacobi": "tab:blue", "Gauss-Seidel": "tab:orange", "Jacobi+lin": "tab:green"}
+MARKERS = {"rk4": "o", "euler": "s", "radau": "D"}
+FIDELITY_MARKERS = {"massless_legs": "^", "base_gravity": "v", "no_base": "P"}
+
+
+def chart(name, results, path, note=""):
+    """Error against wall time, log-log: position RMS (left) and leg-force RMS (right),
+    the Pareto front as a staircase, the shipped default as a star."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib import ticker
+    from matplotlib.lines import Line2D
+
+    fig, axes = plt.subplots(1, 2, figsize=(13, 5.8))
+    for ax, key, label in ((axes[0], "pose_rms_um", "platform position error against the reference, RMS [µm]"),
+                           (axes[1], "force_rms_N", "leg-force error against the reference, RMS [N]")):
+        costs, errors = measures(results, key)
+        front = pareto_front(costs, errors)
+        for i, r in enumerate(results):
+            if r["failure"]:
+                continue
+            c = r["config"]
+            x, y = r["wall_time"], r["error"][key]
+            if r["unstable"]:
+                ax.scatter(x, y, s=40, marker="x", color="0.5", zorder=3)
+            else:
+                filled = c.substeps == 1 or c.integrator == "radau"
+                ax.scatter(x, y, s=36, marker=FIDELITY_MARKERS.get(c.fidelity, MARKERS[c.integrator]), zorder=3,
+                           facecolors=COLOURS[c.master_label] if filled else "none",
+                           edgecolors=COLOURS[c.master_label], linewidths=1.1)
+            ax.annotate(f"{c.step * 1e3:g}", (x, y), textcoords="offset points", xytext=(4, 3), fontsize=6,
+                        color="0.35")
+        idx = np.flatnonzero(front)
+        idx = idx[np.argsort(costs[idx])]
+        ax.plot(costs[idx], errors[idx], color="k", lw=1.2, zorder=2, label="Pareto front (log-log interpolated)")
+        ax.scatter(costs[idx], errors[idx], s=110, facecolors="none", edgecolors="k", lw=0.8, zorder=2)
+        v = verdict(results, key)
+        if v:
+            d = next(i for i, r in enumerate(results) if r["config"] == DEFAULT)
+            status = "on the front" if v["on_front"] else ("within 10 %" if v["near"] else "not within 10 %")
+            ax.scatter(costs[d], errors[d], s=300, marker="*", facecolors="gold", edgecolors="k", zorder=4,
+                       label=f"shipped default ({DEFAULT.label}): {status}\n"
+                             f"cost x{v['cost_ratio']:.2f} of the front at equal error, "
+                             f"error x{v['error_ratio']:.2f} at equal cost")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.xaxis.set_major_locator(ticker.LogLocator(subs=(1.0, 2.0, 5.0)))
+        ax.xaxis.set_major_formatter(ticker.FuncFormatter(lambda value, _: f"{value:g}"))
+        ax.xaxis.set_minor_formatter(ticker.NullFormatter())
+        ax.set_xlabel("wall time of the run [s] (median of repeats)")
+        ax.set_ylabel(label, fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7, loc="upper right")
+    keys = [Line2D([], [], ls="", marker="o", color=c, label=m) for m, c in COLOURS.items()]
+    keys += [Line2D([], [], ls="", marker=m, color="0.3", label=k) for k, m in MARKERS.items()]
+    keys += [Line2D([], [], ls="", marker="o", markerfacecolor="none", color="0.3", label="hollow: >1 substep")]
+    keys += [Line2D([], [], ls="", marker=m, color="0.3", label=f"{k} plant") for k, m in FIDELITY_MARKERS.items()]
+    keys += [Line2D([], [], ls="", marker="x", color="0.5", label="unstable (forces at the limit)")]
+    fig.legend(handles=keys, loc="lower center", ncol=len(keys), fontsize=7, frameon=False)
+    failed = [r["config"] for r in results if r["failure"]]
+    extra = ""
+    if failed:
+        extra = f"; failed, not shown: {', '.join(sorted({f'{c.integrator} plant' for c in failed}))}"
+    fig.suptitle(f"Work-precision, {name}: error against wall time (labels: communication step [ms]; reference: "
+                 f"coupled model, Radau rtol 1e-10, continuous PID){extra}\n{note}", fontsize=9)
+    fig.tight_layout(rect=(0, 0.05, 1, 0.95))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
+
+
+def summary(results):
+    """JSON-ready results."""
+    return [{**dataclasses.asdict(r["config"]), "label": r["config"].label, "wall_time_s": r["wall_time"],
+             "wall_times_s": r["times"], "error": r["error"], "failure": r["failure"], "unstable": r["unstable"]}
+            for r in results]
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m studies.work_precision", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES))
+    parser.add_argument("--repeats", type=int, default=3, help="runs per setting; the wall time is their median")
+    parser.add_argument("--quick", action="store_true", help="a handful of settings around the default")
+    parser.add_argument("--figures", type=pathlib.Path, default=FIGURES, help="where the PNGs go")
+    parser.add_argument("--json", type=pathlib.Path, help="also write all results to this JSON file")
+    args = parser.parse_args(argv)
+    everything = {}
+    begin = time.perf_counter()
+    # every scene bound (and its FMUs built) once, up front: FMUs rebuilt mid-study from
+    # sources being edited would mix two codes in one chart
+    preps = {name: prepare(name) for name in args.scenes}
+    for name in args.scenes:
+        start = time.perf_counter()
+        results, ref = study(name, quick_sweep() if args.quick else sweep(), args.repeats, prep=preps[name])
+        check = check_reference(ref, preps[name])
+        print(f"\n{name}: {SCENES[name].note}")
+        print(f"reference: Radau rtol {ref.rtol:g}, {ref.rhs_calls} right-hand sides, {ref.wall_time:.1f} s; "
+              f"against rtol {RTOL_CHECK:g} (atol alike): position {check['pose_max_um']:.1e} µm max, rotation "
+              f"{check['rot_max_urad']:.1e} µrad max, leg force {check['force_max_N']:.1e} N max")
+        print(table(results))
+        verdicts = {}
+        for key, what in (("pose_rms_um", "position RMS"), ("force_rms_N", "leg-force RMS")):
+            v = verdicts[key] = verdict(results, key)
+            print(describe(v, what) if v else f"shipped default, {what}: not run or failed")
+        path = chart(name, results, args.figures / f"work_precision_{name}.png", SCENES[name].note)
+        print(f"chart: {path}  ({time.perf_counter() - start:.0f} s for this scene)\n", flush=True)
+        everything[name] = {"reference": {"rtol": ref.rtol, "rhs_calls": ref.rhs_calls, "wall_time_s": ref.wall_time,
+                                          "peak_force_N": ref.peak_force, "against_rtol_check": check},
+                            "verdicts": verdicts,
+                            "results": summary(results)}
+    print(f"total {time.perf_counter() - begin:.0f} s")
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(everything, indent=1, default=float))
+    return everything
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
