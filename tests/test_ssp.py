@@ -33,8 +33,9 @@ def configure(fmus, feedforward="moving_base", stop=STOP):
     paths = {inst: fmus[spec.FMU_SCRIPTS[fmu]] for inst, fmu in scenario.fmus.items()}
     descriptions = {inst: unpack(p)[0] for inst, p in paths.items()}
     values = spec.bind(scenario, descriptions)
+    # fmpy's SSP master is plain Jacobi: compare with ours without input extrapolation
     scenario = dataclasses.replace(scenario, stop_time=stop, record_interval=scenario.step, record=RECORD,
-                                   metrics=[])
+                                   metrics=[], master="jacobi", extrapolation="none")
     params = {inst: dict(v) for inst, v in values.items()}
     inst, name, value = spec.sweep_value(scenario, descriptions, feedforward)
     params[inst][name] = value
