@@ -45,6 +45,7 @@ class Instance:
         self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=folder, instanceName=name,
                              modelIdentifier=self.md.coSimulation.modelIdentifier)
         self.time = 0.0
+        self.freed = False
         self.call("instantiate", loggingOn=True, callbacks=callbacks)
 
     def _on_log(self, component, instance, status, category, message):
@@ -104,7 +105,11 @@ class Instance:
             self.fail("doStep", f"status {_LABELS[status]}")
 
     def terminate(self):
-        """End the instance; a failed FMU may refuse terminate, it is freed regardless."""
+        """End and free the instance, once; a failed FMU may refuse terminate, it is
+        freed regardless."""
+        if self.freed:
+            return
+        self.freed = True
         try:
             self.fmu.terminate()
         except FMICallException:

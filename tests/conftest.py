@@ -2,6 +2,13 @@
 import pytest
 
 from fmu_src import builder
+from tests.fmu_helpers import free_all
+
+
+@pytest.fixture(autouse=True)
+def _free_fmu_instances():
+    yield
+    free_all()
 
 
 @pytest.fixture(scope="session")

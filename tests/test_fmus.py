@@ -10,16 +10,11 @@ from fmpy.validation import validate_fmu
 from plant import telescope
 from plant.hexapod_ode import HexapodODE
 from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
-from scenarios.fmi import FmuError, Instance, RealPort
+from scenarios.fmi import FmuError, RealPort
+from tests.fmu_helpers import open_fmu
 
 PARAMS = StewartParams.paper()
 STATIC = inverse_dynamics(PARAMS, HOME_POSE, np.zeros(6), np.zeros(6))
-
-
-def open_fmu(path, name="a", **parameters):
-    instance = Instance(path, name)
-    instance.initialize(0.0, parameters)
-    return instance
 
 
 def vec(instance, name, n=6):
@@ -72,7 +67,6 @@ def test_state_save_restore_replays_bit_identically(fmus):
         plant.do_step(k * 1e-3, 1e-3)
         np.testing.assert_array_equal(vec(plant, "pose"), first[k - 20])
     plant.fmu.freeFMUState(saved)
-    plant.terminate()
 
 
 def test_several_fmus_and_two_instances_in_one_process(fmus):

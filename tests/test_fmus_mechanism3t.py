@@ -15,7 +15,8 @@ from controller.pid import PIDGains
 from plant import mechanism3t as m3t
 from plant.errors import InvalidInputError
 from plant.integrators import advance
-from scenarios.fmi import FmuError, Instance, RealPort
+from scenarios.fmi import FmuError, RealPort
+from tests.fmu_helpers import open_fmu
 
 P = m3t.Mechanism1Params.paper()
 RHO_REF = np.array(m3t.PAPER_REFERENCE_RHO_MM) * m3t.MM
@@ -25,12 +26,6 @@ PLANT, CONTROLLER = "mechanism3t_fmu", "slider_controller_fmu"
 
 def names(variable):
     return [f"{variable}[{i + 1}]" for i in range(3)]
-
-
-def open_fmu(path, name="a", **values):
-    instance = Instance(path, name)
-    instance.initialize(0.0, values)
-    return instance
 
 
 def vec(instance, variable):
