@@ -31,14 +31,15 @@ def acc_units(units):
     return tuple(u + "/s2" for u in units)
 
 
-def _flat_slot(values, i):
-    """(root array, flat index) of element i of a 1-D view, so that inputs that are rows
-    of one array are written with one numpy assignment."""
+def _flat_slot(values, i, flat_views):
+    """(flat view of the root array, flat index) of element i of a 1-D view, so that
+    inputs that are rows of one array are written with one numpy assignment."""
     root = values if values.base is None else values.base
     if not (root.flags.c_contiguous and values.ndim == 1):
         return values, i
     offset = values.__array_interface__["data"][0] - root.__array_interface__["data"][0]
-    return root.reshape(-1), (offset + i * values.strides[0]) // values.itemsize
+    flat = flat_views.setdefault(id(root), root.reshape(-1))
+    return flat, (offset + i * values.strides[0]) // values.itemsize
 
 
 class GuardedSlave(Fmi2Slave):
@@ -55,6 +56,7 @@ class GuardedSlave(Fmi2Slave):
         self.slots = {}    # value reference -> (array, index) of vector elements
         self.settable = {}  # the same for vector inputs and parameters
         self._plans = {}
+        self._flat_views = {}
 
     # ---------------------------------------------------------------- variables
     def real(self, name, causality, description, unit, start=0.0, getter=None, setter=None):
@@ -81,7 +83,7 @@ class GuardedSlave(Fmi2Slave):
                       getter=lambda i=i: values[i], setter=setter)
             self.slots[len(self.vars) - 1] = (values, i)
             if setter:
-                self.settable[len(self.vars) - 1] = _flat_slot(values, i)
+                self.settable[len(self.vars) - 1] = _flat_slot(values, i, self._flat_views)
         return values
 
     def get_real(self, vrs):

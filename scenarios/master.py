@@ -84,6 +84,7 @@ class Exchange:
             offset += len(names)
         self.y = np.zeros(offset)
         self.y_prev = np.zeros(offset)
+        self._halves = {}
         self.write_ports = {}
         for inst in scenario.fmus:
             mine = [(t, index[(s_inst, s)], s_inst) for s_inst, s, t_inst, t in pairs if t_inst == inst]
@@ -113,8 +114,10 @@ class Exchange:
         port, idx, sources = self.write_ports[inst]
         values = self.y[idx]
         if extrapolate_from:
-            mask = np.array([s in extrapolate_from for s in sources])
-            values = np.where(mask, values + 0.5 * (values - self.y_prev[idx]), values)
+            key = (inst, extrapolate_from)
+            if key not in self._halves:   # 0.5 where the source is extrapolated, else 0
+                self._halves[key] = 0.5 * np.array([s in extrapolate_from for s in sources])
+            values = values + self._halves[key] * (values - self.y_prev[idx])
         port.write(values)
 
 
@@ -183,6 +186,8 @@ def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progre
         every = int(round(scenario.record_interval / h))
         order = step_order(scenario, parameters) if scenario.master == "gauss-seidel" else list(scenario.fmus)
         extrapolate = scenario.extrapolation == "linear"
+        everyone = frozenset(scenario.fmus)
+        not_yet = [frozenset(order[i:]) for i in range(len(order))]   # Gauss-Seidel: not stepped yet
         tick = max(1, steps // 200)
         exchange.read()
         exchange.y_prev[:] = exchange.y
@@ -191,7 +196,7 @@ def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progre
         for k in range(steps):
             t = t0 + k * h
             if scenario.master == "jacobi":
-                stale = scenario.fmus if extrapolate and k else ()
+                stale = everyone if extrapolate and k else ()
                 for inst in order:
                     exchange.write(inst, stale)
                 exchange.y_prev[:] = exchange.y
@@ -199,13 +204,11 @@ def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progre
                     instances[inst].do_step(t, h)
                 exchange.read()
             else:
-                stale = set(order) if extrapolate and k else set()
                 previous = exchange.y.copy()
-                for inst in order:
-                    exchange.write(inst, stale)
+                for i, inst in enumerate(order):
+                    exchange.write(inst, not_yet[i] if extrapolate and k else ())
                     instances[inst].do_step(t, h)
                     exchange.read(inst)
-                    stale.discard(inst)
                 exchange.y_prev[:] = previous
             if (k + 1) % every == 0:
                 recorder.record(t0 + (k + 1) * h)

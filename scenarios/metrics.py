@@ -15,7 +15,7 @@ Kinds (scenario key ``kind``):
 import numpy as np
 
 from plant.rotations import rpy_matrix
-from plant.stewart import StewartParams, inverse_dynamics, inverse_kinematics
+from plant.stewart import StateInverseDynamics, StewartParams, inverse_kinematics
 
 MAX_POINTS = 4000
 
@@ -125,7 +125,8 @@ class BaseEffect(_Metric):
 
     def __init__(self, name, base, reference, params=None):
         super().__init__(name)
-        self.params = params or StewartParams.paper()
+        params = params or StewartParams.paper()
+        self.models = {f: StateInverseDynamics(params, f) for f in ("full", "base_gravity", "no_base")}
         self.base = [f"{base}.base_pose", f"{base}.base_rate", f"{base}.base_acc"]
         self.ref = [f"{reference}.reference_pose", f"{reference}.reference_rate", f"{reference}.reference_acc"]
         self.needs = self.base + self.ref
@@ -133,11 +134,8 @@ class BaseEffect(_Metric):
         self.transport_peak = 0.0
 
     def update(self, t, values):
-        ref = [values[r] for r in self.ref]
-        base = [values[b] for b in self.base]
-        full = inverse_dynamics(self.params, *ref, *base)
-        gravity = inverse_dynamics(self.params, *ref, *base, fidelity="base_gravity")
-        none = inverse_dynamics(self.params, *ref, fidelity="no_base")
+        motion = [values[r] for r in self.ref + self.base]
+        full, gravity, none = (self.models[f](*motion)[0].copy() for f in ("full", "base_gravity", "no_base"))
         self._accumulate(t, full - none)
         self.gravity_peak = max(self.gravity_peak, float(np.abs(gravity - none).max()))
         self.transport_peak = max(self.transport_peak, float(np.abs(full - gravity).max()))
