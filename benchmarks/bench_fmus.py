@@ -1,4 +1,5 @@
 """Per-doStep cost of each FMU under fmpy next to an empty pythonfmu FMU (the floor).
+The 3T plant runs at its default 5 ms internal step, the others at 1 ms (max_step).
 
 Prints, per FMU: doStep alone, and doStep with its per-step inputs written and outputs
 read through preallocated buffers (what the scenario master does), in µs and as a
@@ -12,6 +13,7 @@ import numpy as np
 from pythonfmu.builder import FmuBuilder
 
 from fmu_src import builder
+from plant import mechanism3t as m3t
 from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
 from scenarios.fmi import Instance, RealPort
 
@@ -23,18 +25,18 @@ def vector(name, n=6):
     return [f"{name}[{i + 1}]" for i in range(n)]
 
 
-def time_steps(instance, inputs=None, outputs=None, repeats=5):
+def time_steps(instance, inputs=None, outputs=None, repeats=5, steps=STEPS):
     runs, t = [], 0.0
     for _ in range(repeats):
         start = time.perf_counter()
-        for _ in range(STEPS):
+        for _ in range(steps):
             if inputs:
                 inputs[0].write(inputs[1])
             instance.do_step(t, H)
             if outputs:
                 outputs.read()
             t += H
-        runs.append((time.perf_counter() - start) / STEPS * 1e6)
+        runs.append((time.perf_counter() - start) / steps * 1e6)
     return statistics.median(runs)
 
 
@@ -48,11 +50,18 @@ def main():
     print(f"{'FMU':28s} {'doStep [us]':>12s} {'x floor':>8s} {'with I/O [us]':>14s} {'x floor':>8s}")
     print(f"{'empty pythonfmu (floor)':28s} {floor_us:12.1f} {1.0:8.1f}")
     static = inverse_dynamics(StewartParams.paper(), HOME_POSE, np.zeros(6), np.zeros(6))
-    cases = {
+    rho = np.array(m3t.PAPER_REFERENCE_RHO_MM) * m3t.MM
+    slider_static = m3t.slider_forces(m3t.Mechanism1Params.paper(), rho, np.zeros(3), np.zeros(3))
+    cases = {   # name: (parameters, inputs written every step, their values, outputs read every step)
         "hexapod_plant_fmu": ({}, vector("leg_force") + vector("base_pose") + vector("base_rate") + vector("base_acc"),
                               np.r_[static, np.zeros(18)], vector("leg_length") + vector("leg_rate")),
         "telescope_fmu": ({}, [], None, vector("base_pose") + vector("base_rate") + vector("base_acc")
-                          + vector("reference_pose")),
+                          + vector("reference_pose") + vector("reference_rate") + vector("reference_acc")),
+        "leg_controller_fmu": ({}, vector("leg_length") + vector("leg_rate"),
+                               np.r_[StewartParams.paper().home_lengths, np.zeros(6)], vector("leg_force")),
+        "mechanism3t_fmu": ({}, vector("slider_force", 3), slider_static, vector("slider_position", 3)),
+        "slider_controller_fmu": ({}, vector("slider_position", 3) + vector("slider_rate", 3),
+                                  np.r_[rho, np.zeros(3)], vector("slider_force", 3)),
     }
     for name, (params, ins, values, outs) in cases.items():
         if name not in fmus:
@@ -62,8 +71,9 @@ def main():
         port_in = (RealPort(inst, ins), values) if ins else None
         if port_in:
             port_in[0].write(values)    # hold the platform at rest
-        bare = time_steps(inst)
-        io = time_steps(inst, port_in, RealPort(inst, outs))
+        steps = 200 if name == "mechanism3t_fmu" else STEPS   # open-loop unstable: short runs
+        bare = time_steps(inst, steps=steps)
+        io = time_steps(inst, port_in, RealPort(inst, outs), steps=steps)
         print(f"{name:28s} {bare:12.1f} {bare / floor_us:8.1f} {io:14.1f} {io / floor_us:8.1f}")
 
 

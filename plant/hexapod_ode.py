@@ -15,6 +15,8 @@ in two arrays the caller may share (the FMU maps its variables onto them), so a 
 copies nothing. "radau" goes through plant.integrators with the compiled right-hand
 side (plant.kane.rhs).
 """
+import math
+
 import numpy as np
 
 from . import integrators, kane
@@ -69,7 +71,7 @@ class HexapodODE:
         stroke."""
         if self.method == "radau":
             return self._advance_radau(x, h)
-        substeps = max(1, int(np.ceil(h / self.max_step - 1e-9)))
+        substeps = max(1, math.ceil(h / self.max_step - 1e-9))
         det, status = kane.advance_fixed(self.method == "rk4", substeps, *self._args, x, self.inputs,
                                          self.t0, h, self.base_mode, self.legs, self.bounds, self.outputs)
         if status == kane.OK and det >= SINGULAR_RATIO * self.params.home_det:

@@ -344,16 +344,31 @@ def advance_fixed(rk4, substeps, bj, pj, data, x, inputs, t0, h, base_mode, legs
     for k in range(12):
         if not np.isfinite(x[k]) or (k < 3 and abs(x[k]) > 100.0):
             return det_min, DIVERGED
-    det_min = min(det_min, _rhs(bj, pj, data, x, forces, base0, t0, t0 + h, base_mode, legs, base,
-                                M, hb, J, ldot, length, out, det, k1))
+    _leg_kinematics(bj, pj, x, outputs)
     status = OK
     for j in range(6):
-        outputs[0, j] = length[0, j]
-        outputs[1, j] = ldot[0, j]
-        outputs[2, j] = k1[j]
-        if length[0, j] < bounds[0, j] or length[0, j] > bounds[1, j]:
+        if outputs[0, j] < bounds[0, j] or outputs[0, j] > bounds[1, j]:
             status = STROKE
     return det_min, status
+
+
+@njit(cache=True)
+def _leg_kinematics(bj, pj, x, outputs):
+    """outputs (3, 6) = leg lengths, leg rates and pose rates of x = [pose, twist]: the
+    read-out after a step, kinematics only."""
+    R = np.empty((3, 3))
+    _rotation(x[3:6], R)
+    v, w = (x[6], x[7], x[8]), (x[9], x[10], x[11])
+    for j in range(6):
+        rho = _mul(R, (pj[j, 0], pj[j, 1], pj[j, 2]))
+        L = (x[0] + rho[0] - bj[j, 0], x[1] + rho[1] - bj[j, 1], x[2] + rho[2] - bj[j, 2])
+        l = np.sqrt(_dot(L, L))
+        outputs[0, j] = l
+        outputs[1, j] = _dot(L, _add(v, _cross(w, rho))) / l
+    rpy_rate = _rpy_rate(x[3:6], w)
+    for k in range(3):
+        outputs[2, k] = v[k]
+        outputs[2, 3 + k] = rpy_rate[k]
 
 
 @njit(cache=True)
