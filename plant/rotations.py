@@ -20,15 +20,6 @@ def rpy_matrix(rpy):
     return np.stack(rows, axis=-1).reshape(np.shape(r) + (3, 3))
 
 
-def matrix_rpy(R):
-    """[roll, pitch, yaw] (..., 3) of rotation matrices (..., 3, 3); pitch in [-pi/2, pi/2]."""
-    R = np.asarray(R, dtype=float)
-    roll = np.arctan2(R[..., 2, 1], R[..., 2, 2])
-    pitch = np.arcsin(np.clip(-R[..., 2, 0], -1.0, 1.0))
-    yaw = np.arctan2(R[..., 1, 0], R[..., 0, 0])
-    return np.stack([roll, pitch, yaw], axis=-1)
-
-
 def rpy_rate_matrix(rpy):
     """E (..., 3, 3) with omega = E @ rpy_rate (omega in the parent frame)."""
     _, p, y = np.moveaxis(np.asarray(rpy, dtype=float), -1, 0)
@@ -46,35 +37,8 @@ def angular_velocity(rpy, rpy_rate):
     return np.stack([cy * cp * dr - sy * dp, sy * cp * dr + cy * dp, dy - sp * dr], axis=-1)
 
 
-def angular_acceleration(rpy, rpy_rate, rpy_acc):
-    """d(omega)/dt (..., 3) in the parent frame: E @ rpy_acc + dE/dt @ rpy_rate."""
-    _, p, y = np.moveaxis(np.asarray(rpy, dtype=float), -1, 0)
-    dr, dp, dy = np.moveaxis(np.asarray(rpy_rate, dtype=float), -1, 0)
-    ar, ap, ay = np.moveaxis(np.asarray(rpy_acc, dtype=float), -1, 0)
-    cp, sp, cy, sy = np.cos(p), np.sin(p), np.cos(y), np.sin(y)
-    wx = (-sy * dy * cp - cy * sp * dp) * dr + cy * cp * ar - cy * dy * dp - sy * ap
-    wy = (cy * dy * cp - sy * sp * dp) * dr + sy * cp * ar - sy * dy * dp + cy * ap
-    wz = -cp * dp * dr - sp * ar + ay
-    return np.stack([wx, wy, wz], axis=-1)
-
-
-def rpy_acceleration(rpy, rpy_rate, omega_dot):
-    """RPY second derivatives (..., 3) that produce the angular acceleration omega_dot.
-
-    Inverts angular_acceleration: rpy_acc = E^-1 (omega_dot - dE/dt rpy_rate). E is
-    singular at pitch = +-90 deg, far outside any hexapod pose.
-    """
-    bias = angular_acceleration(rpy, rpy_rate, np.zeros_like(rpy_rate))
-    return np.linalg.solve(rpy_rate_matrix(rpy), (np.asarray(omega_dot) - bias)[..., None])[..., 0]
-
-
 def cross(a, b):
     """Cross product over the last axis; ~5x cheaper than np.cross on small arrays."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
-
-
-def dot(a, b):
-    """Dot product over the last axis, keeping it (shape (..., 1)) for broadcasting."""
-    return np.sum(a * b, axis=-1, keepdims=True)

@@ -305,15 +305,6 @@ def dynamics_terms(params, pose, pose_rate, base_pose=0, base_rate=0, base_acc=0
                 kane.TERMS, twist_speeds)[1]
 
 
-def twist_acceleration(params, pose, twist, forces, base_pose=0, base_rate=0, base_acc=0,
-                       fidelity="full"):
-    """du/dt (..., 6) for the twist state u = (v, w): what an integrator of (pose, u) needs.
-
-    Returns (du/dt, DynamicsTerms) so the caller also has the leg rates."""
-    return _run(params, pose, twist, forces, (base_pose, base_rate, base_acc), fidelity,
-                kane.FD, twist_speeds=True, arg_name="forces")
-
-
 class StateInverseDynamics:
     """Inverse dynamics of one state at a time into preallocated buffers, for a
     controller that calls it every step: no broadcasting and no per-argument checks (the
