@@ -4,7 +4,7 @@ A scenario names FMUs (by the kit's FMU names) with their parameters, the connec
 between them, the time grid, the master algorithm, what to record, the metrics to report
 and optionally one parameter to sweep. Every error points at the file, the key and the
 problem. Quantities may carry units ("1 ms", "30 deg"); they are converted to SI here,
-checked against the unit the FMU declares. The format is documented in scenarios/README.md.
+checked against the unit the FMU declares. The format is documented in the README's "Scenarios" section.
 
 A parameter written "@inst.var" takes the value of that output of another FMU at the
 start time (e.g. the plant's initial pose from the telescope's reference pose).
