@@ -229,11 +229,12 @@ def test_pose_metric_resolves_sub_microradian_rotations():
 
 
 def test_memory_stays_flat_as_a_run_gets_longer(descriptions, tmp_path):
-    """Rows stream to disk and metrics keep running sums: 8x the steps, same peak memory
-    (keeping the rows in memory would add ~0.3 MB to a ~1.5 MB peak)."""
+    """Rows stream to disk and metrics keep running sums and a series capped at
+    metrics.MAX_POINTS: past that cap (4 s here) three times the steps take the same peak
+    memory (keeping the rows would add ~1.2 MB to a ~2 MB peak)."""
     import tracemalloc
     peaks = []
-    for stop in (0.25, 2.0):
+    for stop in (4.0, 12.0):
         tracemalloc.start()
         _run(MINIMAL, descriptions, tmp_path, f"run{stop}", stop_time=stop)
         peaks.append(tracemalloc.get_traced_memory()[1])
