@@ -134,3 +134,19 @@ def test_controller_reports_saturation_in_its_log(fmus):
     assert np.all(np.abs(vec(controller, "leg_force")) == 1000.0)
     warnings = [line for line in controller.log if "saturated" in line]
     assert len(warnings) == 1 and warnings[0].startswith("[WARNING]") and "legs 1, 2, 3, 4, 5, 6" in warnings[0]
+
+
+def test_plant_fmu_integrators_agree_to_their_order(fmus):
+    """The same force step through RK4, Radau (implicit, adaptive) and explicit Euler:
+    RK4 and Radau agree far below Euler's first-order error."""
+    forces = STATIC + np.array([300.0, -200.0, 100.0, 0.0, 50.0, -400.0])
+    start = {f"leg_force[{i + 1}]": forces[i] for i in range(6)}
+    poses = {}
+    for index, name in enumerate(("rk4", "euler", "radau")):
+        result = simulate_fmu(fmus["hexapod_plant_fmu"], stop_time=0.1, output_interval=1e-3,
+                              start_values={**start, "moving_base": 0, "integrator": index},
+                              output=[f"pose[{i + 1}]" for i in range(6)])
+        poses[name] = np.array(list(result[-1])[1:])
+    rk4_vs_radau = np.abs(poses["rk4"] - poses["radau"]).max()
+    euler_vs_radau = np.abs(poses["euler"] - poses["radau"]).max()
+    assert rk4_vs_radau < 1e-9 and euler_vs_radau > 1e3 * rk4_vs_radau, (rk4_vs_radau, euler_vs_radau)
