@@ -6,7 +6,7 @@ logged at error level with what went wrong and when, and answered with fmi2Disca
 (do_step returns False); the slave then stays failed and refuses further steps.
 
 Units: pythonfmu writes no units, so each variable's unit is recorded here and build.py
-adds them (with mm / deg display units) to modelDescription.xml.
+adds them (with mm / deg display units) to modelDescription.xml (fmu_src/builder.py).
 
 The FMU scripts import this module from the installed `movingbase` package (not from
 the FMU's resources): one copy in the process, and the plant's compiled kernels stay
@@ -18,8 +18,6 @@ from pythonfmu.enums import Fmi2Status
 from pythonfmu.variables import Integer, Real
 
 PARAMETER, INPUT, OUTPUT = Fmi2Causality.parameter, Fmi2Causality.input, Fmi2Causality.output
-DISPLAY_UNITS = {"m": "mm", "rad": "deg", "m/s": "mm/s", "rad/s": "deg/s",
-                 "m/s2": "mm/s2", "rad/s2": "deg/s2"}
 POSE_UNITS = ("m", "m", "m", "rad", "rad", "rad")
 
 
