@@ -5,7 +5,6 @@ and every failing call turned into an error that names the instance, time and lo
 The per-step calls (doStep, getReal, setReal) go to fmpy's loaded C functions directly
 and check the returned status here: fmpy's Python wrapper around each call costs more
 than the call itself at a 1 ms step (benchmarks/bench_scenarios.py)."""
-import ctypes
 from functools import lru_cache
 
 import numpy as np

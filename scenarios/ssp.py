@@ -55,7 +55,7 @@ import zipfile
 import numpy as np
 
 from . import spec
-from .fmi import Instance, unpack
+from .fmi import unpack
 from .master import start, step_order
 from .spec import Link, expand
 
