@@ -17,7 +17,8 @@ def _error_chart(scenario, runs, metric, path):
         ax.plot(t, values, label=run.label, lw=1)
     for text, level in MARKS_UM.items():
         ax.axhline(level, color="grey", ls="--", lw=0.8)
-        ax.annotate(text, (t[0] if len(t) else 0, level), va="bottom", fontsize=8, color="grey")
+        ax.text(1.0, level, text + " ", transform=ax.get_yaxis_transform(), ha="right", va="bottom",
+                fontsize=8, color="grey")
     ax.set_yscale("log")
     ax.set_xlabel("time [s]")
     ax.set_ylabel(f"{metric.name}, RMS over legs/axes [µm]")
@@ -40,6 +41,8 @@ def _summary_chart(scenario, runs, tracked, path):
         ax.bar([i + 0.2 for i in x], peak, 0.4, label="peak")
         for text, level in MARKS_UM.items():
             ax.axhline(level, color="grey", ls="--", lw=0.8)
+            ax.text(1.0, level, text + " ", transform=ax.get_yaxis_transform(), ha="right", va="bottom",
+                    fontsize=8, color="grey")
         ax.set_yscale("log")
         ax.set_xticks(list(x), labels)
         ax.set_ylabel("µm")
