@@ -1,6 +1,7 @@
 """Command line: run scenario files (or shipped scenario names) and write their reports.
 
     python -m scenarios [SCENARIO ...] [--out DIR] [--ci] [--quiet]
+    python -m scenarios SCENARIO --ssp FILE.ssp      (export for other FMI tools instead)
 
 Without a scenario it runs the main job: the telescope slew (FMUs built first) and the
 paper's leg-force charts.
@@ -9,8 +10,9 @@ import argparse
 import sys
 
 from .paper_forces import main as paper_charts
-from .runner import run_scenario
-from .spec import ScenarioError
+from .runner import prepare, resolve, run_scenario
+from .spec import ScenarioError, sweep_value
+from .ssp import export_ssp
 
 
 def main(argv=None):
@@ -19,9 +21,17 @@ def main(argv=None):
     parser.add_argument("--out", default="out", help="output folder (default: out)")
     parser.add_argument("--ci", action="store_true", help="apply each file's [ci] overrides (short runs)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--ssp", metavar="FILE", help="export the (one) scenario as an SSP file, first sweep value")
     args = parser.parse_args(argv)
     names = args.scenarios or ["telescope_slew"]
     try:
+        if args.ssp:
+            scenario, paths, descriptions, values = prepare(resolve(names[0]), ci=args.ci)
+            if scenario.sweep:
+                inst, name, value = sweep_value(scenario, descriptions, scenario.sweep[1][0])
+                values[inst][name] = value
+            print(f"SSP written to {export_ssp(scenario, paths, values, args.ssp)}")
+            return
         for name in names:
             scenario, runs, report = run_scenario(name, args.out, ci=args.ci, progress=not args.quiet)
             print(f"{scenario.name}: report {report}")

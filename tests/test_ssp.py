@@ -234,3 +234,12 @@ def test_export_refuses_what_it_cannot_write(case):
     bad["plant"]["fidelity"] = 1.5
     with pytest.raises(ValueError, match="Integer"):
         ssp.export_ssp(scenario, paths, bad, folder / "bad.ssp")
+
+
+def test_command_line_exports_a_scenario(tmp_path, capsys):
+    from scenarios.__main__ import main
+    main(["telescope_slew", "--ci", "--ssp", str(tmp_path / "slew.ssp")])
+    assert "SSP written to" in capsys.readouterr().out
+    with zipfile.ZipFile(tmp_path / "slew.ssp") as z:
+        names = z.namelist()
+    assert "SystemStructure.ssd" in names and sum(n.endswith(".fmu") for n in names) == 3
