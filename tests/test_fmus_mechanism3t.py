@@ -103,6 +103,41 @@ def test_plant_fmu_equals_direct_integration(fmus, integrator, method):
     assert np.abs(x[:3] - RHO_REF).max() > 1e-3   # it did move (mm)
 
 
+def test_compiled_advance_equals_plant_integrators():
+    """The plant FMU's compiled RK4 / Euler (plant.mechanism3t_kernel.advance_fixed) against
+    plant.integrators.advance on the same compiled right-hand side, and on the numpy model."""
+    from plant import mechanism3t_kernel as kernel
+    packed, forces = kernel.pack(P), STATIC + np.array([40.0, -30.0, 20.0])
+    rhs = lambda t, x: kernel.rhs_kernel(packed, x, forces, 1)[1]
+    numpy_rhs = lambda t, x: np.r_[x[3:], m3t.forward_dynamics(P, x[:3], x[3:], forces)]
+    x0 = np.r_[RHO_REF, 0.01, -0.02, 0.03]
+    for method in ("rk4", "euler"):
+        for h, max_step in ((5e-3, 5e-3), (5e-3, 2e-3), (1e-2, 1e-3)):
+            n = int(np.ceil(h / max_step - 1e-9))
+            status, x = kernel.advance_fixed(packed, x0, forces, 1, method == "rk4", n, h / n)
+            assert status == kernel.OK
+            np.testing.assert_allclose(x, advance(method, rhs, 0.0, x0, h, max_step), rtol=0, atol=1e-15)
+            np.testing.assert_allclose(x, advance(method, numpy_rhs, 0.0, x0, h, max_step), rtol=0, atol=1e-14)
+    status, x = kernel.advance_fixed(packed, np.r_[RHO_REF, 0.0, 0.0, 0.0], np.array([np.nan, 0, 0]), 1, True, 1, 1e-3)
+    assert status == kernel.BAD_FORCE
+
+
+def test_plant_fmu_radau_equals_direct_integration(fmus):
+    """integrator 2 (Radau through plant.integrators.advance on the compiled RHS) against
+    Radau on the numpy model."""
+    forces = STATIC + np.array([5.0, -3.0, 2.0])
+    h, max_step, steps = 5e-3, 5e-3, 20
+    start = {f"slider_force[{i + 1}]": forces[i] for i in range(3)}
+    start.update(integrator=2, max_step=max_step)
+    result = simulate_fmu(fmus[PLANT], stop_time=steps * h, output_interval=h, start_values=start,
+                          output=names("slider_position") + names("slider_rate"))
+    f = lambda t, x: np.r_[x[3:], m3t.forward_dynamics(P, x[:3], x[3:], forces)]
+    x = np.r_[RHO_REF, np.zeros(3)]
+    for k in range(steps):
+        x = advance("radau", f, k * h, x, h, max_step)
+    np.testing.assert_allclose(np.array(list(result[-1])[1:]), x, rtol=0, atol=1e-12)
+
+
 def test_plant_state_save_restore_replays_bit_identically(fmus):
     plant = open_fmu(fmus[PLANT])
     set_vec(plant, "slider_force", STATIC + 20.0)

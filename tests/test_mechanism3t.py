@@ -294,3 +294,99 @@ def test_bad_input_raises():
         m3t.forward_position(P, [0.1, 0.0])
     with pytest.raises(m3t.InvalidInputError, match="mode"):
         m3t.velocity(P, RHO_REF, np.ones(3), mode=0)
+
+
+# ------------------------------------------------------------------ compiled single-state kernel
+
+def _outcome(call):
+    """('ok', value) or (error type, message) of a call, to compare two implementations."""
+    try:
+        return "ok", call()
+    except m3t.InvalidInputError as error:   # before PlantError's other subclasses: none overlap
+        return type(error), str(error)
+    except (m3t.UnreachableError, m3t.SingularConfigurationError) as error:
+        return type(error), str(error)
+
+
+def test_compiled_kernel_equals_the_numpy_model():
+    """plant.mechanism3t_kernel (one state, compiled) against the batched numpy reference:
+    O', M, bias, slider_forces and forward_dynamics to 1e-12 relative on random reachable
+    states of both assembly modes, and the same error (type and message) elsewhere."""
+    from plant import mechanism3t_kernel as kernel
+    rng = np.random.default_rng(11)
+    compared = {1: 0, -1: 0}
+    inverse = []   # every eq. 12 branch of random O' (both assembly modes)
+    while len(inverse) < 600:
+        p = rng.uniform([-0.1, -0.32, P.l1 + P.l5], [0.38, 0.45, P.l1 + P.l5 + P.l4])
+        try:
+            inverse.extend(m3t.inverse_position(P, p))
+        except m3t.UnreachableError:
+            pass
+    rho_all = np.r_[RHO_REF + rng.uniform(-0.03, 0.03, (200, 3)), np.array(inverse),
+                    rng.uniform([-0.3, -0.5, -0.5], [0.4, 0.5, 0.5], (300, 3))]
+    for rho in rho_all:
+        rho_dot, rho_ddot, forces = rng.normal(0, 0.3, 3), rng.normal(0, 3.0, 3), rng.normal(0, 100.0, 3)
+        for mode in (1, -1):
+            ref = _outcome(lambda: (m3t.forward_branch(P, rho, mode), *m3t.dynamics_terms(P, rho, rho_dot, mode)))
+            got = _outcome(lambda: kernel.dynamics_terms(P, rho, rho_dot, mode))
+            assert ref[0] == got[0] and (ref[0] == "ok" or ref[1] == got[1]), (rho, mode, ref, got)
+            if ref[0] != "ok":
+                # forward_branch alone raises only the unreachable conditions; every call agrees
+                for numpy_call, compiled_call in (
+                        (m3t.slider_forces, kernel.slider_forces), (m3t.forward_dynamics, kernel.forward_dynamics)):
+                    args = (rho, rho_dot, rho_ddot if numpy_call is m3t.slider_forces else forces)
+                    a = _outcome(lambda: numpy_call(P, *args, mode))
+                    b = _outcome(lambda: compiled_call(P, *args, mode))
+                    assert a[0] == b[0] and a[1] == b[1], (rho, mode, a, b)
+                continue
+            (p, mass, bias), (mass_k, bias_k, p_k) = ref[1], got[1]
+            compared[mode] += 1
+            np.testing.assert_allclose(p_k, p, rtol=1e-15, atol=0)
+            np.testing.assert_allclose(mass_k, mass, rtol=0, atol=1e-12 * np.abs(mass).max())
+            np.testing.assert_allclose(bias_k, bias, rtol=0, atol=1e-12 * np.abs(bias).max())
+            f = m3t.slider_forces(P, rho, rho_dot, rho_ddot, mode)
+            np.testing.assert_allclose(kernel.slider_forces(P, rho, rho_dot, rho_ddot, mode), f,
+                                       rtol=0, atol=1e-12 * np.abs(f).max())
+            # the solve: 1e-12 relative unless M is ill-conditioned (near a singularity), where
+            # any two solvers differ by ~cond(M) eps; its residual is small in any case
+            a = m3t.forward_dynamics(P, rho, rho_dot, forces, mode)
+            a_k = kernel.forward_dynamics(P, rho, rho_dot, forces, mode)
+            rel = max(1e-12, 10 * np.finfo(float).eps * np.linalg.cond(mass))
+            np.testing.assert_allclose(a_k, a, rtol=0, atol=rel * np.abs(a).max())
+            np.testing.assert_allclose(mass @ a_k + bias, forces, rtol=0,
+                                       atol=1e-12 * (np.abs(mass).max() * np.abs(a_k).max() + np.abs(bias).max()))
+            np.testing.assert_allclose(kernel.forward_branch(P, rho, mode), p, rtol=1e-15, atol=0)
+    assert compared[1] >= 300 and compared[-1] >= 200, compared
+
+
+def test_compiled_kernel_raises_the_named_errors():
+    from plant import mechanism3t_kernel as kernel
+    cases = [np.array(rho) for rho in ([0.0, 0.0, 0.4], [0.5, 0.0, 0.152], [-0.3, -0.152, 0.0], [0.05, 0.6, 0.752],
+                                       [0.1, -P.d, -P.l6])]
+    # next to sin theta = 0 (theta -> 0 at x_A2 = e - a + l6 - l4 = 0 with y_A3 = y_A1 + d)
+    cases += [np.array([x, 0.0, P.d]) for x in np.linspace(-3e-16, 3e-16, 13)]
+    kinds = set()
+    for rho in cases:
+        for mode in (1, -1):
+            for numpy_call, compiled_call, extra in (
+                    (m3t.slider_forces, kernel.slider_forces, np.zeros(3)),
+                    (m3t.forward_dynamics, kernel.forward_dynamics, np.zeros(3)),
+                    (lambda P_, r, rd, e, m: m3t.forward_branch(P_, r, m),
+                     lambda P_, r, rd, e, m: kernel.forward_branch(P_, r, m), None)):
+                a = _outcome(lambda: numpy_call(P, rho, np.zeros(3), extra, mode))
+                b = _outcome(lambda: compiled_call(P, rho, np.zeros(3), extra, mode))
+                assert a[0] == b[0], (rho, mode, a, b)
+                if a[0] == "ok":
+                    np.testing.assert_allclose(b[1], a[1], rtol=1e-12, atol=1e-12)
+                else:
+                    assert a[1] == b[1]
+                    kinds.add(a[1].split(":")[0][:20])
+    assert len(kinds) >= 4, kinds   # D3E3, arccos, limb I, limb II, output singularities
+    for bad in ([np.nan, 0, 0], np.zeros(3), np.zeros(3)), (RHO_REF, [0, np.inf, 0], np.zeros(3)), \
+               (RHO_REF, np.zeros(3), [np.nan, 0, 0]):
+        a, b = _outcome(lambda: m3t.slider_forces(P, *bad)), _outcome(lambda: kernel.slider_forces(P, *bad))
+        assert a == b and a[0] is m3t.InvalidInputError, (a, b)
+    a = _outcome(lambda: m3t.forward_dynamics(P, RHO_REF, np.zeros(3), [np.nan, 0, 0]))
+    assert a == _outcome(lambda: kernel.forward_dynamics(P, RHO_REF, np.zeros(3), [np.nan, 0, 0]))
+    with pytest.raises(m3t.InvalidInputError, match="mode"):
+        kernel.slider_forces(P, RHO_REF, np.zeros(3), np.zeros(3), mode=0)
