@@ -106,13 +106,17 @@ class Exchange:
             self.read(source)
         return {name: self.y[k] for name, k, s in zip(port.names, idx, sources) if s in ready}
 
-    def write(self, inst, extrapolate_from=()):
-        """Write inst's inputs; inputs from instances in ``extrapolate_from`` are
-        linearly extrapolated over the coming step."""
+    def extrapolated(self):
+        """All connected outputs linearly extrapolated over the coming step (Jacobi)."""
+        return self.y + 0.5 * (self.y - self.y_prev)
+
+    def write(self, inst, extrapolate_from=(), source=None):
+        """Write inst's inputs from ``source`` (default: the outputs y); inputs from
+        instances in ``extrapolate_from`` are linearly extrapolated over the coming step."""
         if inst not in self.write_ports:
             return
         port, idx, sources = self.write_ports[inst]
-        values = self.y[idx]
+        values = (self.y if source is None else source)[idx]
         if extrapolate_from:
             key = (inst, extrapolate_from)
             if key not in self._halves:   # 0.5 where the source is extrapolated, else 0
@@ -186,7 +190,6 @@ def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progre
         every = int(round(scenario.record_interval / h))
         order = step_order(scenario, parameters) if scenario.master == "gauss-seidel" else list(scenario.fmus)
         extrapolate = scenario.extrapolation == "linear"
-        everyone = frozenset(scenario.fmus)
         not_yet = [frozenset(order[i:]) for i in range(len(order))]   # Gauss-Seidel: not stepped yet
         tick = max(1, steps // 200)
         exchange.read()
@@ -196,9 +199,9 @@ def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progre
         for k in range(steps):
             t = t0 + k * h
             if scenario.master == "jacobi":
-                stale = everyone if extrapolate and k else ()
+                source = exchange.extrapolated() if extrapolate and k else exchange.y
                 for inst in order:
-                    exchange.write(inst, stale)
+                    exchange.write(inst, source=source)
                 exchange.y_prev[:] = exchange.y
                 for inst in order:
                     instances[inst].do_step(t, h)
