@@ -13,6 +13,7 @@ import pathlib
 import sys
 import tempfile
 import zipfile
+from importlib import metadata
 import xml.etree.ElementTree as ET
 
 try:
@@ -23,8 +24,9 @@ except ModuleNotFoundError:  # Python 3.10
 from fmpy.validation import validate_fmu
 from pythonfmu.builder import FmuBuilder
 
-ROOT = pathlib.Path(__file__).resolve().parent.parent
-OUT = ROOT / "build" / "fmu"
+ROOT = pathlib.Path(__file__).resolve().parent.parent   # the checkout, or site-packages
+PYPROJECT = ROOT / "pyproject.toml"
+OUT = (ROOT if PYPROJECT.exists() else pathlib.Path.cwd()) / "build" / "fmu"
 SCRIPTS = ("hexapod_plant_fmu", "telescope_fmu", "leg_controller_fmu", "mechanism3t_fmu", "slider_controller_fmu")
 
 _BASE = {"m": {"m": "1"}, "rad": {"rad": "1"}, "s": {"s": "1"}, "N": {"kg": "1", "m": "1", "s": "-2"},
@@ -38,9 +40,14 @@ _DISPLAY = {"m": ("mm", 1e3), "rad": ("deg", 57.29577951308232), "m/s": ("mm/s",
 
 def requirements():
     """Runtime requirements of the FMUs: the pinned dependencies plus this kit."""
-    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
-    lines = [f"# install into the Python that runs the FMU, e.g. pip install {ROOT}"]
-    lines += [f"{project['name']}=={project['version']}", *project["dependencies"]]
+    if PYPROJECT.exists():
+        project = tomllib.loads(PYPROJECT.read_text())["project"]
+        name, version, dependencies = project["name"], project["version"], project["dependencies"]
+    else:   # an installed copy: the same list from its metadata
+        name, version = "movingbase", metadata.version("movingbase")
+        dependencies = [r for r in metadata.requires(name) if "extra ==" not in r]
+    lines = ["# install into the Python that runs the FMU (movingbase itself: pip install <its repository>)"]
+    lines += [f"{name}=={version}", *dependencies]
     return "\n".join(lines) + "\n"
 
 
@@ -124,7 +131,8 @@ def available():
 
 
 def _sources():
-    return [p for folder in ("fmu_src", "controller") for p in (ROOT / folder).glob("*.py")] + [ROOT / "pyproject.toml"]
+    return [p for folder in ("fmu_src", "controller") for p in (ROOT / folder).glob("*.py")] + \
+        [p for p in (PYPROJECT,) if p.exists()]
 
 
 def ensure_built(scripts, out=OUT):
