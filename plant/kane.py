@@ -16,6 +16,8 @@ on a machine compiles for ~10 s, later imports load in well under a second.
 import numpy as np
 from numba import njit
 
+from .linalg import solve as linear_solve
+
 ID, FD, TERMS = 0, 1, 2                      # what the kernel solves for
 BASE_NONE, BASE_GRAVITY, BASE_FULL = 0, 1, 2  # how much base motion it keeps
 
@@ -89,39 +91,6 @@ def _rpy_rate(rpy, w):
     cp, sp, cy, sy = np.cos(rpy[1]), np.sin(rpy[1]), np.cos(rpy[2]), np.sin(rpy[2])
     dr = (cy * w[0] + sy * w[1]) / cp
     return (dr, -sy * w[0] + cy * w[1], w[2] + sp * dr)
-
-
-@njit(cache=True)
-def _solve(A, b, x):
-    """x = A^-1 b for 6x6 by Gaussian elimination with partial pivoting; A, b are
-    overwritten. Returns det(A) (0 when exactly singular, x then left as NaN)."""
-    n = 6
-    det = 1.0
-    for c in range(n):
-        p = c
-        for r in range(c + 1, n):
-            if abs(A[r, c]) > abs(A[p, c]):
-                p = r
-        if A[p, c] == 0.0:
-            x[:] = np.nan
-            return 0.0
-        if p != c:
-            det = -det
-            for k in range(n):
-                A[c, k], A[p, k] = A[p, k], A[c, k]
-            b[c], b[p] = b[p], b[c]
-        det *= A[c, c]
-        for r in range(c + 1, n):
-            f = A[r, c] / A[c, c]
-            for k in range(c, n):
-                A[r, k] -= f * A[c, k]
-            b[r] -= f * b[c]
-    for r in range(n - 1, -1, -1):
-        acc = b[r]
-        for k in range(r + 1, n):
-            acc -= A[r, k] * x[k]
-        x[r] = acc / A[r, r]
-    return det
 
 
 @njit(cache=True)
@@ -254,14 +223,14 @@ def kane(base_joints, platform_joints, data, pose, rate, arg, base_pose, base_ra
                     acc += M[n, i, k] * du[k]
                     A[i, k] = J[n, k, i]
                 b[i] = acc
-            det[n] = _solve(A, b, x)
+            det[n] = linear_solve(A, b, x)
             out[n, :] = x
             continue
         for i in range(6):
             for k in range(6):
                 A[i, k] = J[n, i, k]
             b[i] = 0.0
-        det[n] = _solve(A, b, x)
+        det[n] = linear_solve(A, b, x)
         if solve == FD:
             for i in range(6):
                 acc = -h[n, i]
@@ -269,7 +238,7 @@ def kane(base_joints, platform_joints, data, pose, rate, arg, base_pose, base_ra
                     acc += J[n, k, i] * arg[n, k]
                     A[i, k] = M[n, i, k]
                 b[i] = acc
-            _solve(A, b, x)
+            linear_solve(A, b, x)
             if twist_speeds:
                 out[n, :] = x
             else:

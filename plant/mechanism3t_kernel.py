@@ -23,6 +23,7 @@ import numpy as np
 from numba import njit
 
 from .errors import InvalidInputError, SingularConfigurationError
+from .linalg import solve
 from .mechanism3t import SINGULAR_TOL, Mechanism1Params, UnreachableError, _check_mode
 
 OK = 0
@@ -254,34 +255,6 @@ def slider_forces_kernel(pa, rho, rho_dot, rho_ddot, mode, out):
 
 
 @njit(cache=True)
-def _solve3(M, b, x):
-    """x = M^-1 b (3x3, Gaussian elimination with partial pivoting; M, b overwritten).
-    False if M is exactly singular."""
-    for c in range(3):
-        piv = c
-        for r in range(c + 1, 3):
-            if abs(M[r, c]) > abs(M[piv, c]):
-                piv = r
-        if M[piv, c] == 0.0:
-            return False
-        if piv != c:
-            for k in range(3):
-                M[c, k], M[piv, k] = M[piv, k], M[c, k]
-            b[c], b[piv] = b[piv], b[c]
-        for r in range(c + 1, 3):
-            f = M[r, c] / M[c, c]
-            for k in range(c, 3):
-                M[r, k] -= f * M[c, k]
-            b[r] -= f * b[c]
-    for r in range(2, -1, -1):
-        s = b[r]
-        for k in range(r + 1, 3):
-            s -= M[r, k] * x[k]
-        x[r] = s / M[r, r]
-    return True
-
-
-@njit(cache=True)
 def forward_dynamics_kernel(pa, rho, rho_dot, forces, mode, rho_ddot):
     """rho_ddot = M^-1 (forces - bias) written in place; returns the status."""
     if not _finite3(forces):
@@ -292,7 +265,7 @@ def forward_dynamics_kernel(pa, rho, rho_dot, forces, mode, rho_ddot):
         return status
     for i in range(3):
         bias[i] = forces[i] - bias[i]
-    if not _solve3(M, bias, rho_ddot):
+    if solve(M, bias, rho_ddot) == 0.0:
         return SING_MASS
     return OK
 
