@@ -12,6 +12,8 @@ Kinds (scenario key ``kind``):
   change the base motion causes, split into gravity turning with the base and the
   transport/centripetal/Coriolis terms (inverse dynamics at three fidelities) [kN].
 """
+import math
+
 import numpy as np
 
 from plant.rotations import rpy_matrix
@@ -35,16 +37,17 @@ class _Metric:
     def _accumulate(self, t, error):
         """error: per-point magnitude(s) (any shape); RMS over all, peak of |error|;
         the series keeps the point's RMS every stride-th call."""
-        error = np.abs(np.atleast_1d(error))
+        error = np.asarray(error, dtype=float).ravel()
+        square = float(error @ error)
         self.count += error.size
-        self.sum_sq += float(np.sum(error ** 2))
-        self.peak = max(self.peak, float(error.max()))
+        self.sum_sq += square
+        self.peak = max(self.peak, float(error.max()), -float(error.min()))
         self._countdown -= 1
         if self._countdown > 0:
             return
         self._countdown = self.stride
         self.t.append(t)
-        self.values.append(float(np.sqrt(np.mean(error ** 2))))
+        self.values.append(math.sqrt(square / error.size))
         if len(self.t) >= MAX_POINTS:   # thin to half and keep half as often from now on
             self.t, self.values = self.t[::2], self.values[::2]
             self.stride *= 2
@@ -81,11 +84,13 @@ class PoseTracking(_Metric):
 
     def update(self, t, values):
         pose, ref = values[self.measured], values[self.reference]
-        self._accumulate(t, np.linalg.norm(pose[:3] - ref[:3]))
-        r = rpy_matrix(ref[3:]).T @ rpy_matrix(pose[3:])
-        axis = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+        offset = pose[:3] - ref[:3]
+        self._accumulate(t, math.sqrt(offset @ offset))
+        ref_R, pose_R = rpy_matrix(np.stack([ref[3:], pose[3:]]))
+        r = ref_R.T @ pose_R
+        axis = math.hypot(r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1])
         # atan2 keeps full precision for small angles, where arccos of the trace does not
-        self.rotation._accumulate(t, np.arctan2(np.linalg.norm(axis), np.trace(r) - 1.0))
+        self.rotation._accumulate(t, math.atan2(axis, r[0, 0] + r[1, 1] + r[2, 2] - 1.0))
 
     def result(self):
         position, rotation = super().result(), self.rotation.result()
