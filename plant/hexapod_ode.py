@@ -21,7 +21,7 @@ import numpy as np
 
 from . import integrators, kane
 from .errors import ConvergenceError, InvalidInputError, SingularConfigurationError
-from .stewart import _FIDELITY_MODES, SINGULAR_RATIO, check_stroke, inverse_kinematics, jacobian
+from .stewart import SINGULAR_RATIO, fidelity_mode, check_stroke, inverse_kinematics, jacobian
 
 
 class HexapodODE:
@@ -32,14 +32,12 @@ class HexapodODE:
 
     def __init__(self, params, fidelity="full", moving_base=True, method="rk4", max_step=1e-3,
                  inputs=None, outputs=None):
-        if fidelity not in _FIDELITY_MODES:
-            raise InvalidInputError(f"unknown fidelity {fidelity!r}; choose one of {tuple(_FIDELITY_MODES)}")
         if method not in integrators.INTEGRATORS:
             raise InvalidInputError(f"unknown integrator {method!r}; choose one of {integrators.INTEGRATORS}")
         if not max_step > 0:
             raise InvalidInputError(f"max_step must be positive, got {max_step}")
         self.params, self.method, self.max_step = params, method, max_step
-        base_mode, self.legs = _FIDELITY_MODES[fidelity]
+        base_mode, self.legs = fidelity_mode(fidelity)
         self.base_mode = base_mode if moving_base else kane.BASE_NONE
         self.inputs = np.zeros((4, 6)) if inputs is None else inputs
         self.outputs = np.zeros((3, 6)) if outputs is None else outputs

@@ -119,15 +119,6 @@ def _state(x, name, width=6):
     return x
 
 
-def _base_state(x, name):
-    return None if np.ndim(x) == 0 and x == 0 else _state(x, name)
-
-
-def _check_fidelity(fidelity):
-    if fidelity not in FIDELITIES:
-        raise InvalidInputError(f"unknown fidelity {fidelity!r}; choose one of {FIDELITIES}")
-
-
 # ------------------------------------------------------------------------- kinematics
 def _legs(params, pose):
     """Platform joints rho = R a_i (in {B}), leg vectors, lengths and unit vectors."""
@@ -225,15 +216,21 @@ _FIDELITY_MODES = {  # fidelity -> (base motion kept, legs have mass)
 }
 
 
+def fidelity_mode(fidelity):
+    """(base motion the kernel keeps, legs have mass) of a fidelity level, or an error
+    naming the choices."""
+    if fidelity not in _FIDELITY_MODES:
+        raise InvalidInputError(f"unknown fidelity {fidelity!r}; choose one of {FIDELITIES}")
+    return _FIDELITY_MODES[fidelity]
+
+
 def _run(params, pose, rate, arg, base, fidelity, solve, twist_speeds=False, arg_name="pose_acc"):
     """Validate, broadcast and flatten the states, run the Kane kernel, reshape back.
 
     Written for the single-state call too (a controller calls it every step): arrays of
     one shape skip broadcasting, and NaN/inf is looked for once over all arguments (the
     argument is named only when there is one)."""
-    if fidelity not in _FIDELITY_MODES:
-        raise InvalidInputError(f"unknown fidelity {fidelity!r}; choose one of {tuple(_FIDELITY_MODES)}")
-    base_mode, legs = _FIDELITY_MODES[fidelity]
+    base_mode, legs = fidelity_mode(fidelity)
     names = ["pose", "twist" if twist_speeds else "pose_rate", arg_name, "base_pose", "base_rate", "base_acc"]
     given = [k for k, x in enumerate(base) if not (np.ndim(x) == 0 and x == 0)]
     if not given:
@@ -312,10 +309,8 @@ class StateInverseDynamics:
     Still raises SingularConfigurationError at a singular pose."""
 
     def __init__(self, params, fidelity="full"):
-        if fidelity not in _FIDELITY_MODES:
-            raise InvalidInputError(f"unknown fidelity {fidelity!r}; choose one of {tuple(_FIDELITY_MODES)}")
         self.params = params
-        self.base_mode, self.legs = _FIDELITY_MODES[fidelity]
+        self.base_mode, self.legs = fidelity_mode(fidelity)
         self._buffers = [np.empty((1, 6, 6)), np.empty((1, 6)), np.empty((1, 6, 6)), np.empty((1, 6)),
                          np.empty((1, 6)), np.empty((1, 6)), np.empty(1)]
         M, h, J, self.leg_rates, self.leg_lengths, self.forces, self._det = self._buffers

@@ -51,7 +51,7 @@ from scipy.integrate import solve_ivp
 from controller.feedforward import FEEDFORWARD_MODES, feedforward_and_legs
 from plant import kane, telescope
 from plant.rotations import rpy_matrix
-from plant.stewart import _FIDELITY_MODES, FIDELITIES, HOME_POSE, S_BAND_POSE, StewartParams
+from plant.stewart import FIDELITIES, HOME_POSE, S_BAND_POSE, StewartParams, fidelity_mode
 from plant.trajectory import quintic
 from scenarios.spec import Link
 
@@ -175,7 +175,7 @@ class ClosedLoop:
         self.scene = scene
         self.plant = StewartParams.paper()
         self.params = StewartParams.paper()
-        base_mode, self.legs = _FIDELITY_MODES[scene.fidelity]
+        base_mode, self.legs = fidelity_mode(scene.fidelity)
         self.base_mode = base_mode if scene.moving_base else kane.BASE_NONE
         g = scene.gains
         self.kp, self.ki, self.kd, self.limit = g["kp"], g["ki"], g["kd"], g["force_limit"]
