@@ -17,17 +17,23 @@ from plant.stewart import (StateInverseDynamics, inverse_dynamics, inverse_dynam
 FEEDFORWARD_MODES = ("none", "fixed_base", "moving_base")
 
 
+def model_fidelity(mode):
+    """The plant fidelity a feedforward mode computes with (the base is ignored unless
+    the mode is moving_base), or an error naming the modes."""
+    if mode not in FEEDFORWARD_MODES:
+        raise ValueError(f"unknown feedforward mode {mode!r}; choose one of {FEEDFORWARD_MODES}")
+    return "full" if mode == "moving_base" else "no_base"
+
+
 def feedforward_forces(params, mode, pose, pose_rate, pose_acc, base_pose=0, base_rate=0, base_acc=0):
     """Leg forces (..., 6) [N] for the reference motion (pose, rate, acc of {P} in {B}) and
     the base motion ({B} in {W}); positive extends the leg."""
-    if mode not in FEEDFORWARD_MODES:
-        raise ValueError(f"unknown feedforward mode {mode!r}; choose one of {FEEDFORWARD_MODES}")
+    fidelity = model_fidelity(mode)
     if mode == "none":
         return np.zeros(np.shape(pose))
-    if mode == "fixed_base":
-        return inverse_dynamics(params, pose, pose_rate, pose_acc, fidelity="no_base")
-    return inverse_dynamics(params, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc,
-                            fidelity="full")
+    if fidelity == "no_base":
+        return inverse_dynamics(params, pose, pose_rate, pose_acc, fidelity=fidelity)
+    return inverse_dynamics(params, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc, fidelity=fidelity)
 
 
 def reference_legs(params, pose, pose_rate):
@@ -44,12 +50,12 @@ def reference_legs(params, pose, pose_rate):
 def feedforward_and_legs(params, mode, pose, pose_rate, pose_acc, base_pose=0, base_rate=0, base_acc=0):
     """(feedforward forces, reference leg lengths, reference leg rates) from one call of
     the compiled model: what the controller FMU needs every step."""
-    if mode not in FEEDFORWARD_MODES:
-        raise ValueError(f"unknown feedforward mode {mode!r}; choose one of {FEEDFORWARD_MODES}")
-    if mode == "moving_base":
-        forces, terms = inverse_dynamics_terms(params, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc)
+    fidelity = model_fidelity(mode)
+    if fidelity == "no_base":
+        forces, terms = inverse_dynamics_terms(params, pose, pose_rate, pose_acc, fidelity=fidelity)
     else:
-        forces, terms = inverse_dynamics_terms(params, pose, pose_rate, pose_acc, fidelity="no_base")
+        forces, terms = inverse_dynamics_terms(params, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc,
+                                               fidelity=fidelity)
     return (forces if mode != "none" else np.zeros_like(forces)), terms.leg_lengths, terms.leg_rates
 
 
@@ -58,10 +64,8 @@ class Feedforward:
     single-state path: what the controller FMU calls every step."""
 
     def __init__(self, params, mode):
-        if mode not in FEEDFORWARD_MODES:
-            raise ValueError(f"unknown feedforward mode {mode!r}; choose one of {FEEDFORWARD_MODES}")
         self.mode = mode
-        self.model = StateInverseDynamics(params, "full" if mode == "moving_base" else "no_base")
+        self.model = StateInverseDynamics(params, model_fidelity(mode))
 
     def __call__(self, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc):
         """(forces, reference leg lengths, reference leg rates), each (6,)."""
