@@ -1,0 +1,9 @@
+#ifndef MB_LINALG_H
+#define MB_LINALG_H
+/* Small dense linear solves of the kernels (the hexapod's 6x6, the 3T mechanism's 3x3). */
+
+/* x = A^-1 b by Gaussian elimination with partial pivoting; A (n x n, row-major) and b
+   are overwritten. Returns det(A) (0.0 when exactly singular; x is then all NaN). */
+double mb_solve(int n, double *A, double *b, double *x);
+
+#endif
