@@ -198,21 +198,29 @@ class Engine:
     cores), or on the existing cluster at ``address`` (``tcp://host:port``)."""
 
     def __init__(self, jobs=None, address=None):
-        from distributed import Client, LocalCluster
-        began = time.perf_counter()
-        self.cluster = None
-        if address:
-            self.client = Client(address, timeout=30)
-        else:
-            jobs = jobs or default_jobs()
-            if jobs < 1:
-                raise ValueError(f"--jobs must be at least 1, got {jobs}")
-            self.cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
-                                        dashboard_address=None, silence_logs=logging.ERROR)
-            self.client = Client(self.cluster)
-        self.client.wait_for_workers(1, timeout=120)
-        self.start_time = time.perf_counter() - began
-        self._blobs = {}            # sha256 -> scattered future of the FMU bytes
+        jobs = jobs or default_jobs()
+        if jobs < 1:
+            raise ValueError(f"--jobs must be at least 1, got {jobs}")
+        self.jobs, self.address = jobs, address
+        self.cluster = self._client = None
+        self.start_time = None      # seconds to start the cluster / connect, once done
+        self._blobs = {}            # FMU digests -> scattered future of the FMU bytes
+
+    @property
+    def client(self):
+        """The Dask client, started on first use (nothing to run: no cluster)."""
+        if self._client is None:
+            from distributed import Client, LocalCluster
+            began = time.perf_counter()
+            if self.address:
+                self._client = Client(self.address, timeout=30)
+            else:
+                self.cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
+                                            dashboard_address=None, silence_logs=logging.ERROR)
+                self._client = Client(self.cluster)
+            self._client.wait_for_workers(1 if self.address else self.jobs, timeout=120)
+            self.start_time = time.perf_counter() - began
+        return self._client
 
     @property
     def workers(self):
@@ -223,9 +231,11 @@ class Engine:
         return self.client.run(os.getpid)
 
     def close(self):
-        self.client.close()
+        if self._client is not None:
+            self._client.close()
         if self.cluster is not None:
             self.cluster.close()
+        self.cluster = self._client = None
 
     def __enter__(self):
         return self
@@ -259,7 +269,9 @@ class Engine:
             else:
                 todo.append(job)
         outcome = Outcome(total, [], skipped, {}, 0.0)
-        blobs = self._scatter(fmu_files) if todo else None
+        if not todo:
+            return outcome
+        blobs = self._scatter(fmu_files)
         window = max(2, 2 * sum(self.client.nthreads().values()))
         pending, queue, in_flight = as_completed(), iter(todo), {}
 
