@@ -1,6 +1,6 @@
 """Command line: run scenario files (or shipped scenario names) and write their reports.
 
-    python -m scenarios [SCENARIO ...] [--out DIR] [--ci] [--quiet]
+    python -m scenarios [SCENARIO ...] [--out DIR] [--ci] [--quiet] [--jobs N] [--dask tcp://HOST:PORT]
     python -m scenarios SCENARIO --ssp FILE.ssp      (export for other FMI tools instead)
 
 Without a scenario it runs the main job: the telescope slew (FMUs built first) and the
@@ -21,6 +21,8 @@ def main(argv=None):
     parser.add_argument("--out", default="out", help="output folder (default: out)")
     parser.add_argument("--ci", action="store_true", help="apply each file's [ci] overrides (short runs)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--jobs", type=int, help="run the sweep values on N local worker processes")
+    parser.add_argument("--dask", metavar="ADDR", help="run the sweep values on the Dask cluster at ADDR")
     parser.add_argument("--ssp", metavar="FILE", help="export the (one) scenario as an SSP file, first sweep value")
     args = parser.parse_args(argv)
     names = args.scenarios or ["telescope_slew"]
@@ -33,7 +35,8 @@ def main(argv=None):
             print(f"SSP written to {export_ssp(scenario, paths, values, args.ssp)}")
             return
         for name in names:
-            scenario, runs, report = run_scenario(name, args.out, ci=args.ci, progress=not args.quiet)
+            scenario, runs, report = run_scenario(name, args.out, ci=args.ci, progress=not args.quiet,
+                                                  jobs=args.jobs, dask=args.dask)
             print(f"{scenario.name}: report {report}")
             for run in runs:
                 print(f"  {run.label}: {run.steps} steps in {run.wall_time:.1f} s "

@@ -112,6 +112,11 @@ def _local_fmu(digest, blobs):
     return _FMU_FILES[digest]
 
 
+def _outcome(run):
+    return {"metrics": run.metrics, "steps": run.steps, "run_time_s": run.wall_time, "sim_time_s": run.sim_time,
+            "series": {name: (np.asarray(t), np.asarray(v)) for name, (t, v) in run.series.items()}}
+
+
 def execute(job, blobs):
     """Run one job where this is called; a failing run returns its message instead of raising."""
     with _RUN_LOCK:
@@ -121,13 +126,14 @@ def execute(job, blobs):
             csv_path = pathlib.Path(tmp) / "run.csv"
             try:
                 paths = {inst: _local_fmu(digest, blobs) for inst, digest in job.fmus.items()}
-                run = master.run(job.scenario, paths, job.parameters, pathlib.Path(tmp), "run",
-                                 [metrics.make(m) for m in job.scenario.metrics])
-                out.update(status="ok", metrics=run.metrics, steps=run.steps, run_time_s=run.wall_time,
-                           sim_time_s=run.sim_time,
-                           series={name: (np.asarray(t), np.asarray(v)) for name, (t, v) in run.series.items()})
+                out.update(status="ok", **_outcome(master.run(
+                    job.scenario, paths, job.parameters, pathlib.Path(tmp), "run",
+                    [metrics.make(m) for m in job.scenario.metrics])))
             except Exception as exc:          # the run's failure is a result; others go on
-                out.update(status="failed", error=f"{type(exc).__name__}: {exc}")
+                partial = getattr(exc, "run", None)   # what a run that stopped early did
+                out.update(status="failed", error=getattr(partial, "failure", "") or f"{type(exc).__name__}: {exc}")
+                if partial is not None:
+                    out.update(_outcome(partial))
             if job.keep_record and csv_path.exists():
                 out["record"] = gzip.compress(csv_path.read_bytes(), compresslevel=1)
         out["task_time_s"] = time.perf_counter() - began
@@ -155,7 +161,7 @@ class Store:
         return json.loads(self.path(key, ".json").read_text())
 
     def series(self, key):
-        """{metric: (t, values)} of an ok run."""
+        """{metric: (t, values)} of a run (a failed one: as far as it got, if at all)."""
         with np.load(self.path(key, ".npz")) as data:
             names = sorted({k.rsplit("/", 1)[0] for k in data.files})
             return {n: (data[f"{n}/t"], data[f"{n}/values"]) for n in names}
@@ -169,7 +175,7 @@ class Store:
         key = job.key
         if "record" in result:
             self._atomic(self.path(key, ".csv.gz"), result.pop("record"))
-        if result["status"] == "ok":
+        if "series" in result:
             series = result.pop("series")
             with tempfile.NamedTemporaryFile(dir=self.folder, suffix=".npz", delete=False) as tmp:
                 np.savez(tmp, **{f"{n}/{part}": a for n, (t, v) in series.items()
@@ -327,3 +333,34 @@ def prepared_jobs(scenario, paths, values, cases, keep_record=True):
             params.setdefault(inst, {}).update(settings)
         jobs.append(Job(label, scenario, params, digests, keep_record))
     return jobs, files
+
+
+def run_sweep(scenario, paths, descriptions, values, items, outdir, jobs=None, address=None, progress=True):
+    """A scenario's sweep values through the engine: master.Run objects in sweep order,
+    CSVs as outdir/<label>.csv like the sequential runner; results under outdir/runs
+    (an interrupted sweep resumes)."""
+    from .spec import sweep_value
+    cases = []
+    for item in items:
+        inst, name, value = sweep_value(scenario, descriptions, item) if item is not None else (None, None, None)
+        cases.append(("run" if item is None else str(item), {inst: {name: value}} if inst else {}))
+    job_list, files = prepared_jobs(scenario, paths, values, cases)
+    store = Store(pathlib.Path(outdir) / "runs")
+    with Engine(jobs, address) as eng:
+        outcome = eng.run(job_list, files, store, progress, name=scenario.name)
+    if outcome.interrupted:
+        raise KeyboardInterrupt
+    runs = []
+    for job in job_list:
+        if store.status(job.key) is None:
+            raise RuntimeError(f"run {job.label} of {scenario.name} was not run: {outcome.failed.get(job.key)}")
+        record, csv_path = store.read(job.key), pathlib.Path(outdir) / f"{job.label}.csv"
+        if store.path(job.key, ".csv.gz").exists():
+            csv_path.write_bytes(gzip.decompress(store.path(job.key, ".csv.gz").read_bytes()))
+        run = master.Run(job.label, csv_path, record.get("steps", 0), record.get("run_time_s", 0.0),
+                         record.get("sim_time_s", 0.0), record.get("metrics", {}),
+                         store.series(job.key) if store.path(job.key, ".npz").exists() else {})
+        if record["status"] != "ok":
+            run.failure = f"{scenario.source}: scene {scenario.name}, run {job.label}: {record['error']}"
+        runs.append(run)
+    return runs

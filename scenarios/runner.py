@@ -7,7 +7,7 @@ from tqdm import tqdm
 
 from fmu_src.builder import ensure_built
 from plant.stewart import FIDELITIES
-from . import fidelity, master, metrics, report, spec
+from . import engine, fidelity, master, metrics, report, spec
 from .fmi import unpack
 
 SHIPPED = pathlib.Path(__file__).resolve().parent / "files"
@@ -55,13 +55,16 @@ def _choose_fidelity(scenario, paths, values, plant):
                           f"largest leg-force error of each level along this scene: {listed})")
 
 
-def run_scenario(path, out="out", ci=False, progress=True):
-    """Run every sweep value of a scenario; returns (scenario, runs, report path)."""
+def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None):
+    """Run every sweep value of a scenario; returns (scenario, runs, report path).
+    ``jobs`` worker processes or the Dask cluster at ``dask`` run the values in parallel."""
     scenario, paths, descriptions, values = prepare(resolve(path), ci)
     outdir = pathlib.Path(out) / scenario.name
     outdir.mkdir(parents=True, exist_ok=True)
     items = scenario.sweep[1] if scenario.sweep else [None]
     runs = []
+    if jobs or dask:   # the values on worker processes or a Dask cluster (scenarios.engine)
+        runs, items = engine.run_sweep(scenario, paths, descriptions, values, items, outdir, jobs, dask, progress), []
     for item in items:
         params = {inst: dict(v) for inst, v in values.items()}
         label = "run"
