@@ -144,7 +144,8 @@ class AxisMotion:
 # --- the C kernel ------------------------------------------------------------------
 
 def _doubles(array):
-    return ffi.from_buffer("double[]", array)
+    """A double* onto array (a contiguous float64 copy if it is not one; outputs are)."""
+    return ffi.from_buffer("double[]", np.ascontiguousarray(array, dtype=float))
 
 
 @lru_cache(maxsize=64)
@@ -175,8 +176,11 @@ def motion_profile(kind, start_az_el=(0.0, 0.0), target_az_el=(0.0, 0.0), ra=0.0
     return c
 
 
-_PROFILE_FIELDS = {"slew": ("start_az", "start_el", "target_az", "target_el"),
-                   "sidereal": ("ra", "dec", "utc_start"), "paper": ("paper_duration",)}
+# the settings each kind uses: mb_tel_profile field -> name in messages (the FMU's parameter)
+_PROFILE_FIELDS = {"slew": {"start_az": "start_azimuth", "start_el": "start_elevation",
+                            "target_az": "target_azimuth", "target_el": "target_elevation"},
+                   "sidereal": {"ra": "right_ascension", "dec": "declination", "utc_start": "utc_start"},
+                   "paper": {"paper_duration": "paper_duration"}}
 
 
 def _status_error(status, profile, t, first_bad):
@@ -199,9 +203,9 @@ def _status_error(status, profile, t, first_bad):
     if status == lib.MB_TEL_NONFINITE:
         if first_bad >= 0:
             return InvalidInputError(f"t must be finite, got {t[first_bad]!r} at index {first_bad}")
-        for name in ("start_delay",) + _PROFILE_FIELDS.get(kind, ()):
-            if not np.isfinite(getattr(profile, name)):
-                return InvalidInputError(f"{name} must be finite, got {getattr(profile, name)!r}")
+        for field, name in {"start_delay": "start_delay", **_PROFILE_FIELDS.get(kind, {})}.items():
+            if not np.isfinite(getattr(profile, field)):
+                return InvalidInputError(f"{name} must be finite, got {getattr(profile, field)!r}")
     return InvalidInputError(ffi.string(lib.mb_tel_status_text(status)).decode())
 
 

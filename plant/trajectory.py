@@ -6,7 +6,8 @@ from plant._kernel import ffi, lib
 
 
 def _doubles(array):
-    return ffi.from_buffer("double[]", array)
+    """A double* onto array (a contiguous float64 copy if it is not one; outputs are)."""
+    return ffi.from_buffer("double[]", np.ascontiguousarray(array, dtype=float))
 
 
 def quintic(start, stop, duration, t):
