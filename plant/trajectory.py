@@ -21,11 +21,8 @@ def quintic(start, stop, duration, t):
         raise ValueError(f"start and stop must be vectors, got shape {start.shape}")
     if not duration > 0:
         raise ValueError(f"duration must be positive, got {duration}")
-    start, stop = np.ascontiguousarray(start), np.ascontiguousarray(stop)
     t = np.asarray(t, dtype=float)
-    times = np.ascontiguousarray(t.ravel())
-    shape = t.shape + start.shape
-    pos, vel, acc = (np.empty(shape) for _ in range(3))
-    lib.mb_tel_quintic(start.size, _doubles(start), _doubles(stop), float(duration), times.size,
-                       _doubles(times), _doubles(pos), _doubles(vel), _doubles(acc))
+    pos, vel, acc = (np.empty(t.shape + start.shape) for _ in range(3))
+    lib.mb_tel_quintic(start.size, _doubles(start), _doubles(stop), float(duration), t.size,
+                       _doubles(t.ravel()), _doubles(pos), _doubles(vel), _doubles(acc))
     return pos, vel, acc

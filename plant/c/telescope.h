@@ -77,7 +77,8 @@ int mb_tel_slew_duration(const mb_tel_params *p, double start_az, double start_e
 
 /* The profile's axes (n, 6) at the n times t (each shifted by start_delay). For
    MB_TEL_BELOW_HORIZON the axes are still filled and *first_bad (if not NULL) receives
-   the index of the first time with E < 0; otherwise it receives -1. */
+   the index of the first time with E < 0; for MB_TEL_NONFINITE of a time, that time's
+   index; otherwise -1. Any other failure leaves the axes unwritten. */
 int mb_tel_axes(const mb_tel_params *p, const mb_tel_profile *prof, int n, const double *t,
                 double *axes, int *first_bad);
 
