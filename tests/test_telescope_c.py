@@ -7,10 +7,10 @@ the old FMU's _evaluate; invalid input raises the old messages.
 Agreement is measured per output column relative to that column's largest magnitude:
 the C keeps numpy's operand order, so what is left are ulp-level differences from the
 libm (numpy computes x**3 with its own SIMD pow)."""
-import dataclasses
 import importlib
 import subprocess
 import sys
+from pathlib import Path
 from datetime import datetime, timedelta, timezone
 
 import numpy as np
@@ -24,7 +24,7 @@ from plant.trajectory import quintic
 
 REVISION = "73017ff"
 RTOL = 1e-14      # of each column's largest magnitude
-ROOT = __import__("pathlib").Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parent.parent
 DEG = np.pi / 180
 
 
