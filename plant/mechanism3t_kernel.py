@@ -54,26 +54,25 @@ def pack(P):
 # ---------------------------------------------------------------- argument passing
 
 _F8 = np.dtype(float)
-_new_buffer = ffi.from_buffer
+_DOUBLES = ffi.typeof("double[]")
+_new_buffer = ffi.from_buffer   # positional arguments only: cffi's keyword path costs ~0.3 µs
 _empty = np.empty
 _ndarray = np.ndarray
-_PA_POINTERS = {}   # id(packed array) -> (the array, kept alive so that its id stays unique; its pointer)
+_POINTERS = {}   # id(P or packed array) -> (it, its C pointer, the array pointed to): kept alive, ids stay unique
 
 
 def _params(P):
-    """The C pointer of Mechanism1Params P or of a packed array (made once per array)."""
-    if type(P) is Mechanism1Params:
-        P = pack(P)
-    hit = _PA_POINTERS.get(id(P))
+    """The C pointer of the packed parameters of Mechanism1Params P or of a packed array,
+    made once per object (P is frozen; pack() arrays are read-only)."""
+    hit = _POINTERS.get(id(P))
     if hit is not None:
         return hit[1]
-    arr = _array("packed parameters", P, (lib.MB_M3T_NPARAM,))
-    if arr is not P:   # a converted copy: nothing stable to cache
-        return _new_buffer("double[]", arr)
-    if len(_PA_POINTERS) >= 64:
-        _PA_POINTERS.clear()
-    ptr = _new_buffer("double[]", arr)
-    _PA_POINTERS[id(arr)] = (arr, ptr)
+    arr = _array("packed parameters", pack(P) if type(P) is Mechanism1Params else P, (lib.MB_M3T_NPARAM,))
+    ptr = _new_buffer(_DOUBLES, arr)
+    if arr is P or type(P) is Mechanism1Params:   # not a converted temporary: cache
+        if len(_POINTERS) >= 64:
+            _POINTERS.clear()
+        _POINTERS[id(P)] = (P, ptr, arr)
     return ptr
 
 
@@ -90,23 +89,33 @@ def _in(name, value, n=3):
     """C pointer to a read-only input of n doubles (no copy of a contiguous float64 array)."""
     if type(value) is _ndarray and value.dtype is _F8 and value.shape == (n,):
         try:
-            return _new_buffer("double[]", value)
-        except (BufferError, ValueError):   # not contiguous
+            return _new_buffer(_DOUBLES, value)
+        except ValueError:   # not contiguous: converted below
             pass
-    return _new_buffer("double[]", _array(name, value, (n,)))
+    return _new_buffer(_DOUBLES, _array(name, value, (n,)))
 
 
 def _out(name, value, shape):
     """C pointer into a caller's output array, which must be writable, contiguous float64."""
-    if not (type(value) is _ndarray and value.dtype is _F8 and value.shape == shape and value.flags.c_contiguous
-            and value.flags.writeable):
-        raise InvalidInputError(f"{name} must be a writable C-contiguous float64 array of shape {shape}")
-    return _new_buffer("double[]", value, require_writable=True)
+    if type(value) is _ndarray and value.dtype is _F8 and value.shape == shape and value.flags.writeable:
+        try:
+            return _new_buffer(_DOUBLES, value)
+        except ValueError:   # not contiguous
+            pass
+    raise InvalidInputError(f"{name} must be a writable C-contiguous float64 array of shape {shape}")
+
+
+def _copy(name, value, n):
+    """A new contiguous float64 array holding value (n,): the state a kernel advances in place."""
+    arr = np.array(value, dtype=float, order="C")
+    if arr.shape != (n,):
+        raise InvalidInputError(f"{name} has shape {arr.shape}, expected {(n,)}")
+    return arr, _new_buffer(_DOUBLES, arr)
 
 
 def _fresh(n):
     arr = _empty(n)
-    return arr, _new_buffer("double[]", arr, require_writable=True)
+    return arr, _new_buffer(_DOUBLES, arr)
 
 
 def _mode(mode):
@@ -146,18 +155,15 @@ def advance_fixed(pa, x, forces, mode, rk4, substeps, dt):
     explicit Euler) under held forces: plant.integrators.rk4 / euler with the same
     arithmetic, compiled. Works on a copy; returns (status, new x), the new x being the
     state at the start of the failing substep on a non-OK status."""
-    x = np.array(_array("x", x, (6,)))
-    return lib.mb_m3t_advance_fixed(_params(pa), _new_buffer("double[]", x, require_writable=True),
-                                    _in("slider forces", forces), mode, rk4, substeps, dt), x
+    x, ptr = _copy("x", x, 6)
+    return lib.mb_m3t_advance_fixed(_params(pa), ptr, _in("slider forces", forces), mode, rk4, substeps, dt), x
 
 
 def plant_step(pa, x, forces, mode, rk4, substeps, dt):
     """advance_fixed, then DIVERGED if the new state is not finite, then O' of the new slider
     positions: a plant FMU step in one C call. Returns (status, new x (6,), O' (3,))."""
-    x = np.array(_array("x", x, (6,)))
-    p, ptr = _fresh(3)
-    return lib.mb_m3t_plant_step(_params(pa), _new_buffer("double[]", x, require_writable=True),
-                                 _in("slider forces", forces), mode, rk4, substeps, dt, ptr), x, p
+    (x, px), (p, pp) = _copy("x", x, 6), _fresh(3)
+    return lib.mb_m3t_plant_step(_params(pa), px, _in("slider forces", forces), mode, rk4, substeps, dt, pp), x, p
 
 
 def position_kernel(pa, rho, mode, p):
