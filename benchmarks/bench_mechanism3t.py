@@ -1,6 +1,8 @@
 """Per-call time of the 3T single-state kernel: C through cffi (plant.mechanism3t_kernel)
 against the numba kernel it replaced (git revision 73017ff, when numba is importable),
-measured interleaved in one run and printed side by side as ratios.
+measured in one run and printed side by side as ratios; then the step() of the two
+pythonfmu slaves that use it (Mechanism3TPlant, SliderController, without the FMI layer)
+with either kernel swapped in.
 
     .venv/bin/python benchmarks/bench_mechanism3t.py [--repeat 7] [--number 20000]
 """
@@ -54,8 +56,29 @@ def bare_c(pa):
     }
 
 
+def slave_steps(k):
+    """name -> zero-argument call of one 1 ms step() of the slaves of fmu_src, using kernel k."""
+    from fmu_src import mechanism3t_fmu, slider_controller_fmu
+    mechanism3t_fmu.kernel = slider_controller_fmu.kernel = k
+    plant, controller = mechanism3t_fmu.Mechanism3TPlant(instance_name="plant"), \
+        slider_controller_fmu.SliderController(instance_name="controller")
+    P = m3t.Mechanism1Params.paper()
+    plant.force[:] = kernel.slider_forces(P, plant.initial_position, np.zeros(3), np.zeros(3))   # static
+    plant.initialize()
+    controller.initialize()
+    x0 = plant.x.copy()
+
+    def plant_step():
+        plant.x[:] = x0   # stays near the start: 1 ms of static forces from rest
+        plant.step(0.0, 1e-3)
+    return {"Mechanism3TPlant.step (1 ms, RK4)": plant_step,
+            "SliderController.step (1 ms)": lambda: controller.step(0.5, 1e-3)}
+
+
 def per_call(call, repeat, number):
-    return min(timeit.repeat(call, repeat=repeat, number=number)) / number
+    """Best per-call CPU time of the process: on a shared machine wall time also counts the
+    time spent descheduled, which swings the figures by 2-3x from run to run."""
+    return min(timeit.repeat(call, repeat=repeat, number=number, timer=time.process_time)) / number
 
 
 def main():
@@ -80,13 +103,15 @@ def main():
             for call in old_calls.values():   # compile every signature before timing
                 call()
             _run(calls(kernel, P, pa), old_calls, bare_c(pa), args)
+            _run(slave_steps(kernel), slave_steps(old), {}, args)
     except ImportError:
         print("numba not importable: C kernel times only")
         _run(calls(kernel, P, pa), None, bare_c(pa), args)
+        _run(slave_steps(kernel), None, {}, args)
 
 
 def _run(new_calls, old_calls, bare, args):
-    print(f"per call, best of {args.repeat} x {args.number} (µs); ratio = numba / C")
+    print(f"per call, best of {args.repeat} x {args.number} (µs of CPU time); ratio = numba / C")
     print(f"{'call':34s} {'C (cffi)':>9s} {'numba':>9s} {'ratio':>7s} {'bare C':>8s}")
     for name, call in new_calls.items():
         t_new = per_call(call, args.repeat, args.number)   # interleaved: C, numba, per call
