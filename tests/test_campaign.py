@@ -1,0 +1,132 @@
+"""Campaign files: the grid and the cases expand to the runs they say, bad input is
+refused before anything runs with file, key and problem, a campaign runs through the
+engine to the same numbers as the scenario run directly, and the shipped sky-coverage
+study runs in its [ci] version with its charts and worst-case table."""
+import csv
+
+import pytest
+
+from scenarios import campaign, master, metrics, runner, spec
+from scenarios.units import to_si
+
+HEAD = 'name = "t"\nscenario = "telescope_slew"\n'
+
+
+def _parse(text, tmp_path, ci=False):
+    path = tmp_path / "c.toml"
+    path.write_text(text)
+    return campaign.load(path, ci)
+
+
+def test_grid_axes_zip_and_cross_with_cases(tmp_path):
+    c = _parse(HEAD + '''set = { stop_time = "6 s" }
+[[grid]]
+"base.start_elevation" = ["20 deg", "50 deg", "70 deg"]
+base.target_elevation = ["25 deg", "55 deg", "75 deg"]
+[[grid]]
+"controller.feedforward" = ["fixed_base", "moving_base"]
+[[cases]]
+label = "north"
+"base.start_azimuth" = "0 deg"
+[[cases]]
+label = "east"
+"base.start_azimuth" = "90 deg"
+[ci]
+grid = [{ "controller.feedforward" = ["none"] }]
+''', tmp_path)
+    assert len(c.cases) == 2 * 3 * 2                   # cases x zipped elevations x modes
+    pairs = {(r.values["base.start_elevation"], r.values["base.target_elevation"]) for r in c.cases}
+    assert pairs == {("20 deg", "25 deg"), ("50 deg", "55 deg"), ("70 deg", "75 deg")}
+    assert all(r.values["stop_time"] == "6 s" for r in c.cases)
+    assert c.cases[0].label.startswith("north; ")
+    assert set(c.varying) == {"base.start_azimuth", "base.start_elevation", "base.target_elevation",
+                              "controller.feedforward"}
+    small = _parse((tmp_path / "c.toml").read_text(), tmp_path, ci=True)
+    assert len(small.cases) == 2 and {r.values["controller.feedforward"] for r in small.cases} == {"none"}
+
+
+def test_base_sweep_is_an_axis_unless_the_campaign_sets_it(tmp_path):
+    c = _parse(HEAD + '[grid]\n"base.lever_arm" = ["0 m", "25 m"]\n', tmp_path)
+    assert [r.values["controller.feedforward"] for r in c.cases] == ["none", "fixed_base", "moving_base"] * 2
+    c = _parse(HEAD + 'set = { "controller.feedforward" = "moving_base" }\n', tmp_path)
+    assert len(c.cases) == 1
+
+
+@pytest.mark.parametrize("body, key, problem", [
+    ('name = "t"\n', "scenario", "missing"),
+    (HEAD + 'grid = 3\n', "grid", "expected a table or an array"),
+    (HEAD + 'colour = "red"\n', "colour", "unknown key"),
+    ('name = "t"\nscenario = "no_such_scene"\n', "scenario", "neither a shipped scenario nor a file"),
+    (HEAD + '[grid]\n"base.start_azimuth" = []\n', "grid[0].base.start_azimuth", "non-empty list"),
+    (HEAD + '[[grid]]\n"base.start_azimuth" = ["1 deg"]\n"base.target_azimuth" = ["1 deg", "2 deg"]\n',
+     "grid[0]", "lists of one length"),
+    (HEAD + '[grid]\n"base.start_azimuth" = ["10 deg", "3 kg"]\n', "grid[0].base.start_azimuth[1]", "kg"),
+    (HEAD + '[grid]\n"telescope.start_azimuth" = ["10 deg"]\n', "grid[0].telescope.start_azimuth[0]",
+     "unknown key 'telescope.start_azimuth'"),
+    (HEAD + 'set = { "base.colour" = 1 }\n', "set.base.colour", "has no parameter 'colour'"),
+    (HEAD + 'set = { step = "-1 ms" }\n', "set.step", "must be positive"),
+    (HEAD + '[[cases]]\n"controller.feedforward" = "sometimes"\n', "cases[0].controller.feedforward",
+     "'sometimes' is not one of"),
+    (HEAD + '[[cases]]\nlabel = 3\n', "cases[0].label", "expected a string"),
+    (HEAD + 'keep_records = "yes"\n', "keep_records", "expected true or false"),
+    (HEAD + 'grid = [\n', "TOML", ""),
+])
+def test_bad_campaign_files_name_file_key_and_problem(tmp_path, body, key, problem):
+    with pytest.raises(campaign.CampaignError) as info:
+        _parse(body, tmp_path)
+    message = str(info.value)
+    assert message.startswith(f"{tmp_path / 'c.toml'}: {key}: ") and problem in message
+
+
+def test_missing_and_binary_files(tmp_path):
+    with pytest.raises(campaign.CampaignError, match="does not exist"):
+        campaign.load(tmp_path / "none.toml")
+    (tmp_path / "b.toml").write_bytes(b"\xff\xfe\x00binary")
+    with pytest.raises(campaign.CampaignError, match="not UTF-8"):
+        campaign.load(tmp_path / "b.toml")
+    with pytest.raises(campaign.CampaignError, match="is not a file"):
+        campaign.load(tmp_path)
+
+
+def test_campaign_runs_equal_the_scenario_run_directly(tmp_path):
+    path = tmp_path / "c.toml"
+    path.write_text(HEAD + '''set = { stop_time = "5.3 s", "controller.feedforward" = "fixed_base" }
+[grid]
+"base.start_elevation" = ["20 deg", "60 deg"]
+''')
+    camp, jobs, store, outcome, summary = campaign.run_campaign(path, tmp_path / "out", jobs_=2, progress=False)
+    assert len(outcome.computed) == 2 and not outcome.failed
+    with open(summary) as f:
+        table = list(csv.DictReader(f))
+    assert [r["base.start_elevation"] for r in table] == ["20 deg", "60 deg"]
+    scenario, paths, descriptions, values = runner.prepare(runner.SHIPPED / "telescope_slew.toml")
+    scenario = spec.load(scenario.source, overrides={"stop_time": "5.3 s"})
+    for row, el in zip(table, (20, 60)):   # the same run set up by hand, in this process
+        params = {inst: dict(v) for inst, v in values.items()}
+        params["controller"]["feedforward"] = 1
+        params["base"]["start_elevation"] = to_si(f"{el} deg", "rad")
+        run = master.run(scenario, paths, params, tmp_path, "direct", [metrics.make(m) for m in scenario.metrics])
+        assert float(row["pose error peak"]) == run.metrics["pose error"]["peak"]
+        assert float(row["leg error rms"]) == run.metrics["leg error"]["rms"]
+    again = campaign.run_campaign(path, tmp_path / "out", jobs_=2, progress=False)[3]
+    assert not again.computed and len(again.skipped) == 2
+
+
+def test_sky_coverage_ci_charts_and_worst_cases(tmp_path):
+    from studies import sky_coverage
+    results = sky_coverage.run(tmp_path, ci=True, jobs=2, progress=False)
+    assert all(not o.failed and len(o.computed) == len(j) for _, j, _, o in results.values())
+    path, charts = sky_coverage.report(results, tmp_path / "report")
+    assert all(c.stat().st_size > 10_000 for c in charts)
+    text = path.read_text()
+    table = [line for line in text.splitlines() if line.startswith("| sky_") or line.startswith("| slew_")
+             or line.startswith("| keyhole_")]
+    fixed = [float(line.split("|")[4]) for line in table if "| fixed_base |" in line]
+    moving = [float(line.split("|")[4]) for line in table if "| moving_base |" in line]
+    assert fixed == sorted(fixed, reverse=True) and moving == sorted(moving, reverse=True)
+    rows = sky_coverage.rows(*results["sky_slews"][:3])
+    by = {(r["values"]["base.start_azimuth"], r["values"]["base.start_elevation"], r["mode"]): r["peak"] for r in rows}
+    for el in ("20 deg", "70 deg"):          # gravity is along the azimuth axis: azimuth cannot matter
+        for mode in sky_coverage.MODES:
+            assert by[("0 deg", el, mode)] == pytest.approx(by[("180 deg", el, mode)], rel=1e-6)
+    assert max(fixed) > 100 > 10 > max(moving)   # the headline: fixed-base past 0.1 mm, moving-base under 10 µm
