@@ -30,9 +30,9 @@ class TelescopeBase(GuardedSlave):
         tianma = telescope.TelescopeParams.tianma()
         self.integer("profile", "motion profile: " + ", ".join(f"{i} {p}" for i, p in enumerate(PROFILES)), 0)
         self.settings = self.parameters((
-            ("start_azimuth", "rad", 0.0, "slew start azimuth"),
+            ("start_azimuth", "rad", 0.0, "slew start azimuth (astronomical, north through east)"),
             ("start_elevation", "rad", np.radians(30.0), "slew start elevation"),
-            ("target_azimuth", "rad", np.radians(90.0), "slew target azimuth"),
+            ("target_azimuth", "rad", np.radians(90.0), "slew target azimuth (astronomical, north through east)"),
             ("target_elevation", "rad", np.radians(60.0), "slew target elevation"),
             ("az_rate_max", "rad/s", tianma.az_rate_max, "azimuth rate limit (assumed)"),
             ("az_acc_max", "rad/s2", tianma.az_acc_max, "azimuth acceleration limit (assumed)"),
@@ -57,8 +57,8 @@ class TelescopeBase(GuardedSlave):
             ("reference_pose", 6, pose_desc("platform reference, in {B},"), POSE_UNITS),
             ("reference_rate", 6, pose_desc("d/dt reference"), rate_units(POSE_UNITS)),
             ("reference_acc", 6, pose_desc("d2/dt2 reference"), acc_units(POSE_UNITS)),
-            ("axis", 2, ["azimuth", "elevation"], "rad"),
-            ("axis_rate", 2, ["azimuth rate", "elevation rate"], "rad/s"),
+            ("axis", 2, ["astronomical azimuth (north through east; the mount angle A = 180 deg - it)", "elevation"], "rad"),
+            ("axis_rate", 2, ["astronomical azimuth rate", "elevation rate"], "rad/s"),
         )):
             self.vector(name, size, OUTPUT, desc, units, values=self.now[start:start + size])
 

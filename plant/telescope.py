@@ -10,7 +10,8 @@ module holds the Python API and its validation, and turns the C's status codes i
 InvalidInputError with a message naming the problem.
 
 Pipeline: a profile (``slew``, ``sidereal_track``, ``paper_manoeuvre``) gives the axis
-angles A (azimuth), E (elevation) and their first two derivatives as an ``AxisMotion``;
+angles A (the mount's azimuth angle), E (elevation) and their first two derivatives as an
+``AxisMotion``;
 ``base_motion`` / ``base_twist`` turn it into the motion of the hexapod's base {B} in
 {W}; ``reference_pose`` into the subreflector pose the hexapod must follow in {B}.
 
@@ -19,10 +20,12 @@ Modelling assumptions (beyond the values labelled "assumed" in ``TelescopeParams
 * {W} is treated as inertial: the Earth's rotation (7.3e-5 rad/s) is left out of the
   base's angular velocity; its centripetal and Coriolis terms on the hexapod are of
   order 1e-8 m/s^2.
-* R_WB = Rz(A) Rx(90 deg - E) is used exactly as the spec writes it, with A measured
-  north through east. A right-handed {W} with z up then sees the sky mirrored (yaw
-  grows anticlockwise from above, astronomical azimuth clockwise); rates and
-  accelerations have the same magnitudes either way.
+* R_WB = Rz(A) Rx(90 deg - E) as the spec writes it, {W} = (east, north, up): A is the
+  mount's angle, A = 180 deg - Az with Az the astronomical azimuth (north through east).
+  The conversion happens at the edge, in the C: slew targets are astronomical azimuths,
+  a sidereal track's azimuth is computed astronomically and turned into A, and the
+  telescope FMU's ``axis`` output is Az again (``AxisMotion.azimuth`` here). The
+  paper's manoeuvre is given as base yaw = A directly.
 """
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -120,7 +123,8 @@ class TelescopeParams:
 
 @dataclass(frozen=True, eq=False)
 class AxisMotion:
-    """Azimuth A and elevation E (rad) with first and second time derivatives at times t."""
+    """Mount azimuth angle A (= 180 deg - Az, astronomical) and elevation E (rad) with first
+    and second time derivatives at times t."""
 
     t: np.ndarray
     A: np.ndarray
@@ -129,6 +133,11 @@ class AxisMotion:
     E: np.ndarray
     E_dot: np.ndarray
     E_ddot: np.ndarray
+
+    @property
+    def azimuth(self):
+        """Astronomical azimuth Az = 180 deg - A (north through east) [rad]."""
+        return np.pi - self.A
 
     def __post_init__(self):
         t = _times(self.t)
@@ -254,7 +263,8 @@ def slew_duration(params, start_az_el, target_az_el):
 
 
 def slew(params, start_az_el, target_az_el, t):
-    """Slew from (A, E) to (A, E) [rad], both axes starting at t = 0 with trapezoidal
+    """Slew from (Az, E) to (Az, E) [rad], Az the astronomical azimuth (north through east;
+    the motion's A = 180 deg - Az), both axes starting at t = 0 with trapezoidal
     profiles at their own limits (rate- and acceleration-limited, triangular when the
     rate limit is never reached); holds the start before 0 and the target once arrived.
     The azimuth moves by target - start literally (no shortest way): the cable wrap
@@ -290,9 +300,10 @@ def sidereal_track(params, ra, dec, utc_start, t):
     ``dec`` [rad] from ``utc_start`` (a ``datetime``, naive = UTC) at times t [s].
 
     Catalogue (J2000) coordinates must be precessed first: ~0.35 deg by 2025.
-    Azimuth is north through east, continuous (no 2 pi jumps: atan2's jumps at the
-    culminations are unwrapped) and in [0, 2 pi) at t = 0, so step-by-step callers with
-    the same utc_start see one continuous curve. Refraction is ignored."""
+    The astronomical azimuth (``.azimuth``, north through east; the motion's A is
+    180 deg - Az) is continuous (no 2 pi jumps: atan2's jumps at the culminations are
+    unwrapped) and in [0, 2 pi) at t = 0, so step-by-step callers with the same
+    utc_start see one continuous curve. Refraction is ignored."""
     t = _times(t)
     ra, dec = float(_finite("ra", ra)), float(_finite("dec", dec))
     return _axes(params, motion_profile("sidereal", ra=ra, dec=dec,

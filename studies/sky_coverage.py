@@ -204,7 +204,7 @@ def keyhole_chart(rows_, store, path):
         utc = datetime.datetime.fromtimestamp(float(v["base.utc_start"]), tz=datetime.timezone.utc)
         axes = telescope.sidereal_track(params, to_si(v["base.right_ascension"], "rad"),
                                         to_si(v["base.declination"], "rad"), utc, t)
-        az, zd = sky_azimuth(axes.A), 90.0 - np.degrees(axes.E)
+        az, zd = axes.azimuth, 90.0 - np.degrees(axes.E)
         points = sky.scatter(az, zd, c=np.maximum(err, norm.vmin), norm=norm, cmap="plasma", s=4)
         reach = max(reach, zd.max())
     sky.set_rmax(max(reach * 1.05, 1.0))
@@ -215,12 +215,6 @@ def keyhole_chart(rows_, store, path):
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
-
-
-def sky_azimuth(A):
-    """Astronomical azimuth [rad] of the telescope's azimuth axis angle as plant.telescope
-    returns it."""
-    return np.asarray(A)
 
 
 def worst_table(all_rows, n=6):

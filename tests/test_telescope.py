@@ -88,29 +88,66 @@ def assert_close(analytic, numeric, smooth, rtol=1e-5):
 
 # --- astropy ---------------------------------------------------------------------
 
-@pytest.mark.parametrize("dec_deg", [-30.0, 0.0, 20.0, 31.0, 60.0, 85.0])
-def test_sidereal_track_matches_astropy_altaz(dec_deg):
-    """Agreement achieved: <= 0.0013 deg on the sky (GMST in place of apparent sidereal
-    time, UTC in place of UT1, aberration and polar motion left out); asserted < 0.003."""
-    ra = local_sidereal_time(P, UTC) + 0.3          # transits ~70 min after the start
-    t = np.linspace(0, 3 * 3600, 181)
-    axes = sidereal_track(P, ra, dec_deg * DEG, UTC, t)
-
+def _astropy_altaz(ra, dec_deg, t):
+    """astropy's (alt, az) [rad] of a source (apparent ra, dec) seen from Tianma at UTC + t."""
     location = EarthLocation.from_geodetic(121.14 * u.deg, 31.09 * u.deg, 0 * u.m)
     start = Time(UTC, scale="utc")
     source = SkyCoord(ra * u.rad, dec_deg * u.deg, frame=TETE(obstime=start))
     altaz = source.transform_to(AltAz(obstime=start + t * u.s, location=location,
                                       pressure=0 * u.hPa))   # no refraction
-    alt, az = altaz.alt.rad, altaz.az.rad
+    return altaz.alt.rad, altaz.az.rad
 
-    ours = np.stack([np.cos(axes.E) * np.cos(axes.A), np.cos(axes.E) * np.sin(axes.A),
-                     np.sin(axes.E)], axis=-1)
-    truth = np.stack([np.cos(alt) * np.cos(az), np.cos(alt) * np.sin(az), np.sin(alt)], axis=-1)
+
+def _boresight_against_astropy(axes, alt, az):
+    """Largest angle [deg] between the base's boresight R_WB e_z in {W} = (east, north,
+    up) and astropy's direction, and the largest azimuth difference on the sky [deg]."""
+    ours = R_WB(axes)[..., :, 2]
+    truth = np.stack([np.cos(alt) * np.sin(az), np.cos(alt) * np.cos(az), np.sin(alt)], axis=-1)
     separation = np.degrees(np.arccos(np.clip(np.sum(ours * truth, axis=-1), -1, 1)))
-    assert separation.max() < 0.003
+    daz = np.angle(np.exp(1j * (axes.azimuth - az)))
+    return separation.max(), np.degrees(np.abs(daz) * np.cos(alt)).max()
+
+
+@pytest.mark.parametrize("dec_deg", [-30.0, 0.0, 20.0, 31.0, 60.0, 85.0])
+def test_sidereal_track_matches_astropy_altaz(dec_deg):
+    """Agreement achieved: <= 0.0013 deg on the sky (GMST in place of apparent sidereal
+    time, UTC in place of UT1, aberration and polar motion left out); asserted < 0.003.
+    The truth is the direction the base's boresight points, not only the angles."""
+    ra = local_sidereal_time(P, UTC) + 0.3          # transits ~70 min after the start
+    t = np.linspace(0, 3 * 3600, 181)
+    axes = sidereal_track(P, ra, dec_deg * DEG, UTC, t)
+    alt, az = _astropy_altaz(ra, dec_deg, t)
+    separation, azimuth = _boresight_against_astropy(axes, alt, az)
+    assert separation < 0.003 and azimuth < 0.003
     assert np.degrees(np.abs(axes.E - alt)).max() < 0.003
-    daz = np.angle(np.exp(1j * (axes.A - az)))
-    assert np.degrees(np.abs(daz) * np.cos(alt)).max() < 0.003
+
+
+@pytest.mark.parametrize("hour_angle_h, side", [(-2.0, "east"), (2.0, "west")])
+def test_source_east_and_west_of_the_meridian_against_astropy(hour_angle_h, side):
+    """A source 2 h before transit stands in the east (astropy Az in (0, 180) deg), 2 h
+    after in the west: the base's boresight points there ({W} x east, y north), the
+    mount angle is A = 180 deg - Az, and the azimuth rate has the sky's sign (the Az of a
+    source south of the zenith grows through the day)."""
+    ra = local_sidereal_time(P, UTC) - hour_angle_h * np.pi / 12
+    t = np.linspace(0, 600, 11)
+    axes = sidereal_track(P, ra, 10.0 * DEG, UTC, t)
+    alt, az = _astropy_altaz(ra, 10.0, t)
+    assert np.all((np.degrees(az) < 180) == (side == "east"))
+    separation, azimuth = _boresight_against_astropy(axes, alt, az)
+    assert separation < 0.003 and azimuth < 0.003
+    assert np.all(np.sign(R_WB(axes)[:, 0, 2]) == (1 if side == "east" else -1))   # east component
+    np.testing.assert_allclose(axes.A, np.pi - axes.azimuth)
+    daz_dt = np.angle(np.exp(1j * np.diff(az))) / np.diff(t)
+    np.testing.assert_allclose(-(axes.A_dot[:-1] + axes.A_dot[1:]) / 2, daz_dt, rtol=1e-3)
+
+
+def test_slew_targets_are_astronomical():
+    """A slew to Az 90 deg (east) at el 0 points the boresight east, to Az 0 north."""
+    for az, direction in ((90.0, [1, 0, 0]), (0.0, [0, 1, 0]), (180.0, [0, -1, 0])):
+        axes = slew(P, (az * DEG, 0.0), (az * DEG, 0.0), np.zeros(1))
+        np.testing.assert_allclose(R_WB(axes)[0, :, 2], direction, atol=1e-12)
+        pose, _, _ = base_motion(P, axes)
+        np.testing.assert_allclose(pose[0, :3], P.lever_arm * np.array(direction), atol=1e-12)
 
 
 # --- derivatives against finite differences ----------------------------------------
@@ -214,13 +251,13 @@ def test_slew_duration_and_limits(start, target, expected):
     assert np.max(np.abs(axes.E_ddot)) <= P.el_acc_max * (1 + 1e-12)
     # the integral of the rate is the distance travelled (trapezoid rule, exact enough)
     A_travel = np.sum(0.5 * (axes.A_dot[1:] + axes.A_dot[:-1]) * np.diff(t))
-    assert A_travel == pytest.approx(target[0] - start[0], abs=1e-6)
+    assert -A_travel == pytest.approx(target[0] - start[0], abs=1e-6)     # A = 180 deg - Az
     done = t >= duration
-    np.testing.assert_allclose(axes.A[done], target[0], atol=1e-12)
+    np.testing.assert_allclose(axes.azimuth[done], target[0], atol=1e-12)
     np.testing.assert_allclose(axes.E[done], target[1], atol=1e-12)
     np.testing.assert_allclose(axes.A_dot[done], 0)
     np.testing.assert_allclose(axes.E_dot[done], 0)
-    np.testing.assert_allclose([axes.A[0], axes.E[0]], start)          # held before 0
+    np.testing.assert_allclose([axes.azimuth[0], axes.E[0]], start)    # held before 0
     if duration > 0:
         just_before = slew(P, start, target, duration - 1e-3)
         assert abs(just_before.A_dot[0]) + abs(just_before.E_dot[0]) > 0

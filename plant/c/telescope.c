@@ -123,6 +123,12 @@ int mb_tel_slew_duration(const mb_tel_params *p, double start_az, double start_e
     return MB_TEL_OK;
 }
 
+/* The spec's R_WB = Rz(A) Rx(90 deg - E) with {W} = (east, north, up) points the boresight
+   at the astronomical azimuth Az = 180 deg - A (north through east): A = 180 deg - Az, and
+   the same map takes A back to Az. Slew targets and sidereal tracks are astronomical;
+   everything from the axes on uses A. */
+static double mount_angle(double azimuth_or_angle) { return PI - azimuth_or_angle; }
+
 /* --- sidereal tracking -------------------------------------------------------------- */
 
 /* Unit pointing vector (north, east, up) at hour angle H and its two time derivatives. */
@@ -224,7 +230,8 @@ static void slew_axes(const mb_tel_params *p, const mb_tel_profile *prof, int n,
         double ti = t[i] - prof->start_delay, *row = axes + 6 * i;
         trapezoid_at(&az, ti, &row[0], &row[1], &row[2]);
         trapezoid_at(&el, ti, &row[3], &row[4], &row[5]);
-        row[0] = prof->start_az + row[0];
+        row[0] = mount_angle(prof->start_az + row[0]);     /* targets are astronomical */
+        row[1] = -row[1]; row[2] = -row[2];
         row[3] = prof->start_el + row[3];
     }
 }
@@ -244,13 +251,13 @@ static int sidereal_axes(const mb_tel_params *p, const mb_tel_profile *prof, int
         double nn = u[0], e = u[1], z = u[2], n1 = u1[0], e1 = u1[1], z1 = u1[2];
         double n2 = u2[0], e2 = u2[1], z2 = u2[2];
         double cos_E = hypot(nn, e), cos_E2 = cos_E * cos_E, *row = axes + 6 * i;
-        double A_dot = (nn * e1 - e * n1) / cos_E2;
-        row[1] = A_dot;
-        row[2] = (nn * e2 - e * n2) / cos_E2 - 2 * A_dot * (nn * n1 + e * e1) / cos_E2;
+        double Az_dot = (nn * e1 - e * n1) / cos_E2;      /* astronomical azimuth's rates */
+        row[1] = -Az_dot;
+        row[2] = -((nn * e2 - e * n2) / cos_E2 - 2 * Az_dot * (nn * n1 + e * e1) / cos_E2);
         row[3] = atan2(z, cos_E);
         row[4] = z1 / cos_E;                              /* from sin E = z */
         row[5] = (z2 + z * (row[4] * row[4])) / cos_E;
-        row[0] = azimuth(H, nn, e, dec, lat) - TWO_PI * wraps;
+        row[0] = mount_angle(azimuth(H, nn, e, dec, lat) - TWO_PI * wraps);
         if (row[3] < 0 && status == MB_TEL_OK) {
             status = MB_TEL_BELOW_HORIZON;
             if (first_bad) *first_bad = i;
@@ -399,7 +406,8 @@ int mb_tel_fmu_rows(const mb_tel_params *p, const mb_tel_profile *prof, int n,
             } else {
                 reference_row(p, ax, row + 18, row + 24, row + 30);
             }
-            row[36] = ax[0]; row[37] = ax[3]; row[38] = ax[1]; row[39] = ax[4];
+            /* the axis outputs: astronomical azimuth (the mount angle's involution), elevation */
+            row[36] = mount_angle(ax[0]); row[37] = ax[3]; row[38] = -ax[1]; row[39] = ax[4];
         }
     }
     return status;

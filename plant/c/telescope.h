@@ -4,8 +4,9 @@
    Law: shared/spec/telescope.md. SI (m, rad, s), every derivative analytic. The Python API
    (plant/telescope.py, plant/trajectory.py) and the telescope FMUs call these functions.
 
-   Arrays are row-major. "axes" is (n, 6) with columns A, A', A'', E, E', E'' (azimuth north
-   through east, elevation). Poses are (n, 6): x, y, z, roll, pitch, yaw. Times need not be
+   Arrays are row-major. "axes" is (n, 6) with columns A, A', A'', E, E', E'': A the mount's
+   azimuth angle of R_WB = Rz(A) Rx(90 deg - E), A = 180 deg - Az with Az the astronomical
+   azimuth (north through east; shared/spec/telescope.md), E the elevation. Poses are (n, 6): x, y, z, roll, pitch, yaw. Times need not be
    increasing for the C; the Python API still demands strictly increasing times. */
 
 /* Site, lever arm, axis limits, subreflector correction and home pose (TelescopeParams).
@@ -33,8 +34,8 @@ enum mb_tel_kind {
    the profile at t - start_delay (the start pointing holds before it). */
 typedef struct {
     int kind;                  /* enum mb_tel_kind */
-    double start_az, start_el; /* rad, slew start */
-    double target_az, target_el; /* rad, slew target */
+    double start_az, start_el; /* rad, slew start: astronomical azimuth, elevation */
+    double target_az, target_el; /* rad, slew target: astronomical azimuth, elevation */
     double ra, dec;            /* rad, apparent (of date) right ascension and declination */
     double utc_start;          /* s, UTC at t = 0 as seconds since 1970-01-01 (Unix time) */
     double paper_duration;     /* s */
@@ -100,7 +101,8 @@ int mb_tel_quintic(int dim, const double *start, const double *stop, double dura
                    int n, const double *t, double *pos, double *vel, double *acc);
 
 /* The telescope FMU's 40 outputs at n times, rows (n, 40): base_pose, base_rate, base_acc,
-   reference_pose, reference_rate, reference_acc (6 each), axis (A, E), axis_rate (A', E').
+   reference_pose, reference_rate, reference_acc (6 each), axis (Az = 180 deg - A, E),
+   axis_rate (Az' = -A', E').
    Paper profile: the reference is the quintic ref_start -> ref_stop. *first_bad as in
    mb_tel_axes. */
 int mb_tel_fmu_rows(const mb_tel_params *p, const mb_tel_profile *prof, int n,
