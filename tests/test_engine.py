@@ -98,3 +98,38 @@ def test_killed_worker_and_interrupt_resume_without_loss_or_repeat(campaign, tmp
         third = eng.run(jobs, files, store, progress=False)
         assert eng.cluster is None
     assert not third.computed and len(third.skipped) == len(jobs)
+
+
+def test_existing_cluster_by_address(campaign, tmp_path):
+    """A scheduler and a worker started with the dask command line, as on a cluster;
+    the engine given its address gives the sequential numbers."""
+    import socket
+    import subprocess
+    import sys
+
+    scenario, paths, values, jobs, files, sequential = campaign
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    address = f"tcp://127.0.0.1:{port}"
+    dask = [sys.executable, "-m", "dask"]
+    scheduler = subprocess.Popen(dask + ["scheduler", "--host", "127.0.0.1", "--port", str(port),
+                                         "--dashboard-address", ":0"],
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    worker = None
+    try:
+        worker = subprocess.Popen(dask + ["worker", address, "--nworkers", "1", "--nthreads", "1",
+                                          "--local-directory", str(tmp_path / "worker")],
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        store = engine.Store(tmp_path / "runs")
+        with engine.Engine(address=address) as eng:
+            outcome = eng.run(jobs[:2], files, store, progress=False)
+            assert eng.cluster is None            # nothing started here
+        assert len(outcome.computed) == 2 and not outcome.failed
+        for job in jobs[:2]:
+            _same_as_sequential(store, job.key, sequential[job.key])
+    finally:
+        for process in (worker, scheduler):
+            if process is not None:
+                process.terminate()
+                process.wait(timeout=30)
