@@ -244,38 +244,56 @@ def load(path, ci=False):
     return parse(text, str(path), path.parent, ci)
 
 
-def jobs(campaign):
-    """(jobs, {sha256: FMU path}): one Job per case, scenarios bound once per distinct
-    set of top-level settings."""
-    scripts = None
-    bound = {}                      # top-level overrides -> (scenario, paths, values, descriptions)
-    all_jobs, files = [], {}
-    for case in campaign.cases:
-        top = {k: v for k, v in case.values.items() if k in SCENARIO_KEYS}
+class CampaignJobs:
+    """The campaign's runs as engine Jobs, made as they are iterated (memory does not grow
+    with the number of runs); the scenario is loaded and bound once per distinct set of
+    top-level settings, the FMUs hashed once."""
+
+    def __init__(self, campaign):
+        self.campaign = campaign
+        self._bound = {}            # top-level overrides -> (scenario, values, descriptions, digests)
+        self.files = {}             # sha256 -> FMU path
+        self._scripts = None
+        self._bind({})              # the FMUs, built and hashed before anything runs
+
+    def __len__(self):
+        return len(self.campaign.cases)
+
+    def _bind(self, top):
         marker = repr(sorted(top.items()))
-        if marker not in bound:
-            scenario = spec.load(campaign.scenario_path, overrides=top)
+        if marker not in self._bound:
+            c = self.campaign
+            scenario = spec.load(c.scenario_path, overrides=top)
             if any(p.get("fidelity") == "auto" for p in scenario.parameters.values()):
-                raise CampaignError(campaign.source, "scenario", 'a plant fidelity "auto" is chosen per scenario '
+                raise CampaignError(c.source, "scenario", 'a plant fidelity "auto" is chosen per scenario '
                                     'run; a campaign names a fidelity level (set "plant.fidelity")')
-            scripts = scripts or ensure_built(sorted({spec.FMU_SCRIPTS[f] for f in scenario.fmus.values()}))
-            paths = {inst: scripts[spec.FMU_SCRIPTS[fmu]] for inst, fmu in scenario.fmus.items()}
+            self._scripts = self._scripts or ensure_built(sorted({spec.FMU_SCRIPTS[f] for f in scenario.fmus.values()}))
+            paths = {inst: self._scripts[spec.FMU_SCRIPTS[fmu]] for inst, fmu in scenario.fmus.items()}
+            digests = {inst: engine.file_digest(p) for inst, p in paths.items()}
+            self.files.update({digests[inst]: p for inst, p in paths.items()})
             descriptions = {inst: unpack(p)[0] for inst, p in paths.items()}
-            bound[marker] = (scenario, paths, spec.bind(scenario, descriptions), descriptions)
-        scenario, paths, values, descriptions = bound[marker]
-        change = {}
-        for key, raw in case.values.items():
-            if key in SCENARIO_KEYS:
-                continue
-            inst = key.split(".", 1)[0]
-            variables = {v.name: v for v in descriptions[inst].modelVariables}
-            targets = spec.expand(variables, key)
-            for target, item in zip(targets, raw if isinstance(raw, list) else [raw]):
-                change.setdefault(inst, {})[target] = spec._value(campaign.source, key, variables[target], item)
-        made, fmus = engine.prepared_jobs(scenario, paths, values, [(case.label, change)], campaign.keep_records)
-        all_jobs += made
-        files.update(fmus)
-    return all_jobs, files
+            self._bound[marker] = (scenario, spec.bind(scenario, descriptions), descriptions, digests)
+        return self._bound[marker]
+
+    def __iter__(self):
+        for case in self.campaign.cases:
+            scenario, values, descriptions, digests = self._bind(
+                {k: v for k, v in case.values.items() if k in SCENARIO_KEYS})
+            params = {inst: dict(v) for inst, v in values.items()}
+            for key, raw in case.values.items():
+                if key in SCENARIO_KEYS:
+                    continue
+                inst = key.split(".", 1)[0]
+                variables = {v.name: v for v in descriptions[inst].modelVariables}
+                for target, item in zip(spec.expand(variables, key), raw if isinstance(raw, list) else [raw]):
+                    params[inst][target] = spec._value(self.campaign.source, key, variables[target], item)
+            yield engine.Job(case.label, scenario, params, digests, self.campaign.keep_records)
+
+
+def jobs(campaign):
+    """(jobs, {sha256: FMU path}): a sized iterable of one engine Job per case."""
+    made = CampaignJobs(campaign)
+    return made, made.files
 
 
 def results(campaign, store, job_list):

@@ -259,34 +259,42 @@ class Engine:
 
     def run(self, jobs, fmu_files, store, progress=True, retry_failed=False, on_result=None, name="runs"):
         """Run every job whose result is not in ``store`` yet. ``jobs``: a sized iterable
-        of Job; ``fmu_files``: sha256 -> FMU path. ``on_result(job, result)`` is called
-        after each result is on disk. Ctrl-C stops cleanly (finished runs stay on disk)."""
+        of Job, iterated twice and never held (jobs made on the fly keep memory flat);
+        ``fmu_files``: sha256 -> FMU path. At most 2 jobs per worker are in flight.
+        ``on_result(job, result)`` is called after each result is on disk. Ctrl-C stops
+        cleanly (finished runs stay on disk)."""
         from distributed import as_completed
         began = time.perf_counter()
         total = len(jobs)
-        skipped, todo, seen = [], [], set()
-        for job in jobs:
-            if job.key in seen:
-                continue
-            seen.add(job.key)
-            status = store.status(job.key)
-            if status == "ok" or (status == "failed" and not retry_failed):
-                skipped.append(job.key)
-            else:
-                todo.append(job)
+
+        def to_run(record):
+            """Jobs not on disk yet, each key once; ``record`` collects the others."""
+            seen = set()
+            for job in jobs:
+                if job.key in seen:
+                    continue
+                seen.add(job.key)
+                status = store.status(job.key)
+                if status == "ok" or (status == "failed" and not retry_failed):
+                    record.append(job.key)
+                else:
+                    yield job
+
+        skipped = []
+        count = sum(1 for _ in to_run(skipped))     # a first pass: how many, for the progress bar
         outcome = Outcome(total, [], skipped, {}, 0.0)
-        if not todo:
+        if not count:
             return outcome
         blobs = self._scatter(fmu_files)
         window = max(2, 2 * sum(self.client.nthreads().values()))
-        pending, queue, in_flight = as_completed(), iter(todo), {}
+        pending, queue, in_flight = as_completed(), to_run([]), {}
 
         def submit(job):
             future = self.client.submit(execute, job, blobs, key=f"run-{job.key}-{time.monotonic_ns()}")
             in_flight[future.key] = job
             pending.add(future)
 
-        bar = tqdm(total=len(todo), desc=f"{name} ({len(skipped)} of {total} on disk)", unit="run",
+        bar = tqdm(total=count, desc=f"{name} ({len(skipped)} of {total} on disk)", unit="run",
                    disable=not progress, smoothing=0.1)
         try:
             for job in islice(queue, window):

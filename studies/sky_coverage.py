@@ -36,6 +36,7 @@ CAMPAIGNS = ("sky_slews", "slew_sizes", "keyhole_tracks")
 MODES = ("fixed_base", "moving_base")
 MARKS = (10.0, 100.0)            # µm: focus, hexapod metrology
 METRIC = "pose error"
+SKY_RADIUS = 0.6                 # deg of zenith distance shown on the sky chart
 DOCS = pathlib.Path(__file__).resolve().parent.parent / "docs"
 
 
@@ -197,7 +198,6 @@ def keyhole_chart(rows_, store, path):
     fixed = [r for r in rows_ if r["mode"] == "fixed_base"]
     errors = np.concatenate([store.series(r["key"])[METRIC][1] for r in fixed]) if fixed else np.ones(1)
     norm = LogNorm(max(errors[errors > 0].min(), 1e-4), errors.max())
-    reach = 0.0
     for r in fixed:
         t, err = store.series(r["key"])[METRIC]
         v = r["values"]
@@ -206,10 +206,9 @@ def keyhole_chart(rows_, store, path):
                                         to_si(v["base.declination"], "rad"), utc, t)
         az, zd = axes.azimuth, 90.0 - np.degrees(axes.E)
         points = sky.scatter(az, zd, c=np.maximum(err, norm.vmin), norm=norm, cmap="plasma", s=4)
-        reach = max(reach, zd.max())
-    sky.set_rmax(max(reach * 1.05, 1.0))
-    sky.set_title("tracks in the sky (compass view, radius = zenith distance [deg]),\n"
-                  "coloured by the fixed-base pose error", fontsize=10)
+    sky.set_rmax(SKY_RADIUS)
+    sky.set_title(f"the tracks within {SKY_RADIUS:g} deg of the zenith (compass view, radius = zenith\n"
+                  f"distance [deg]), coloured by the fixed-base pose error", fontsize=10)
     if fixed:
         fig.colorbar(points, ax=sky, label="fixed-base platform position error [µm]", shrink=0.8)
     fig.savefig(path, dpi=100)

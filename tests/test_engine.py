@@ -133,3 +133,18 @@ def test_existing_cluster_by_address(campaign, tmp_path):
             if process is not None:
                 process.terminate()
                 process.wait(timeout=30)
+
+
+def test_sweep_on_workers_writes_what_the_sequential_runner_writes(tmp_path):
+    """python -m scenarios FILE --jobs 2: the same metrics.json numbers and byte-identical CSVs."""
+    from scenarios import runner
+    text = (SHIPPED / "telescope_slew.toml").read_text().replace('stop_time = "8 s"', 'stop_time = "5.2 s"')
+    path = tmp_path / "slew.toml"
+    path.write_text(text)
+    _, sequential, _ = runner.run_scenario(path, tmp_path / "seq", ci=True, progress=False)
+    _, parallel, report = runner.run_scenario(path, tmp_path / "par", ci=True, progress=False, jobs=2)
+    assert [r.label for r in parallel] == [r.label for r in sequential] == ["none", "fixed_base", "moving_base"]
+    for seq, par in zip(sequential, parallel):
+        assert par.metrics == json.loads(json.dumps(seq.metrics, default=float))
+        assert par.csv_path.read_bytes() == seq.csv_path.read_bytes()
+    assert report.exists()
