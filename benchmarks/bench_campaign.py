@@ -43,13 +43,14 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         master.run(scenario, paths, jobs[0].parameters, pathlib.Path(tmp), "warm",
                    [metrics.make(m) for m in scenario.metrics])
-        began = time.perf_counter()
+        began, cpu = time.perf_counter(), time.process_time()
         for job in jobs:
             master.run(scenario, paths, job.parameters, pathlib.Path(tmp), "seq",
                        [metrics.make(m) for m in scenario.metrics])
-        sequential = time.perf_counter() - began
+        sequential, cpu = time.perf_counter() - began, time.process_time() - cpu
     print(f"{args.runs} runs of {args.stop:g} s simulated ({int(args.stop / scenario.step)} macro steps each)")
-    print(f"  sequential in this process: {sequential:.2f} s ({sequential / args.runs:.3f} s per run)")
+    print(f"  sequential in this process: {sequential:.2f} s ({sequential / args.runs:.3f} s per run, "
+          f"{cpu / args.runs:.3f} s CPU)")
 
     walls = {}
     for workers in range(1, args.max_workers + 1):
@@ -65,11 +66,13 @@ def main(argv=None):
             assert not outcome.failed, outcome.failed
             overhead = [r["task_time_s"] - r["run_time_s"] for r in results]
             run = statistics.median(r["run_time_s"] for r in results)
+            cpu = statistics.median(r["task_cpu_s"] for r in results)
+            idle = (walls[workers] * workers - sum(r["task_time_s"] for r in results)) / args.runs
             print(f"  engine, {workers} worker(s): cluster start {eng.start_time:.2f} s; {walls[workers]:.2f} s for "
                   f"the runs = {sequential / walls[workers]:.2f}x sequential, {walls[1] / walls[workers]:.2f}x "
-                  f"1 worker; per run on the worker: co-simulation loop {run:.3f} s, instantiate + "
-                  f"initialise + collect {statistics.median(overhead) * 1e3:.0f} ms; client side (scheduling, "
-                  f"transfer, writing) {(walls[workers] * workers - sum(r['task_time_s'] for r in results)) / args.runs * 1e3:.0f} ms")
+                  f"1 worker; per run on the worker: co-simulation loop {run:.3f} s wall, task {cpu:.3f} s CPU, "
+                  f"instantiate + initialise + collect {statistics.median(overhead) * 1e3:.0f} ms; worker idle "
+                  f"per run (scheduling, transfer, writing, the last run's tail) {idle * 1e3:.0f} ms")
 
     print("wall time against the number of runs (2 workers):")
     with tempfile.TemporaryDirectory() as tmp, engine.Engine(jobs=args.max_workers) as eng:

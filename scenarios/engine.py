@@ -46,6 +46,10 @@ from tqdm import tqdm
 from . import master, metrics
 from .spec import Link
 
+# Dask's statistical profiler samples the worker's threads every 10 ms: it took ~13 % of a
+# run's CPU (benchmarks/bench_campaign.py). Off for local workers; for a cluster's workers
+# set DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False (README).
+WORKER_CONFIG = {"distributed.worker.profile.enabled": False}
 _RUN_LOCK = threading.Lock()        # one run at a time per worker process
 _FMU_DIR = None                     # this worker process's copies of the FMU files
 _FMU_FILES = {}                     # sha256 -> local FMU path
@@ -120,7 +124,7 @@ def _outcome(run):
 def execute(job, blobs):
     """Run one job where this is called; a failing run returns its message instead of raising."""
     with _RUN_LOCK:
-        began = time.perf_counter()
+        began, cpu = time.perf_counter(), time.process_time()
         out = {"key": job.key, "label": job.label, "worker": f"{socket.gethostname()}:{os.getpid()}"}
         with tempfile.TemporaryDirectory(prefix="movingbase-run-") as tmp:
             csv_path = pathlib.Path(tmp) / "run.csv"
@@ -137,6 +141,7 @@ def execute(job, blobs):
             if job.keep_record and csv_path.exists():
                 out["record"] = gzip.compress(csv_path.read_bytes(), compresslevel=1)
         out["task_time_s"] = time.perf_counter() - began
+        out["task_cpu_s"] = time.process_time() - cpu     # this process's CPU (the worker's own threads too)
         return out
 
 
@@ -216,13 +221,15 @@ class Engine:
     def client(self):
         """The Dask client, started on first use (nothing to run: no cluster)."""
         if self._client is None:
+            import dask
             from distributed import Client, LocalCluster
             began = time.perf_counter()
             if self.address:
                 self._client = Client(self.address, timeout=30)
             else:
-                self.cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
-                                            dashboard_address=None, silence_logs=logging.ERROR)
+                with dask.config.set(WORKER_CONFIG):
+                    self.cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
+                                                dashboard_address=None, silence_logs=logging.ERROR)
                 self._client = Client(self.cluster)
             self._client.wait_for_workers(1 if self.address else self.jobs, timeout=120)
             self.start_time = time.perf_counter() - began
