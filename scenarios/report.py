@@ -281,6 +281,9 @@ def _measures(m):
 
 
 def _cell(result):
+    if "rotation_rms" in result:   # a pose: position and rotation, each with its unit
+        return (f"position RMS {fmt(result['rms'])} µm, peak {fmt(result['peak'])} µm; rotation RMS "
+                f"{fmt(result['rotation_rms'])} µrad, peak {fmt(result['rotation_peak'])} µrad")
     return ", ".join(f"{k} {fmt(v)}" for k, v in result.items() if k != "unit")
 
 
