@@ -125,7 +125,6 @@ def _motion_panels(ax_rate, ax_acc, motion, interval):
         ax_acc.plot(t, acc[:, k], color=f"C{k + 5}", label=name, lw=1.2)
     ax_rate.set_ylabel("axis rate\n[deg/s]")
     ax_acc.set_ylabel("axis acceleration\n[deg/s²]")
-    ax_rate.legend(fontsize=8, loc="upper left", title="base motion (telescope axes)", title_fontsize=8)
     ax_acc.text(0.01, 0.04, f"acceleration: difference of the rates recorded every {interval * 1e3:g} ms",
                 transform=ax_acc.transAxes, fontsize=7.5, color="0.3")
     for ax in (ax_rate, ax_acc):
@@ -168,12 +167,15 @@ def _error_chart(scenario, runs, metric, path):
             ax.axvspan(scenario.start_time, metric.start, color="0.93", zorder=0)
             ax.axvline(metric.start, color="0.4", lw=0.9, ls=":")
     if metric.start > scenario.start_time:
-        axes[0].text(0.5 * (scenario.start_time + metric.start), 0.97,
-                     f"settling\n{scenario.start_time:g}-{metric.start:g} s:\nnot measured",
-                     transform=axes[0].get_xaxis_transform(), ha="center", va="top", fontsize=7.5, color="0.3")
+        axes[0].text(0.5 * (scenario.start_time + metric.start), 0.5,
+                     f"settling {scenario.start_time:g}-{metric.start:g} s: not measured", rotation=90,
+                     transform=axes[0].get_xaxis_transform(), ha="center", va="center", fontsize=7.5, color="0.3")
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, title=(scenario.sweep[0] if scenario.sweep else None), fontsize=8.5,
-               title_fontsize=8.5, loc="outside lower center", ncol=len(runs))
+               title_fontsize=8.5, loc="outside lower left", ncol=len(runs))
+    if motion:
+        fig.legend(*axes[-1].get_legend_handles_labels(), title="base motion: telescope axes", fontsize=8.5,
+                   title_fontsize=8.5, loc="outside lower right", ncol=2)
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(f"{scenario.name}: {metric.name} against time (measured from {metric.start:g} s)\n{FLOOR_TEXT}",
                  fontsize=10)

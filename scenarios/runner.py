@@ -78,8 +78,9 @@ def run_scenario(path, out="out", ci=False, progress=True):
                    "kernel, ~15 s)", unit="%", disable=not progress,
                    bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
 
-        def update(fraction, bar=bar, desc=desc):
-            if bar.desc != desc:   # stepping has begun
+        def update(fraction, bar=bar, desc=desc, begun=[]):
+            if not begun:   # stepping has begun: the FMUs are loaded
+                begun.append(True)
                 bar.set_description_str(desc, refresh=False)
             bar.update(round(100 * fraction) - bar.n)
         try:
