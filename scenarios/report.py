@@ -41,8 +41,11 @@ def compare(metrics_by_run, metric, unit="µm"):
     text = (f"ignoring the base motion (run `fixed_base`: the feedforward uses the fixed-base model) gives "
             f"RMS {fmt(fixed['rms'])} {unit} and peak {fmt(fixed['peak'])} {unit}, against "
             f"{fmt(moving['rms'])} {unit} and {fmt(moving['peak'])} {unit} with the moving-base model "
-            f"(run `moving_base`): {ratio(fixed['rms'], moving['rms'])} the RMS, "
-            f"{ratio(fixed['peak'], moving['peak'])} the peak")
+            f"(run `moving_base`)")
+    if moving["peak"] < FLOOR:
+        return text + (f"; the moving-base error stays under the {FLOOR:g} {unit} the model resolves, so its "
+                       "ratio to the fixed-base error means nothing.")
+    text += f": {ratio(fixed['rms'], moving['rms'])} the RMS, {ratio(fixed['peak'], moving['peak'])} the peak"
     if "rotation_rms" in fixed:
         text += (f"; rotation error RMS {fmt(fixed['rotation_rms'])} µrad against {fmt(moving['rotation_rms'])} µrad "
                  f"({ratio(fixed['rotation_rms'], moving['rotation_rms'])})")
@@ -50,8 +53,9 @@ def compare(metrics_by_run, metric, unit="µm"):
 
 
 def ratio(a, b):
-    """a / b as 'Nx', 3 significant digits (the same text wherever a ratio is printed)."""
-    return f"{a / max(b, 1e-300):.3g}x"
+    """a / b as 'Nx', 3 significant digits, no exponent (the same text wherever a ratio is printed)."""
+    x = float(f"{a / max(b, 1e-300):.3g}")
+    return f"{x:.0f}x" if x >= 100 else f"{x:g}x"
 
 
 def _series(run, name, scale):

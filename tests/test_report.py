@@ -2,11 +2,12 @@
 chart is written and holds the series it should (figure objects, not pixels), the base
 motion panel's acceleration matches the analytic derivative of the recorded rate, and
 the report states settings, names the runs and gives each number once."""
+import json
 import math
 
 import numpy as np
 
-from scenarios import report, spec
+from scenarios import headline, report, spec
 from scenarios.master import Run
 from scenarios.runner import SHIPPED
 
@@ -163,4 +164,19 @@ def test_report_names_runs_states_settings_and_gives_base_effect_once(tmp_path):
 
 def test_ratio_and_fmt_are_three_digits():
     assert report.ratio(9.2547, 0.0641) == f"{9.2547 / 0.0641:.3g}x" == "144x"
+    assert report.ratio(129.0, 0.0767) == "1680x" and report.ratio(1.0, 0.5) == "2x"
     assert report.fmt(math.pi) == "3.14"
+
+
+def test_readme_headline_is_generated_from_the_stored_metrics():
+    """The README's headline section is what scenarios.headline writes from
+    docs/headline.json, with the report's own sentences: no number typed by hand."""
+    store = json.loads(headline.STORE.read_text())
+    text = headline.README.read_text()
+    section = text[text.index(headline.BEGIN):text.index(headline.END) + len(headline.END)]
+    assert section == headline.render(store)
+    for scene, runs in store.items():
+        assert report.compare(runs, "pose error") in section
+        fixed, moving = runs["fixed_base"]["pose error"], runs["moving_base"]["pose error"]
+        if moving["peak"] >= report.FLOOR:
+            assert report.ratio(fixed["rms"], moving["rms"]) + " the RMS" in section
