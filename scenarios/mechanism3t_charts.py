@@ -17,6 +17,25 @@ def _section(ax, points, axes, keep, **style):
     ax.scatter(sel[:, axes[0]], sel[:, axes[1]], s=2, **style)
 
 
+def slider_force_chart(history, path):
+    """Slider forces of the paper example against the paper's peak; returns the axes (the
+    figure is closed)."""
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for k, name in enumerate(("x_A2", "y_A1", "y_A3")):
+        ax.plot(history.t, history.forces[:, k], label=f"slider {name}")
+    ax.axhline(PAPER_PEAK_FORCE_N, color="k", ls=":", label=f"paper's peak {PAPER_PEAK_FORCE_N} N")
+    ax.axhline(0.0, color="0.5", lw=0.6)
+    ax.set(xlabel="t / s", ylabel="slider force / N", xlim=(history.t[0], history.t[-1]),
+           title=f"Paper example, sliders 10 sin(0.5 t) mm, 10 kg payload: peak {history.peak:.1f} N "
+                 f"({history.peak_slider})")
+    ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return ax
+
+
 def write_charts(outdir, step=0.005):
     """Write the PNG charts into outdir; return the headline figures and the chart paths."""
     outdir = Path(outdir)
@@ -54,20 +73,8 @@ def write_charts(outdir, step=0.005):
     fig.savefig(paths["workspace_sections"], dpi=120)
     plt.close(fig)
 
-    fig, ax = plt.subplots(figsize=(8, 4.5))
-    for k, name in enumerate(("x_A2", "y_A1", "y_A3")):
-        ax.plot(history.t, history.forces[:, k], label=f"slider {name}")
-    ax.axhline(PAPER_PEAK_FORCE_N, color="k", ls=":", label=f"paper's peak {PAPER_PEAK_FORCE_N} N")
-    ax.axhline(0.0, color="0.5", lw=0.6)
-    ax.set(xlabel="t / s", ylabel="slider force / N", xlim=(history.t[0], history.t[-1]),
-           title=f"Paper example, sliders 10 sin(0.5 t) mm, 10 kg payload: peak {history.peak:.1f} N "
-                 f"({history.peak_slider})")
-    ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
-    ax.grid(alpha=0.3)
     paths["slider_forces"] = outdir / "slider_forces.png"
-    fig.tight_layout()
-    fig.savefig(paths["slider_forces"], dpi=120)
-    plt.close(fig)
+    slider_force_chart(history, paths["slider_forces"])
 
     return {"peak_force_N": history.peak, "peak_slider": history.peak_slider,
             "force_at_reference_N": history.forces[0].tolist(), "paper_peak_force_N": PAPER_PEAK_FORCE_N,

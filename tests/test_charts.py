@@ -39,6 +39,11 @@ def test_mechanism3t_charts(tmp_path):
     history = m3t.paper_example()
     assert result["peak_force_N"] == pytest.approx(np.abs(history.forces).max(), rel=1e-12)
     assert 0 < result["workspace_volume_m3"] < result["paper_criterion_volume_m3"]
+    ax = mechanism3t_charts.slider_force_chart(history, tmp_path / "forces.png")
+    lines = {line.get_label(): line for line in ax.get_lines()}
+    for k, name in enumerate(("x_A2", "y_A1", "y_A3")):
+        np.testing.assert_array_equal(lines[f"slider {name}"].get_ydata(), history.forces[:, k])
+    assert set(lines[f"paper's peak {mechanism3t_charts.PAPER_PEAK_FORCE_N} N"].get_ydata()) == {142.2}
 
 
 def test_eq43_as_printed_counts_gravity_twice():

@@ -6,6 +6,7 @@ import json
 import math
 
 import numpy as np
+import pytest
 
 from scenarios import headline, report, spec
 from scenarios.master import Run
@@ -180,3 +181,17 @@ def test_readme_headline_is_generated_from_the_stored_metrics():
         fixed, moving = runs["fixed_base"]["pose error"], runs["moving_base"]["pose error"]
         if moving["peak"] >= report.FLOOR:
             assert report.ratio(fixed["rms"], moving["rms"]) + " the RMS" in section
+
+
+def test_cli_help_and_unknown_scenario_list_the_shipped_ones(capsys):
+    from scenarios.__main__ import main
+    shipped = sorted(p.stem for p in SHIPPED.glob("*.toml"))
+    with pytest.raises(SystemExit) as done:
+        main(["--help"])
+    assert done.value.code == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert all(name in out for name in shipped) and "stepping loop only" in out
+    with pytest.raises(SystemExit) as done:
+        main(["no_such_scene"])
+    message = str(done.value.code)
+    assert "'no_such_scene'" in message and all(name in message for name in shipped)
