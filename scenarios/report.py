@@ -16,10 +16,12 @@ import numpy as np
 
 MARKS_UM = {"0.1 mm": 100.0, "10 µm": 10.0}
 TRACKING = ("leg_tracking", "pose_tracking", "tracking")
-# Log axes stop here: 1 nm (1 nrad), a thousandth of the moving-base model's typical error
-# and far below any metrology; what lies under it is integration and round-off noise.
+# Log axes stop at 1 nm (1 nrad): finer detail than a rigid-body model without joint play,
+# compliance or sensor noise resolves, and far below any metrology; without a floor the
+# axis ran down to round-off (1e-10 µm) and its dips looked like signal.
 FLOOR = 1e-3
-FLOOR_TEXT = "axis floored at 1e-3 (1 nm / 1 nrad): smaller values are numerical noise, not resolved by the model"
+FLOOR_TEXT = ("log axis floored at 1e-3 µm (1 nm) / 1e-3 µrad: finer than this rigid-body model resolves "
+              "(no joint play, compliance or sensor noise)")
 COINCIDE = 0.02      # two curves closer than this fraction of their peak are said to coincide
 RUN_STYLES = ({"ls": "-", "lw": 3.0, "alpha": 0.45}, {"ls": (0, (5, 2)), "lw": 1.4},
               {"ls": "-", "lw": 1.0}, {"ls": "-.", "lw": 1.0}, {"ls": ":", "lw": 1.4})
@@ -103,12 +105,14 @@ def _telescope(scenario):
 
 
 def base_motion(scenario, run):
-    """Time, axis angles [deg], rates [deg/s] and accelerations [deg/s^2] (differenced
-    from the recorded rates) of the scenario's telescope, read from the run's CSV; None if
-    the axis rates were not recorded."""
+    """Time, rates [deg/s] and accelerations [deg/s^2] (differenced from the recorded
+    rates) of the scenario's telescope axes, read from the run's CSV; None if the axis
+    rates were not recorded or the plant holds its base fixed (moving_base = 0)."""
     inst = _telescope(scenario)
-    if inst is None:
-        return None
+    plants = [i for i, fmu in scenario.fmus.items() if fmu == "hexapod_plant"]
+    if inst is None or (plants and all(str(scenario.parameters.get(i, {}).get("moving_base", 1)) == "0"
+                                       for i in plants)):
+        return None     # no telescope, or its motion is not applied to the plant
     with open(run.csv_path, newline="") as f:
         header = next(csv.reader(f))
     want = [f"{inst}.axis_rate[{k}] [rad/s]" for k in (1, 2)]

@@ -108,6 +108,12 @@ def test_run_under_the_floor_is_said(tmp_path):
     assert "coincide" not in _texts(panels["position"])
 
 
+def test_no_base_panel_when_the_plant_holds_its_base_fixed(tmp_path):
+    scenario = spec.load(SHIPPED / "paper_fixed_base.toml", overrides={"stop_time": f"{T1} s"})
+    panels = report._error_chart(scenario, _runs(tmp_path)[:2], _metric(scenario, "pose error"), tmp_path / "f.png")
+    assert set(panels) == {"position", "rotation"}
+
+
 def test_chart_without_a_telescope_has_no_base_panel(tmp_path):
     scenario = spec.load(SHIPPED / "mechanism3t_paper.toml")
     metric = next(m for m in scenario.metrics if m.kind in report.TRACKING)
