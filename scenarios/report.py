@@ -54,7 +54,17 @@ def _summary_chart(scenario, runs, tracked, path):
 
 
 def _fmt(value):
-    return f"{value:.4g}" if isinstance(value, float) else str(value)
+    if isinstance(value, float):
+        return "n/a" if value != value else f"{value:.4g}"
+    return str(value)
+
+
+def _stopped(scenario, run):
+    """'failed at t = 5.01 s, partial: 5.01 of 8 s' for a failed run, else ''."""
+    if not run.failure:
+        return ""
+    return (f"failed at t = {scenario.start_time + run.sim_time:g} s, partial: {run.sim_time:g} of "
+            f"{scenario.stop_time - scenario.start_time:g} s")
 
 
 def write(scenario, runs, outdir):
@@ -71,8 +81,11 @@ def write(scenario, runs, outdir):
         for m in scenario.metrics:
             result = run.metrics[m.name]
             cells.append(", ".join(f"{k} {_fmt(v)}" for k, v in result.items() if k != "unit"))
-        lines.append(f"| {run.label} | " + " | ".join(cells) + f" | {run.wall_time:.2f} | {run.real_time_factor:.1f} |")
+        label = f"{run.label} **{_stopped(scenario, run)}**" if run.failure else run.label
+        lines.append(f"| {label} | " + " | ".join(cells) + f" | {run.wall_time:.2f} | {run.real_time_factor:.1f} |")
     lines.append("")
+    lines += [f"- **run {r.label} {_stopped(scenario, r)}**; its row covers the run up to then: {r.failure}"
+              for r in runs if r.failure]
     lines += [f"- {note}" for note in scenario.notes]
     lines += _findings(scenario, runs, tracked)
     for metric in tracked:
@@ -82,7 +95,8 @@ def write(scenario, runs, outdir):
     if tracked and len(runs) > 1:
         _summary_chart(scenario, runs, tracked, outdir / "summary.png")
         lines += ["![summary](summary.png)", ""]
-    lines += [f"Results per run: {', '.join(f'`{r.csv_path.name}`' for r in runs)} (CSV, units in the header)."]
+    lines += [f"Results per run: {', '.join(f'`{r.csv_path.name}`' for r in runs if r.csv_path)} "
+              "(CSV, units in the header)."]
     path = outdir / "report.md"
     path.write_text("\n".join(lines) + "\n")
     return path
@@ -97,14 +111,21 @@ def _findings(scenario, runs, tracked):
         if {"fixed_base", "moving_base"} <= set(by_label):
             fixed = by_label["fixed_base"].metrics[metric.name]
             moving = by_label["moving_base"].metrics[metric.name]
+            failed = [r for r in (by_label["fixed_base"], by_label["moving_base"]) if r.failure]
+            partial = "".join(f" (run {r.label} {_stopped(scenario, r)})" for r in failed)
+            if any(result["rms"] != result["rms"] for result in (fixed, moving)):
+                lines.append(f"- **{metric.name}**: no fixed- against moving-base comparison: the metric counted "
+                             f"nothing before the run stopped{partial}.")
+                continue
             lines.append(f"- **{metric.name}**: ignoring the base motion in the feedforward gives RMS "
                          f"{fixed['rms']:.3g} µm and peak {fixed['peak']:.3g} µm, against {moving['rms']:.3g} µm "
                          f"and {moving['peak']:.3g} µm with the moving-base model "
-                         f"({fixed['rms'] / max(moving['rms'], 1e-30):.3g}x the RMS).")
+                         f"({fixed['rms'] / max(moving['rms'], 1e-30):.3g}x the RMS){partial}.")
     for metric in scenario.metrics:
         if metric.kind == "base_effect":
             r = runs[0].metrics[metric.name]
+            partial = f" (run {runs[0].label} {_stopped(scenario, runs[0])})" if runs[0].failure else ""
             lines.append(f"- **why**: along this motion the base changes the leg forces by up to {r['peak']:.3g} kN; "
                          f"gravity turning with the base accounts for up to {r['gravity_peak']:.3g} kN, the "
-                         f"transport, centripetal and Coriolis terms for up to {r['transport_peak']:.3g} kN.")
+                         f"transport, centripetal and Coriolis terms for up to {r['transport_peak']:.3g} kN{partial}.")
     return lines + [""] if lines else []
