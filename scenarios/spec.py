@@ -419,12 +419,12 @@ def _check_telescope(src, key, scenario, inst, md_variables, values, written):
     names = {"slew": ("start_azimuth", "start_elevation", "target_azimuth", "target_elevation"),
              "sidereal": ("right_ascension", "declination", "utc_start", "latitude", "longitude"),
              "paper": ("paper_duration",)}.get(profile, ())
+    where = f"fmus.{inst}.parameters" if key == "fmus" else key
     limits = ("lever_arm", "latitude", "longitude", "az_rate_max", "az_acc_max", "el_rate_max", "el_acc_max")
     try:
         params = dataclasses.replace(telescope.TelescopeParams.tianma(), **{n: setting(n) for n in limits})
     except InvalidInputError as exc:
-        raise ScenarioError(src, f"{key}.{inst}" if key != "fmus" else f"fmus.{inst}.parameters",
-                            f"{shown(limits)}: plant.telescope refuses them: {exc}") from None
+        raise ScenarioError(src, where, f"{shown(limits)}: plant.telescope refuses them: {exc}") from None
     # the FMU evaluates the profile at t - start_delay; a grid of <= 1 s spacing over the run
     times = np.linspace(scenario.start_time, scenario.stop_time,
                         2 + int(np.ceil(scenario.stop_time - scenario.start_time))) - setting("start_delay")
@@ -438,8 +438,8 @@ def _check_telescope(src, key, scenario, inst, md_variables, values, written):
         elif profile == "paper":
             telescope.paper_manoeuvre(times, setting("paper_duration"))
     except (InvalidInputError, OverflowError, OSError, ValueError) as exc:
-        raise ScenarioError(src, f"{key}.{inst}" if key != "fmus" else f"fmus.{inst}.parameters",
-                            f"profile {profile!r} with {shown(names)}: plant.telescope refuses it: {exc}") from None
+        raise ScenarioError(src, where, f"profile {profile!r} with {shown(names)}: plant.telescope refuses it: "
+                            f"{exc}") from None
 
 
 def metric_variables(metric):
