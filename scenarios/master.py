@@ -247,7 +247,7 @@ def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progre
             recorder.close()
         for instance in instances.values():
             instance.terminate()
-    result = Run(label, recorder and outdir / f"{label}.csv", done, wall, done * h,
+    result = Run(label, outdir / f"{label}.csv" if recorder else None, done, wall, done * h,
                  {m.name: m.result() for m in metrics}, {m.name: m.series() for m in metrics})
     if failure is not None:
         result.failure = failure_line(failure, instances)

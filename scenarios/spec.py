@@ -9,9 +9,12 @@ checked against the unit the FMU declares. The format is documented in the READM
 A parameter written "@inst.var" takes the value of that output of another FMU at the
 start time (e.g. the plant's initial pose from the telescope's reference pose).
 
-Two stages: ``load`` checks the file's own structure; ``bind`` checks it against the FMUs'
-model descriptions (variables exist, causalities, sizes and units of connections, every
-input fed). Both run before the master starts.
+Two stages: ``load`` checks the file's own structure (also: stop_time a whole number of
+steps, metrics that count something); ``bind`` checks it against the FMUs' model
+descriptions (variables exist, causalities, sizes and units of connections, every input
+fed by exactly one source, values within the variables' declared min/max) and what the
+models refuse that min/max cannot say (the telescope profile over the run). Both run
+before the master starts.
 """
 import dataclasses
 import pathlib
@@ -319,7 +322,7 @@ def bind(scenario, model_descriptions):
                     raise ScenarioError(src, key, f"{var.name} is an {var.causality}, not a parameter or input")
                 values[inst][var.name] = _value(src, key, var, item)
                 fed.add((inst, var.name))
-    feeders = {}   # (instance, input) -> (connection index, "source -> target" as written)
+    feeders = {}   # (instance, input) -> (connection index, "source -> target" as written, source)
     for i, (source_ref, targets) in enumerate(scenario.connections):
         key = f"connections[{i}]"
         s_inst, s_vars = scalars(f"{key}.from", source_ref)
@@ -358,18 +361,17 @@ def bind(scenario, model_descriptions):
 
 def _feed_once(src, key, index, written, source, target, feeders, fed):
     """Record that connection ``index`` feeds ``target``; refuse a second feed of the same
-    input (another source, the same connection twice, or a parameter value as well)."""
+    input (another source, the same connection twice, or a parameter value as well):
+    the master would silently keep the last one."""
     if target in feeders:
-        other, other_written = feeders[target]
-        same = feeders.get(("source of",) + target) == source
-        what = "duplicate connection" if same else "two sources connected into one input"
+        other, other_written, other_source = feeders[target]
+        what = "duplicate connection" if other_source == source else "two sources connected into one input"
         raise ScenarioError(src, key, f"{what}: connections[{other}] ({other_written}) and connections[{index}] "
                             f"({written}) both feed {target[0]}.{target[1]}; keep one")
     if target in fed:
         raise ScenarioError(src, key, f"{written} feeds {target[0]}.{target[1]}, which fmus.{target[0]}.parameters "
                             "also sets; an input takes one source")
-    feeders[target] = (index, written)
-    feeders[("source of",) + target] = source
+    feeders[target] = (index, written, source)
     fed.add(target)
 
 
@@ -377,8 +379,9 @@ def _check_metric(src, key, metric, scalars):
     """The variables a metric reads exist, reported under the metric's own keys, with the
     sizes its kind needs."""
     if metric.kind == "base_effect":
-        for arg in ("base", "reference"):
-            for reference in metric_variables(metric)[:3] if arg == "base" else metric_variables(metric)[3:]:
+        references = metric_variables(metric)
+        for arg, reads in (("base", references[:3]), ("reference", references[3:])):
+            for reference in reads:
                 scalars(f"{key}.{arg}", reference)
         return
     sizes = {arg: len(scalars(f"{key}.{arg}", reference)[1]) for arg, reference in metric.args.items()}
@@ -404,6 +407,11 @@ def _check_models(src, key, scenario, variables, values, written=None):
 
 
 def _check_telescope(src, key, scenario, inst, md_variables, values, written):
+    """The profile evaluated as the FMU will (plant.telescope, the same parameters) on a
+    coarse grid over the run; its refusal becomes a ScenarioError naming the settings."""
+    if any(isinstance(v, Link) for v in values.values()):
+        return   # values known only at the start time
+
     def setting(name):
         if name in values:
             return values[name]
@@ -412,7 +420,9 @@ def _check_telescope(src, key, scenario, inst, md_variables, values, written):
 
     def shown(names):
         raws = {**scenario.parameters[inst], **{n: r for (i, n), r in written.items() if i == inst}}
-        return ", ".join(f"{n} = {raws[n]!r}" if n in raws else f"{n} = {setting(n):.6g} (default)" for n in names)
+        return ", ".join(f"{n} = {raws[n]!r}" if n in raws else
+                         f"{n} = {setting(n):.6g} {md_variables[n].unit or ''} (default)".replace("  ", " ")
+                         for n in names)
 
     profiles = _enumeration(md_variables["profile"].description)
     profile = next((p for p, i in profiles.items() if i == setting("profile")), None)
