@@ -478,7 +478,8 @@ def _value(source, key, var, raw):
         value = _quantity(source, key, raw, var.unit)
     low, high = _limits(var)
     if (low is not None and value < low) or (high is not None and value > high):
-        shown = f"{raw!r}" if raw == value else f"{raw!r} = {value:.6g} {var.unit or ''}".rstrip()
+        converted = isinstance(raw, str) and split(raw)[1] not in (None, var.unit)
+        shown = f"{raw!r} = {value:.6g} {var.unit or ''}".rstrip() if converted else repr(raw)
         raise ScenarioError(source, key, f"{shown} is outside the range of {var.name} declared by the FMU: "
                             f"{_range_text(var, raw)}")
     return value

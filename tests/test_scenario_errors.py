@@ -169,6 +169,8 @@ CONTROLLER = '[fmus.controller]\nfmu = "leg_controller"'
      ["'0 ms' = 0 s is outside", "[0.001, 10] ms = [1e-06, 0.01] s"]),
     ("plant", "stroke", "0.001", "0.3", ("moving_base = 1,", 'moving_base = 1, stroke = "1 um",'),
      ["'1 um' = 1e-06 m is outside", "[1000, 300000] um = [0.001, 0.3] m"]),
+    ("base", "lever_arm", "0", None, ('"25 m"', '"-1 m"'),
+     ["'-1 m' is outside the range of lever_arm declared by the FMU: [0, inf] m"]),
     ("plant", "moving_base", "0", "1", ("moving_base = 1", "moving_base = 2"),
      ["2 is outside the range of moving_base declared by the FMU: [0, 1]"]),
 ])
@@ -188,7 +190,7 @@ def test_a_sweep_value_outside_the_declared_range_is_refused(descriptions):
     ranged = with_range(descriptions, "base", "lever_arm", "0", "100")
     text = edited(SLEW, ('parameter = "controller.feedforward"\nvalues = ["none", "fixed_base", "moving_base"]',
                          'parameter = "base.lever_arm"\nvalues = ["25 m", "1e6 m"]'))
-    refused(text, "sweep.values[1]", "'1e6 m' = 1e+06 m is outside the range of lever_arm declared by the FMU: "
+    refused(text, "sweep.values[1]", "'1e6 m' is outside the range of lever_arm declared by the FMU: "
             "[0, 100] m", descriptions=ranged)
 
 
