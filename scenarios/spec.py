@@ -260,7 +260,7 @@ def load(path, overrides=None):
         raise ScenarioError(str(path), "file", f"is a binary file (NUL byte at offset {data.find(0)}), "
                             "not a TOML scenario")
     try:
-        text = data.decode("utf-8")
+        text = data.decode("utf-8-sig")   # a leading BOM (some editors write one) is not TOML
     except UnicodeDecodeError as exc:
         raise ScenarioError(str(path), "file", f"is not UTF-8 text (byte 0x{data[exc.start]:02x} at offset "
                             f"{exc.start}); a scenario is a TOML file in UTF-8") from None
