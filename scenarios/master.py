@@ -11,7 +11,8 @@ not yet stepped.
 
 Every FMI call is status-checked (scenarios.fmi); a Discard/Error stops the run with
 RunFailed: one line naming the instance, the time and the FMU's error log line, and the
-run so far (the rows recorded stay in the CSV, the metrics cover them). Memory stays flat: rows go to disk as they come, metrics keep running sums.
+run so far (the rows recorded stay in the CSV, the metrics cover them). Memory stays
+flat: rows go to disk as they come, metrics keep running sums.
 """
 import csv
 import re

@@ -1,5 +1,6 @@
 """Run a scenario file end to end: check it, build the FMUs it needs, co-simulate each
-sweep value with a progress bar, and write results, charts and the report."""
+sweep value with a progress bar, and write results, charts and the report. A run an FMU
+stops is kept with its partial results and marked; the other sweep values still run."""
 import json
 import pathlib
 
