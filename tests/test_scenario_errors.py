@@ -14,7 +14,7 @@ import sys
 import numpy as np
 import pytest
 
-from scenarios import master, metrics, runner, spec
+from scenarios import master, metrics, report, runner, spec
 from scenarios.fmi import unpack
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
@@ -378,7 +378,6 @@ def test_a_run_refused_at_initialisation_is_reported_with_no_rows(descriptions, 
     assert "\n" not in run.failure
     assert run.csv_path is None or len(run.csv_path.read_text().splitlines()) <= 2
     assert math.isnan(run.metrics["leg error"]["rms"]) and math.isnan(run.metrics["pose error"]["rotation_peak"])
-    from scenarios import report
     text = report.write(scenario, [run], tmp_path).read_text()
     assert "| far **failed at t = 0 s, partial: 0 of 6 s** | rms n/a, peak n/a |" in text
 
