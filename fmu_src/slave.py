@@ -12,6 +12,10 @@ The FMU scripts import this module from the installed `movingbase` package (not 
 the FMU's resources): one copy in the process, and the plant's compiled kernels stay
 cached on disk instead of recompiling in every extracted FMU.
 """
+import ctypes
+import pathlib
+import sys
+
 import numpy as np
 from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability
 from pythonfmu.enums import Fmi2Status
@@ -40,6 +44,36 @@ def _flat_slot(values, i, flat_views):
     return flat, (offset + i * values.strides[0]) // values.itemsize
 
 
+def finalize_python_before_exit(resources):
+    """Have the C wrapper finalize the interpreter it started before the process's
+    C++/Fortran destructors run (a C host; harmless in a Python one).
+
+    pythonfmu 0.7.0's wrapper calls Py_Finalize from the destructor of a global in the
+    FMU's library, which runs at exit() after the destructors of every library loaded
+    later (scipy's C++ and gfortran runtimes, numpy's ...): Python's teardown then frees
+    objects whose C++ state is gone and corrupts the heap (SIGSEGV/SIGABRT in
+    Py_FinalizeEx after fmi2FreeInstance returned; docs/fmi-notes-measured.md).
+    Exit handlers run last-registered first, so registering the wrapper's own exported
+    ``finalizePythonInterpreter`` with atexit() after those libraries are loaded makes
+    the teardown run while they are intact. It finalizes only once no instance is left
+    (the instances share the interpreter); later calls do nothing. The CDLL reference
+    is never released, so the library stays mapped for the handler.
+    """
+    if resources is None or not sys.platform.startswith("linux"):
+        return
+    binaries = pathlib.Path(resources).parent / "binaries" / "linux64"
+    for library in binaries.glob("*.so"):
+        wrapper = ctypes.CDLL(str(library))
+        finalize = getattr(wrapper, "finalizePythonInterpreter", None)
+        if finalize is not None:
+            _KEEP.append(wrapper)
+            # atexit() itself is not exported by glibc; it is __cxa_atexit(f, arg, NULL)
+            ctypes.CDLL(None).__cxa_atexit(ctypes.cast(finalize, ctypes.c_void_p), None, None)
+
+
+_KEEP = []   # wrapper libraries whose finalizer is registered with atexit
+
+
 class GuardedSlave(Fmi2Slave):
     """A pythonfmu slave that never lets an exception reach the importer."""
 
@@ -55,6 +89,7 @@ class GuardedSlave(Fmi2Slave):
         self.settable = {}  # the same for vector inputs and parameters
         self._plans = {}
         self._flat_views = {}
+        finalize_python_before_exit(self.resources)
 
     # ---------------------------------------------------------------- variables
     def real(self, name, causality, description, unit, start=0.0, getter=None, setter=None):
@@ -163,6 +198,9 @@ class GuardedSlave(Fmi2Slave):
         except Exception as exc:   # noqa: BLE001 - reported through FMI status, see module doc
             self.fail(exc, f"at t={current_time:.6g} s")
             return False
+
+    def terminate(self):
+        finalize_python_before_exit(self.resources)   # again: libraries loaded while running
 
     def initialize(self):
         """Compute the outputs at the start time (after parameters are set)."""
