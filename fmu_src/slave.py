@@ -17,7 +17,8 @@ answers fmi2Fatal for any exception (never fmi2Error), so a failed initializatio
 and the host sees fmi2Fatal from fmi2ExitInitializationMode; keep-alive references make the
 host's later calls (doStep, terminate, free) safe (see exit_initialization_mode).
 
-Discarded steps: outputs and internal state are put back as they were before the step,
+Discarded steps: the output arrays (whole: the integrator state of every FMU lives in
+them or in arrays they are views of) are put back as they were before the step,
 so a host reading outputs after fmi2Discard sees the last accepted state, at the time
 fmi2GetRealStatus(fmi2LastSuccessfulTime) answers (the wrapper's: the rejected step's start).
 
@@ -140,7 +141,7 @@ class GuardedSlave(Fmi2Slave):
         self.ranges = {}    # parameter name -> (min, max), None for an open side
         self.allowed = {}   # integer parameter name -> the values it may take (gaps min/max cannot say)
         self.input_names = []
-        self._step_roots = []   # output arrays (their roots) put back after a discarded step
+        self._step_saves = []   # (root of output arrays, its copy before the step): put back on Discard
         self.failure = ""
         self.arrays = {}   # name -> numpy array saved with the FMU state
         self.slots = {}    # value reference -> (array, index) of vector elements
@@ -172,8 +173,8 @@ class GuardedSlave(Fmi2Slave):
         if values is None:
             values = np.zeros(size) if start is None else np.array(start, dtype=float)
         self.arrays[name] = values
-        if causality == OUTPUT and not any(r is _root(values) for r in self._step_roots):
-            self._step_roots.append(_root(values))
+        if causality == OUTPUT and not any(r is _root(values) for r, _ in self._step_saves):
+            self._step_saves.append((_root(values), _root(values).copy()))
         units = (units,) * size if isinstance(units, str) else units
         valid = [valid] * size if valid is None or not isinstance(valid[0], (tuple, list)) else valid
         labels = description if isinstance(description, (list, tuple)) else [description] * size
@@ -299,15 +300,14 @@ class GuardedSlave(Fmi2Slave):
             self.log(f"refusing doStep at t={current_time:.6g} s after: {self.failure}",
                      Fmi2Status.error, "logStatusError")
             return False
-        before = [root.copy() for root in self._step_roots]
-        extra = self.extra_state()
+        for root, saved in self._step_saves:
+            np.copyto(saved, root)
         try:
             self.step(current_time, step_size)
             return True
         except Exception as exc:   # noqa: BLE001 - reported through FMI status, see module doc
-            for root, values in zip(self._step_roots, before):   # outputs of the last accepted state
-                root[...] = values
-            self.set_extra_state(extra)
+            for root, saved in self._step_saves:   # back to the outputs of the last accepted state
+                np.copyto(root, saved)
             self.fail(exc, f"at t={current_time:.6g} s")
             return False
 
