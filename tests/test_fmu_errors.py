@@ -137,3 +137,11 @@ def test_after_a_discarded_controller_step_the_integral_is_not_advanced(fmus):
     with pytest.raises(FmuError, match="NaN or inf"):
         ctrl.do_step(5e-3, 1e-3)
     np.testing.assert_array_equal(port.read(), accepted)
+
+
+def test_a_joint_condition_on_valid_parameters_is_refused_at_initialization(fmus):
+    """Each value inside its range, together impossible: a source 95 deg south of the
+    zenith at culmination never rises (sidereal profile); the FMU says so at init."""
+    latitude = next(float(v.start) for v in _parameters(fmus["telescope_fmu"]) if v.name == "latitude")
+    error = _refused_at_init(fmus["telescope_fmu"], profile=1, declination=latitude - math.radians(95.0))
+    assert "InvalidInputError in initialization: the source is below the horizon" in error, error
