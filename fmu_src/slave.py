@@ -78,10 +78,11 @@ def finalize_python_before_exit(resources):
     ``finalizePythonInterpreter`` with atexit() after those libraries are loaded makes
     the teardown run while they are intact. It finalizes only once no instance is left
     (the instances share the interpreter); later calls do nothing. The CDLL reference
-    is never released, so the library stays mapped for the handler.
+    is never released, so the library stays mapped for the handler. In a Python host
+    (fmpy) the host's main() finalizes Python before exit: nothing is registered.
     """
-    if resources is None or not sys.platform.startswith("linux"):
-        return
+    if resources is None or not sys.platform.startswith("linux") or getattr(sys, "orig_argv", None):
+        return   # orig_argv is empty only in an interpreter the wrapper started (a C host)
     binaries = pathlib.Path(resources).parent / "binaries" / "linux64"
     for library in binaries.glob("*.so"):
         wrapper = ctypes.CDLL(str(library))
