@@ -110,10 +110,11 @@ def _telescope(scenario):
 def base_motion(scenario, run):
     """Time, rates [deg/s] and accelerations [deg/s^2] (differenced from the recorded
     rates) of the scenario's telescope axes, read from the run's CSV; None if the axis
-    rates were not recorded or the plant holds its base fixed (moving_base = 0)."""
+    rates were not recorded (or the run failed before writing any), or the plant holds its
+    base fixed (moving_base = 0)."""
     inst = _telescope(scenario)
     plants = [i for i, fmu in scenario.fmus.items() if fmu == "hexapod_plant"]
-    if inst is None or (plants and all(str(scenario.parameters.get(i, {}).get("moving_base", 1)) == "0"
+    if inst is None or run.csv_path is None or (plants and all(str(scenario.parameters.get(i, {}).get("moving_base", 1)) == "0"
                                        for i in plants)):
         return None     # no telescope, or its motion is not applied to the plant
     with open(run.csv_path, newline="") as f:
@@ -148,7 +149,7 @@ def _error_chart(scenario, runs, metric, path):
     floored at FLOOR, the settling cut-off marked; a pose metric gets a position and a
     rotation panel; the telescope's axis rates and accelerations underneath on the same
     time axis. Returns the figure's data panels {title: axes} (the figure is closed)."""
-    motion = base_motion(scenario, runs[0])
+    motion = base_motion(scenario, next((r for r in runs if r.csv_path), runs[0]))
     rows = [("position", 1e0, "µm", MARKS_UM)]
     if metric.kind == "pose_tracking":
         rows = [("position", 1.0, "µm", MARKS_UM), ("rotation", 1e6, "µrad", None)]
