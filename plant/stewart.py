@@ -311,19 +311,19 @@ class StateInverseDynamics:
     def __init__(self, params, fidelity="full"):
         self.params = params
         self.base_mode, self.legs = fidelity_mode(fidelity)
-        self._buffers = [np.empty((1, 6, 6)), np.empty((1, 6)), np.empty((1, 6, 6)), np.empty((1, 6)),
-                         np.empty((1, 6)), np.empty((1, 6)), np.empty(1)]
-        M, h, J, self.leg_rates, self.leg_lengths, self.forces, self._det = self._buffers
+        self.forces, self.leg_lengths, self.leg_rates = np.empty((1, 6)), np.empty((1, 6)), np.empty((1, 6))
+        self._kernel = kane.HexapodKernel(params.base_joints, params.platform_joints, params.kernel_data)
+        self._out = [kane.pointer(x, (1, 6), name) for x, name in
+                     ((self.forces, "forces"), (self.leg_lengths, "leg_lengths"), (self.leg_rates, "leg_rates"))]
+        self._singular = SINGULAR_RATIO * params.home_det
 
     def __call__(self, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc):
         """Forces, leg lengths and leg rates, each (1, 6) (buffers, overwritten next call);
         all arguments float arrays of shape (6,)."""
-        p = self.params
-        kane.kane(p.base_joints, p.platform_joints, p.kernel_data, pose.reshape(1, 6), pose_rate.reshape(1, 6),
-                  pose_acc.reshape(1, 6), base_pose.reshape(1, 6), base_rate.reshape(1, 6),
-                  base_acc.reshape(1, 6), self.base_mode, self.legs, False, kane.ID, *self._buffers)
-        if abs(self._det[0]) < SINGULAR_RATIO * p.home_det:
-            _check_det_ratio(abs(self._det) / p.home_det)
+        det = self._kernel.inverse_dynamics(pose, pose_rate, pose_acc, base_pose, base_rate, base_acc,
+                                            self.base_mode, self.legs, *self._out)
+        if abs(det) < self._singular:
+            _check_det_ratio(np.array([abs(det) / self.params.home_det]))
         return self.forces, self.leg_lengths, self.leg_rates
 
 
