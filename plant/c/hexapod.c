@@ -12,28 +12,28 @@
 
 typedef struct { double e[3]; } v3;
 
-static v3 vec(double a, double b, double c) { v3 r = {{a, b, c}}; return r; }
+static inline v3 vec(double a, double b, double c) { v3 r = {{a, b, c}}; return r; }
 
-static v3 load(const double *x) { return vec(x[0], x[1], x[2]); }
+static inline v3 load(const double *x) { return vec(x[0], x[1], x[2]); }
 
-static v3 cross(v3 a, v3 b)
+static inline v3 cross(v3 a, v3 b)
 {
     return vec(a.e[1] * b.e[2] - a.e[2] * b.e[1], a.e[2] * b.e[0] - a.e[0] * b.e[2],
                a.e[0] * b.e[1] - a.e[1] * b.e[0]);
 }
 
-static double dot(v3 a, v3 b) { return a.e[0] * b.e[0] + a.e[1] * b.e[1] + a.e[2] * b.e[2]; }
+static inline double dot(v3 a, v3 b) { return a.e[0] * b.e[0] + a.e[1] * b.e[1] + a.e[2] * b.e[2]; }
 
 /* ca * a + cb * b */
-static v3 lin(double ca, v3 a, double cb, v3 b)
+static inline v3 lin(double ca, v3 a, double cb, v3 b)
 {
     return vec(ca * a.e[0] + cb * b.e[0], ca * a.e[1] + cb * b.e[1], ca * a.e[2] + cb * b.e[2]);
 }
 
-static v3 add(v3 a, v3 b) { return vec(a.e[0] + b.e[0], a.e[1] + b.e[1], a.e[2] + b.e[2]); }
+static inline v3 add(v3 a, v3 b) { return vec(a.e[0] + b.e[0], a.e[1] + b.e[1], a.e[2] + b.e[2]); }
 
 /* R = Rz(yaw) Ry(pitch) Rx(roll), row-major 3x3. */
-static void rotation(const double *rpy, double *R)
+static inline void rotation(const double *rpy, double *R)
 {
     double cr = cos(rpy[0]), sr = sin(rpy[0]);
     double cp = cos(rpy[1]), sp = sin(rpy[1]);
@@ -43,14 +43,14 @@ static void rotation(const double *rpy, double *R)
     R[6] = -sp;     R[7] = cp * sr;                R[8] = cp * cr;
 }
 
-static v3 mul(const double *R, v3 x)
+static inline v3 mul(const double *R, v3 x)
 {
     return vec(R[0] * x.e[0] + R[1] * x.e[1] + R[2] * x.e[2],
                R[3] * x.e[0] + R[4] * x.e[1] + R[5] * x.e[2],
                R[6] * x.e[0] + R[7] * x.e[1] + R[8] * x.e[2]);
 }
 
-static v3 mul_t(const double *R, v3 x)
+static inline v3 mul_t(const double *R, v3 x)
 {
     return vec(R[0] * x.e[0] + R[3] * x.e[1] + R[6] * x.e[2],
                R[1] * x.e[0] + R[4] * x.e[1] + R[7] * x.e[2],
@@ -58,14 +58,14 @@ static v3 mul_t(const double *R, v3 x)
 }
 
 /* Angular velocity (parent frame) from RPY angles and rates. */
-static v3 omega(const double *rpy, const double *rate)
+static inline v3 omega(const double *rpy, const double *rate)
 {
     double cp = cos(rpy[1]), sp = sin(rpy[1]), cy = cos(rpy[2]), sy = sin(rpy[2]);
     return vec(cy * cp * rate[0] - sy * rate[1], sy * cp * rate[0] + cy * rate[1], rate[2] - sp * rate[0]);
 }
 
 /* Angular acceleration: E acc + dE/dt rate. */
-static v3 omega_dot(const double *rpy, const double *rate, const double *acc)
+static inline v3 omega_dot(const double *rpy, const double *rate, const double *acc)
 {
     double cp = cos(rpy[1]), sp = sin(rpy[1]), cy = cos(rpy[2]), sy = sin(rpy[2]);
     double dr = rate[0], dp = rate[1], dy = rate[2];
@@ -75,7 +75,7 @@ static v3 omega_dot(const double *rpy, const double *rate, const double *acc)
 }
 
 /* RPY rates from angular velocity: E^-1 w (singular at pitch = +-90 deg). */
-static v3 rpy_rate(const double *rpy, v3 w)
+static inline v3 rpy_rate(const double *rpy, v3 w)
 {
     double cp = cos(rpy[1]), sp = sin(rpy[1]), cy = cos(rpy[2]), sy = sin(rpy[2]);
     double dr = (cy * w.e[0] + sy * w.e[1]) / cp;
@@ -84,7 +84,7 @@ static v3 rpy_rate(const double *rpy, v3 w)
 
 /* Translational acceleration terms of a point r moving at v_rel in {B}, base motion
    included: a_B - g + eB x r + wB x (wB x r + 2 v_rel). */
-static v3 transport(v3 aB, v3 g, v3 eB, v3 wB, v3 r, v3 v_rel)
+static inline v3 transport(v3 aB, v3 g, v3 eB, v3 wB, v3 r, v3 v_rel)
 {
     return add(lin(1.0, aB, -1.0, g), add(cross(eB, r), cross(wB, lin(1.0, cross(wB, r), 2.0, v_rel))));
 }
@@ -104,7 +104,7 @@ void mb_hexapod_kane(const double *base_joints, const double *platform_joints, c
     double R[9], Rb[9], A[36], b[6], x[6];
     for (int n = 0; n < n_states; n++) {
         const double *pose = pose_all + 6 * n, *rate = rate_all + 6 * n;
-        double *M = M_all + 36 * n, *h = h_all + 6 * n, *J = J_all + 36 * n;
+        double M[36], h[6], J[36];   /* built here, copied out at the end: no aliasing */
         rotation(pose + 3, R);
         v3 p = load(pose), v = load(rate);
         v3 w = twist_speeds ? load(rate + 3) : omega(pose + 3, rate + 3);
@@ -206,6 +206,12 @@ void mb_hexapod_kane(const double *base_joints, const double *platform_joints, c
             for (int a = 0; a < 6; a++)
                 for (int c = 0; c < 6; c++) M[6 * a + c] += cm * J[6 * j + a] * J[6 * j + c];
         }
+
+        for (int i = 0; i < 36; i++) {
+            M_all[36 * n + i] = M[i];
+            J_all[36 * n + i] = J[i];
+        }
+        for (int i = 0; i < 6; i++) h_all[6 * n + i] = h[i];
 
         if (solve == MB_HEXAPOD_ID) {
             const double *arg = arg_all + 6 * n;
