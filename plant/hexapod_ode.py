@@ -43,7 +43,7 @@ class HexapodODE:
         self.outputs = np.zeros((3, 6)) if outputs is None else outputs
         self.bounds = params.home_lengths + np.array(params.stroke)[:, None]
         self.t0 = 0.0
-        self._kernel = kane.HexapodKernel(params.base_joints, params.platform_joints, params.kernel_data)
+        self._kernel = params.kernel
         # the arrays are shared with the caller and written in place: checked, never copied
         self._inputs = kane.pointer(self.inputs, (4, 6), "inputs")
         self._outputs = kane.pointer(self.outputs, (3, 6), "outputs")

@@ -90,6 +90,11 @@ class StewartParams:
         return abs(np.linalg.det(jacobian(self, self.home_pose)))
 
     @cached_property
+    def kernel(self):
+        """The C kernel (plant.kane) bound to these parameters, their pointers taken once."""
+        return kane.HexapodKernel(self.base_joints, self.platform_joints, self.kernel_data)
+
+    @cached_property
     def kernel_data(self):
         """Scalars in the order plant.kane.kane expects."""
         return np.array([self.platform_mass, *self.platform_inertia, self.cylinder_mass,
@@ -256,10 +261,7 @@ def _run(params, pose, rate, arg, base, fidelity, solve, twist_speeds=False, arg
     base = [np.zeros((n, 6))] * 3
     for k, x in zip(given, flat[3:]):
         base[k] = x
-    M, h, J = np.empty((n, 6, 6)), np.empty((n, 6)), np.empty((n, 6, 6))
-    ldot, length, out, det = np.empty((n, 6)), np.empty((n, 6)), np.empty((n, 6)), np.empty(n)
-    kane.kane(params.base_joints, params.platform_joints, params.kernel_data, *flat[:3], *base,
-              base_mode, legs, twist_speeds, solve, M, h, J, ldot, length, out, det)
+    M, h, J, ldot, length, out, det = params.kernel.run(*flat[:3], *base, base_mode, legs, twist_speeds, solve)
     batch = shape[:-1]
     terms = DynamicsTerms(M.reshape(batch + (6, 6)), h.reshape(batch + (6,)),
                           J.reshape(batch + (6, 6)), ldot.reshape(batch + (6,)), length.reshape(batch + (6,)),
@@ -312,7 +314,7 @@ class StateInverseDynamics:
         self.params = params
         self.base_mode, self.legs = fidelity_mode(fidelity)
         self.forces, self.leg_lengths, self.leg_rates = np.empty((1, 6)), np.empty((1, 6)), np.empty((1, 6))
-        self._kernel = kane.HexapodKernel(params.base_joints, params.platform_joints, params.kernel_data)
+        self._kernel = params.kernel
         self._out = [kane.pointer(x, (1, 6), name) for x, name in
                      ((self.forces, "forces"), (self.leg_lengths, "leg_lengths"), (self.leg_rates, "leg_rates"))]
         self._singular = SINGULAR_RATIO * params.home_det

@@ -12,7 +12,7 @@ acceleration.
 
 State z = [pose (6), twist (6), PID integral (6)]:
 
-* plant: the same compiled right-hand side as the plant FMU (plant.kane.HexapodKernel.rhs, the
+* plant: the same compiled right-hand side as the plant FMU (StewartParams.kernel.rhs, the
   scene's fidelity and moving_base setting), but with the base motion evaluated exactly
   at t instead of held and Taylor-extrapolated from the start of a communication step;
 * base and reference motion: exactly what the telescope FMU evaluates (plant.telescope
@@ -179,8 +179,7 @@ class ClosedLoop:
         self.base_mode = base_mode if scene.moving_base else kane.BASE_NONE
         g = scene.gains
         self.kp, self.ki, self.kd, self.limit = g["kp"], g["ki"], g["kd"], g["force_limit"]
-        self._kernel = kane.HexapodKernel(self.plant.base_joints, self.plant.platform_joints,
-                                          self.plant.kernel_data)
+        self._kernel = self.plant.kernel
         self._legs = np.empty((3, 6))
         self.forces = np.zeros((1, 6))
         self.base0 = np.zeros((3, 6))
