@@ -13,7 +13,7 @@ relative to {B}, in {B};  M du/dt + h = J^T F.
 Two levels: the functions below validate their arrays on every call (float64,
 C-contiguous, shapes), for batched and occasional use; HexapodKernel validates
 long-lived arrays once and keeps their C pointers, for the per-step paths (the FMU's
-advance, a controller's inverse dynamics), where a call costs ~1 µs of Python.
+advance, a controller's inverse dynamics), where a call costs a few µs of Python.
 The public, validated, batched API is plant.stewart; this module is its engine.
 """
 import numpy as np
@@ -27,9 +27,7 @@ BASE_NONE, BASE_GRAVITY, BASE_FULL = (lib.MB_HEXAPOD_BASE_NONE, lib.MB_HEXAPOD_B
 OK, BAD_INPUT, DIVERGED, STROKE = (lib.MB_HEXAPOD_OK, lib.MB_HEXAPOD_BAD_INPUT, lib.MB_HEXAPOD_DIVERGED,
                                    lib.MB_HEXAPOD_STROKE)  # advance_fixed status codes
 NDATA = lib.MB_HEXAPOD_NDATA   # length of StewartParams.kernel_data
-
-
-_F64 = np.dtype(np.float64)
+_F64 = np.dtype(np.float64)   # numpy's float64 dtype is one object: compared by identity
 
 
 def pointer(array, shape, name):
@@ -41,9 +39,9 @@ def pointer(array, shape, name):
             return ffi.from_buffer("double[]", array)
         except ValueError:   # cffi refuses a strided view
             pass
-    raise InvalidInputError(f"{name} must be a C-contiguous float64 array of shape {shape}, got "
-                            f"{getattr(array, 'dtype', type(array).__name__)} {np.shape(array)}"
-                            f"{'' if getattr(getattr(array, 'flags', None), 'c_contiguous', True) else ' (strided)'}")
+    got = (f"{array.dtype} {array.shape}" + ("" if array.flags.c_contiguous else " (strided)")
+           if isinstance(array, np.ndarray) else type(array).__name__)
+    raise InvalidInputError(f"{name} must be a C-contiguous float64 array of shape {shape}, got {got}")
 
 
 def reading(array, shape, name):
@@ -123,12 +121,6 @@ def advance_fixed(rk4, substeps, bj, pj, data, x, inputs, t0, h, base_mode, legs
     Returns (smallest |det J| met, status: OK, BAD_INPUT, DIVERGED or STROKE)."""
     return HexapodKernel(bj, pj, data).advance_fixed(rk4, substeps, x, inputs, t0, h, base_mode, legs,
                                                      bounds, outputs)
-
-
-def leg_kinematics(bj, pj, x, outputs):
-    """outputs (3, 6) = leg lengths, leg rates and pose rates of x = [pose, twist]."""
-    lib.mb_hexapod_leg_kinematics(reading(bj, (6, 3), "base_joints"), reading(pj, (6, 3), "platform_joints"),
-                                  reading(x, (12,), "x"), pointer(outputs, (3, 6), "outputs"))
 
 
 class HexapodKernel:

@@ -70,7 +70,7 @@ void mb_hexapod_kane(const double *base_joints, const double *platform_joints, c
 
 /* dx/dt of one state x (12) = [pose, twist (v, w) in {B}] under leg forces (6) [N],
    with the base extrapolated from base0 (3, 6) = [base pose, rate, acc] at time t0 [s] to
-   time t [s] (second-order Taylor). Writes dx (12) = [pose rates (RPY rates), twist
+   time t [s] (second-order Taylor; base0 is not read for BASE_NONE and may be NULL). Writes dx (12) = [pose rates (RPY rates), twist
    acceleration] and returns |det J| [m^3]; mirrors plant.kane.rhs. */
 double mb_hexapod_rhs(const double *base_joints, const double *platform_joints, const double *data,
                       const double *x, const double *forces, const double *base0, double t0, double t,
