@@ -137,20 +137,23 @@ class HexapodKernel:
     def __reduce__(self):   # pointers do not pickle: rebuild from the arrays
         return HexapodKernel, self._arrays
 
-    def run(self, pose, rate, arg, base_pose, base_rate, base_acc, base_mode, legs, twist_speeds, solve):
+    def run(self, pose, rate, arg, base_pose, base_rate, base_acc, base_mode, legs, twist_speeds, solve,
+            batch=None):
         """plant.kane.kane on n states given as (n, 6) arrays, its outputs allocated here
         as views of one block (one pointer for seven arrays): (M, h, J, ldot, length,
-        out, det) with shapes (n, 6, 6), (n, 6), (n, 6, 6), (n, 6), (n, 6), (n, 6), (n,)."""
+        out, det) with shapes batch + (6, 6), (6,), (6, 6), (6,), (6,), (6,), () where
+        ``batch`` (default (n,)) is any leading shape of n states."""
         n = len(pose)
-        s6 = (n, 6)
+        batch = (n,) if batch is None else batch
         work = np.empty(97 * n)
         w = ffi.from_buffer("double[]", work)
-        lib.mb_hexapod_kane(*self.params, n, *readings((pose, rate, arg, base_pose, base_rate, base_acc), s6,
+        lib.mb_hexapod_kane(*self.params, n, *readings((pose, rate, arg, base_pose, base_rate, base_acc), (n, 6),
                                                        STATE_NAMES), base_mode, bool(legs), bool(twist_speeds),
                             solve, w, w + 36 * n, w + 42 * n, w + 78 * n, w + 84 * n, w + 90 * n, w + 96 * n)
-        return (work[:36 * n].reshape(n, 6, 6), work[36 * n:42 * n].reshape(s6),
-                work[42 * n:78 * n].reshape(n, 6, 6), work[78 * n:84 * n].reshape(s6),
-                work[84 * n:90 * n].reshape(s6), work[90 * n:96 * n].reshape(s6), work[96 * n:])
+        s6, s66 = batch + (6,), batch + (6, 6)
+        return (work[:36 * n].reshape(s66), work[36 * n:42 * n].reshape(s6), work[42 * n:78 * n].reshape(s66),
+                work[78 * n:84 * n].reshape(s6), work[84 * n:90 * n].reshape(s6), work[90 * n:96 * n].reshape(s6),
+                work[96 * n:].reshape(batch))
 
     def advance_fixed(self, rk4, substeps, x, inputs, t0, h, base_mode, legs, bounds, outputs):
         """plant.kane.advance_fixed on this hexapod; ``inputs``, ``bounds`` and

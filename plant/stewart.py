@@ -261,13 +261,11 @@ def _run(params, pose, rate, arg, base, fidelity, solve, twist_speeds=False, arg
     base = [np.zeros((n, 6))] * 3
     for k, x in zip(given, flat[3:]):
         base[k] = x
-    M, h, J, ldot, length, out, det = params.kernel.run(*flat[:3], *base, base_mode, legs, twist_speeds, solve)
-    batch = shape[:-1]
-    terms = DynamicsTerms(M.reshape(batch + (6, 6)), h.reshape(batch + (6,)),
-                          J.reshape(batch + (6, 6)), ldot.reshape(batch + (6,)), length.reshape(batch + (6,)),
-                          (np.abs(det) / params.home_det).reshape(batch))
+    M, h, J, ldot, length, out, det = params.kernel.run(*flat[:3], *base, base_mode, legs, twist_speeds, solve,
+                                                        shape[:-1])
+    terms = DynamicsTerms(M, h, J, ldot, length, (np.abs(det) / params.home_det).reshape(det.shape))
     _check_det_ratio(terms.det_ratio)
-    return out.reshape(batch + (6,)), terms
+    return out, terms
 
 
 def inverse_dynamics(params, pose, pose_rate, pose_acc, base_pose=0, base_rate=0, base_acc=0,
