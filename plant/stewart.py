@@ -263,7 +263,7 @@ def _run(params, pose, rate, arg, base, fidelity, solve, twist_speeds=False, arg
         base[k] = x
     M, h, J, ldot, length, out, det = params.kernel.run(*flat[:3], *base, base_mode, legs, twist_speeds, solve,
                                                         shape[:-1])
-    terms = DynamicsTerms(M, h, J, ldot, length, (np.abs(det) / params.home_det).reshape(det.shape))
+    terms = DynamicsTerms(M, h, J, ldot, length, np.abs(det) / params.home_det)
     _check_det_ratio(terms.det_ratio)
     return out, terms
 
