@@ -369,8 +369,9 @@ def run_sweep(scenario, paths, descriptions, values, items, outdir, jobs=None, a
     for job in job_list:
         if store.status(job.key) is None:
             raise RuntimeError(f"run {job.label} of {scenario.name} was not run: {outcome.failed.get(job.key)}")
-        record, csv_path = store.read(job.key), pathlib.Path(outdir) / f"{job.label}.csv"
+        record, csv_path = store.read(job.key), None       # no CSV: refused before the first row
         if store.path(job.key, ".csv.gz").exists():
+            csv_path = pathlib.Path(outdir) / f"{job.label}.csv"
             csv_path.write_bytes(gzip.decompress(store.path(job.key, ".csv.gz").read_bytes()))
         run = master.Run(job.label, csv_path, record.get("steps", 0), record.get("run_time_s", 0.0),
                          record.get("sim_time_s", 0.0), record.get("metrics", {}),

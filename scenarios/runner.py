@@ -1,7 +1,9 @@
 """Run a scenario file end to end: check it, build the FMUs it needs, co-simulate each
-sweep value with a progress bar, and write results, charts and the report."""
+sweep value with a progress bar, and write results, charts and the report. A run an FMU
+stops is kept with its partial results and marked; the other sweep values still run."""
 import json
 import pathlib
+import sys
 
 from tqdm import tqdm
 
@@ -14,11 +16,13 @@ SHIPPED = pathlib.Path(__file__).resolve().parent / "files"
 
 
 def resolve(name):
-    """A scenario file path, or the name of a shipped scenario (scenarios/files/<name>.toml)."""
+    """A scenario file path (".toml" may be left out), or the bare name of a shipped
+    scenario (scenarios/files/<name>.toml); anything else as given, for load to refuse."""
     path = pathlib.Path(name)
-    if path.exists() or path.suffix == ".toml":
-        return path
-    return SHIPPED / f"{name}.toml"
+    candidates = [path, path.with_name(path.name + ".toml")] if path.suffix != ".toml" else [path]
+    if path.parent == pathlib.Path(".") and path.suffix != ".toml":
+        candidates.append(SHIPPED / f"{path.name}.toml")
+    return next((c for c in candidates if c.is_file()), path)
 
 
 def prepare(path, ci=False):
@@ -58,6 +62,9 @@ def _choose_fidelity(scenario, paths, values, plant):
 def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None):
     """Run every sweep value of a scenario; returns (scenario, runs, report path).
     ``jobs`` worker processes or the Dask cluster at ``dask`` run the values in parallel."""
+    if progress:
+        print(f"{pathlib.Path(str(path)).stem}: checking the scenario, building FMUs that are missing or stale "
+              "(a first build takes ~10 s)", file=sys.stderr, flush=True)
     scenario, paths, descriptions, values = prepare(resolve(path), ci)
     outdir = pathlib.Path(out) / scenario.name
     outdir.mkdir(parents=True, exist_ok=True)
@@ -72,16 +79,36 @@ def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None)
             inst, name, value = spec.sweep_value(scenario, descriptions, item)
             params[inst][name] = value
             label = str(item)
-        bar = tqdm(total=100, desc=f"{scenario.name} [{label}]", unit="%", disable=not progress,
+        desc = f"{scenario.name} [{label}]"
+        bar = tqdm(total=100, desc=f"{desc} loading FMUs (the first run on a machine compiles the dynamics "
+                   "kernel, ~15 s)", unit="%", disable=not progress,
                    bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
-        update = lambda fraction: bar.update(round(100 * fraction) - bar.n)
+
+        def update(fraction, bar=bar, desc=desc, begun=[]):
+            if not begun:   # stepping has begun: the FMUs are loaded
+                begun.append(True)
+                bar.set_description_str(desc, refresh=False)
+            bar.update(round(100 * fraction) - bar.n)
         try:
             runs.append(master.run(scenario, paths, params, outdir, label,
                                    [metrics.make(m) for m in scenario.metrics], update))
+        except master.RunFailed as failed:   # keep what it did; the other runs still run
+            failed.run.failure = f"{scenario.source}: scene {scenario.name}, run {label}: {failed.run.failure}"
+            runs.append(failed.run)
         finally:
             bar.update(100 - bar.n)
             bar.close()
     summary = {r.label: {"metrics": r.metrics, "wall_time_s": r.wall_time, "steps": r.steps,
-                         "real_time_factor": r.real_time_factor} for r in runs}
-    (outdir / "metrics.json").write_text(json.dumps(summary, indent=2, default=float))
+                         "real_time_factor": r.real_time_factor, **({"failed": r.failure} if r.failure else {})}
+               for r in runs}
+    (outdir / "metrics.json").write_text(json.dumps(_no_nan(summary), indent=2, default=float))
     return scenario, runs, report.write(scenario, runs, outdir)
+
+
+def _no_nan(value):
+    """JSON has no NaN: what was not measured (a failed run's metrics) is written null."""
+    if isinstance(value, dict):
+        return {k: _no_nan(v) for k, v in value.items()}
+    if isinstance(value, float) and value != value:
+        return None
+    return value
