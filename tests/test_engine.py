@@ -64,7 +64,8 @@ def test_local_cluster_equals_sequential_and_reports_failures(campaign, tmp_path
     for key, run in sequential.items():
         _same_as_sequential(store, key, run)
     failed = store.read(bad[0].key)
-    assert failed["status"] == "failed" and "FmuError" in failed["error"] and "'plant'" in failed["error"]
+    assert failed["status"] == "failed" and "'plant'" in failed["error"] and "stroke" in failed["error"]
+    assert 0 < failed["steps"] < 5400 and "pose error" in failed["metrics"]   # partial results kept
     assert outcome.failed == {bad[0].key: failed["error"]}
 
 
