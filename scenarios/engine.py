@@ -27,6 +27,7 @@ Results are bit-for-bit those of a sequential ``scenarios.master.run`` in one pr
 each run is the same deterministic computation in a fresh set of instances; floats go
 through JSON as their repr (exact) and series through npz.
 """
+import atexit
 import dataclasses
 import gzip
 import hashlib
@@ -34,6 +35,7 @@ import json
 import logging
 import os
 import pathlib
+import shutil
 import socket
 import tempfile
 import threading
@@ -110,6 +112,7 @@ def _local_fmu(digest, blobs):
     if digest not in _FMU_FILES:
         if _FMU_DIR is None:
             _FMU_DIR = pathlib.Path(tempfile.mkdtemp(prefix="movingbase-fmus-"))
+            atexit.register(shutil.rmtree, _FMU_DIR, True)
         path = _FMU_DIR / f"{digest}.fmu"
         path.write_bytes(blobs[digest])
         _FMU_FILES[digest] = path

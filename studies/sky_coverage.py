@@ -19,6 +19,7 @@ import datetime
 import math
 import os
 import pathlib
+import sys
 
 import matplotlib
 
@@ -259,7 +260,10 @@ def main(argv=None):
     parser.add_argument("--out", default="out")
     parser.add_argument("--docs", action="store_true", help="write the charts to docs/figures and the report to docs/")
     args = parser.parse_args(argv)
-    results = run(args.out, args.ci, args.jobs, args.dask)
+    try:
+        results = run(args.out, args.ci, args.jobs, args.dask)
+    except KeyboardInterrupt:
+        sys.exit("interrupted: the runs finished so far are on disk; run the same command again to resume")
     if args.docs:
         path, charts = report(results, DOCS, DOCS / "figures", "sky_coverage.md")
     else:
