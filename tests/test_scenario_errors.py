@@ -384,8 +384,8 @@ def test_a_run_refused_at_initialisation_is_reported_with_no_rows(descriptions, 
 
 # ------------------------------------------------- the master's linear extrapolation
 def test_linear_extrapolation_against_a_ramp(descriptions, fmus, tmp_path):
-    """Azimuth only, at its rate limit from 2 s on: the base yaw (= azimuth) is a ramp at
-    0.5 deg/s. Jacobi holds the input one step (controller input at t_k+1 = output at
+    """Azimuth only, at its rate limit from 2 s on: the base yaw (= the mount angle
+    180 deg - azimuth) is a ramp at -0.5 deg/s. Jacobi holds the input one step (controller input at t_k+1 = output at
     t_k); linear extrapolation adds half a step of the ramp, +0.5 h rate (the ramp's mean
     over the coming step); Gauss-Seidel, base stepped first, sees t_k+1 itself."""
     text = edited(SLEW, ('start_elevation = "30 deg"', 'start_elevation = "45 deg"'),
@@ -404,7 +404,7 @@ def test_linear_extrapolation_against_a_ramp(descriptions, fmus, tmp_path):
         data = np.loadtxt(run.csv_path, delimiter=",", skiprows=1)
         yaw[label] = data[:, [header.index("base.base_pose[6] [rad]"), header.index("controller.base_pose[6] [rad]")]]
         t = data[:, 0]
-    h, rate = 1e-3, math.radians(0.5)
+    h, rate = 1e-3, -math.radians(0.5)   # yaw = A = 180 deg - Az falls as the azimuth rises
     cruise = np.flatnonzero((t > 2.05) & (t < 2.95))
     out, held = yaw["held"][cruise - 1, 0], yaw["held"][cruise, 1]
     assert np.all(np.abs(np.diff(yaw["held"][cruise, 0]) - rate * h) < 1e-12)   # it is a ramp
