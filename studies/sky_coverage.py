@@ -31,6 +31,7 @@ from matplotlib.colors import LogNorm
 from plant import telescope
 from scenarios import campaign as campaigns
 from scenarios import engine
+from scenarios.report import FLOOR
 from scenarios.units import to_si
 
 CAMPAIGNS = ("sky_slews", "slew_sizes", "keyhole_tracks")
@@ -173,20 +174,29 @@ def keyhole_chart(rows_, store, path):
     params = telescope.TelescopeParams.tianma()
     fig = plt.figure(figsize=(13, 5.5), constrained_layout=True)
     ax = fig.add_subplot(1, 2, 1)
+    lowest = np.inf
     for mode, colour in zip(MODES, ("tab:red", "tab:blue")):
         for side, marker, sign in (("south", "o", -1), ("north", "^", 1)):
             mine = sorted((r for r in rows_ if r["mode"] == mode and np.sign(_miss(r, params.latitude)) == sign),
                           key=lambda r: abs(_miss(r, params.latitude)))
             x = [abs(_miss(r, params.latitude)) for r in mine]
-            ax.plot(x, [r["peak"] for r in mine], marker + "-", color=colour,
-                    label=f"{mode.replace('_', '-')}, {side}: peak")
-            ax.plot(x, [r["rms"] for r in mine], marker + ":", color=colour, alpha=0.6,
-                    label=f"{mode.replace('_', '-')}, {side}: RMS")
+            for key, style, alpha in (("peak", "-", 1.0), ("rms", ":", 0.6)):
+                values = np.array([r[key] for r in mine])
+                under = values < FLOOR        # drawn on the floor, as downward triangles
+                label = f"{mode.replace('_', '-')}, {side}: {'peak' if key == 'peak' else 'RMS'}"
+                ax.plot(x, np.maximum(values, FLOOR), style, color=colour, alpha=alpha, label=label,
+                        marker=marker, markevery=list(np.flatnonzero(~under)))
+                ax.plot(np.array(x)[under], np.full(under.sum(), FLOOR), "v", color=colour, alpha=alpha)
+                lowest = min(lowest, values.min(initial=np.inf))
+    if lowest < FLOOR:
+        ax.text(0.02, 0.02, f"v: under the {FLOOR * 1e3:g} nm this rigid-body model resolves, drawn on the floor "
+                f"(lowest {lowest:.1g} µm)", transform=ax.transAxes, fontsize=7.5, color="0.3")
     for mark, text in zip(MARKS, ("10 µm", "0.1 mm")):
         ax.axhline(mark, color="grey", lw=0.8, ls=":")
         ax.text(1.0, mark, text + " ", transform=ax.get_yaxis_transform(), ha="right", va="bottom", fontsize=8)
     ax.set_xscale("log")
     ax.set_yscale("log")
+    ax.set_ylim(FLOOR / 2, None)
     ax.set_xlabel("zenith distance at transit [deg]")
     ax.set_ylabel("platform position error [µm]")
     ax.set_title("Sidereal tracks near the keyhole")
@@ -198,7 +208,7 @@ def keyhole_chart(rows_, store, path):
     sky.set_theta_direction(-1)               # compass: north up, east to the right
     fixed = [r for r in rows_ if r["mode"] == "fixed_base"]
     errors = np.concatenate([store.series(r["key"])[METRIC][1] for r in fixed]) if fixed else np.ones(1)
-    norm = LogNorm(max(errors[errors > 0].min(), 1e-4), errors.max())
+    norm = LogNorm(FLOOR, max(errors.max(), 10 * FLOOR))   # colours floored at what the model resolves
     for r in fixed:
         t, err = store.series(r["key"])[METRIC]
         v = r["values"]
