@@ -24,6 +24,8 @@ except ModuleNotFoundError:  # Python 3.10
 from fmpy.validation import validate_fmu
 from pythonfmu.builder import FmuBuilder
 
+from fmu_src import native_build
+
 ROOT = pathlib.Path(__file__).resolve().parent.parent   # the checkout, or site-packages
 PYPROJECT = ROOT / "pyproject.toml"
 OUT = (ROOT if PYPROJECT.exists() else pathlib.Path.cwd()) / "build" / "fmu"
@@ -72,8 +74,9 @@ def add_units(xml_text, units):
     return ET.tostring(root, encoding="unicode", xml_declaration=True)
 
 
-def _units(fmu):
-    """Units the slave recorded, from an instance made on the FMU's own resources."""
+def slave_instance(fmu):
+    """An instance of the FMU's slave class, made on the FMU's own resources (the units it
+    recorded; the exact start values fmu_src/native_build.py compiles in)."""
     with tempfile.TemporaryDirectory() as tmp:
         with zipfile.ZipFile(fmu) as z:
             z.extractall(tmp)
@@ -81,7 +84,12 @@ def _units(fmu):
         module = importlib.import_module((resources / "slavemodule.txt").read_text().strip())
         slave_class = next(c for c in vars(module).values()
                            if isinstance(c, type) and c.__module__ == module.__name__ and hasattr(c, "step"))
-        return slave_class(instance_name="build", resources=str(resources)).units
+        return slave_class(instance_name="build", resources=str(resources))
+
+
+def _units(fmu):
+    """Units the slave recorded."""
+    return slave_instance(fmu).units
 
 
 def _rewrite(fmu, units):
@@ -171,5 +179,6 @@ def main(argv=None):
     for name in args.names:
         fmu = build(name, out)
         print(f"built {fmu}")
+        print(f"built {native_build.build_native(fmu, out / 'native')}")
     print(f"FMUs are in {out}")
     return out
