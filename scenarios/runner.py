@@ -6,6 +6,7 @@ import pathlib
 from tqdm import tqdm
 
 from fmu_src.builder import ensure_built
+from fmu_src.native_build import ensure_native
 from plant.stewart import FIDELITIES
 from . import fidelity, master, metrics, report, spec
 from .fmi import unpack
@@ -21,14 +22,18 @@ def resolve(name):
     return SHIPPED / f"{name}.toml"
 
 
-def prepare(path, ci=False):
+def prepare(path, ci=False, implementation=None):
     """Scenario, FMU paths per instance and checked parameter values: all checks done
-    before anything runs. ``ci`` applies the file's [ci] overrides (a shorter run)."""
+    before anything runs. ``ci`` applies the file's [ci] overrides (a shorter run);
+    ``implementation`` ("native" or "python") overrides every instance's choice."""
     scenario = spec.load(path)
     if ci and scenario.ci:
         scenario = spec.load(path, overrides=scenario.ci)
-    scripts = ensure_built(sorted({spec.FMU_SCRIPTS[f] for f in scenario.fmus.values()}))
-    paths = {inst: scripts[spec.FMU_SCRIPTS[fmu]] for inst, fmu in scenario.fmus.items()}
+    if implementation is not None:
+        if implementation not in spec.IMPLEMENTATIONS:
+            raise ValueError(f"implementation must be one of {spec.IMPLEMENTATIONS}, got {implementation!r}")
+        scenario.implementations = dict.fromkeys(scenario.fmus, implementation)
+    paths = fmu_paths(scenario)
     descriptions = {inst: unpack(p)[0] for inst, p in paths.items()}
     auto = [inst for inst, params in scenario.parameters.items() if params.get("fidelity") == "auto"]
     for inst in auto:
@@ -37,6 +42,15 @@ def prepare(path, ci=False):
     for inst in auto:
         _choose_fidelity(scenario, paths, values, inst)
     return scenario, paths, descriptions, values
+
+
+def fmu_paths(scenario):
+    """instance -> FMU file of the implementation the scenario chose for it (built if stale)."""
+    chosen = {inst: (spec.FMU_SCRIPTS[fmu], scenario.implementations.get(inst, spec.IMPLEMENTATIONS[0]))
+              for inst, fmu in scenario.fmus.items()}
+    built = {"python": ensure_built(sorted({s for s, impl in chosen.values() if impl == "python"})),
+             "native": ensure_native(sorted({s for s, impl in chosen.values() if impl == "native"}))}
+    return {inst: built[impl][script] for inst, (script, impl) in chosen.items()}
 
 
 def _choose_fidelity(scenario, paths, values, plant):
@@ -55,9 +69,10 @@ def _choose_fidelity(scenario, paths, values, plant):
                           f"largest leg-force error of each level along this scene: {listed})")
 
 
-def run_scenario(path, out="out", ci=False, progress=True):
-    """Run every sweep value of a scenario; returns (scenario, runs, report path)."""
-    scenario, paths, descriptions, values = prepare(resolve(path), ci)
+def run_scenario(path, out="out", ci=False, progress=True, implementation=None):
+    """Run every sweep value of a scenario; returns (scenario, runs, report path);
+    ``implementation`` as in prepare."""
+    scenario, paths, descriptions, values = prepare(resolve(path), ci, implementation)
     outdir = pathlib.Path(out) / scenario.name
     outdir.mkdir(parents=True, exist_ok=True)
     items = scenario.sweep[1] if scenario.sweep else [None]
