@@ -118,16 +118,24 @@ def _c_name(name):
     return name.split("[", 1)[0]
 
 
+def starts(slave):
+    """value reference -> start value of the slave instance, exactly."""
+    from pythonfmu.variables import Real
+    return {vr: (slave.get_real([vr]) if isinstance(var, Real) else slave.get_integer([vr]))[0]
+            for vr, var in slave.vars.items()}
+
+
 def vars_header(identifier, guid, slave, root):
     """The generated C header: guid, one VR_ constant per variable (a vector's first
     element), the variable table with exact starts and the XML's ranges, the constants."""
     xml_vars = {v.get("name"): v for v in root.iter("ScalarVariable")}
+    exact = starts(slave)
     rows, enums, seen = [], [], {}
     for vr, var in sorted(slave.vars.items()):
         element = xml_vars[var.name]
         kind = element[0]
         is_real = kind.tag == "Real"
-        start = slave.get_real([vr])[0] if is_real else slave.get_integer([vr])[0]
+        start = exact[vr]
         limits = [(1, _c(kind.get(k))) if kind.get(k) is not None else (0, "0.0") for k in ("min", "max")]
         rows.append(f'    {{"{var.name}", {"MB_REAL" if is_real else "MB_INTEGER"}, '
                     f'{_CAUSALITY[element.get("causality", "local")]}, {_c(start)}, '
@@ -147,10 +155,15 @@ def vars_header(identifier, guid, slave, root):
     return "\n".join(lines)
 
 
-def model_description(xml_text, guid, sources):
+def model_description(xml_text, guid, sources, exact):
     """The pythonfmu modelDescription made the native FMU's: guid, tool, capabilities,
-    SourceFiles; Real starts written to round-trip (pythonfmu rounds them to 16 digits)."""
+    SourceFiles; Real starts (``exact``: by value reference) written to round-trip
+    (pythonfmu rounds them to 16 digits)."""
     root = ET.fromstring(xml_text)
+    for var in root.iter("ScalarVariable"):
+        real = var.find("Real")
+        if real is not None and real.get("start") is not None:
+            real.set("start", repr(float(exact[int(var.get("valueReference"))])))
     root.set("guid", guid)
     root.set("generationTool", "movingbase fmu_src/native_build.py (FMI 2.0 C, no Python at run time)")
     cs = root.find("CoSimulation")
@@ -209,7 +222,7 @@ def build_native(python_fmu, out, empty=False):
         binaries.mkdir(parents=True)
         compile_binary(sources, [n for n in names if n.endswith(".c")], binaries / f"{identifier}.so",
                        ["MB_EMPTY_MODEL"] if empty else [])
-        md = model_description(xml_text, guid, names)
+        md = model_description(xml_text, guid, names, starts(slave))
         (tmp / "modelDescription.xml").write_text(ET.tostring(md, encoding="unicode", xml_declaration=True))
         fmu = out / python_fmu.name
         with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as z:

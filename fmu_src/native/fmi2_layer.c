@@ -112,6 +112,26 @@ int mb_nonfinite_rows(int nrows, int width, const double *rows, const char *cons
     return count;
 }
 
+const char *mb_repr(double v, char *buf)
+{
+    if (isnan(v)) return strcpy(buf, "nan");
+    if (isinf(v)) return strcpy(buf, v > 0 ? "inf" : "-inf");
+    int p = 1;
+    for (; p < 17; p++) {   /* fewest significant digits that read back as v */
+        snprintf(buf, 32, "%.*e", p - 1, v);
+        if (strtod(buf, NULL) == v) break;
+    }
+    snprintf(buf, 32, "%.*e", p - 1, v);
+    int exponent = atoi(strchr(buf, 'e') + 1);
+    if (exponent < -4 || exponent >= 16) {   /* Python: 1e-05, 1.5e+16 (C pads the exponent to 2 digits too) */
+        return buf;
+    }
+    int decimals = p - 1 - exponent;
+    snprintf(buf, 32, "%.*f", decimals > 0 ? decimals : 0, v);
+    if (!strchr(buf, '.')) strcat(buf, ".0");
+    return buf;
+}
+
 /* Record the model's failure "<kind> <when>: <message>" (slave.py's GuardedSlave.fail). */
 static void record_failure(mb_instance *inst, const char *when)
 {

@@ -57,6 +57,7 @@ static int advance(mb_instance *inst, double *r, Model *m, double t0, double h)
 
 static int init(mb_instance *inst, double *r, int *i, void *model, double start_time)
 {
+    char buf[32];
     (void)start_time;
     Model *m = model;
     int fidelity = i[VR_fidelity], integrator = i[VR_integrator];
@@ -75,7 +76,7 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     }
     m->max_step = r[VR_max_step];
     if (!(m->max_step > 0)) {
-        mb_error(inst, "InvalidInputError", "max_step must be positive, got %g", m->max_step);
+        mb_error(inst, "InvalidInputError", "max_step must be positive, got %s", mb_repr(m->max_step, buf));
         return 1;
     }
     m->rk4 = integrator == INTEGRATOR_RK4;

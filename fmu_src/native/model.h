@@ -50,6 +50,10 @@ void mb_error(mb_instance *inst, const char *kind, const char *fmt, ...);
 /* A warning log line (category logStatusWarning). */
 void mb_warning(mb_instance *inst, const char *fmt, ...);
 
+/* v as Python's repr(float) writes it (shortest round trip, "0.0", "1e-05"), into buf
+   (at least 32 chars); returns buf. For messages worded as the Python FMUs word them. */
+const char *mb_repr(double v, char *buf);
+
 /* "a, b" list of the names whose row of `width` values in `rows` holds NaN or inf,
    written into out (size n); returns the number of such rows. */
 int mb_nonfinite_rows(int nrows, int width, const double *rows, const char *const *names,

@@ -15,6 +15,7 @@ typedef struct {
 /* Reference, feedforward and forces at t; the integral advances only on a real step. */
 static int update(mb_instance *inst, double *r, int *i, double t, int stepping, double h)
 {
+    char buf[32];
     double ref[3], ref_rate[3], ref_acc[3], ff[3];
     int mode = i[VR_mode];
     int status = mb_m3t_reference_forces(PACKED, t, &r[VR_initial_position], r[VR_amplitude], r[VR_omega], mode, ref,
@@ -39,7 +40,7 @@ static int update(mb_instance *inst, double *r, int *i, double t, int stepping, 
             }
         }
         if (!(isfinite(h) && h > 0)) {
-            mb_error(inst, "ValueError", "time step must be finite and > 0, got %g", h);
+            mb_error(inst, "ValueError", "time step must be finite and > 0, got %s", mb_repr(h, buf));
             return 1;
         }
         double error[3], error_rate[3], new_integral[3], *integral = &r[VR_integral];
@@ -59,6 +60,7 @@ static int update(mb_instance *inst, double *r, int *i, double t, int stepping, 
 
 static int init(mb_instance *inst, double *r, int *i, void *model, double start_time)
 {
+    char buf[32];
     (void)model;
     if (i[VR_feedforward] != 0 && i[VR_feedforward] != 1) {
         mb_error(inst, "InvalidInputError", "feedforward must be 0 (off) or 1 (on), got %d", i[VR_feedforward]);
@@ -68,12 +70,12 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     const double gains[3] = {r[VR_kp], r[VR_ki], r[VR_kd]};
     for (int k = 0; k < 3; k++) {   /* controller.pid.PIDGains */
         if (!(isfinite(gains[k]) && gains[k] >= 0)) {
-            mb_error(inst, "ValueError", "gain %s must be finite and >= 0, got %g", GAINS[k], gains[k]);
+            mb_error(inst, "ValueError", "gain %s must be finite and >= 0, got %s", GAINS[k], mb_repr(gains[k], buf));
             return 1;
         }
     }
     if (!(isfinite(r[VR_force_limit]) && r[VR_force_limit] > 0)) {
-        mb_error(inst, "ValueError", "force_limit must be finite and > 0, got %g", r[VR_force_limit]);
+        mb_error(inst, "ValueError", "force_limit must be finite and > 0, got %s", mb_repr(r[VR_force_limit], buf));
         return 1;
     }
     memset(&r[VR_integral], 0, 3 * sizeof(double));

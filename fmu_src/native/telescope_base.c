@@ -18,13 +18,14 @@ typedef struct {
 /* slave.py's message for a kernel status (plant/telescope.py _status_error). */
 static void fail_status(mb_instance *inst, const Model *m, int status, double t)
 {
+    char buf[32];
     const mb_tel_profile *p = &m->profile;
     if (status == MB_TEL_BELOW_HORIZON)
-        mb_error(inst, "InvalidInputError", "the source is below the horizon at t = %.17g s", t - p->start_delay);
+        mb_error(inst, "InvalidInputError", "the source is below the horizon at t = %s s", mb_repr(t - p->start_delay, buf));
     else if (status == MB_TEL_DEC_RANGE)
         mb_error(inst, "InvalidInputError", "dec must lie in [-90, 90] deg, got %.6g deg", p->dec * 57.29577951308232);
     else if (status == MB_TEL_DURATION_NOT_POSITIVE)
-        mb_error(inst, "InvalidInputError", "T must be > 0, got %.17g", p->paper_duration);
+        mb_error(inst, "InvalidInputError", "T must be > 0, got %s", mb_repr(p->paper_duration, buf));
     else if (status == MB_TEL_ELEVATION_RANGE)
         mb_error(inst, "InvalidInputError", "slew elevation must lie in [0, 90] deg, got %.6g..%.6g deg",
                  57.29577951308232 * (p->start_el < p->target_el ? p->start_el : p->target_el),

@@ -1,0 +1,287 @@
+"""Native FMUs (fmu_src/native, C) against their pythonfmu twins, the independent truth:
+the same variables, the same results in every shipped scenario, the same failure
+messages on bad input; plus what only the native ones promise: FMU states that replay
+bit for bit through get/set and serialisation, and fmi2Discard with the last accepted
+state kept."""
+import math
+import zipfile
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+from fmpy import read_model_description
+from fmpy.fmi2 import fmi2LastSuccessfulTime, fmi2Real
+
+from fmu_src import builder, native_build
+from scenarios import runner
+from scenarios.fmi import Instance
+from tests.fmu_helpers import OPENED
+
+OK, DISCARD, ERROR = 0, 2, 3
+
+
+@pytest.fixture(scope="session")
+def native(fmus, tmp_path_factory):
+    """Native FMU paths by script name, built from the session's pythonfmu FMUs."""
+    out = tmp_path_factory.mktemp("native")
+    return {script: native_build.build_native(path, out) for script, path in fmus.items()}
+
+
+def opened(path, **values):
+    """An instance after instantiate and setupExperiment, ``values`` set in initialization
+    mode; exitInitializationMode's status is returned, not raised."""
+    inst = Instance(path, "a")
+    OPENED.append(inst)
+    inst.call("setupExperiment", startTime=0.0)
+    inst.call("enterInitializationMode")
+    for name, value in values.items():
+        inst.set(name, value)
+    status = inst.raw("fmi2ExitInitializationMode")(inst.fmu.component)
+    return inst, status
+
+
+def step(inst, t, h):
+    return inst.raw("fmi2DoStep")(inst.fmu.component, t, h, 1)
+
+
+def reals(inst, names):
+    return np.array([inst.get_real(n) for n in names])
+
+
+def outputs(md):
+    return [v.name for v in md.modelVariables if v.causality == "output"]
+
+
+def failure_lines(inst):
+    return [line for line in inst.log if line.startswith("[ERROR]")]
+
+
+# ------------------------------------------------------------------- description
+@pytest.mark.parametrize("script", builder.SCRIPTS)
+def test_same_variables_as_the_pythonfmu_fmu(fmus, native, script):
+    """Names, value references, causalities, variabilities, types, units, descriptions and
+    start values (exactly, as the Python instance has them) agree; only the native FMU
+    says it needs no execution tool and lists its sources, which the zip holds."""
+    py, nat = read_model_description(str(fmus[script])), read_model_description(str(native[script]))
+    assert nat.coSimulation.modelIdentifier == py.coSimulation.modelIdentifier
+    assert nat.guid != py.guid
+    fields = ("name", "valueReference", "causality", "variability", "type", "unit", "displayUnit", "description",
+              "min", "max")
+    for a, b in zip(py.modelVariables, nat.modelVariables, strict=True):
+        assert [getattr(a, f) for f in fields] == [getattr(b, f) for f in fields]
+        assert float(b.start) == pytest.approx(float(a.start), rel=1e-15, abs=0)
+    slave = builder.slave_instance(fmus[script])
+    for var in nat.modelVariables:   # native starts are the Python instance's, to the bit
+        vr = var.valueReference
+        exact = slave.get_real([vr])[0] if var.type == "Real" else slave.get_integer([vr])[0]
+        assert float(var.start) == exact, var.name
+    with zipfile.ZipFile(native[script]) as z:
+        names = set(z.namelist())
+        root = ET.fromstring(z.read("modelDescription.xml"))
+    cs = root.find("CoSimulation")
+    assert cs.get("needsExecutionTool") == "false" and cs.get("canSerializeFMUstate") == "true"
+    listed = {f.get("name") for f in cs.find("SourceFiles")}
+    assert {f"sources/{n}" for n in listed} <= names and f"binaries/linux64/{nat.coSimulation.modelIdentifier}.so" in names
+    assert not any(n.startswith("resources/") and n.endswith(".py") for n in names)
+
+
+# ---------------------------------------------------------------------- scenarios
+def _csv(path):
+    return np.genfromtxt(path, delimiter=",", names=True)
+
+
+@pytest.mark.parametrize("name", sorted(p.stem for p in runner.SHIPPED.glob("*.toml")))
+def test_shipped_scenario_same_native_and_python(name, tmp_path):
+    """Every recorded variable of every sweep value of the [ci] run agrees to 1e-12 of its
+    largest magnitude (the same C kernels behind both: bit for bit in practice)."""
+    runs = {impl: runner.run_scenario(name, tmp_path / impl, ci=True, progress=False, implementation=impl)[1]
+            for impl in ("python", "native")}
+    assert len(runs["python"]) == len(runs["native"]) > 0
+    for a_run, b_run in zip(runs["python"], runs["native"]):
+        a, b = _csv(a_run.csv_path), _csv(b_run.csv_path)
+        assert a.dtype.names == b.dtype.names and a.shape == b.shape
+        for column in a.dtype.names:
+            scale = np.max(np.abs(a[column]))
+            assert np.max(np.abs(a[column] - b[column])) <= 1e-12 * scale, (a_run.label, column)
+        for metric, value in a_run.metrics.items():
+            assert b_run.metrics[metric] == pytest.approx(value, rel=1e-12, abs=1e-300), metric
+
+
+# ---------------------------------------------------------------------- bad input
+def _both(fmus, native, script, values, drive):
+    """Run ``drive(inst)`` on the python and native FMU; returns both instances."""
+    return [drive(opened(paths[script], **values)) for paths in (fmus, native)]
+
+
+def _failure(line):
+    """The failure text without the status label."""
+    return line.split("] ", 1)[1]
+
+
+def _stepping_failure(fmus, native, script, values, inputs, steps=1, h=1e-3):
+    """Set ``inputs`` then step until a Discard; checks the native contract (Discard,
+    outputs and last successful time of the last accepted step, refusal afterwards) and
+    that the failure reads as the python FMU's. Returns the failure text."""
+    texts = []
+    for paths in (fmus, native):
+        inst, status = opened(paths[script], **values)
+        assert status == OK, inst.log
+        names = outputs(inst.md)
+        for name, value in inputs.items():
+            inst.set(name, value)
+        t, before, result = 0.0, reals(inst, names), OK
+        for k in range(steps):
+            result = step(inst, t, h)
+            if result != OK:
+                break
+            before, t = reals(inst, names), t + h
+        assert result == DISCARD, (paths[script].parent.name, inst.log[-3:])
+        texts.append(_failure(failure_lines(inst)[-1]))
+        if paths is native:
+            assert np.array_equal(reals(inst, names), before, equal_nan=True)
+            last = fmi2Real()
+            assert inst.raw("fmi2GetRealStatus")(inst.fmu.component, fmi2LastSuccessfulTime, last) == OK
+            assert last.value == t
+            assert step(inst, t, h) == DISCARD
+            assert failure_lines(inst)[-1].startswith(f"[ERROR] refusing doStep at t={t:.6g} s after: ")
+    assert texts[0] == texts[1]
+    return texts[1]
+
+
+PLANT = {"moving_base": 0, "fidelity": 0, "integrator": 0}
+
+
+@pytest.mark.parametrize("name, value, kind", [("leg_force[3]", math.nan, "leg forces"),
+                                               ("base_acc[2]", math.inf, "base acc")])
+def test_plant_nan_inf_input_discards(fmus, native, name, value, kind):
+    text = _stepping_failure(fmus, native, "hexapod_plant_fmu", PLANT, {name: value})
+    assert text == f"InvalidInputError at t=0 s: {kind} input contains NaN or inf"
+
+
+def test_plant_leg_past_stroke_discards(fmus, native):
+    """Zero leg forces: the platform falls under gravity until a leg leaves its 1 mm stroke."""
+    text = _stepping_failure(fmus, native, "hexapod_plant_fmu", dict(PLANT, stroke=1e-3), {}, steps=200)
+    assert text.startswith("StrokeError at t=") and "outside its stroke" in text
+
+
+def test_plant_diverging_integrator_discards(fmus, native):
+    """Euler over 1 s substeps under 1e9 N leg forces leaves the 100 m bound (in the second step)."""
+    text = _stepping_failure(fmus, native, "hexapod_plant_fmu", dict(PLANT, integrator=1, max_step=1.0, stroke=1e6),
+                             {f"leg_force[{i}]": 1e9 for i in range(1, 7)}, steps=3, h=1.0)
+    assert text.startswith("ConvergenceError at t=1 s: integrator euler diverged over [1, 2] s (substep 1 s)")
+
+
+def test_plant_singular_initial_pose_is_an_error(fmus, native):
+    """The platform in the base plane: every leg horizontal, det J = 0."""
+    texts = []
+    for paths in (fmus, native):
+        inst, status = opened(paths["hexapod_plant_fmu"], **PLANT, **{"initial_pose[3]": 0.0})
+        texts.append(_failure(failure_lines(inst)[-1]))
+        if paths is native:
+            assert status == ERROR
+    assert texts[0] == texts[1] and texts[1].startswith("SingularConfigurationError in initialization: singular pose")
+
+
+def test_plant_nan_input_at_initialization_is_an_error(native):
+    inst, status = opened(native["hexapod_plant_fmu"], **PLANT, **{"leg_force[1]": math.nan})
+    assert status == ERROR
+    assert failure_lines(inst)[-1] == ("[ERROR] InvalidInputError in initialization: leg forces input contains "
+                                       "NaN or inf")
+
+
+def test_plant_radau_needs_python(native):
+    inst, status = opened(native["hexapod_plant_fmu"], **dict(PLANT, integrator=2))
+    assert status == ERROR and "radau needs the python implementation" in failure_lines(inst)[-1]
+
+
+def test_controller_nan_input_discards(fmus, native):
+    text = _stepping_failure(fmus, native, "leg_controller_fmu", {}, {"leg_rate[4]": math.nan})
+    assert text == "InvalidInputError at t=0 s: leg_rate input contains NaN or inf"
+
+
+def test_controller_singular_reference_discards(fmus, native):
+    text = _stepping_failure(fmus, native, "leg_controller_fmu", {}, {"reference_pose[3]": 0.0})
+    assert text.startswith("SingularConfigurationError at t=0 s: singular configuration")
+
+
+def test_controller_saturation_warns_once(fmus, native):
+    """A 1 m leg-length error with a 10 N limit saturates every leg; said once, as in Python."""
+    warnings = []
+    for paths in (fmus, native):
+        inst, status = opened(paths["leg_controller_fmu"], force_limit=10.0)
+        inst.set("leg_length[1]", inst.get_real("leg_length[1]") - 1.0)
+        for k in range(3):
+            assert step(inst, k * 1e-3, 1e-3) == OK
+        warnings.append([line for line in inst.log if line.startswith("[WARNING]")])
+    assert warnings[0] == warnings[1] and len(warnings[1]) == 1 and "saturated at +-10 N at t=0.001 s" in warnings[1][0]
+
+
+def test_mechanism_nan_force_discards(fmus, native):
+    text = _stepping_failure(fmus, native, "mechanism3t_fmu", {}, {"slider_force[2]": math.nan})
+    assert text == "InvalidInputError at t=0 s: slider forces contains NaN or inf"
+
+
+def test_mechanism_driven_out_of_reach_discards(fmus, native):
+    """1 kN more on y_A1 than gravity needs drives the sliders to where the mechanism
+    cannot assemble (or into a singularity): both implementations fail at the same step,
+    with the same message."""
+    text = _stepping_failure(fmus, native, "mechanism3t_fmu", {}, {"slider_force[2]": 5e3}, steps=2000)
+    assert text.split(":")[0].split(" at ")[0] in ("UnreachableError", "SingularConfigurationError", "ConvergenceError")
+
+
+def test_slider_controller_nan_measurement_discards(fmus, native):
+    inst, status = opened(native["slider_controller_fmu"])
+    inst.set("slider_rate[1]", math.nan)
+    assert step(inst, 0.0, 1e-3) == DISCARD
+    assert failure_lines(inst)[-1].startswith("[ERROR] InvalidInputError at t=0 s: measured slider position/rate "
+                                              "input contains NaN or inf")
+
+
+def test_telescope_bad_parameter_is_an_error(fmus, native):
+    texts = []
+    for paths in (fmus, native):
+        inst, status = opened(paths["telescope_fmu"], profile=2, paper_duration=0.0)
+        texts.append(_failure(failure_lines(inst)[-1]))
+    assert texts[0] == texts[1] == "InvalidInputError in initialization: T must be > 0, got 0.0"
+    assert status == ERROR
+
+
+# --------------------------------------------------------------------- FMU states
+CLOSED_LOOP = ("hexapod_plant_fmu", {"leg_force[1]": 5.3e3, "leg_force[4]": 5.1e3}, ["pose[3]", "leg_rate[2]"])
+
+
+@pytest.mark.parametrize("script, inputs, watch", [
+    CLOSED_LOOP,
+    ("leg_controller_fmu", {"leg_length[2]": 3.0}, ["leg_force[2]", "integral[2]"]),
+    ("telescope_fmu", {}, ["base_acc[5]", "reference_pose[3]"]),
+    ("mechanism3t_fmu", {"slider_force[1]": 20.0}, ["platform_position[3]", "slider_rate[1]"]),
+    ("slider_controller_fmu", {"slider_position[3]": 0.1}, ["slider_force[3]", "integral[3]"]),
+])
+def test_state_get_set_and_serialisation_replay_bit_for_bit(native, script, inputs, watch):
+    """From a state saved after 5 steps: the rest of the run replays identically after
+    fmi2SetFMUstate and after a serialise/deserialise round trip, in a new instance too."""
+    values = {"profile": 2} if script == "telescope_fmu" else {}
+    inst, status = opened(native[script], **values)
+    assert status == OK
+
+    def run(instance, start, n):
+        rows = []
+        for k in range(start, start + n):
+            for name, value in inputs.items():
+                instance.set(name, value * (1 + 1e-3 * k))
+            assert step(instance, k * 1e-3, 1e-3) == OK
+            rows.append(reals(instance, watch))
+        return np.array(rows)
+
+    run(inst, 0, 5)
+    state = inst.fmu.getFMUstate()
+    blob = inst.fmu.serializeFMUstate(state)
+    first = run(inst, 5, 20)
+    inst.fmu.setFMUstate(state)
+    assert np.array_equal(run(inst, 5, 20), first)
+    other, _ = opened(native[script], **values)
+    restored = other.fmu.deSerializeFMUstate(blob)
+    other.fmu.setFMUstate(restored)
+    assert np.array_equal(run(other, 5, 20), first)
+    inst.fmu.freeFMUstate(state)
+    other.fmu.freeFMUstate(restored)
