@@ -37,6 +37,7 @@ struct mb_instance {
     char *name;
     int category_on[NCAT];
     int phase;
+    int dirty;                /* initialization mode: inputs or parameters set since the outputs were computed */
     size_t size, r_off, i_off, m_off;
     unsigned char *block;     /* layer_state | double r[n] | int i[n] | model */
     unsigned char *backup;    /* the block before the running doStep */
@@ -277,6 +278,7 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c)
     mb_instance *inst = c;
     if (!check(inst, "fmi2EnterInitializationMode", inst->phase == INSTANTIATED, "only allowed after fmi2Instantiate / fmi2SetupExperiment")) return fmi2Error;
     inst->phase = INITIALIZATION;
+    inst->dirty = 1;
     return fmi2OK;
 }
 
@@ -312,6 +314,19 @@ fmi2Status fmi2Reset(fmi2Component c)
 }
 
 /* ------------------------------------------------------------------- get and set */
+/* Outputs read in initialization mode are computed from the parameters and inputs set so
+   far (as the Reference FMUs do), so that an importer that propagates values during
+   initialization (libcosim) starts every FMU from its neighbours' initial outputs. If the
+   model cannot compute them yet, they keep their start values; fmi2ExitInitializationMode
+   reports the problem. */
+static void evaluate_initial(mb_instance *inst)
+{
+    if (inst->phase != INITIALIZATION || !inst->dirty) return;
+    inst->dirty = 0;
+    memcpy(inst->backup, inst->block, inst->size);
+    if (MODEL_INIT(inst, LAYER(inst)->start_time)) memcpy(inst->block, inst->backup, inst->size);
+}
+
 static int valid_vr(mb_instance *inst, const char *function, fmi2ValueReference vr, int type)
 {
     if (vr >= (fmi2ValueReference)MB_MODEL.nvars || MB_MODEL.vars[vr].type != type) {
@@ -352,6 +367,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 {
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
+    evaluate_initial(inst);
     const double *r = REALS(inst);
     for (size_t k = 0; k < nvr; k++) {
         if (!valid_vr(inst, "fmi2GetReal", vr[k], MB_REAL)) return fmi2Error;
@@ -364,6 +380,7 @@ fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
 {
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
+    evaluate_initial(inst);
     const int *iv = INTS(inst);
     for (size_t k = 0; k < nvr; k++) {
         if (!valid_vr(inst, "fmi2GetInteger", vr[k], MB_INTEGER)) return fmi2Error;
@@ -382,6 +399,7 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
             return fmi2Error;
         r[vr[k]] = value[k];
     }
+    inst->dirty = 1;
     return fmi2OK;
 }
 
@@ -396,6 +414,7 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
             return fmi2Error;
         iv[vr[k]] = value[k];
     }
+    inst->dirty = 1;
     return fmi2OK;
 }
 
