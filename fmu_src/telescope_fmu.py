@@ -2,23 +2,22 @@
 
 Outputs the motion of the hexapod's base {B} in {W} (pose, rates, accelerations), the
 axis angles, and the platform's reference pose (home + the elevation-dependent
-subreflector correction) with its derivatives, all analytic (plant.telescope).
+subreflector correction) with its derivatives, all analytic (plant.telescope, whose C
+kernel fills a whole block of output rows in one call).
 
 The profile is a known function of time, so it is evaluated ahead in blocks of BLOCK
 communication points (one vectorised call costs about what one point does); a step off
 the block's grid (another step size, a restored state) starts a new block there.
 """
 from dataclasses import replace
-from datetime import datetime, timezone
 
 import numpy as np
 
 from fmu_src.slave import OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
 from plant import telescope
 from plant.stewart import HOME_POSE, S_BAND_POSE
-from plant.trajectory import quintic
 
-PROFILES = ("slew", "sidereal", "paper")   # paper: the base and platform motion of Yao et al.
+PROFILES = telescope.PROFILE_KINDS   # slew, sidereal, paper (the base and platform motion of Yao et al.)
 BLOCK = 1000
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 
@@ -70,17 +69,11 @@ class TelescopeBase(GuardedSlave):
                               latitude=s["latitude"], longitude=s["longitude"],
                               az_rate_max=s["az_rate_max"], az_acc_max=s["az_acc_max"],
                               el_rate_max=s["el_rate_max"], el_acc_max=s["el_acc_max"])
-        if kind == "slew":
-            start = (s["start_azimuth"], s["start_elevation"])
-            target = (s["target_azimuth"], s["target_elevation"])
-            self.profile_at = lambda t: telescope.slew(self.params, start, target, t)
-        elif kind == "sidereal":
-            utc = datetime.fromtimestamp(s["utc_start"], tz=timezone.utc)
-            self.profile_at = lambda t: telescope.sidereal_track(
-                self.params, s["right_ascension"], s["declination"], utc, t)
-        else:
-            self.profile_at = lambda t: telescope.paper_manoeuvre(t, s["paper_duration"])
-        self.paper = kind == "paper"
+        self.motion = telescope.motion_profile(
+            kind, (s["start_azimuth"], s["start_elevation"]), (s["target_azimuth"], s["target_elevation"]),
+            ra=s["right_ascension"], dec=s["declination"], utc_start=s["utc_start"],
+            paper_duration=s["paper_duration"], start_delay=s["start_delay"],
+            reference=(HOME_POSE, S_BAND_POSE))   # the paper's platform motion: home to S-band
         self.block_t, self.block_h, self.block = np.inf, 0.0, None
         self._publish(0.0, 0.0)
 
@@ -96,11 +89,4 @@ class TelescopeBase(GuardedSlave):
 
     def _evaluate(self, times):
         """All outputs at the given times, (n, 40) in the order of self.now."""
-        times = times - self.settings["start_delay"]
-        axes = self.profile_at(times)
-        base = telescope.base_motion(self.params, axes)
-        if self.paper:   # the paper's platform motion: home to the S-band pose, same quintic
-            ref = quintic(HOME_POSE, S_BAND_POSE, self.settings["paper_duration"], times)
-        else:
-            ref = telescope.reference_pose(self.params, axes)
-        return np.concatenate([*base, *ref, np.stack([axes.A, axes.E, axes.A_dot, axes.E_dot], -1)], axis=1)
+        return telescope.telescope_outputs(self.params, self.motion, times)

@@ -5,6 +5,10 @@ Law: shared/spec/telescope.md; frames and poses: shared/spec/stewart-6ups.md. SI
 1-D array of times and every derivative is analytic (chain rule), so a consumer never
 differences samples.
 
+The numbers come from plant/c/telescope.c (the native FMUs compile the same file); this
+module holds the Python API and its validation, and turns the C's status codes into
+InvalidInputError with a message naming the problem.
+
 Pipeline: a profile (``slew``, ``sidereal_track``, ``paper_manoeuvre``) gives the axis
 angles A (azimuth), E (elevation) and their first two derivatives as an ``AxisMotion``;
 ``base_motion`` / ``base_twist`` turn it into the motion of the hexapod's base {B} in
@@ -22,16 +26,17 @@ Modelling assumptions (beyond the values labelled "assumed" in ``TelescopeParams
 """
 from dataclasses import dataclass
 from datetime import datetime, timezone
+from functools import lru_cache
 
 import numpy as np
 
+from ._kernel import ffi, lib
 from .errors import InvalidInputError
-from .rotations import cross
-from .trajectory import quintic
 
-EARTH_RATE = 7.2921159e-5           # rad/s, the rate at which the hour angle advances
-_J2000 = datetime(2000, 1, 1, 12, tzinfo=timezone.utc)
-_E_TOLERANCE = 1e-9                 # rad of rounding allowed outside [0, 90 deg]
+EARTH_RATE = lib.mb_tel_earth_rate()   # rad/s, the rate at which the hour angle advances
+_UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
+_E_TOLERANCE = 1e-9                 # rad of rounding allowed outside [0, 90 deg] (as in the C)
+PROFILE_KINDS = ("slew", "sidereal", "paper")   # enum mb_tel_kind
 
 
 def _finite(name, value):
@@ -136,52 +141,137 @@ class AxisMotion:
         _check_elevation("elevation E", self.E)
 
 
+# --- the C kernel ------------------------------------------------------------------
+
+def _doubles(array):
+    """A double* onto array (a contiguous float64 copy if it is not one; outputs are)."""
+    return ffi.from_buffer("double[]", np.ascontiguousarray(array, dtype=float))
+
+
+@lru_cache(maxsize=64)
+def _c_params(params):
+    """params as an mb_tel_params (cached: TelescopeParams is frozen)."""
+    c = ffi.new("mb_tel_params *")
+    for name in ("latitude", "longitude", "lever_arm", "az_rate_max", "az_acc_max", "el_rate_max",
+                 "el_acc_max", "b_y", "c_y", "b_z", "c_z"):
+        setattr(c, name, float(getattr(params, name)))
+    c.home = list(params.home)
+    return c
+
+
+def motion_profile(kind, start_az_el=(0.0, 0.0), target_az_el=(0.0, 0.0), ra=0.0, dec=0.0,
+                   utc_start=0.0, paper_duration=6.0, start_delay=0.0,
+                   reference=((0.0,) * 6, (0.0,) * 6)):
+    """A profile for the C (an mb_tel_profile): ``kind`` one of PROFILE_KINDS, angles in
+    rad, ``utc_start`` in Unix seconds, ``reference`` the (start, stop) poses of the
+    paper's platform quintic. Checked where it is used (InvalidInputError)."""
+    if kind not in PROFILE_KINDS:
+        raise InvalidInputError(f"profile must be one of {PROFILE_KINDS}, got {kind!r}")
+    c = ffi.new("mb_tel_profile *")
+    c.kind = PROFILE_KINDS.index(kind)
+    (c.start_az, c.start_el), (c.target_az, c.target_el) = start_az_el, target_az_el
+    c.ra, c.dec, c.utc_start = ra, dec, utc_start
+    c.paper_duration, c.start_delay = paper_duration, start_delay
+    c.ref_start, c.ref_stop = (list(np.asarray(pose, dtype=float)) for pose in reference)
+    return c
+
+
+# the settings each kind uses: mb_tel_profile field -> name in messages (the FMU's parameter)
+_PROFILE_FIELDS = {"slew": {"start_az": "start_azimuth", "start_el": "start_elevation",
+                            "target_az": "target_azimuth", "target_el": "target_elevation"},
+                   "sidereal": {"ra": "right_ascension", "dec": "declination", "utc_start": "utc_start"},
+                   "paper": {"paper_duration": "paper_duration"}}
+
+
+def _status_error(status, profile, t, first_bad):
+    """InvalidInputError for a non-zero mb_tel status of ``profile`` at times t."""
+    kind = PROFILE_KINDS[profile.kind] if 0 <= profile.kind < len(PROFILE_KINDS) else None
+    if status == lib.MB_TEL_ELEVATION_RANGE:
+        E = np.array([profile.start_el, profile.target_el])
+        return InvalidInputError(f"slew elevation must lie in [0, 90] deg, got "
+                                 f"{np.degrees(np.min(E)):.6g}..{np.degrees(np.max(E)):.6g} deg")
+    if status == lib.MB_TEL_DEC_RANGE:
+        return InvalidInputError(f"dec must lie in [-90, 90] deg, got {np.degrees(profile.dec):.6g} deg")
+    if status == lib.MB_TEL_ZENITH:
+        return InvalidInputError("the source passes through the zenith, where the azimuth is "
+                                 "undefined; offset dec from the latitude (near_zenith_source)")
+    if status == lib.MB_TEL_BELOW_HORIZON:
+        return InvalidInputError("the source is below the horizon at t = "
+                                 f"{t[first_bad] - profile.start_delay} s")
+    if status == lib.MB_TEL_DURATION_NOT_POSITIVE:
+        return InvalidInputError(f"T must be > 0, got {profile.paper_duration!r}")
+    if status == lib.MB_TEL_NONFINITE:
+        if first_bad >= 0:
+            return InvalidInputError(f"t must be finite, got {t[first_bad]!r} at index {first_bad}")
+        for field, name in {"start_delay": "start_delay", **_PROFILE_FIELDS.get(kind, {})}.items():
+            if not np.isfinite(getattr(profile, field)):
+                return InvalidInputError(f"{name} must be finite, got {getattr(profile, field)!r}")
+    return InvalidInputError(ffi.string(lib.mb_tel_status_text(status)).decode())
+
+
+def _axes(params, profile, t):
+    """(n, 6) axes [A, A', A'', E, E', E''] of ``profile`` at the float array t."""
+    axes, bad = np.empty((t.size, 6)), ffi.new("int *")
+    status = lib.mb_tel_axes(_c_params(params), profile, t.size, _doubles(t), _doubles(axes), bad)
+    if status:
+        raise _status_error(status, profile, t, bad[0])
+    return AxisMotion(t, *axes.T.copy())
+
+
+def _axis_rows(axes):
+    return np.ascontiguousarray(np.column_stack([axes.A, axes.A_dot, axes.A_ddot,
+                                                 axes.E, axes.E_dot, axes.E_ddot]))
+
+
+def telescope_outputs(params, profile, t):
+    """Every output of the telescope source at times t (n,), one C call: (n, 40) rows of
+    base pose, rate, acceleration, reference pose, rate, acceleration (6 each), A, E, A', E'.
+    The profile (``motion_profile``) is evaluated at t - start_delay; the paper profile's
+    reference is its quintic between the two ``reference`` poses."""
+    t = np.ascontiguousarray(t, dtype=float)
+    rows, bad = np.empty((t.size, 40)), ffi.new("int *")
+    status = lib.mb_tel_fmu_rows(_c_params(params), profile, t.size, _doubles(t), _doubles(rows), bad)
+    if status:
+        raise _status_error(status, profile, t, bad[0])
+    return rows
+
+
 # --- slew -------------------------------------------------------------------------
 
-def _trapezoid(distance, rate_max, acc_max, t):
-    """Rate- and acceleration-limited move over ``distance`` (signed) starting at t = 0:
-    position, rate, acceleration at t, and duration. Triangular when the rate limit is
-    never reached (|distance| <= rate_max^2 / acc_max)."""
-    D, sign = abs(distance), np.sign(distance)
-    t_acc = min(rate_max / acc_max, np.sqrt(D / acc_max))
-    peak = acc_max * t_acc
-    duration = 0.0 if D == 0 else D / peak + t_acc          # 2 t_acc + cruise time
-    t_dec = duration - t_acc                                 # start of braking
-    to_go = duration - t
-    phases = [t <= 0, t < t_acc, t < t_dec, t < duration]
-    s = np.select(phases, [0.0, 0.5 * acc_max * t**2, 0.5 * peak * t_acc + peak * (t - t_acc),
-                           D - 0.5 * acc_max * to_go**2], D)
-    v = np.select(phases, [0.0, acc_max * t, peak, acc_max * to_go], 0.0)
-    a = np.select(phases, [0.0, acc_max, 0.0, -acc_max], 0.0)
-    return sign * s, sign * v, sign * a, duration
-
-
-def _slew_moves(params, start_az_el, target_az_el):
+def _slew_settings(start_az_el, target_az_el):
     (A0, E0), (A1, E1) = _finite("start_az_el", start_az_el), _finite("target_az_el", target_az_el)
-    _check_elevation("slew elevation", np.array([E0, E1]))
-    return ((A0, A1 - A0, params.az_rate_max, params.az_acc_max),
-            (E0, E1 - E0, params.el_rate_max, params.el_acc_max))
+    return (float(A0), float(E0)), (float(A1), float(E1))
 
 
 def slew_duration(params, start_az_el, target_az_el):
     """Seconds until both axes of ``slew`` have arrived (the slower axis decides)."""
-    return max(_trapezoid(d, v, a, np.zeros(1))[3]
-               for _, d, v, a in _slew_moves(params, start_az_el, target_az_el))
+    start, target = _slew_settings(start_az_el, target_az_el)
+    duration = ffi.new("double *")
+    status = lib.mb_tel_slew_duration(_c_params(params), *start, *target, duration)
+    if status:
+        raise _status_error(status, motion_profile("slew", start, target), np.zeros(0), -1)
+    return duration[0]
 
 
 def slew(params, start_az_el, target_az_el, t):
     """Slew from (A, E) to (A, E) [rad], both axes starting at t = 0 with trapezoidal
-    profiles at their own limits; holds the start before 0 and the target once arrived.
+    profiles at their own limits (rate- and acceleration-limited, triangular when the
+    rate limit is never reached); holds the start before 0 and the target once arrived.
     The azimuth moves by target - start literally (no shortest way): the cable wrap
     is the caller's choice."""
     t = _times(t)
-    (A0, dA, *az), (E0, dE, *el) = _slew_moves(params, start_az_el, target_az_el)
-    A, A_dot, A_ddot, _ = _trapezoid(dA, *az, t)
-    E, E_dot, E_ddot, _ = _trapezoid(dE, *el, t)
-    return AxisMotion(t, A0 + A, A_dot, A_ddot, E0 + E, E_dot, E_ddot)
+    return _axes(params, motion_profile("slew", *_slew_settings(start_az_el, target_az_el)), t)
 
 
 # --- sidereal tracking ------------------------------------------------------------
+
+def _unix_seconds(utc):
+    if not isinstance(utc, datetime):
+        raise InvalidInputError(f"utc must be a datetime, got {utc!r}")
+    if utc.tzinfo is None:
+        utc = utc.replace(tzinfo=timezone.utc)
+    return (utc - _UNIX_EPOCH).total_seconds()
+
 
 def local_sidereal_time(params, utc):
     """Local mean sidereal time (rad, in [0, 2 pi)) at a UTC ``datetime`` (naive = UTC).
@@ -189,35 +279,10 @@ def local_sidereal_time(params, utc):
     GMST of IAU 1982 (Meeus eq. 12.4) with UTC in place of UT1. Against the apparent
     sidereal time astropy uses this is off by the equation of the equinoxes (<= 1.2 s)
     plus |UT1 - UTC| (<= 0.9 s): <= 0.009 deg of hour angle at worst; the tests measure
-    <= 0.0013 deg on the sky against astropy's AltAz in 2024."""
-    if not isinstance(utc, datetime):
-        raise InvalidInputError(f"utc must be a datetime, got {utc!r}")
-    if utc.tzinfo is None:
-        utc = utc.replace(tzinfo=timezone.utc)
-    days = (utc - _J2000).total_seconds() / 86400.0
-    T = days / 36525.0
-    gmst = 280.46061837 + 360.98564736629 * days + 0.000387933 * T**2 - T**3 / 38710000.0
-    return np.mod(np.radians(gmst) + params.longitude, 2 * np.pi)
-
-
-def _direction(H, dec, lat):
-    """Unit pointing vector (north, east, up) at hour angle H and its two time derivatives."""
-    cd, sd, cl, sl = np.cos(dec), np.sin(dec), np.cos(lat), np.sin(lat)
-    cH, sH, w = np.cos(H), np.sin(H), EARTH_RATE
-    u = (sd * cl - cd * sl * cH, -cd * sH, sl * sd + cl * cd * cH)
-    u_dot = (cd * sl * sH * w, -cd * cH * w, -cl * cd * sH * w)
-    u_ddot = (cd * sl * cH * w**2, cd * sH * w**2, -cl * cd * cH * w**2)
-    return u, u_dot, u_ddot
-
-
-def _azimuth(H, north, east, dec, lat):
-    """Azimuth continuous in H whatever the sampling: atan2 jumps by -2 pi at each upper
-    culmination of a source transiting south of the zenith (dec < lat) and by +2 pi at
-    each lower culmination of one culminating below the north pole (dec < -lat)."""
-    A = np.arctan2(east, north)
-    A += 2 * np.pi * (dec < lat) * np.floor(H / (2 * np.pi))
-    A -= 2 * np.pi * (dec < -lat) * np.floor((H - np.pi) / (2 * np.pi))
-    return A
+    <= 0.0013 deg on the sky against astropy's AltAz in 2024. The C takes Unix seconds
+    (the FMU's utc_start): a sub-second UTC is rounded to a double there (0.24 µs in
+    2024, 2e-11 rad of LST)."""
+    return np.float64(lib.mb_tel_lst(float(params.longitude), _unix_seconds(utc)))
 
 
 def sidereal_track(params, ra, dec, utc_start, t):
@@ -225,32 +290,13 @@ def sidereal_track(params, ra, dec, utc_start, t):
     ``dec`` [rad] from ``utc_start`` (a ``datetime``, naive = UTC) at times t [s].
 
     Catalogue (J2000) coordinates must be precessed first: ~0.35 deg by 2025.
-    Azimuth is north through east, continuous (no 2 pi jumps) and in [0, 2 pi) at t = 0,
-    so step-by-step callers with the same utc_start see one continuous curve.
-    Refraction is ignored."""
+    Azimuth is north through east, continuous (no 2 pi jumps: atan2's jumps at the
+    culminations are unwrapped) and in [0, 2 pi) at t = 0, so step-by-step callers with
+    the same utc_start see one continuous curve. Refraction is ignored."""
     t = _times(t)
-    ra, dec = _finite("ra", ra), _finite("dec", dec)
-    lat = params.latitude
-    if abs(dec) > np.pi / 2:
-        raise InvalidInputError(f"dec must lie in [-90, 90] deg, got {np.degrees(dec):.6g} deg")
-    if abs(dec - lat) < 1e-6:
-        raise InvalidInputError("the source passes through the zenith, where the azimuth is "
-                                "undefined; offset dec from the latitude (near_zenith_source)")
-    H0 = np.mod(local_sidereal_time(params, utc_start) - ra + np.pi, 2 * np.pi) - np.pi
-    H = H0 + EARTH_RATE * t
-    (n, e, z), (n1, e1, z1), (n2, e2, z2) = _direction(H, dec, lat)
-    cos_E = np.hypot(n, e)
-    A_dot = (n * e1 - e * n1) / cos_E**2
-    A_ddot = (n * e2 - e * n2) / cos_E**2 - 2 * A_dot * (n * n1 + e * e1) / cos_E**2
-    E = np.arctan2(z, cos_E)
-    E_dot = z1 / cos_E                                   # from sin E = z
-    E_ddot = (z2 + z * E_dot**2) / cos_E
-    if np.any(E < 0):
-        raise InvalidInputError(f"the source is below the horizon at t = {t[np.argmax(E < 0)]} s")
-    (n0, e0, _), _, _ = _direction(H0, dec, lat)
-    wraps = np.floor(_azimuth(H0, n0, e0, dec, lat) / (2 * np.pi))
-    A = _azimuth(H, n, e, dec, lat) - 2 * np.pi * wraps
-    return AxisMotion(t, A, A_dot, A_ddot, E, E_dot, E_ddot)
+    ra, dec = float(_finite("ra", ra)), float(_finite("dec", dec))
+    return _axes(params, motion_profile("sidereal", ra=ra, dec=dec,
+                                        utc_start=_unix_seconds(utc_start)), t)
 
 
 def near_zenith_source(params, utc_transit, miss=np.radians(0.2)):
@@ -272,9 +318,13 @@ def paper_manoeuvre(t, T=6.0):
     t = _times(t)
     if not _finite("T", T) > 0:
         raise InvalidInputError(f"T must be > 0, got {T!r}")
-    (roll, yaw), (roll_dot, yaw_dot), (roll_ddot, yaw_ddot) = (
-        x.T for x in quintic((0.0, 0.0), np.radians((45.0, 30.0)), T, t))
-    return AxisMotion(t, yaw, yaw_dot, yaw_ddot, np.pi / 2 - roll, -roll_dot, -roll_ddot)
+    return _axes(_any_params(), motion_profile("paper", paper_duration=float(T)), t)
+
+
+@lru_cache(maxsize=1)
+def _any_params():
+    """The C wants parameters with every profile; the paper's axes use none of them."""
+    return TelescopeParams.tianma()
 
 
 # --- what the axes do to the base and to the reference ---------------------------------
@@ -282,21 +332,9 @@ def paper_manoeuvre(t, T=6.0):
 def base_motion(params, axes):
     """Pose of {B} in {W} and its plain time derivatives, each (n, 6): roll = 90 deg - E,
     pitch = 0, yaw = A, p_B = R_WB (0, 0, L) = L (cos E sin A, -cos E cos A, sin E)."""
-    A, E, zero = axes.A, axes.E, np.zeros_like(axes.A)
-    L, cA, sA, cE, sE = params.lever_arm, np.cos(A), np.sin(A), np.cos(E), np.sin(E)
-    p = L * np.stack([cE * sA, -cE * cA, sE], axis=-1)
-    dp_dE = L * np.stack([-sE * sA, sE * cA, cE], axis=-1)
-    dp_dA = L * np.stack([cE * cA, cE * sA, zero], axis=-1)
-    d2p_dE2 = L * np.stack([-cE * sA, cE * cA, -sE], axis=-1)
-    d2p_dEdA = L * np.stack([-sE * cA, -sE * sA, zero], axis=-1)
-    d2p_dA2 = L * np.stack([-cE * sA, cE * cA, zero], axis=-1)
-    dA, ddA, dE, ddE = (x[:, None] for x in (axes.A_dot, axes.A_ddot, axes.E_dot, axes.E_ddot))
-    p_dot = dp_dE * dE + dp_dA * dA
-    p_ddot = (dp_dE * ddE + dp_dA * ddA + d2p_dE2 * dE**2 + 2 * d2p_dEdA * dE * dA
-              + d2p_dA2 * dA**2)
-    pose = np.column_stack([p, np.pi / 2 - E, zero, A])
-    rate = np.column_stack([p_dot, -axes.E_dot, zero, axes.A_dot])
-    acc = np.column_stack([p_ddot, -axes.E_ddot, zero, axes.A_ddot])
+    pose, rate, acc = (np.empty((axes.A.size, 6)) for _ in range(3))
+    lib.mb_tel_base_motion(_c_params(params), axes.A.size, _doubles(_axis_rows(axes)),
+                           _doubles(pose), _doubles(rate), _doubles(acc))
     return pose, rate, acc
 
 
@@ -308,13 +346,9 @@ def base_twist(params, axes):
     w_B = (-E_dot, A_dot cos E, A_dot sin E), and eps_B = d(w_B)/dt since w_B x w_B = 0.
     The origin sits at l = (0, 0, L) in {B} on the rotating body: v_B = w_B x l,
     a_B = eps_B x l + w_B x (w_B x l)."""
-    dA, ddA, dE, ddE = axes.A_dot, axes.A_ddot, axes.E_dot, axes.E_ddot
-    cE, sE = np.cos(axes.E), np.sin(axes.E)
-    w = np.stack([-dE, dA * cE, dA * sE], axis=-1)
-    eps = np.stack([-ddE, ddA * cE - dA * dE * sE, ddA * sE + dA * dE * cE], axis=-1)
-    lever = np.broadcast_to([0.0, 0.0, params.lever_arm], w.shape)
-    v = cross(w, lever)
-    a = cross(eps, lever) + cross(w, v)
+    v, w, a, eps = (np.empty((axes.A.size, 3)) for _ in range(4))
+    lib.mb_tel_base_twist(_c_params(params), axes.A.size, _doubles(_axis_rows(axes)),
+                          _doubles(v), _doubles(w), _doubles(a), _doubles(eps))
     return v, w, a, eps
 
 
@@ -322,14 +356,7 @@ def reference_pose(params, axes):
     """Subreflector pose the hexapod follows in {B}, (n, 6), with its first and second
     time derivatives: home + (0, Δy(E), Δz(E), 0, 0, 0), Δ = a + b sin E + c cos E
     (the usual gravity-deformation form, ALMA memo 293; coefficients assumed)."""
-    E, dE, ddE = axes.E, axes.E_dot, axes.E_ddot
-    cE, sE = np.cos(E), np.sin(E)
-    pose = np.tile(np.asarray(params.home), (E.size, 1))
-    rate, acc = np.zeros_like(pose), np.zeros_like(pose)
-    for column, a, b, c in ((1, params.a_y, params.b_y, params.c_y),
-                            (2, params.a_z, params.b_z, params.c_z)):
-        slope = b * cE - c * sE                       # dΔ/dE
-        pose[:, column] += a + b * sE + c * cE
-        rate[:, column] = slope * dE
-        acc[:, column] = slope * ddE - (b * sE + c * cE) * dE**2
+    pose, rate, acc = (np.empty((axes.A.size, 6)) for _ in range(3))
+    lib.mb_tel_reference_pose(_c_params(params), axes.A.size, _doubles(_axis_rows(axes)),
+                              _doubles(pose), _doubles(rate), _doubles(acc))
     return pose, rate, acc

@@ -10,20 +10,34 @@ import argparse
 import sys
 
 from .paper_forces import main as paper_charts
-from .runner import prepare, resolve, run_scenario
+from .runner import SHIPPED, prepare, resolve, run_scenario
 from .spec import ScenarioError, sweep_value
 from .ssp import export_ssp
 
 
+def shipped_names():
+    """Names of the scenario files shipped in scenarios/files/."""
+    return sorted(p.stem for p in SHIPPED.glob("*.toml"))
+
+
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m scenarios", description=__doc__.splitlines()[0])
-    parser.add_argument("scenarios", nargs="*", help="scenario files or shipped names (default: telescope_slew)")
+    shipped = ", ".join(shipped_names())
+    parser = argparse.ArgumentParser(prog="python -m scenarios", description=__doc__.splitlines()[0],
+                                     epilog=f"shipped scenarios (scenarios/files/): {shipped}. Wall time and "
+                                            "real-time factor count the co-simulation stepping loop only (FMU "
+                                            "loading and initialisation excluded).")
+    parser.add_argument("scenarios", nargs="*", help=f"scenario files or shipped names: {shipped} "
+                                                     "(default: telescope_slew, then the paper's leg-force charts)")
     parser.add_argument("--out", default="out", help="output folder (default: out)")
     parser.add_argument("--ci", action="store_true", help="apply each file's [ci] overrides (short runs)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--ssp", metavar="FILE", help="export the (one) scenario as an SSP file, first sweep value")
     args = parser.parse_args(argv)
     names = args.scenarios or ["telescope_slew"]
+    unknown = [n for n in names if not resolve(n).exists()]
+    if unknown:
+        sys.exit(f"scenario error: no scenario file or shipped scenario named {', '.join(map(repr, unknown))}; "
+                 f"shipped: {shipped}")
     try:
         if args.ssp:
             scenario, paths, descriptions, values = prepare(resolve(names[0]), ci=args.ci)
@@ -36,8 +50,8 @@ def main(argv=None):
             scenario, runs, report = run_scenario(name, args.out, ci=args.ci, progress=not args.quiet)
             print(f"{scenario.name}: report {report}")
             for run in runs:
-                print(f"  {run.label}: {run.steps} steps in {run.wall_time:.1f} s "
-                      f"(real-time factor {run.real_time_factor:.1f})")
+                print(f"  {run.label}: {run.steps} steps in {run.wall_time:.1f} s of stepping "
+                      f"(real-time factor {run.real_time_factor:.1f}; FMU loading and initialisation not counted)")
     except ScenarioError as exc:
         sys.exit(f"scenario error: {exc}")
     if not args.scenarios:

@@ -223,5 +223,7 @@ def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progre
             recorder.close()
         for instance in instances.values():
             instance.terminate()
+    series = {m.name: m.series() for m in metrics}
+    series.update({m.rotation.name: m.rotation.series() for m in metrics if hasattr(m, "rotation")})  # [rad]
     return Run(label, outdir / f"{label}.csv", steps, wall, steps * h,
-               {m.name: m.result() for m in metrics}, {m.name: m.series() for m in metrics})
+               {m.name: m.result() for m in metrics}, series)

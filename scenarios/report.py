@@ -1,76 +1,313 @@
-"""Charts and a short Markdown report of a scenario's runs: the metrics table, tracking
-error against time for every run on one figure, a summary bar chart against the
-telescope's 0.1 mm and 10 µm marks, and what the base motion adds and why."""
+"""Charts and a short Markdown report of a scenario's runs: the settings, the metrics
+table, tracking error against time for every run with the base motion that causes it
+underneath, a summary bar chart against the telescope's 0.1 mm and 10 µm marks, and
+what the base motion adds and why.
+
+The sentences and numbers comparing the runs come from ``compare`` and ``fmt``, which
+the README's generated headline (``scenarios.headline``) uses too: one source for each
+number."""
+import csv
+
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+import numpy as np
 
 MARKS_UM = {"0.1 mm": 100.0, "10 µm": 10.0}
 TRACKING = ("leg_tracking", "pose_tracking", "tracking")
+# Log axes stop at 1 nm (1 nrad): finer detail than a rigid-body model without joint play,
+# compliance or sensor noise resolves, and far below any metrology; without a floor the
+# axis ran down to round-off (1e-10 µm) and its dips looked like signal.
+FLOOR = 1e-3
+FLOOR_TEXT = ("log axis floored at 1e-3 µm (1 nm) / 1e-3 µrad: finer than this rigid-body model resolves "
+              "(no joint play, compliance or sensor noise)")
+COINCIDE = 0.02      # two curves closer than this fraction of their peak are said to coincide
+RUN_STYLES = ({"ls": "-", "lw": 3.0, "alpha": 0.45}, {"ls": (0, (5, 2)), "lw": 1.4},
+              {"ls": "-", "lw": 1.0}, {"ls": "-.", "lw": 1.0}, {"ls": ":", "lw": 1.4})
+RUN_MEANING = {"none": "PID alone, no feedforward",
+               "fixed_base": "PID + feedforward from the fixed-base model (the base motion ignored)",
+               "moving_base": "PID + feedforward from the moving-base model"}
 
 
-def _error_chart(scenario, runs, metric, path):
-    fig, ax = plt.subplots(figsize=(9, 4.5))
-    for run in runs:
-        t, values = run.series[metric.name]
-        ax.plot(t, values, label=run.label, lw=1)
-    for text, level in MARKS_UM.items():
-        ax.axhline(level, color="grey", ls="--", lw=0.8)
-        ax.text(1.0, level, text + " ", transform=ax.get_yaxis_transform(), ha="right", va="bottom",
-                fontsize=8, color="grey")
-    ax.set_yscale("log")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel(f"{metric.name}, RMS over legs/axes [µm]")
-    ax.set_title(f"{scenario.name}: {metric.name}")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(title=scenario.sweep[0] if scenario.sweep else None)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+def fmt(value):
+    """A number as the report and README print it: 3 significant digits."""
+    return f"{value:.3g}" if isinstance(value, float) else str(value)
 
 
-def _summary_chart(scenario, runs, tracked, path):
-    fig, axes = plt.subplots(1, len(tracked), figsize=(4.5 * len(tracked), 4), squeeze=False)
-    labels = [r.label for r in runs]
-    for ax, metric in zip(axes[0], tracked):
-        rms = [r.metrics[metric.name]["rms"] for r in runs]
-        peak = [r.metrics[metric.name]["peak"] for r in runs]
-        x = range(len(runs))
-        ax.bar([i - 0.2 for i in x], rms, 0.4, label="RMS")
-        ax.bar([i + 0.2 for i in x], peak, 0.4, label="peak")
-        for text, level in MARKS_UM.items():
+def compare(metrics_by_run, metric, unit="µm"):
+    """The fixed- against moving-base sentence for one tracking metric, or None."""
+    if not {"fixed_base", "moving_base"} <= set(metrics_by_run):
+        return None
+    fixed, moving = metrics_by_run["fixed_base"][metric], metrics_by_run["moving_base"][metric]
+    text = (f"ignoring the base motion (run `fixed_base`: the feedforward uses the fixed-base model) gives "
+            f"RMS {fmt(fixed['rms'])} {unit} and peak {fmt(fixed['peak'])} {unit}, against "
+            f"{fmt(moving['rms'])} {unit} and {fmt(moving['peak'])} {unit} with the moving-base model "
+            f"(run `moving_base`)")
+    if moving["peak"] < FLOOR:
+        return text + (f"; the moving-base error stays under the {FLOOR:g} {unit} the model resolves, so its "
+                       "ratio to the fixed-base error means nothing.")
+    text += f": {ratio(fixed['rms'], moving['rms'])} the RMS, {ratio(fixed['peak'], moving['peak'])} the peak"
+    if "rotation_rms" in fixed:
+        text += (f"; rotation error RMS {fmt(fixed['rotation_rms'])} µrad against {fmt(moving['rotation_rms'])} µrad "
+                 f"({ratio(fixed['rotation_rms'], moving['rotation_rms'])})")
+    return text + "."
+
+
+def ratio(a, b):
+    """a / b as 'Nx', 3 significant digits, no exponent (the same text wherever a ratio is printed)."""
+    x = float(f"{a / max(b, 1e-300):.3g}")
+    return f"{x:.0f}x" if x >= 100 else f"{x:g}x"
+
+
+def _series(run, name, scale):
+    t, values = run.series[name]
+    return np.asarray(t), np.asarray(values) * scale
+
+
+def _error_panel(ax, runs, name, scale, unit, marks):
+    """One log panel of an error for every run; returns notes on coinciding curves and
+    curves under the floor (they would otherwise be invisible)."""
+    data = [(run.label, *_series(run, name, scale)) for run in runs]
+    for k, (label, t, v) in enumerate(data):
+        ax.plot(t, v, label=label, color=f"C{k}", **RUN_STYLES[k % len(RUN_STYLES)])
+    notes = []
+    for i in range(len(data)):
+        for j in range(i + 1, len(data)):
+            (a, ta, va), (b, tb, vb) = data[i], data[j]
+            if len(va) and va.shape == vb.shape and np.allclose(ta, tb):
+                peak = max(va.max(), vb.max())
+                diff = float(np.abs(va - vb).max())
+                if peak > FLOOR and diff <= COINCIDE * peak:
+                    notes.append(f"{a} and {b} coincide: largest difference {diff:.2g} {unit} "
+                                 f"({100 * diff / peak:.2g} % of the peak)")
+    for label, t, v in data:
+        if len(v) and v.max() < FLOOR:
+            notes.append(f"{label}: under the floor throughout (peak {v.max():.2g} {unit})")
+    top = max([v.max() for _, _, v in data if len(v)] + [FLOOR * 10])
+    for text, level in (marks or {}).items():
+        if level < 3 * top:
             ax.axhline(level, color="grey", ls="--", lw=0.8)
             ax.text(1.0, level, text + " ", transform=ax.get_yaxis_transform(), ha="right", va="bottom",
                     fontsize=8, color="grey")
-        ax.set_yscale("log")
-        ax.set_xticks(list(x), labels)
-        ax.set_ylabel("µm")
-        ax.set_title(metric.name)
-        ax.legend()
-    fig.tight_layout()
+            top = max(top, level)
+    ax.set_yscale("log")
+    ax.set_ylim(FLOOR, top * 2.5)
+    ax.grid(True, which="major", alpha=0.3)
+    if notes:
+        ax.text(0.01, 0.03, "\n".join(notes), transform=ax.transAxes, fontsize=7.5, va="bottom",
+                bbox={"facecolor": "white", "alpha": 0.85, "edgecolor": "0.7"})
+    return notes
+
+
+def _telescope(scenario):
+    return next((inst for inst, fmu in scenario.fmus.items() if fmu == "telescope"), None)
+
+
+def base_motion(scenario, run):
+    """Time, rates [deg/s] and accelerations [deg/s^2] (differenced from the recorded
+    rates) of the scenario's telescope axes, read from the run's CSV; None if the axis
+    rates were not recorded or the plant holds its base fixed (moving_base = 0)."""
+    inst = _telescope(scenario)
+    plants = [i for i, fmu in scenario.fmus.items() if fmu == "hexapod_plant"]
+    if inst is None or (plants and all(str(scenario.parameters.get(i, {}).get("moving_base", 1)) == "0"
+                                       for i in plants)):
+        return None     # no telescope, or its motion is not applied to the plant
+    with open(run.csv_path, newline="") as f:
+        header = next(csv.reader(f))
+    want = [f"{inst}.axis_rate[{k}] [rad/s]" for k in (1, 2)]
+    if not all(w in header for w in want):
+        return None
+    columns = [0] + [header.index(w) for w in want]
+    data = np.loadtxt(run.csv_path, delimiter=",", skiprows=1, usecols=columns, ndmin=2)
+    t, rate = data[:, 0], np.degrees(data[:, 1:])
+    if len(t) < 3:
+        return None
+    return t, rate, np.gradient(rate, t, axis=0)
+
+
+def _motion_panels(ax_rate, ax_acc, motion, interval):
+    t, rate, acc = motion
+    for k, name in enumerate(("azimuth", "elevation")):
+        ax_rate.plot(t, rate[:, k], color=f"C{k + 5}", label=name, lw=1.2)
+        ax_acc.plot(t, acc[:, k], color=f"C{k + 5}", label=name, lw=1.2)
+    ax_rate.set_ylabel("axis rate\n[deg/s]")
+    ax_acc.set_ylabel("axis acceleration\n[deg/s²]")
+    ax_acc.text(0.01, 0.04, f"acceleration: difference of the rates recorded every {interval * 1e3:g} ms",
+                transform=ax_acc.transAxes, fontsize=7.5, color="0.3")
+    for ax in (ax_rate, ax_acc):
+        ax.grid(True, alpha=0.3)
+        ax.axhline(0.0, color="0.5", lw=0.6)
+
+
+def _error_chart(scenario, runs, metric, path):
+    """Error against time, one line style per run (coinciding runs noted), log axis
+    floored at FLOOR, the settling cut-off marked; a pose metric gets a position and a
+    rotation panel; the telescope's axis rates and accelerations underneath on the same
+    time axis. Returns the figure's data panels {title: axes} (the figure is closed)."""
+    motion = base_motion(scenario, runs[0])
+    rows = [("position", 1e0, "µm", MARKS_UM)]
+    if metric.kind == "pose_tracking":
+        rows = [("position", 1.0, "µm", MARKS_UM), ("rotation", 1e6, "µrad", None)]
+    n = len(rows) + (2 if motion else 0)
+    fig, axes = plt.subplots(n, 1, figsize=(10, 1.6 + 2.1 * n), sharex=True, layout="constrained",
+                             gridspec_kw={"height_ratios": [3] * len(rows) + [1.6] * (n - len(rows))}, squeeze=False)
+    axes = axes[:, 0]
+    panels = {}
+    for ax, (kind, scale, unit, marks) in zip(axes, rows):
+        name = metric.name if kind == "position" else metric.name + " rotation"
+        _error_panel(ax, runs, name, scale, unit, marks)
+        if metric.kind == "pose_tracking":
+            label = ("platform position error\n|p - p_ref| [µm]" if kind == "position"
+                     else "platform rotation error\nangle of R_ref^T R [µrad]")
+        elif metric.kind == "leg_tracking":
+            label = "leg length error\nRMS over the 6 legs [µm]"
+        else:
+            label = f"{metric.name}\nRMS over components [µm]"
+        ax.set_ylabel(label)
+        panels[kind] = ax
+    if motion:
+        _motion_panels(axes[-2], axes[-1], motion, scenario.record_interval)
+        panels["axis rate"], panels["axis acceleration"] = axes[-2], axes[-1]
+    for ax in axes:
+        ax.set_xlim(scenario.start_time, scenario.stop_time)
+        if metric.start > scenario.start_time:
+            ax.axvspan(scenario.start_time, metric.start, color="0.93", zorder=0)
+            ax.axvline(metric.start, color="0.4", lw=0.9, ls=":")
+    if metric.start > scenario.start_time:
+        axes[0].text(0.5 * (scenario.start_time + metric.start), 0.5,
+                     f"settling {scenario.start_time:g}-{metric.start:g} s: not measured", rotation=90,
+                     transform=axes[0].get_xaxis_transform(), ha="center", va="center", fontsize=7.5, color="0.3")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, title=(scenario.sweep[0] if scenario.sweep else None), fontsize=8.5,
+               title_fontsize=8.5, loc="outside lower left", ncol=len(runs))
+    if motion:
+        fig.legend(*axes[-1].get_legend_handles_labels(), title="base motion: telescope axes", fontsize=8.5,
+                   title_fontsize=8.5, loc="outside lower right", ncol=2)
+    axes[-1].set_xlabel("time [s]")
+    fig.suptitle(f"{scenario.name}: {metric.name} against time (measured from {metric.start:g} s)\n{FLOOR_TEXT}",
+                 fontsize=10)
     fig.savefig(path, dpi=110)
     plt.close(fig)
+    return panels
 
 
-def _fmt(value):
-    return f"{value:.4g}" if isinstance(value, float) else str(value)
+def _summary_quantities(tracked):
+    """(title, metric name, rms key, peak key, unit) of every bar panel."""
+    out = []
+    for m in tracked:
+        if m.kind == "pose_tracking":
+            out += [(f"{m.name}: platform position", m.name, "rms", "peak", "µm"),
+                    (f"{m.name}: platform rotation", m.name, "rotation_rms", "rotation_peak", "µrad")]
+        elif m.kind == "leg_tracking":
+            out.append((f"{m.name}: leg length (6 legs)", m.name, "rms", "peak", "µm"))
+        else:
+            out.append((m.name, m.name, "rms", "peak", "µm"))
+    return out
+
+
+def _summary_chart(scenario, runs, tracked, path):
+    """RMS and peak per run on a linear scale from zero (bar length is the value), each
+    bar labelled with its value, the 10 µm and 0.1 mm marks drawn where they fit (else
+    said). Returns {panel title: axes} (the figure is closed)."""
+    quantities = _summary_quantities(tracked)
+    fig, axes = plt.subplots(1, len(quantities), figsize=(4.6 * len(quantities), 4.8), squeeze=False,
+                             layout="constrained")
+    labels = [r.label for r in runs]
+    x = np.arange(len(runs))
+    panels = {}
+    for ax, (title, name, rms_key, peak_key, unit) in zip(axes[0], quantities):
+        rms = [r.metrics[name][rms_key] for r in runs]
+        peak = [r.metrics[name][peak_key] for r in runs]
+        top = max(peak + rms + [1e-30])
+        for offset, values, label in ((-0.2, rms, "RMS"), (0.2, peak, "peak")):
+            bars = ax.bar(x + offset, values, 0.4, label=label)
+            ax.bar_label(bars, [fmt(v) for v in values], fontsize=7.5, padding=2)
+        off_scale = []
+        if unit == "µm":
+            for text, level in MARKS_UM.items():
+                if level <= 2.5 * top:
+                    ax.axhline(level, color="grey", ls="--", lw=0.8)
+                    ax.text(1.0, level, text + " ", transform=ax.get_yaxis_transform(), ha="right",
+                            va="bottom", fontsize=8, color="grey")
+                    top = max(top, level)
+                else:
+                    off_scale.append(text)
+        if off_scale:
+            ax.text(0.02, 0.97, f"{' and '.join(off_scale)} marks: off the scale, above it", transform=ax.transAxes,
+                    fontsize=7.5, va="top", color="0.3")
+        ax.set_ylim(0, top * 1.15)
+        ax.set_xticks(x, labels)
+        ax.set_ylabel(f"error [{unit}] (linear scale)")
+        ax.set_title(title, fontsize=10)
+        panels[title] = ax
+    start = max(m.start for m in tracked)
+    fig.suptitle(f"{scenario.name}: tracking error after the {start:g} s settling, by "
+                 f"{scenario.sweep[0] if scenario.sweep else 'run'}")
+    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside lower center", ncol=2, fontsize=8.5)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return panels
+
+
+def settings(scenario):
+    """Markdown lines: what was run and what each number measures against what."""
+    duration = scenario.stop_time - scenario.start_time
+    lines = ["## Settings", "",
+             f"- co-simulation: master {scenario.master}, input extrapolation {scenario.extrapolation}, "
+             f"communication step {scenario.step * 1e3:g} ms, {scenario.start_time:g}-{scenario.stop_time:g} s "
+             f"({duration:g} s) simulated, recorded every {scenario.record_interval * 1e3:g} ms"]
+    for inst, fmu in scenario.fmus.items():
+        params = scenario.parameters.get(inst, {})
+        shown = ", ".join(f"{k} {v}" for k, v in params.items() if not str(v).startswith("@"))
+        lines.append(f"- `{inst}` ({fmu}): {shown or 'defaults'}")
+    if scenario.sweep:
+        param, values = scenario.sweep
+        meant = "; ".join(f"`{v}` = {RUN_MEANING[v]}" if v in RUN_MEANING else f"`{v}`" for v in values)
+        lines.append(f"- runs: one per value of `{param}`: {meant}")
+    for m in scenario.metrics:
+        lines.append(f"- **{m.name}** ({m.kind}): {_measures(m)}"
+                     + (f", from {m.start:g} s (before that the loops settle)" if m.start else ""))
+    lines += ["- wall time: the co-simulation stepping loop only (FMU loading, instantiation and initialisation "
+              "excluded); real-time factor = simulated time / that wall time", ""]
+    return lines
+
+
+def _measures(m):
+    a = m.args
+    if m.kind == "leg_tracking":
+        return f"`{a['measured']}` against the leg lengths of `{a['reference_pose']}` (inverse kinematics), µm"
+    if m.kind == "pose_tracking":
+        return (f"`{a['measured']}` against `{a['reference']}`: position error |p - p_ref| [µm] and rotation "
+                f"error angle [µrad]")
+    if m.kind == "tracking":
+        return f"`{a['measured']}` against `{a['reference']}`, µm"
+    if m.kind == "peak":
+        return f"largest |`{a['variable']}`|, kN"
+    if m.kind == "base_effect":
+        return ("leg-force change the base motion causes along the reference and base motion (inverse "
+                "dynamics, full against no-base model); the same for every run, kN")
+    return m.kind
+
+
+def _cell(result):
+    if "rotation_rms" in result:   # a pose: position and rotation, each with its unit
+        return (f"position RMS {fmt(result['rms'])} µm, peak {fmt(result['peak'])} µm; rotation RMS "
+                f"{fmt(result['rotation_rms'])} µrad, peak {fmt(result['rotation_peak'])} µrad")
+    return ", ".join(f"{k} {fmt(v)}" for k, v in result.items() if k != "unit")
 
 
 def write(scenario, runs, outdir):
     """Write charts and report.md into outdir; return the report's path."""
     tracked = [m for m in scenario.metrics if m.kind in TRACKING]
-    lines = [f"# {scenario.name}", "", scenario.description, "",
-             f"Master {scenario.master}, extrapolation {scenario.extrapolation}, communication step "
-             f"{scenario.step * 1e3:g} ms, {scenario.stop_time - scenario.start_time:g} s simulated.", "",
-             "| run | " + " | ".join(f"{m.name} ({runs[0].metrics[m.name]['unit']})" for m in scenario.metrics)
-             + " | wall time [s] | real-time factor |",
-             "|---" * (len(scenario.metrics) + 3) + "|"]
+    per_run = [m for m in scenario.metrics if m.kind != "base_effect"]   # base effect: same for every run
+    lines = [f"# {scenario.name}", "", scenario.description, ""] + settings(scenario)
+    lines += ["## Results", "",
+              "| run | " + " | ".join(f"{m.name} ({runs[0].metrics[m.name]['unit']})" for m in per_run)
+              + " | wall time [s] | real-time factor |",
+              "|---" * (len(per_run) + 3) + "|"]
     for run in runs:
-        cells = []
-        for m in scenario.metrics:
-            result = run.metrics[m.name]
-            cells.append(", ".join(f"{k} {_fmt(v)}" for k, v in result.items() if k != "unit"))
+        cells = [_cell(run.metrics[m.name]) for m in per_run]
         lines.append(f"| {run.label} | " + " | ".join(cells) + f" | {run.wall_time:.2f} | {run.real_time_factor:.1f} |")
     lines.append("")
     lines += [f"- {note}" for note in scenario.notes]
@@ -88,23 +325,24 @@ def write(scenario, runs, outdir):
     return path
 
 
+def base_effect_text(result):
+    """The 'why' sentence of a base_effect metric (one value: it depends on the motion only)."""
+    return (f"along this motion the base changes the leg forces by up to {fmt(result['peak'])} kN; gravity turning "
+            f"with the base accounts for up to {fmt(result['gravity_peak'])} kN, the transport, centripetal and "
+            f"Coriolis terms for up to {fmt(result['transport_peak'])} kN (the same for every run: it depends on "
+            f"the reference and base motion only)")
+
+
 def _findings(scenario, runs, tracked):
     """Plain sentences: what ignoring base motion costs (fixed- vs moving-base feedforward)
     and the size of the base-motion terms."""
     lines = []
-    by_label = {r.label: r for r in runs}
+    by_label = {r.label: r.metrics for r in runs}
     for metric in tracked:
-        if {"fixed_base", "moving_base"} <= set(by_label):
-            fixed = by_label["fixed_base"].metrics[metric.name]
-            moving = by_label["moving_base"].metrics[metric.name]
-            lines.append(f"- **{metric.name}**: ignoring the base motion in the feedforward gives RMS "
-                         f"{fixed['rms']:.3g} µm and peak {fixed['peak']:.3g} µm, against {moving['rms']:.3g} µm "
-                         f"and {moving['peak']:.3g} µm with the moving-base model "
-                         f"({fixed['rms'] / max(moving['rms'], 1e-30):.3g}x the RMS).")
+        sentence = compare(by_label, metric.name)
+        if sentence:
+            lines.append(f"- **{metric.name}**: {sentence}")
     for metric in scenario.metrics:
         if metric.kind == "base_effect":
-            r = runs[0].metrics[metric.name]
-            lines.append(f"- **why**: along this motion the base changes the leg forces by up to {r['peak']:.3g} kN; "
-                         f"gravity turning with the base accounts for up to {r['gravity_peak']:.3g} kN, the "
-                         f"transport, centripetal and Coriolis terms for up to {r['transport_peak']:.3g} kN.")
+            lines.append(f"- **why**: {base_effect_text(runs[0].metrics[metric.name])}.")
     return lines + [""] if lines else []

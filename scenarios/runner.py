@@ -2,6 +2,7 @@
 sweep value with a progress bar, and write results, charts and the report."""
 import json
 import pathlib
+import sys
 
 from tqdm import tqdm
 
@@ -72,6 +73,9 @@ def _choose_fidelity(scenario, paths, values, plant):
 def run_scenario(path, out="out", ci=False, progress=True, implementation=None):
     """Run every sweep value of a scenario; returns (scenario, runs, report path);
     ``implementation`` as in prepare."""
+    if progress:
+        print(f"{pathlib.Path(str(path)).stem}: checking the scenario, building FMUs that are missing or stale "
+              "(a first build takes ~10 s)", file=sys.stderr, flush=True)
     scenario, paths, descriptions, values = prepare(resolve(path), ci, implementation)
     outdir = pathlib.Path(out) / scenario.name
     outdir.mkdir(parents=True, exist_ok=True)
@@ -84,9 +88,16 @@ def run_scenario(path, out="out", ci=False, progress=True, implementation=None):
             inst, name, value = spec.sweep_value(scenario, descriptions, item)
             params[inst][name] = value
             label = str(item)
-        bar = tqdm(total=100, desc=f"{scenario.name} [{label}]", unit="%", disable=not progress,
+        desc = f"{scenario.name} [{label}]"
+        bar = tqdm(total=100, desc=f"{desc} loading FMUs (the first run on a machine compiles the dynamics "
+                   "kernel, ~15 s)", unit="%", disable=not progress,
                    bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
-        update = lambda fraction: bar.update(round(100 * fraction) - bar.n)
+
+        def update(fraction, bar=bar, desc=desc, begun=[]):
+            if not begun:   # stepping has begun: the FMUs are loaded
+                begun.append(True)
+                bar.set_description_str(desc, refresh=False)
+            bar.update(round(100 * fraction) - bar.n)
         try:
             runs.append(master.run(scenario, paths, params, outdir, label,
                                    [metrics.make(m) for m in scenario.metrics], update))

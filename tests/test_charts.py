@@ -14,6 +14,18 @@ def test_paper_leg_force_chart(tmp_path):
     path = paper_forces.main(tmp_path)
     assert path.exists() and path.stat().st_size > 10_000
     t, fixed, moving = paper_forces.paper_leg_forces(n=61)
+    _, _, printed = paper_forces.paper_leg_forces(n=61, reading="eq43")
+    axes = paper_forces.plot_paper_forces(t, {"model": (fixed, moving), "eq43": (fixed, printed)}, tmp_path / "f.png")
+    assert len({ax.get_ylim() for ax in axes.flat}) == 1          # one force scale for every panel
+    for col, forces in enumerate((moving, printed)):
+        for ax, data in zip(axes[:, col], (fixed, forces, forces - fixed)):
+            lines = ax.get_lines()[:6]
+            np.testing.assert_allclose(np.array([line.get_ydata() for line in lines]).T, -data / 1e3)
+    styles = [(line.get_color(), line.get_linestyle()) for line in axes[0, 0].get_lines()[:6]]
+    assert len(set(styles)) == 6                                   # every leg told apart, pairs included
+    figure = axes[0, 0].figure
+    assert len(figure.legends) == 1 and all(ax.get_legend() is None for ax in axes.flat)
+    t, fixed, moving = paper_forces.paper_leg_forces(n=61)
     static = inverse_dynamics(StewartParams.paper(), HOME_POSE, np.zeros(6), np.zeros(6))
     np.testing.assert_allclose(fixed[0], static, rtol=1e-12)   # starts at rest at home
     np.testing.assert_allclose(moving[0], static, rtol=1e-12)  # the base starts at identity
@@ -27,3 +39,28 @@ def test_mechanism3t_charts(tmp_path):
     history = m3t.paper_example()
     assert result["peak_force_N"] == pytest.approx(np.abs(history.forces).max(), rel=1e-12)
     assert 0 < result["workspace_volume_m3"] < result["paper_criterion_volume_m3"]
+    ax = mechanism3t_charts.slider_force_chart(history, tmp_path / "forces.png")
+    lines = {line.get_label(): line for line in ax.get_lines()}
+    for k, name in enumerate(("x_A2", "y_A1", "y_A3")):
+        np.testing.assert_array_equal(lines[f"slider {name}"].get_ydata(), history.forces[:, k])
+    assert set(lines[f"paper's peak {mechanism3t_charts.PAPER_PEAK_FORCE_N} N"].get_ydata()) == {142.2}
+
+
+def test_eq43_as_printed_counts_gravity_twice():
+    """At rest (t = 0, base at identity) the printed eq. 43 is the static load under 2 g;
+    at the end (rest again, base turned) it is our moving-base load plus the fixed-base
+    gravity load. Read so, the changes match the paper's text (legs 1-2 up to ~14 kN,
+    legs 3-6 ~6 kN); our model's do not (legs 4 and 5 change by < 1 kN)."""
+    params = StewartParams.paper()
+    t, fixed, printed = paper_forces.paper_leg_forces(n=61, reading="eq43")
+    _, _, moving = paper_forces.paper_leg_forces(n=61)
+    double = inverse_dynamics(StewartParams.paper(gravity=2 * params.gravity), HOME_POSE, np.zeros(6), np.zeros(6))
+    np.testing.assert_allclose(printed[0], double, rtol=1e-10)
+    np.testing.assert_allclose(printed[-1], moving[-1] + fixed[-1], rtol=1e-9)
+    printed_rise = paper_forces.change_summary(fixed, printed)["rise"]
+    assert np.all(np.abs(printed_rise[:2] - 14.0) < 1.0)          # "close to 14 000 N"
+    assert np.all((printed_rise[2:] > 4.5) & (printed_rise[2:] < 7.0))   # "6 000 N"
+    ours = paper_forces.change_summary(fixed, moving)
+    assert np.all(np.maximum(ours["rise"], -ours["fall"])[[3, 4]] < 1.0)
+    with pytest.raises(ValueError, match="unknown reading"):
+        paper_forces.paper_leg_forces(reading="eq 43")

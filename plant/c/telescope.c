@@ -1,0 +1,406 @@
+/* The telescope's motion profiles and base motion (interface and law: telescope.h).
+
+   Each expression keeps the operand order of the numpy implementation it replaced
+   (plant/telescope.py at 73017ff), pow() where Python raised to a power of 3 or a
+   Python float to a power, x * x where numpy squared an array, so that the two agree
+   to the last bits (up to the libm each one's sin/cos/atan2 comes from). */
+#include <math.h>
+#include <stddef.h>
+#include "telescope.h"
+
+static const double PI = 3.141592653589793;        /* np.pi */
+static const double TWO_PI = 6.283185307179586;    /* 2 * np.pi */
+static const double EARTH_RATE = 7.2921159e-5;     /* rad/s */
+static const double J2000_UNIX = 946728000.0;      /* 2000-01-01 12:00 UTC */
+static const double E_TOLERANCE = 1e-9;            /* rad of rounding outside [0, 90 deg] */
+
+const char *mb_tel_status_text(int status)
+{
+    switch (status) {
+    case MB_TEL_OK: return "ok";
+    case MB_TEL_NONFINITE: return "a parameter, profile setting or time is not finite";
+    case MB_TEL_LATITUDE_RANGE: return "latitude must lie in [-90, 90] deg";
+    case MB_TEL_LEVER_ARM_NEGATIVE: return "lever_arm must be >= 0";
+    case MB_TEL_LIMIT_NOT_POSITIVE: return "the axis rate and acceleration limits must be > 0";
+    case MB_TEL_ELEVATION_RANGE: return "slew elevation must lie in [0, 90] deg";
+    case MB_TEL_DEC_RANGE: return "dec must lie in [-90, 90] deg";
+    case MB_TEL_ZENITH: return "the source passes through the zenith, where the azimuth is "
+                               "undefined; offset dec from the latitude";
+    case MB_TEL_BELOW_HORIZON: return "the source is below the horizon";
+    case MB_TEL_DURATION_NOT_POSITIVE: return "the manoeuvre's duration must be > 0";
+    case MB_TEL_BAD_KIND: return "unknown profile kind (0 slew, 1 sidereal, 2 paper)";
+    default: return "unknown status";
+    }
+}
+
+double mb_tel_earth_rate(void) { return EARTH_RATE; }
+
+/* np.mod for a positive divisor: the result has the divisor's sign. */
+static double floor_mod(double x, double y)
+{
+    double m = fmod(x, y);
+    if (m != 0.0) {
+        if ((y < 0) != (m < 0)) m += y;
+    } else {
+        m = copysign(0.0, y);
+    }
+    return m;
+}
+
+double mb_tel_lst(double longitude, double utc)
+{
+    double days = (utc - J2000_UNIX) / 86400.0;
+    double T = days / 36525.0;
+    double gmst = 280.46061837 + 360.98564736629 * days + 0.000387933 * pow(T, 2.0)
+                  - pow(T, 3.0) / 38710000.0;
+    return floor_mod(gmst * (PI / 180.0) + longitude, TWO_PI);
+}
+
+int mb_tel_check_params(const mb_tel_params *p)
+{
+    const double values[] = {p->latitude, p->longitude, p->lever_arm, p->az_rate_max,
+                             p->az_acc_max, p->el_rate_max, p->el_acc_max, p->b_y, p->c_y,
+                             p->b_z, p->c_z, p->home[0], p->home[1], p->home[2], p->home[3],
+                             p->home[4], p->home[5]};
+    for (size_t i = 0; i < sizeof values / sizeof values[0]; i++)
+        if (!isfinite(values[i])) return MB_TEL_NONFINITE;
+    if (fabs(p->latitude) > PI / 2) return MB_TEL_LATITUDE_RANGE;
+    if (p->lever_arm < 0) return MB_TEL_LEVER_ARM_NEGATIVE;
+    if (!(p->az_rate_max > 0 && p->az_acc_max > 0 && p->el_rate_max > 0 && p->el_acc_max > 0))
+        return MB_TEL_LIMIT_NOT_POSITIVE;
+    return MB_TEL_OK;
+}
+
+static int elevation_ok(double E) { return !(E < -E_TOLERANCE || E > PI / 2 + E_TOLERANCE); }
+
+/* --- slew ------------------------------------------------------------------------- */
+
+/* A rate- and acceleration-limited move over a signed distance starting at t = 0. */
+typedef struct { double D, sign, acc_max, t_acc, peak, duration, t_dec; } trapezoid;
+
+static trapezoid trapezoid_of(double distance, double rate_max, double acc_max)
+{
+    trapezoid m;
+    m.D = fabs(distance);
+    m.sign = distance > 0 ? 1.0 : (distance < 0 ? -1.0 : 0.0);
+    m.acc_max = acc_max;
+    double by_rate = rate_max / acc_max, by_distance = sqrt(m.D / acc_max);
+    m.t_acc = by_distance < by_rate ? by_distance : by_rate;
+    m.peak = acc_max * m.t_acc;
+    m.duration = m.D == 0 ? 0.0 : m.D / m.peak + m.t_acc;   /* 2 t_acc + cruise time */
+    m.t_dec = m.duration - m.t_acc;                        /* start of braking */
+    return m;
+}
+
+static void trapezoid_at(const trapezoid *m, double t, double *s, double *v, double *a)
+{
+    double to_go = m->duration - t;
+    if (t <= 0) {
+        *s = 0.0; *v = 0.0; *a = 0.0;
+    } else if (t < m->t_acc) {
+        *s = 0.5 * m->acc_max * (t * t); *v = m->acc_max * t; *a = m->acc_max;
+    } else if (t < m->t_dec) {
+        *s = 0.5 * m->peak * m->t_acc + m->peak * (t - m->t_acc); *v = m->peak; *a = 0.0;
+    } else if (t < m->duration) {
+        *s = m->D - 0.5 * m->acc_max * (to_go * to_go); *v = m->acc_max * to_go; *a = -m->acc_max;
+    } else {
+        *s = m->D; *v = 0.0; *a = 0.0;
+    }
+    *s = m->sign * *s; *v = m->sign * *v; *a = m->sign * *a;
+}
+
+int mb_tel_slew_duration(const mb_tel_params *p, double start_az, double start_el,
+                         double target_az, double target_el, double *duration)
+{
+    int status = mb_tel_check_params(p);
+    if (status) return status;
+    if (!(isfinite(start_az) && isfinite(start_el) && isfinite(target_az) && isfinite(target_el)))
+        return MB_TEL_NONFINITE;
+    if (!elevation_ok(start_el) || !elevation_ok(target_el)) return MB_TEL_ELEVATION_RANGE;
+    double az = trapezoid_of(target_az - start_az, p->az_rate_max, p->az_acc_max).duration;
+    double el = trapezoid_of(target_el - start_el, p->el_rate_max, p->el_acc_max).duration;
+    *duration = el > az ? el : az;
+    return MB_TEL_OK;
+}
+
+/* --- sidereal tracking -------------------------------------------------------------- */
+
+/* Unit pointing vector (north, east, up) at hour angle H and its two time derivatives. */
+static void direction(double H, double dec, double lat, double u[3], double u1[3], double u2[3])
+{
+    double cd = cos(dec), sd = sin(dec), cl = cos(lat), sl = sin(lat);
+    double cH = cos(H), sH = sin(H), w = EARTH_RATE, w2 = pow(w, 2.0);
+    u[0] = sd * cl - cd * sl * cH; u[1] = -cd * sH; u[2] = sl * sd + cl * cd * cH;
+    u1[0] = cd * sl * sH * w; u1[1] = -cd * cH * w; u1[2] = -cl * cd * sH * w;
+    u2[0] = cd * sl * cH * w2; u2[1] = cd * sH * w2; u2[2] = -cl * cd * cH * w2;
+}
+
+/* Azimuth continuous in H whatever the sampling: atan2 jumps by -2 pi at each upper
+   culmination of a source transiting south of the zenith (dec < lat) and by +2 pi at each
+   lower culmination of one culminating below the north pole (dec < -lat). */
+static double azimuth(double H, double north, double east, double dec, double lat)
+{
+    double A = atan2(east, north);
+    A += TWO_PI * (dec < lat ? 1.0 : 0.0) * floor(H / TWO_PI);
+    A -= TWO_PI * (dec < -lat ? 1.0 : 0.0) * floor((H - PI) / TWO_PI);
+    return A;
+}
+
+/* --- the paper's stress case ------------------------------------------------------------ */
+
+static void quintic_scalars(double duration, double t, double *s, double *ds, double *dds)
+{
+    double tau = t / duration;
+    tau = tau < 0.0 ? 0.0 : (tau > 1.0 ? 1.0 : tau);    /* np.clip, NaN stays NaN */
+    double inside = (t > 0 && t < duration) ? 1.0 : 0.0;
+    double one_minus = 1 - tau;
+    *s = pow(tau, 3.0) * (10 - 15 * tau + 6 * (tau * tau));
+    *ds = 30 * (tau * tau) * (one_minus * one_minus) / duration * inside;
+    *dds = 60 * tau * (1 - tau) * (1 - 2 * tau) / pow(duration, 2.0) * inside;
+}
+
+int mb_tel_quintic(int dim, const double *start, const double *stop, double duration,
+                   int n, const double *t, double *pos, double *vel, double *acc)
+{
+    if (!(duration > 0)) return MB_TEL_DURATION_NOT_POSITIVE;
+    for (int i = 0; i < n; i++) {
+        double s, ds, dds;
+        quintic_scalars(duration, t[i], &s, &ds, &dds);
+        for (int k = 0; k < dim; k++) {
+            double delta = stop[k] - start[k];
+            pos[i * dim + k] = start[k] + s * delta;
+            vel[i * dim + k] = ds * delta;
+            acc[i * dim + k] = dds * delta;
+        }
+    }
+    return MB_TEL_OK;
+}
+
+/* --- a profile's axes --------------------------------------------------------------- */
+
+static int check_profile(const mb_tel_params *p, const mb_tel_profile *prof, int n,
+                         const double *t, int *first_bad)
+{
+    int status = mb_tel_check_params(p);
+    if (status) return status;
+    if (!isfinite(prof->start_delay)) return MB_TEL_NONFINITE;
+    for (int i = 0; i < n; i++)
+        if (!isfinite(t[i])) {
+            if (first_bad) *first_bad = i;
+            return MB_TEL_NONFINITE;
+        }
+    switch (prof->kind) {
+    case MB_TEL_SLEW:
+        if (!(isfinite(prof->start_az) && isfinite(prof->start_el) && isfinite(prof->target_az)
+              && isfinite(prof->target_el)))
+            return MB_TEL_NONFINITE;
+        if (!elevation_ok(prof->start_el) || !elevation_ok(prof->target_el))
+            return MB_TEL_ELEVATION_RANGE;
+        return MB_TEL_OK;
+    case MB_TEL_SIDEREAL:
+        if (!(isfinite(prof->ra) && isfinite(prof->dec) && isfinite(prof->utc_start)))
+            return MB_TEL_NONFINITE;
+        if (fabs(prof->dec) > PI / 2) return MB_TEL_DEC_RANGE;
+        if (fabs(prof->dec - p->latitude) < 1e-6) return MB_TEL_ZENITH;
+        return MB_TEL_OK;
+    case MB_TEL_PAPER:
+        if (!isfinite(prof->paper_duration)) return MB_TEL_NONFINITE;
+        for (int k = 0; k < 6; k++)
+            if (!(isfinite(prof->ref_start[k]) && isfinite(prof->ref_stop[k])))
+                return MB_TEL_NONFINITE;
+        if (!(prof->paper_duration > 0)) return MB_TEL_DURATION_NOT_POSITIVE;
+        return MB_TEL_OK;
+    default:
+        return MB_TEL_BAD_KIND;
+    }
+}
+
+static void slew_axes(const mb_tel_params *p, const mb_tel_profile *prof, int n,
+                      const double *t, double *axes)
+{
+    trapezoid az = trapezoid_of(prof->target_az - prof->start_az, p->az_rate_max, p->az_acc_max);
+    trapezoid el = trapezoid_of(prof->target_el - prof->start_el, p->el_rate_max, p->el_acc_max);
+    for (int i = 0; i < n; i++) {
+        double ti = t[i] - prof->start_delay, *row = axes + 6 * i;
+        trapezoid_at(&az, ti, &row[0], &row[1], &row[2]);
+        trapezoid_at(&el, ti, &row[3], &row[4], &row[5]);
+        row[0] = prof->start_az + row[0];
+        row[3] = prof->start_el + row[3];
+    }
+}
+
+static int sidereal_axes(const mb_tel_params *p, const mb_tel_profile *prof, int n,
+                         const double *t, double *axes, int *first_bad)
+{
+    double dec = prof->dec, lat = p->latitude;
+    double H0 = floor_mod(mb_tel_lst(p->longitude, prof->utc_start) - prof->ra + PI, TWO_PI) - PI;
+    double u0[3], u01[3], u02[3];
+    direction(H0, dec, lat, u0, u01, u02);
+    double wraps = floor(azimuth(H0, u0[0], u0[1], dec, lat) / TWO_PI);
+    int status = MB_TEL_OK;
+    for (int i = 0; i < n; i++) {
+        double H = H0 + EARTH_RATE * (t[i] - prof->start_delay), u[3], u1[3], u2[3];
+        direction(H, dec, lat, u, u1, u2);
+        double nn = u[0], e = u[1], z = u[2], n1 = u1[0], e1 = u1[1], z1 = u1[2];
+        double n2 = u2[0], e2 = u2[1], z2 = u2[2];
+        double cos_E = hypot(nn, e), cos_E2 = cos_E * cos_E, *row = axes + 6 * i;
+        double A_dot = (nn * e1 - e * n1) / cos_E2;
+        row[1] = A_dot;
+        row[2] = (nn * e2 - e * n2) / cos_E2 - 2 * A_dot * (nn * n1 + e * e1) / cos_E2;
+        row[3] = atan2(z, cos_E);
+        row[4] = z1 / cos_E;                              /* from sin E = z */
+        row[5] = (z2 + z * (row[4] * row[4])) / cos_E;
+        row[0] = azimuth(H, nn, e, dec, lat) - TWO_PI * wraps;
+        if (row[3] < 0 && status == MB_TEL_OK) {
+            status = MB_TEL_BELOW_HORIZON;
+            if (first_bad) *first_bad = i;
+        }
+    }
+    return status;
+}
+
+static void paper_axes(const mb_tel_profile *prof, int n, const double *t, double *axes)
+{
+    double roll_end = 45.0 * (PI / 180.0), yaw_end = 30.0 * (PI / 180.0);   /* np.radians */
+    for (int i = 0; i < n; i++) {
+        double s, ds, dds, *row = axes + 6 * i;
+        quintic_scalars(prof->paper_duration, t[i] - prof->start_delay, &s, &ds, &dds);
+        row[0] = 0.0 + s * (yaw_end - 0.0);
+        row[1] = ds * (yaw_end - 0.0);
+        row[2] = dds * (yaw_end - 0.0);
+        row[3] = PI / 2 - (0.0 + s * (roll_end - 0.0));
+        row[4] = -(ds * (roll_end - 0.0));
+        row[5] = -(dds * (roll_end - 0.0));
+    }
+}
+
+int mb_tel_axes(const mb_tel_params *p, const mb_tel_profile *prof, int n, const double *t,
+                double *axes, int *first_bad)
+{
+    if (first_bad) *first_bad = -1;
+    int status = check_profile(p, prof, n, t, first_bad);
+    if (status) return status;
+    switch (prof->kind) {
+    case MB_TEL_SLEW: slew_axes(p, prof, n, t, axes); return MB_TEL_OK;
+    case MB_TEL_SIDEREAL: return sidereal_axes(p, prof, n, t, axes, first_bad);
+    default: paper_axes(prof, n, t, axes); return MB_TEL_OK;
+    }
+}
+
+/* --- what the axes do to the base and to the reference -------------------------------- */
+
+static void base_row(double L, const double *ax, double *pose, double *rate, double *acc)
+{
+    double A = ax[0], dA = ax[1], ddA = ax[2], E = ax[3], dE = ax[4], ddE = ax[5];
+    double cA = cos(A), sA = sin(A), cE = cos(E), sE = sin(E);
+    double p[3] = {L * (cE * sA), L * (-cE * cA), L * sE};
+    double dp_dE[3] = {L * (-sE * sA), L * (sE * cA), L * cE};
+    double dp_dA[3] = {L * (cE * cA), L * (cE * sA), L * 0.0};
+    double d2p_dE2[3] = {L * (-cE * sA), L * (cE * cA), L * -sE};
+    double d2p_dEdA[3] = {L * (-sE * cA), L * (-sE * sA), L * 0.0};
+    double d2p_dA2[3] = {L * (-cE * sA), L * (cE * cA), L * 0.0};
+    for (int k = 0; k < 3; k++) {
+        pose[k] = p[k];
+        rate[k] = dp_dE[k] * dE + dp_dA[k] * dA;
+        acc[k] = dp_dE[k] * ddE + dp_dA[k] * ddA + d2p_dE2[k] * (dE * dE)
+                 + 2 * d2p_dEdA[k] * dE * dA + d2p_dA2[k] * (dA * dA);
+    }
+    pose[3] = PI / 2 - E; pose[4] = 0.0; pose[5] = A;
+    rate[3] = -dE; rate[4] = 0.0; rate[5] = dA;
+    acc[3] = -ddE; acc[4] = 0.0; acc[5] = ddA;
+}
+
+void mb_tel_base_motion(const mb_tel_params *p, int n, const double *axes,
+                        double *pose, double *rate, double *acc)
+{
+    for (int i = 0; i < n; i++)
+        base_row(p->lever_arm, axes + 6 * i, pose + 6 * i, rate + 6 * i, acc + 6 * i);
+}
+
+static void cross3(const double a[3], const double b[3], double out[3])
+{
+    out[0] = a[1] * b[2] - a[2] * b[1];
+    out[1] = a[2] * b[0] - a[0] * b[2];
+    out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+void mb_tel_base_twist(const mb_tel_params *p, int n, const double *axes,
+                       double *v, double *w, double *a, double *eps)
+{
+    const double lever[3] = {0.0, 0.0, p->lever_arm};
+    for (int i = 0; i < n; i++) {
+        const double *ax = axes + 6 * i;
+        double dA = ax[1], ddA = ax[2], dE = ax[4], ddE = ax[5], cE = cos(ax[3]), sE = sin(ax[3]);
+        double *wi = w + 3 * i, *ei = eps + 3 * i, *vi = v + 3 * i, *ai = a + 3 * i;
+        double c1[3], c2[3];
+        wi[0] = -dE; wi[1] = dA * cE; wi[2] = dA * sE;
+        ei[0] = -ddE; ei[1] = ddA * cE - dA * dE * sE; ei[2] = ddA * sE + dA * dE * cE;
+        cross3(wi, lever, vi);
+        cross3(ei, lever, c1);
+        cross3(wi, vi, c2);
+        for (int k = 0; k < 3; k++) ai[k] = c1[k] + c2[k];
+    }
+}
+
+static void reference_row(const mb_tel_params *p, const double *ax, double *pose, double *rate,
+                          double *acc)
+{
+    double E = ax[3], dE = ax[4], ddE = ax[5], cE = cos(E), sE = sin(E);
+    const double coef[2][3] = {{-p->b_y, p->b_y, p->c_y}, {-p->b_z, p->b_z, p->c_z}};
+    for (int k = 0; k < 6; k++) { pose[k] = p->home[k]; rate[k] = 0.0; acc[k] = 0.0; }
+    for (int j = 0; j < 2; j++) {
+        double a = coef[j][0], b = coef[j][1], c = coef[j][2], slope = b * cE - c * sE;  /* dΔ/dE */
+        pose[1 + j] += a + b * sE + c * cE;
+        rate[1 + j] = slope * dE;
+        acc[1 + j] = slope * ddE - (b * sE + c * cE) * (dE * dE);
+    }
+}
+
+void mb_tel_reference_pose(const mb_tel_params *p, int n, const double *axes,
+                           double *pose, double *rate, double *acc)
+{
+    for (int i = 0; i < n; i++)
+        reference_row(p, axes + 6 * i, pose + 6 * i, rate + 6 * i, acc + 6 * i);
+}
+
+/* --- the telescope FMU's outputs ------------------------------------------------------ */
+
+int mb_tel_fmu_rows(const mb_tel_params *p, const mb_tel_profile *prof, int n,
+                    const double *t, double *rows, int *first_bad)
+{
+    enum { CHUNK = 64 };   /* axes of CHUNK times at once on the stack: no workspace */
+    int status = MB_TEL_OK;
+    if (first_bad) *first_bad = -1;
+    for (int i0 = 0; i0 < n; i0 += CHUNK) {
+        int m = n - i0 < CHUNK ? n - i0 : CHUNK, bad;
+        double axes[6 * CHUNK];
+        int s = mb_tel_axes(p, prof, m, t + i0, axes, &bad);
+        if (s != MB_TEL_OK && s != MB_TEL_BELOW_HORIZON) {
+            if (first_bad && bad >= 0) *first_bad = i0 + bad;
+            return s;
+        }
+        if (s == MB_TEL_BELOW_HORIZON && status == MB_TEL_OK) {
+            status = s;
+            if (first_bad) *first_bad = i0 + bad;
+        }
+        for (int j = 0; j < m; j++) {
+            const double *ax = axes + 6 * j;
+            double *row = rows + 40 * (i0 + j);
+            base_row(p->lever_arm, ax, row, row + 6, row + 12);
+            if (prof->kind == MB_TEL_PAPER) {   /* the paper's platform motion, same quintic */
+                double sv, ds, dds;
+                quintic_scalars(prof->paper_duration, t[i0 + j] - prof->start_delay, &sv, &ds, &dds);
+                for (int k = 0; k < 6; k++) {
+                    double delta = prof->ref_stop[k] - prof->ref_start[k];
+                    row[18 + k] = prof->ref_start[k] + sv * delta;
+                    row[24 + k] = ds * delta;
+                    row[30 + k] = dds * delta;
+                }
+            } else {
+                reference_row(p, ax, row + 18, row + 24, row + 30);
+            }
+            row[36] = ax[0]; row[37] = ax[3]; row[38] = ax[1]; row[39] = ax[4];
+        }
+    }
+    return status;
+}

@@ -1,0 +1,109 @@
+#ifndef MB_TELESCOPE_H
+#define MB_TELESCOPE_H
+/* The telescope that moves the hexapod's base: axis profiles -> base and reference motion.
+   Law: shared/spec/telescope.md. SI (m, rad, s), every derivative analytic. The Python API
+   (plant/telescope.py, plant/trajectory.py) and the telescope FMUs call these functions.
+
+   Arrays are row-major. "axes" is (n, 6) with columns A, A', A'', E, E', E'' (azimuth north
+   through east, elevation). Poses are (n, 6): x, y, z, roll, pitch, yaw. Times need not be
+   increasing for the C; the Python API still demands strictly increasing times. */
+
+/* Site, lever arm, axis limits, subreflector correction and home pose (TelescopeParams).
+   a_y = -b_y and a_z = -b_z are derived here, so that the home pose holds at the zenith. */
+typedef struct {
+    double latitude;       /* rad, geodetic, north positive */
+    double longitude;      /* rad, east positive */
+    double lever_arm;      /* m, axis intersection -> base along the boresight */
+    double az_rate_max;    /* rad/s */
+    double az_acc_max;     /* rad/s^2 */
+    double el_rate_max;    /* rad/s */
+    double el_acc_max;     /* rad/s^2 */
+    double b_y, c_y;       /* m, dy(E) = a_y + b_y sin E + c_y cos E */
+    double b_z, c_z;       /* m, dz(E) = a_z + b_z sin E + c_z cos E */
+    double home[6];        /* platform pose in {B} at E = 90 deg */
+} mb_tel_params;
+
+enum mb_tel_kind {
+    MB_TEL_SLEW = 0,       /* trapezoidal slew start -> target at the axis limits */
+    MB_TEL_SIDEREAL = 1,   /* track (ra, dec) from utc_start */
+    MB_TEL_PAPER = 2       /* the paper's stress manoeuvre over paper_duration */
+};
+
+/* One motion profile (the telescope FMU's parameters). Every profile function evaluates
+   the profile at t - start_delay (the start pointing holds before it). */
+typedef struct {
+    int kind;                  /* enum mb_tel_kind */
+    double start_az, start_el; /* rad, slew start */
+    double target_az, target_el; /* rad, slew target */
+    double ra, dec;            /* rad, apparent (of date) right ascension and declination */
+    double utc_start;          /* s, UTC at t = 0 as seconds since 1970-01-01 (Unix time) */
+    double paper_duration;     /* s */
+    double start_delay;        /* s */
+    double ref_start[6];       /* paper: the platform reference is the quintic from ref_start */
+    double ref_stop[6];        /*   to ref_stop over paper_duration (HOME_POSE -> S_BAND_POSE) */
+} mb_tel_profile;
+
+/* Status of every function: 0 is success; otherwise the first problem found. */
+enum mb_tel_status {
+    MB_TEL_OK = 0,
+    MB_TEL_NONFINITE = 1,          /* a parameter, profile setting or time is NaN or inf */
+    MB_TEL_LATITUDE_RANGE = 2,     /* |latitude| > 90 deg */
+    MB_TEL_LEVER_ARM_NEGATIVE = 3, /* lever_arm < 0 */
+    MB_TEL_LIMIT_NOT_POSITIVE = 4, /* an axis rate or acceleration limit <= 0 */
+    MB_TEL_ELEVATION_RANGE = 5,    /* a slew elevation outside [0, 90 deg] (1e-9 rad allowed) */
+    MB_TEL_DEC_RANGE = 6,          /* |dec| > 90 deg */
+    MB_TEL_ZENITH = 7,             /* |dec - latitude| < 1e-6: the source passes the zenith */
+    MB_TEL_BELOW_HORIZON = 8,      /* the tracked source has E < 0 at a requested time */
+    MB_TEL_DURATION_NOT_POSITIVE = 9, /* paper_duration (or a quintic's duration) <= 0 */
+    MB_TEL_BAD_KIND = 10           /* profile kind not in enum mb_tel_kind */
+};
+
+/* A sentence naming the problem of a status (for FMU logs). */
+const char *mb_tel_status_text(int status);
+
+/* The rate (rad/s) at which the hour angle advances. */
+double mb_tel_earth_rate(void);
+
+/* Local mean sidereal time (rad, in [0, 2 pi)) at Unix time utc (s): GMST of IAU 1982
+   (Meeus 12.4) with UTC for UT1, days since J2000 = (utc - 946728000) / 86400. */
+double mb_tel_lst(double longitude, double utc);
+
+/* Checks of the parameters alone (finite, latitude, lever arm, limits). */
+int mb_tel_check_params(const mb_tel_params *p);
+
+/* Seconds until both axes of the slew start -> target have arrived. */
+int mb_tel_slew_duration(const mb_tel_params *p, double start_az, double start_el,
+                         double target_az, double target_el, double *duration);
+
+/* The profile's axes (n, 6) at the n times t (each shifted by start_delay). For
+   MB_TEL_BELOW_HORIZON the axes are still filled and *first_bad (if not NULL) receives
+   the index of the first time with E < 0; for MB_TEL_NONFINITE of a time, that time's
+   index; otherwise -1. Any other failure leaves the axes unwritten. */
+int mb_tel_axes(const mb_tel_params *p, const mb_tel_profile *prof, int n, const double *t,
+                double *axes, int *first_bad);
+
+/* Pose of {B} in {W} and its plain time derivatives, each (n, 6), from axes (n, 6). */
+void mb_tel_base_motion(const mb_tel_params *p, int n, const double *axes,
+                        double *pose, double *rate, double *acc);
+
+/* (v_B, w_B, a_B, eps_B), each (n, 3) in {B}, from axes (n, 6). */
+void mb_tel_base_twist(const mb_tel_params *p, int n, const double *axes,
+                       double *v, double *w, double *a, double *eps);
+
+/* Subreflector reference pose in {B} with its two time derivatives, each (n, 6). */
+void mb_tel_reference_pose(const mb_tel_params *p, int n, const double *axes,
+                           double *pose, double *rate, double *acc);
+
+/* s(tau) = 10 tau^3 - 15 tau^4 + 6 tau^5 from start to stop (dim each) over duration:
+   position, velocity, acceleration (n, dim) at the n times t; held outside [0, duration]. */
+int mb_tel_quintic(int dim, const double *start, const double *stop, double duration,
+                   int n, const double *t, double *pos, double *vel, double *acc);
+
+/* The telescope FMU's 40 outputs at n times, rows (n, 40): base_pose, base_rate, base_acc,
+   reference_pose, reference_rate, reference_acc (6 each), axis (A, E), axis_rate (A', E').
+   Paper profile: the reference is the quintic ref_start -> ref_stop. *first_bad as in
+   mb_tel_axes. */
+int mb_tel_fmu_rows(const mb_tel_params *p, const mb_tel_profile *prof, int n,
+                    const double *t, double *rows, int *first_bad);
+
+#endif
