@@ -8,11 +8,12 @@ import re
 import zipfile
 import xml.etree.ElementTree as ET
 
+import fmpy.fmi2
 import numpy as np
 import pytest
 from fmpy import read_model_description, simulate_fmu
-from fmpy.fmi2 import fmi2LastSuccessfulTime, fmi2Real
 from fmpy.build import build_platform_binary
+from fmpy.fmi2 import fmi2LastSuccessfulTime, fmi2Real
 
 from fmu_src import builder, native_build
 from scenarios import runner
@@ -329,3 +330,32 @@ def test_sources_alone_build_the_fmu(native, script, start, tmp_path):
     for name in runs[0].dtype.names:
         scale = np.max(np.abs(runs[0][name]))
         assert np.max(np.abs(runs[0][name] - runs[1][name])) <= 1e-12 * scale, name
+
+
+# ------------------------------------------------------------------------- ranges
+def test_parameters_outside_their_range_are_refused(native):
+    """Every parameter with a min or max in the modelDescription (fmu_src/builder.py adds
+    them): a value just outside answers fmi2Error with a line naming parameter, value and
+    range; the bound itself is accepted."""
+    ranged = 0
+    for script, path in native.items():
+        md = read_model_description(str(path))
+        for var in md.modelVariables:
+            if var.causality != "parameter" or (var.min is None and var.max is None):
+                continue
+            for bound, outside in ((var.min, -1), (var.max, +1)):
+                if bound is None:
+                    continue
+                ranged += 1
+                inst = Instance(path, "ranges")
+                OPENED.append(inst)
+                inst.call("setupExperiment", startTime=0.0)
+                kind = inst.raw("fmi2SetInteger" if var.type == "Integer" else "fmi2SetReal")
+                value = float(bound)
+                bad = value + outside if var.type == "Integer" else value + outside * max(1.0, abs(value)) * 1e-6
+                buffer = (fmpy.fmi2.fmi2Integer if var.type == "Integer" else fmi2Real)
+                vr = (fmpy.fmi2.fmi2ValueReference * 1)(var.valueReference)
+                assert kind(inst.fmu.component, vr, 1, (buffer * 1)(bad)) == ERROR, var.name
+                assert f"parameter {var.name} = " in inst.log[-1] and "outside its range" in inst.log[-1]
+                assert kind(inst.fmu.component, vr, 1, (buffer * 1)(value)) == OK, var.name
+    assert ranged > 0, "no parameter has a range in the modelDescription"
