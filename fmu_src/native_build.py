@@ -137,7 +137,7 @@ def vars_header(identifier, guid, slave, root):
         is_real = kind.tag == "Real"
         start = exact[vr]
         limits = [(1, _c(kind.get(k))) if kind.get(k) is not None else (0, "0.0") for k in ("min", "max")]
-        rows.append(f'    {{"{var.name}", {"MB_REAL" if is_real else "MB_INTEGER"}, '
+        rows.append(f'    {{"{var.name}", "{kind.get("unit", "")}", {"MB_REAL" if is_real else "MB_INTEGER"}, '
                     f'{_CAUSALITY[element.get("causality", "local")]}, {_c(start)}, '
                     f"{limits[0][0]}, {limits[1][0]}, {limits[0][1]}, {limits[1][1]}}},")
         base = _c_name(var.name)

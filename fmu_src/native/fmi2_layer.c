@@ -282,6 +282,73 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c)
     return fmi2OK;
 }
 
+/* "value unit" as the Python FMUs write a quantity (slave.py _quantity): 6 digits, degrees
+   beside radians. */
+static void quantity(char *out, size_t n, double v, const char *unit)
+{
+    char number[40];
+    if (isnan(v)) strcpy(number, "nan");
+    else snprintf(number, sizeof number, "%.6g", v);
+    snprintf(out, n, "%s%s%s", number, *unit ? " " : "", unit);
+    if (strncmp(unit, "rad", 3) == 0 && isfinite(v)) {
+        size_t used = strlen(out);
+        snprintf(out + used, n - used, " (%.6g deg%s)", v * (180.0 / 3.141592653589793), unit + 3);
+    }
+}
+
+/* slave.py range_text */
+static void range_text(char *out, size_t n, const mb_var *v)
+{
+    char q[96];
+    if (!v->has_max) {
+        quantity(q, sizeof q, v->min, v->unit);
+        snprintf(out, n, ">= %s", q);
+    } else if (!v->has_min) {
+        quantity(q, sizeof q, v->max, v->unit);
+        snprintf(out, n, "<= %s", q);
+    } else {
+        snprintf(out, n, "[%.6g, %.6g]%s%s", v->min, v->max, *v->unit ? " " : "", v->unit);
+        if (strncmp(v->unit, "rad", 3) == 0) {
+            size_t used = strlen(out);
+            snprintf(out + used, n - used, " ([%.6g, %.6g] deg%s)", v->min * (180.0 / 3.141592653589793),
+                     v->max * (180.0 / 3.141592653589793), v->unit + 3);
+        }
+    }
+}
+
+/* Every parameter outside its range and every input that is not finite, as one message
+   (slave.py GuardedSlave.check_start); 0 when there is none. */
+static int check_start(mb_instance *inst)
+{
+    char problems[sizeof inst->message] = "", one[320], q[96], range[160];
+    const double *r = REALS(inst);
+    const int *iv = INTS(inst);
+    for (int pass = 0; pass < 2; pass++) {
+        for (int vr = 0; vr < MB_MODEL.nvars; vr++) {
+            const mb_var *v = &MB_MODEL.vars[vr];
+            double value = v->type == MB_REAL ? r[vr] : (double)iv[vr];
+            one[0] = '\0';
+            if (pass == 0 && v->causality == MB_PARAMETER && (v->has_min || v->has_max) &&
+                !((!v->has_min || value >= v->min) && (!v->has_max || value <= v->max))) {
+                quantity(q, sizeof q, value, v->unit);
+                range_text(range, sizeof range, v);
+                snprintf(one, sizeof one, "parameter %s = %s is outside its valid range %s", v->name, q, range);
+            } else if (pass == 1 && v->causality == MB_INPUT && v->type == MB_REAL && !isfinite(value)) {
+                char text[32];
+                snprintf(one, sizeof one, "input %s = %s at initialization: inputs must be finite", v->name,
+                         mb_repr(value, text));
+            }
+            if (one[0]) {
+                size_t used = strlen(problems);
+                snprintf(problems + used, sizeof problems - used, "%s%s", used ? "; " : "", one);
+            }
+        }
+    }
+    if (!problems[0]) return 0;
+    mb_error(inst, "InvalidInputError", "%s", problems);
+    return 1;
+}
+
 fmi2Status fmi2ExitInitializationMode(fmi2Component c)
 {
     if (!usable(c)) return fmi2Error;
@@ -290,7 +357,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c)
     inst->phase = STEPPING;
     layer_state *s = LAYER(inst);
     s->initialized = 1;
-    if (MODEL_INIT(inst, s->start_time)) {
+    if (check_start(inst) || MODEL_INIT(inst, s->start_time)) {
         record_failure(inst, "in initialization");
         return fmi2Error;
     }
@@ -337,9 +404,9 @@ static int valid_vr(mb_instance *inst, const char *function, fmi2ValueReference 
     return 1;
 }
 
-/* May the variable be set now, to this value? (outputs never; parameters before the
-   end of initialization and within their range; inputs always) */
-static int settable(mb_instance *inst, const char *function, fmi2ValueReference vr, double value)
+/* May the variable be set now? (outputs never; parameters before the end of
+   initialization; inputs always). Ranges are checked at fmi2ExitInitializationMode. */
+static int settable(mb_instance *inst, const char *function, fmi2ValueReference vr)
 {
     const mb_var *v = &MB_MODEL.vars[vr];
     if (v->causality == MB_OUTPUT || v->causality == MB_LOCAL) {
@@ -349,14 +416,6 @@ static int settable(mb_instance *inst, const char *function, fmi2ValueReference 
     if (v->causality == MB_PARAMETER) {
         if (inst->phase != INSTANTIATED && inst->phase != INITIALIZATION) {
             logf_(inst, fmi2Error, CAT_ERROR, "%s: parameter %s is fixed after initialization", function, v->name);
-            return 0;
-        }
-        if ((v->has_min && !(value >= v->min)) || (v->has_max && !(value <= v->max))) {
-            char lo[32] = "-inf", hi[32] = "inf";
-            if (v->has_min) snprintf(lo, sizeof lo, "%.17g", v->min);
-            if (v->has_max) snprintf(hi, sizeof hi, "%.17g", v->max);
-            logf_(inst, fmi2Error, CAT_ERROR, "%s: parameter %s = %.17g is outside its range [%s, %s]",
-                  function, v->name, value, lo, hi);
             return 0;
         }
     }
@@ -395,7 +454,7 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     mb_instance *inst = c;
     double *r = REALS(inst);
     for (size_t k = 0; k < nvr; k++) {
-        if (!valid_vr(inst, "fmi2SetReal", vr[k], MB_REAL) || !settable(inst, "fmi2SetReal", vr[k], value[k]))
+        if (!valid_vr(inst, "fmi2SetReal", vr[k], MB_REAL) || !settable(inst, "fmi2SetReal", vr[k]))
             return fmi2Error;
         r[vr[k]] = value[k];
     }
@@ -410,7 +469,7 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
     int *iv = INTS(inst);
     for (size_t k = 0; k < nvr; k++) {
         if (!valid_vr(inst, "fmi2SetInteger", vr[k], MB_INTEGER) ||
-            !settable(inst, "fmi2SetInteger", vr[k], (double)value[k]))
+            !settable(inst, "fmi2SetInteger", vr[k]))
             return fmi2Error;
         iv[vr[k]] = value[k];
     }

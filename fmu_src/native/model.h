@@ -17,6 +17,7 @@ enum mb_causality { MB_PARAMETER = 0, MB_INPUT = 1, MB_OUTPUT = 2, MB_LOCAL = 3 
 
 typedef struct {
     const char *name;
+    const char *unit;  /* "" when none */
     int type;          /* enum mb_type */
     int causality;     /* enum mb_causality */
     double start;
