@@ -4,7 +4,8 @@
 pythonfmu packs each script of fmu_src/ (class __init__ runs here, at build time); this
 script then adds what pythonfmu leaves out: SI units with mm/deg display units in
 modelDescription.xml, and resources/requirements.txt naming the Python packages the FMU
-needs at run time (pythonfmu's `deploy` installs from it).
+needs at run time (pythonfmu's `deploy` installs from it). The CLI also builds each FMU's
+native C twin into <out>/native/ (fmu_src/native_build.py).
 """
 import argparse
 import importlib
