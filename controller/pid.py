@@ -24,7 +24,8 @@ largest load change the paper reports for its moving-base stress case (~14 kN).
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from ._kernel import ffi, lib
 
 DEFAULT_FORCE_LIMIT = 50e3  # N per leg (assumed, see module docstring)
 
@@ -71,20 +72,23 @@ def pid_step(gains, integral, reference_length, reference_rate, length, rate, fe
 def pid_update(gains, integral, error, error_rate, feedforward, dt):
     """pid_step on errors already formed and checked (the FMU checks all its inputs for
     NaN/inf at once), all float arrays of one shape: returns (force, new_integral).
-    Compiled: the controller FMU calls it every step and numpy's cost per small-array
-    operation (~0.5 µs, a dozen of them) was most of that step."""
-    force, new_integral = np.empty_like(error), np.empty_like(error)
-    _pid_kernel(gains.kp, gains.ki, gains.kd, gains.force_limit, integral.ravel(), error.ravel(),
-                error_rate.ravel(), feedforward.ravel(), dt, force.ravel(), new_integral.ravel())
+    In C (controller/c/pid.c): the controller FMU calls it every step and numpy's cost per
+    small-array operation (~0.5 µs, a dozen of them) was most of that step."""
+    shape = np.shape(error)
+    arrays = [_contiguous(a, shape, name) for a, name in
+              ((integral, "integral"), (error, "error"), (error_rate, "error_rate"), (feedforward, "feedforward"))]
+    force, new_integral = np.empty(shape), np.empty(shape)
+    lib.mb_pid_update(gains.kp, gains.ki, gains.kd, gains.force_limit, force.size,
+                      *(ffi.from_buffer("double[]", a) for a in arrays), dt,
+                      ffi.from_buffer("double[]", force), ffi.from_buffer("double[]", new_integral))
     return force, new_integral
 
 
-@njit(cache=True)
-def _pid_kernel(kp, ki, kd, limit, integral, error, error_rate, feedforward, dt, force, new_integral):
-    for i in range(error.size):
-        fixed = feedforward[i] + kp * error[i] + kd * error_rate[i]
-        candidate = integral[i] + dt * error[i]
-        unclamped = fixed + ki * candidate
-        winding = abs(unclamped) > limit and error[i] * unclamped > 0
-        new_integral[i] = integral[i] if winding else candidate
-        force[i] = min(max(fixed + ki * new_integral[i], -limit), limit)
+def _contiguous(a, shape, name):
+    """``a`` as C-contiguous float64 (a copy only when it is not that already), checked
+    to have the error's shape: C reads exactly that many values."""
+    if not (type(a) is np.ndarray and a.dtype == np.float64 and a.flags.c_contiguous):
+        a = np.ascontiguousarray(a, dtype=np.float64)
+    if a.shape != shape:
+        raise ValueError(f"{name} has shape {a.shape}, expected {shape} like the error")
+    return a

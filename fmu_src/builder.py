@@ -2,8 +2,8 @@
 (the CLI is build.py at the top of the repository: python build.py [--out DIR] [names]).
 
 pythonfmu packs each script of fmu_src/ (class __init__ runs here, at build time); this
-script then adds what pythonfmu leaves out: SI units with mm/deg display units in
-modelDescription.xml, and resources/requirements.txt naming the Python packages the FMU
+script then adds what pythonfmu leaves out: SI units with mm/deg display units and the
+parameters' min/max in modelDescription.xml, and resources/requirements.txt naming the Python packages the FMU
 needs at run time (pythonfmu's `deploy` installs from it). The CLI also builds each FMU's
 native C twin into <out>/native/ (fmu_src/native_build.py).
 """
@@ -75,6 +75,20 @@ def add_units(xml_text, units):
     return ET.tostring(root, encoding="unicode", xml_declaration=True)
 
 
+def add_ranges(xml_text, ranges):
+    """modelDescription.xml with FMI min/max (inclusive) on every ranged Real/Integer."""
+    root = ET.fromstring(xml_text)
+    for var in root.iter("ScalarVariable"):
+        valid = ranges.get(var.get("name"))
+        kind = var.find("Real") if var.find("Real") is not None else var.find("Integer")
+        if valid is None or kind is None:
+            continue
+        for attribute, value in zip(("min", "max"), valid):
+            if value is not None:
+                kind.set(attribute, repr(float(value)) if kind.tag == "Real" else str(int(value)))
+    return ET.tostring(root, encoding="unicode", xml_declaration=True)
+
+
 def slave_instance(fmu):
     """An instance of the FMU's slave class, made on the FMU's own resources (the units it
     recorded; the exact start values fmu_src/native_build.py compiles in)."""
@@ -88,15 +102,17 @@ def slave_instance(fmu):
         return slave_class(instance_name="build", resources=str(resources))
 
 
-def _units(fmu):
-    """Units the slave recorded."""
-    return slave_instance(fmu).units
+def _recorded(fmu):
+    """(units, ranges) the slave recorded."""
+    slave = slave_instance(fmu)
+    return slave.units, slave.ranges
 
 
-def _rewrite(fmu, units):
+def _rewrite(fmu, units, ranges):
     with zipfile.ZipFile(fmu) as z:
         files = {name: z.read(name) for name in z.namelist()}
-    files["modelDescription.xml"] = add_units(files["modelDescription.xml"].decode(), units).encode()
+    xml_text = add_ranges(add_units(files["modelDescription.xml"].decode(), units), ranges)
+    files["modelDescription.xml"] = xml_text.encode()
     with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as z:
         for name, data in files.items():
             z.writestr(name, data)
@@ -127,7 +143,7 @@ def build(script, out):
             project_files.append(pathlib.Path(tmp) / name)
             project_files[-1].write_text(make())
         fmu = FmuBuilder.build_FMU(path, dest=out, project_files=project_files, canGetAndSetFMUstate=True)
-    _rewrite(fmu, _units(fmu))
+    _rewrite(fmu, *_recorded(fmu))
     problems = validate_fmu(str(fmu))
     if problems:
         raise RuntimeError(f"{fmu.name} fails fmpy validation:\n" + "\n".join(problems))

@@ -8,13 +8,16 @@ The state survives get/set FMU state.
 """
 import numpy as np
 
-from fmu_src.slave import (INPUT, OUTPUT, PARAMETER, POSE_UNITS, GuardedSlave, acc_units,
+from fmu_src.slave import (INPUT, OUTPUT, PARAMETER, POSE_UNITS, POSITIVE_TIME, GuardedSlave, acc_units,
                            rate_units)
 from plant.hexapod_ode import HexapodODE
 from plant.integrators import INTEGRATORS
 from plant.stewart import FIDELITIES, HOME_POSE, StewartParams
 
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
+# half stroke: from 1 mm (less stops a run at the first mm of motion; no actuator has
+# less travel) to the shortest home leg length (more leaves a negative lowest length)
+STROKE_RANGE = (1e-3, float(StewartParams.paper().home_lengths.min()))
 
 
 class HexapodPlant(GuardedSlave):
@@ -22,13 +25,16 @@ class HexapodPlant(GuardedSlave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.integer("moving_base", "1: the base moves as the base_* inputs say; 0: fixed base (inputs ignored)", 1)
-        self.integer("fidelity", "model fidelity: " + ", ".join(f"{i} {f}" for i, f in enumerate(FIDELITIES)), 0)
-        self.integer("integrator", "integrator: " + ", ".join(f"{i} {m}" for i, m in enumerate(INTEGRATORS)), 0)
+        self.integer("moving_base", "1: the base moves as the base_* inputs say; 0: fixed base (inputs ignored)", 1,
+                     (0, 1))
+        self.enumeration("fidelity", "model fidelity", FIDELITIES, 0)
+        self.enumeration("integrator", "integrator", INTEGRATORS, 0)
         self.max_step = 1e-3
         self.stroke = 0.15
-        self.real("max_step", PARAMETER, "largest internal integration step", "s", self.max_step)
-        self.real("stroke", PARAMETER, "half stroke of every leg about its home length (assumed)", "m", self.stroke)
+        self.real("max_step", PARAMETER, "largest internal integration step; > 0", "s", self.max_step,
+                  valid=(POSITIVE_TIME, None))
+        self.real("stroke", PARAMETER, "half stroke of every leg about its home length (assumed)", "m", self.stroke,
+                  valid=STROKE_RANGE)
         self.initial_pose = self.vector("initial_pose", 6, PARAMETER,
                                         [f"initial platform {n} in {{B}}" for n in POSE_NAMES], POSE_UNITS,
                                         HOME_POSE)

@@ -30,8 +30,7 @@ class LegController(GuardedSlave):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         defaults = json.loads((pathlib.Path(self.resources) / DEFAULTS_FILE).read_text())
-        self.integer("feedforward", "model feedforward: " + ", ".join(
-            f"{i} {m}" for i, m in enumerate(FEEDFORWARD_MODES)), 2)
+        self.enumeration("feedforward", "model feedforward", FEEDFORWARD_MODES, 2)
         self.gains = self.pid_gains(defaults["gains"], "leg length", f"designed for {defaults['design']}")
         pose_desc = lambda prefix: [f"{prefix} {n}" for n in POSE_NAMES]
         home = StewartParams.paper()

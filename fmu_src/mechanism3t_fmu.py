@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from fmu_src.slave import INPUT, OUTPUT, PARAMETER, GuardedSlave
+from fmu_src.slave import INPUT, OUTPUT, PARAMETER, POSITIVE_TIME, GuardedSlave
 from plant import mechanism3t_kernel as kernel
 from plant.errors import ConvergenceError, InvalidInputError
 from plant.integrators import INTEGRATORS, advance
@@ -42,10 +42,12 @@ class Mechanism3TPlant(GuardedSlave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.integer("integrator", "integrator: " + ", ".join(f"{i} {m}" for i, m in enumerate(INTEGRATORS)), 0)
-        self.integer("mode", "assembly mode, +1 or -1: sign before the square root of eq. 11 (paper check: +1)", 1)
+        self.enumeration("integrator", "integrator", INTEGRATORS, 0)
+        self.integer("mode", "assembly mode, +1 or -1: sign before the square root of eq. 11 (paper check: +1)", 1,
+                     (-1, 1), allowed=(-1, 1))
         self.max_step = 5e-3
-        self.real("max_step", PARAMETER, "largest internal integration step", "s", self.max_step)
+        self.real("max_step", PARAMETER, "largest internal integration step; > 0", "s", self.max_step,
+                  valid=(POSITIVE_TIME, None))
         rho0 = np.array(PAPER_REFERENCE_RHO_MM) * MM
         self.initial_position = self.vector("initial_position", 3, PARAMETER,
                                             [f"initial slider position {s}" for s in SLIDERS], "m", rho0)

@@ -5,19 +5,44 @@ crashes the importing process (shared/spec/fmi-notes.md). Every error is caught 
 logged at error level with what went wrong and when, and answered with fmi2Discard
 (do_step returns False); the slave then stays failed and refuses further steps.
 
-Units: pythonfmu writes no units, so each variable's unit is recorded here and build.py
-adds them (with mm / deg display units) to modelDescription.xml (fmu_src/builder.py).
+Units and ranges: pythonfmu writes neither, so each variable's unit and each parameter's
+valid range (``valid=(min, max)``, either side None for open; FMI's min/max are inclusive,
+so "> 0" is written as a tiny positive min) are recorded here, and build.py writes them into
+modelDescription.xml (fmu_src/builder.py). At fmi2ExitInitializationMode every parameter
+is checked against its range (and enumerations with gaps against their values), every
+input must be finite, and a violation is logged naming variable, value and range.
+
+Init failures: pythonfmu 0.7.0's wrapper ignores what exit_initialization_mode returns and
+answers fmi2Fatal for any exception (never fmi2Error), so a failed initialization raises
+and the host sees fmi2Fatal from fmi2ExitInitializationMode; keep-alive references make the
+host's later calls (doStep, terminate, free) safe (see exit_initialization_mode).
+
+Discarded steps: the output arrays (whole: the integrator state of every FMU lives in
+them or in arrays they are views of) are put back as they were before the step,
+so a host reading outputs after fmi2Discard sees the last accepted state, at the time
+fmi2GetRealStatus(fmi2LastSuccessfulTime) answers (the wrapper's: the rejected step's start).
 
 The FMU scripts import this module from the installed `movingbase` package (not from
 the FMU's resources): one copy in the process, and the plant's compiled kernels stay
 cached on disk instead of recompiling in every extracted FMU.
 """
+import ctypes
+import math
+import pathlib
+import sys
+
 import numpy as np
 from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability
 from pythonfmu.enums import Fmi2Status
 from pythonfmu.variables import Integer, Real
 
+from plant.errors import InvalidInputError
+
 PARAMETER, INPUT, OUTPUT = Fmi2Causality.parameter, Fmi2Causality.input, Fmi2Causality.output
+# FMI min/max are inclusive: the smallest values standing for "> 0"
+POSITIVE_TIME = 1e-9      # s
+POSITIVE_FORCE = 1e-9     # N
+POSITIVE_RATE = 1e-12     # rad/s, rad/s2
 POSE_UNITS = ("m", "m", "m", "rad", "rad", "rad")
 
 
@@ -40,6 +65,71 @@ def _flat_slot(values, i, flat_views):
     return flat, (offset + i * values.strides[0]) // values.itemsize
 
 
+def finalize_python_before_exit(resources):
+    """Have the C wrapper finalize the interpreter it started before the process's
+    C++/Fortran destructors run (a C host; harmless in a Python one).
+
+    pythonfmu 0.7.0's wrapper calls Py_Finalize from the destructor of a global in the
+    FMU's library, which runs at exit() after the destructors of every library loaded
+    later (scipy's C++ and gfortran runtimes, numpy's ...): Python's teardown then frees
+    objects whose C++ state is gone and corrupts the heap (SIGSEGV/SIGABRT in
+    Py_FinalizeEx after fmi2FreeInstance returned; docs/fmi-notes-measured.md).
+    Exit handlers run last-registered first, so registering the wrapper's own exported
+    ``finalizePythonInterpreter`` with atexit() after those libraries are loaded makes
+    the teardown run while they are intact. It finalizes only once no instance is left
+    (the instances share the interpreter); later calls do nothing. The CDLL reference
+    is never released, so the library stays mapped for the handler. In a Python host
+    (fmpy) the host's main() finalizes Python before exit: nothing is registered.
+    """
+    if resources is None or not sys.platform.startswith("linux") or getattr(sys, "orig_argv", None):
+        return   # orig_argv is empty only in an interpreter the wrapper started (a C host)
+    binaries = pathlib.Path(resources).parent / "binaries" / "linux64"
+    for library in binaries.glob("*.so"):
+        wrapper = ctypes.CDLL(str(library))
+        finalize = getattr(wrapper, "finalizePythonInterpreter", None)
+        if finalize is not None:
+            _KEEP.append(wrapper)
+            # atexit() itself is not exported by glibc; it is __cxa_atexit(f, arg, NULL)
+            ctypes.CDLL(None).__cxa_atexit(ctypes.cast(finalize, ctypes.c_void_p), None, None)
+
+
+_KEEP = []   # wrapper libraries whose finalizer is registered with atexit
+
+
+_SURVIVORS = []   # (instance, class, log queue) of instances whose initialization failed
+
+
+def _root(array):
+    while array.base is not None:
+        array = array.base
+    return array
+
+
+def _quantity(value, unit):
+    """``value unit``, with degrees alongside radians."""
+    text = f"{value:.6g} {unit}".strip()
+    if unit.startswith("rad") and math.isfinite(value):
+        text += f" ({math.degrees(value):.6g} deg{unit[3:]})"
+    return text
+
+
+def range_text(valid, unit):
+    low, high = valid
+    if high is None:
+        return f">= {_quantity(low, unit)}"
+    if low is None:
+        return f"<= {_quantity(high, unit)}"
+    text = f"[{low:.6g}, {high:.6g}] {unit}".strip()
+    if unit.startswith("rad"):
+        text += f" ([{math.degrees(low):.6g}, {math.degrees(high):.6g}] deg{unit[3:]})"
+    return text
+
+
+def inside(value, valid):
+    low, high = valid
+    return (low is None or value >= low) and (high is None or value <= high)   # False for NaN
+
+
 class GuardedSlave(Fmi2Slave):
     """A pythonfmu slave that never lets an exception reach the importer."""
 
@@ -49,16 +139,22 @@ class GuardedSlave(Fmi2Slave):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         self.units = {}
+        self.ranges = {}    # parameter name -> (min, max), None for an open side
+        self.allowed = {}   # integer parameter name -> the values it may take (gaps min/max cannot say)
+        self.input_names = []
+        self._step_saves = []   # (root of output arrays, its copy before the step): put back on Discard
         self.failure = ""
         self.arrays = {}   # name -> numpy array saved with the FMU state
         self.slots = {}    # value reference -> (array, index) of vector elements
         self.settable = {}  # the same for vector inputs and parameters
         self._plans = {}
         self._flat_views = {}
+        finalize_python_before_exit(self.resources)
 
     # ---------------------------------------------------------------- variables
-    def real(self, name, causality, description, unit, start=0.0, getter=None, setter=None):
-        """Register one Real; parameters are fixed, inputs/outputs continuous."""
+    def real(self, name, causality, description, unit, start=0.0, getter=None, setter=None, valid=None):
+        """Register one Real; parameters are fixed, inputs/outputs continuous; ``valid``
+        (min, max) the parameter's range."""
         variability = Fmi2Variability.fixed if causality == PARAMETER else Fmi2Variability.continuous
         initial = Fmi2Initial.exact if causality == OUTPUT else None
         var = Real(name, causality=causality, description=description, variability=variability,
@@ -66,19 +162,27 @@ class GuardedSlave(Fmi2Slave):
         self.register_variable(var, nested=False)
         if unit:
             self.units[name] = unit
+        if valid is not None:
+            self.ranges[name] = valid
+        if causality == INPUT:
+            self.input_names.append(name)
 
-    def vector(self, name, size, causality, description, units, start=None, values=None):
+    def vector(self, name, size, causality, description, units, start=None, values=None, valid=None):
         """Register name[1..size] backed by a numpy array (``values``, a view the model
-        shares, or a new one) kept in self.arrays[name] and saved with the FMU state."""
+        shares, or a new one) kept in self.arrays[name] and saved with the FMU state;
+        ``valid``: one (min, max) for every element or a list of them."""
         if values is None:
             values = np.zeros(size) if start is None else np.array(start, dtype=float)
         self.arrays[name] = values
+        if causality == OUTPUT and not any(r is _root(values) for r, _ in self._step_saves):
+            self._step_saves.append((_root(values), _root(values).copy()))
         units = (units,) * size if isinstance(units, str) else units
+        valid = [valid] * size if valid is None or not isinstance(valid[0], (tuple, list)) else valid
         labels = description if isinstance(description, (list, tuple)) else [description] * size
         for i in range(size):
             setter = None if causality == OUTPUT else (lambda v, i=i: values.__setitem__(i, v))
             self.real(f"{name}[{i + 1}]", causality, labels[i], units[i], float(values[i]),
-                      getter=lambda i=i: values[i], setter=setter)
+                      getter=lambda i=i: values[i], setter=setter, valid=valid[i])
             self.slots[len(self.vars) - 1] = (values, i)
             if setter:
                 self.settable[len(self.vars) - 1] = _flat_slot(values, i, self._flat_views)
@@ -119,27 +223,60 @@ class GuardedSlave(Fmi2Slave):
         return [(a, np.array(i), np.array(p)) for a, i, p in groups.values()]
 
     def parameters(self, rows):
-        """Real parameters (name, unit, default, description) backed by a dict, returned."""
+        """Real parameters (name, unit, default, description, valid range) backed by a
+        dict, returned."""
         store = {}
-        for name, unit, default, text in rows:
+        for name, unit, default, text, valid in rows:
             store[name] = default
             self.real(name, PARAMETER, text, unit, default, getter=lambda n=name: store[n],
-                      setter=lambda v, n=name: store.__setitem__(n, v))
+                      setter=lambda v, n=name: store.__setitem__(n, v), valid=valid)
         return store
 
     def pid_gains(self, defaults, subject, note):
         """kp, ki, kd, force_limit parameters of a PID on ``subject`` (e.g. "leg length")."""
         return self.parameters((
-            ("kp", "N/m", defaults["kp"], f"proportional gain on {subject}; default {note}"),
-            ("ki", "N/(m.s)", defaults["ki"], f"integral gain on {subject}; default {note}"),
-            ("kd", "N.s/m", defaults["kd"], f"derivative gain on the rate of {subject}; default {note}"),
-            ("force_limit", "N", defaults["force_limit"], "actuator force saturation (assumed)"),
+            ("kp", "N/m", defaults["kp"], f"proportional gain on {subject}; default {note}", (0.0, None)),
+            ("ki", "N/(m.s)", defaults["ki"], f"integral gain on {subject}; default {note}", (0.0, None)),
+            ("kd", "N.s/m", defaults["kd"], f"derivative gain on the rate of {subject}; default {note}",
+             (0.0, None)),
+            ("force_limit", "N", defaults["force_limit"], "actuator force saturation (assumed); > 0",
+             (POSITIVE_FORCE, None)),
         ))
 
-    def integer(self, name, description, start):
+    def integer(self, name, description, start, valid, allowed=None):
+        """An Integer parameter in ``valid`` (min, max); ``allowed``: the values it may
+        take when that range has gaps (e.g. -1 or +1)."""
         setattr(self, name, start)
         self.register_variable(Integer(name, causality=PARAMETER, variability=Fmi2Variability.fixed,
                                        description=description, start=start))
+        self.ranges[name] = valid
+        if allowed is not None:
+            self.allowed[name] = tuple(allowed)
+
+    def enumeration(self, name, what, labels, start):
+        """An Integer parameter choosing one of ``labels`` by index 0..n-1."""
+        self.integer(name, f"{what}: " + ", ".join(f"{i} {m}" for i, m in enumerate(labels)), start,
+                     (0, len(labels) - 1))
+
+    def check_start(self):
+        """InvalidInputError naming every parameter outside its range and every input
+        that is not finite; called before initialize()."""
+        variables = {v.name: v for v in self.vars.values()}
+        problems = []
+        for name, valid in self.ranges.items():
+            value = variables[name].getter()
+            unit = self.units.get(name, "")
+            if not inside(value, valid):
+                problems.append(f"parameter {name} = {_quantity(value, unit)} is outside its valid range "
+                                f"{range_text(valid, unit)}")
+            elif name in self.allowed and value not in self.allowed[name]:
+                problems.append(f"parameter {name} = {value} is not one of {', '.join(map(str, self.allowed[name]))}")
+        for name in self.input_names:
+            value = variables[name].getter()
+            if not math.isfinite(value):
+                problems.append(f"input {name} = {value} at initialization: inputs must be finite")
+        if problems:
+            raise InvalidInputError("; ".join(problems))
 
     # ----------------------------------------------------------------- guarding
     def fail(self, exc, when):
@@ -148,21 +285,35 @@ class GuardedSlave(Fmi2Slave):
 
     def exit_initialization_mode(self):
         try:
+            self.check_start()
             self.initialize()
         except Exception as exc:   # noqa: BLE001 - reported through FMI status, see module doc
             self.fail(exc, "in initialization")
+            # The wrapper answers fmi2Fatal and drops its references to this instance, its
+            # class and its log queue, then drops them again in fmi2FreeInstance (pythonfmu
+            # 0.7.0, PySlaveInstance::cleanPyObject): one extra reference of each keeps them
+            # alive, so a later doStep (refused), terminate or free is safe.
+            _SURVIVORS.append((self, type(self), self.log_queue))
+            raise RuntimeError(self.failure) from None
 
     def do_step(self, current_time, step_size):
         if self.failure:
             self.log(f"refusing doStep at t={current_time:.6g} s after: {self.failure}",
                      Fmi2Status.error, "logStatusError")
             return False
+        for root, saved in self._step_saves:
+            np.copyto(saved, root)
         try:
             self.step(current_time, step_size)
             return True
         except Exception as exc:   # noqa: BLE001 - reported through FMI status, see module doc
+            for root, saved in self._step_saves:   # back to the outputs of the last accepted state
+                np.copyto(root, saved)
             self.fail(exc, f"at t={current_time:.6g} s")
             return False
+
+    def terminate(self):
+        finalize_python_before_exit(self.resources)   # again: libraries loaded while running
 
     def initialize(self):
         """Compute the outputs at the start time (after parameters are set)."""

@@ -51,11 +51,14 @@ class SliderController(GuardedSlave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.integer("feedforward", "model feedforward of the reference motion: 0 off, 1 on", 1)
-        self.integer("mode", "assembly mode of the feedforward model, +1 or -1 (paper check: +1)", 1)
+        self.enumeration("feedforward", "model feedforward of the reference motion", ("off", "on"), 1)
+        self.integer("mode", "assembly mode of the feedforward model, +1 or -1 (paper check: +1)", 1,
+                     (-1, 1), allowed=(-1, 1))
         self.amplitude, self.omega = 0.010, 0.5
-        self.real("amplitude", PARAMETER, "amplitude of every slider's sine reference", "m", self.amplitude)
-        self.real("omega", PARAMETER, "angular frequency of the sine reference", "rad/s", self.omega)
+        self.real("amplitude", PARAMETER, "amplitude of every slider's sine reference", "m", self.amplitude,
+                  valid=(0.0, None))
+        self.real("omega", PARAMETER, "angular frequency of the sine reference", "rad/s", self.omega,
+                  valid=(0.0, None))
         rho0 = np.array(PAPER_REFERENCE_RHO_MM) * MM
         self.initial_position = self.vector("initial_position", 3, PARAMETER,
                                             [f"centre of the reference of slider {s}" for s in SLIDERS], "m", rho0)

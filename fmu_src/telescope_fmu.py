@@ -13,7 +13,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from fmu_src.slave import OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
+from fmu_src.slave import (OUTPUT, POSE_UNITS, POSITIVE_RATE, POSITIVE_TIME, GuardedSlave, acc_units,
+                           rate_units)
 from plant import telescope
 from plant.stewart import HOME_POSE, S_BAND_POSE
 
@@ -28,24 +29,27 @@ class TelescopeBase(GuardedSlave):
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         tianma = telescope.TelescopeParams.tianma()
-        self.integer("profile", "motion profile: " + ", ".join(f"{i} {p}" for i, p in enumerate(PROFILES)), 0)
+        self.enumeration("profile", "motion profile", PROFILES, 0)
+        turn, quarter, positive = (-2 * np.pi, 2 * np.pi), (0.0, np.pi / 2), (POSITIVE_RATE, None)
         self.settings = self.parameters((
-            ("start_azimuth", "rad", 0.0, "slew start azimuth"),
-            ("start_elevation", "rad", np.radians(30.0), "slew start elevation"),
-            ("target_azimuth", "rad", np.radians(90.0), "slew target azimuth"),
-            ("target_elevation", "rad", np.radians(60.0), "slew target elevation"),
-            ("az_rate_max", "rad/s", tianma.az_rate_max, "azimuth rate limit (assumed)"),
-            ("az_acc_max", "rad/s2", tianma.az_acc_max, "azimuth acceleration limit (assumed)"),
-            ("el_rate_max", "rad/s", tianma.el_rate_max, "elevation rate limit (assumed)"),
-            ("el_acc_max", "rad/s2", tianma.el_acc_max, "elevation acceleration limit (assumed)"),
-            ("lever_arm", "m", tianma.lever_arm, "axis intersection to base along boresight (assumed)"),
-            ("latitude", "rad", tianma.latitude, "site latitude"),
-            ("longitude", "rad", tianma.longitude, "site longitude (east +)"),
-            ("right_ascension", "rad", 0.0, "tracked source right ascension (apparent, of date)"),
-            ("declination", "rad", tianma.latitude + np.radians(0.2), "tracked source declination"),
-            ("utc_start", "s", 1.7e9, "UTC at t = 0, seconds since 1970-01-01"),
-            ("paper_duration", "s", 6.0, "duration of the paper's stress manoeuvre"),
-            ("start_delay", "s", 0.0, "the profile starts this late; before it, the start pointing holds"),
+            ("start_azimuth", "rad", 0.0, "slew start azimuth (within one turn either way)", turn),
+            ("start_elevation", "rad", np.radians(30.0), "slew start elevation", quarter),
+            ("target_azimuth", "rad", np.radians(90.0), "slew target azimuth (within one turn either way)", turn),
+            ("target_elevation", "rad", np.radians(60.0), "slew target elevation", quarter),
+            ("az_rate_max", "rad/s", tianma.az_rate_max, "azimuth rate limit (assumed); > 0", positive),
+            ("az_acc_max", "rad/s2", tianma.az_acc_max, "azimuth acceleration limit (assumed); > 0", positive),
+            ("el_rate_max", "rad/s", tianma.el_rate_max, "elevation rate limit (assumed); > 0", positive),
+            ("el_acc_max", "rad/s2", tianma.el_acc_max, "elevation acceleration limit (assumed); > 0", positive),
+            ("lever_arm", "m", tianma.lever_arm, "axis intersection to base along boresight (assumed)", (0.0, None)),
+            ("latitude", "rad", tianma.latitude, "site latitude", (-np.pi / 2, np.pi / 2)),
+            ("longitude", "rad", tianma.longitude, "site longitude (east +)", (-np.pi, np.pi)),
+            ("right_ascension", "rad", 0.0, "tracked source right ascension (apparent, of date)", (0.0, 2 * np.pi)),
+            ("declination", "rad", tianma.latitude + np.radians(0.2), "tracked source declination",
+             (-np.pi / 2, np.pi / 2)),
+            ("utc_start", "s", 1.7e9, "UTC at t = 0, seconds since 1970-01-01", (0.0, None)),
+            ("paper_duration", "s", 6.0, "duration of the paper's stress manoeuvre; > 0", (POSITIVE_TIME, None)),
+            ("start_delay", "s", 0.0, "the profile starts this late; before it, the start pointing holds",
+             (0.0, None)),
         ))
         pose_desc = lambda prefix: [f"{prefix} {n}" for n in POSE_NAMES]
         self.now = np.zeros(40)   # every output, one row of the evaluated block

@@ -8,12 +8,12 @@ Over one step the leg forces are held (zero-order hold) and the base motion is
 extrapolated from the step's start by its own rates and accelerations (second-order
 Taylor), so a base turning at constant acceleration is followed exactly.
 
-Why the fixed-step methods run compiled (plant.kane.advance_fixed): the FMU's budget per
-communication step is ~10x an empty FMU's doStep (~1.4 µs); RK4 in Python around the
-compiled right-hand side costs ~20 µs, one compiled call ~6 µs. Inputs and outputs live
-in two arrays the caller may share (the FMU maps its variables onto them), so a step
-copies nothing. "radau" goes through plant.integrators with the compiled right-hand
-side (plant.kane.rhs).
+Why the fixed-step methods run in C (plant.kane.HexapodKernel.advance_fixed): the FMU's
+budget per communication step is ~10x an empty FMU's doStep (~1.4 µs); RK4 in Python
+around the compiled right-hand side costs ~20 µs, one C call a few µs. Inputs and
+outputs live in two arrays the caller may share (the FMU maps its variables onto them);
+their C pointers are taken once here, so a step copies nothing. "radau" goes through
+plant.integrators with the C right-hand side.
 """
 import math
 
@@ -43,7 +43,12 @@ class HexapodODE:
         self.outputs = np.zeros((3, 6)) if outputs is None else outputs
         self.bounds = params.home_lengths + np.array(params.stroke)[:, None]
         self.t0 = 0.0
-        self._args = (params.base_joints, params.platform_joints, params.kernel_data)
+        self._kernel = params.kernel
+        # the arrays are shared with the caller and written in place: checked, never copied
+        self._inputs = kane.pointer(self.inputs, (4, 6), "inputs")
+        self._outputs = kane.pointer(self.outputs, (3, 6), "outputs")
+        self._bounds = kane.pointer(self.bounds, (2, 6), "bounds")
+        self._base0 = kane.pointer(self.inputs[1:4], (3, 6), "base inputs")
 
     def set_inputs(self, t0, forces, base_pose=0.0, base_rate=0.0, base_acc=0.0):
         """Hold ``forces`` and the base motion given at t0 for the coming step."""
@@ -52,9 +57,8 @@ class HexapodODE:
             row[:] = values
 
     def rhs(self, t, x):
-        x = np.ascontiguousarray(x)   # scipy's Jacobian differencing passes strided views
-        dx, det = kane.rhs(*self._args, x, self.inputs[0:1], self.inputs[1:4], self.t0, t,
-                           self.base_mode, self.legs)
+        dx = np.empty(12)   # scipy's Jacobian differencing passes strided x: the kernel copies it
+        det = self._kernel.rhs(x, self._inputs, self._base0, self.t0, t, self.base_mode, self.legs, dx)
         self._check_det(det)
         return dx
 
@@ -70,8 +74,8 @@ class HexapodODE:
         if self.method == "radau":
             return self._advance_radau(x, h)
         substeps = max(1, math.ceil(h / self.max_step - 1e-9))
-        det, status = kane.advance_fixed(self.method == "rk4", substeps, *self._args, x, self.inputs,
-                                         self.t0, h, self.base_mode, self.legs, self.bounds, self.outputs)
+        det, status = self._kernel.advance_fixed(self.method == "rk4", substeps, x, self._inputs, self.t0, h,
+                                                 self.base_mode, self.legs, self._bounds, self._outputs)
         if status == kane.OK and det >= SINGULAR_RATIO * self.params.home_det:
             return self.outputs
         if status == kane.BAD_INPUT:

@@ -90,6 +90,11 @@ class StewartParams:
         return abs(np.linalg.det(jacobian(self, self.home_pose)))
 
     @cached_property
+    def kernel(self):
+        """The C kernel (plant.kane) bound to these parameters, their pointers taken once."""
+        return kane.HexapodKernel(self.base_joints, self.platform_joints, self.kernel_data)
+
+    @cached_property
     def kernel_data(self):
         """Scalars in the order plant.kane.kane expects."""
         return np.array([self.platform_mass, *self.platform_inertia, self.cylinder_mass,
@@ -256,16 +261,11 @@ def _run(params, pose, rate, arg, base, fidelity, solve, twist_speeds=False, arg
     base = [np.zeros((n, 6))] * 3
     for k, x in zip(given, flat[3:]):
         base[k] = x
-    M, h, J = np.empty((n, 6, 6)), np.empty((n, 6)), np.empty((n, 6, 6))
-    ldot, length, out, det = np.empty((n, 6)), np.empty((n, 6)), np.empty((n, 6)), np.empty(n)
-    kane.kane(params.base_joints, params.platform_joints, params.kernel_data, *flat[:3], *base,
-              base_mode, legs, twist_speeds, solve, M, h, J, ldot, length, out, det)
-    batch = shape[:-1]
-    terms = DynamicsTerms(M.reshape(batch + (6, 6)), h.reshape(batch + (6,)),
-                          J.reshape(batch + (6, 6)), ldot.reshape(batch + (6,)), length.reshape(batch + (6,)),
-                          (np.abs(det) / params.home_det).reshape(batch))
+    M, h, J, ldot, length, out, det = params.kernel.run(*flat[:3], *base, base_mode, legs, twist_speeds, solve,
+                                                        shape[:-1])
+    terms = DynamicsTerms(M, h, J, ldot, length, np.abs(det) / params.home_det)
     _check_det_ratio(terms.det_ratio)
-    return out.reshape(batch + (6,)), terms
+    return out, terms
 
 
 def inverse_dynamics(params, pose, pose_rate, pose_acc, base_pose=0, base_rate=0, base_acc=0,
@@ -311,19 +311,19 @@ class StateInverseDynamics:
     def __init__(self, params, fidelity="full"):
         self.params = params
         self.base_mode, self.legs = fidelity_mode(fidelity)
-        self._buffers = [np.empty((1, 6, 6)), np.empty((1, 6)), np.empty((1, 6, 6)), np.empty((1, 6)),
-                         np.empty((1, 6)), np.empty((1, 6)), np.empty(1)]
-        M, h, J, self.leg_rates, self.leg_lengths, self.forces, self._det = self._buffers
+        self.forces, self.leg_lengths, self.leg_rates = np.empty((1, 6)), np.empty((1, 6)), np.empty((1, 6))
+        self._kernel = params.kernel
+        self._out = [kane.pointer(x, (1, 6), name) for x, name in
+                     ((self.forces, "forces"), (self.leg_lengths, "leg_lengths"), (self.leg_rates, "leg_rates"))]
+        self._singular = SINGULAR_RATIO * params.home_det
 
     def __call__(self, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc):
         """Forces, leg lengths and leg rates, each (1, 6) (buffers, overwritten next call);
         all arguments float arrays of shape (6,)."""
-        p = self.params
-        kane.kane(p.base_joints, p.platform_joints, p.kernel_data, pose.reshape(1, 6), pose_rate.reshape(1, 6),
-                  pose_acc.reshape(1, 6), base_pose.reshape(1, 6), base_rate.reshape(1, 6),
-                  base_acc.reshape(1, 6), self.base_mode, self.legs, False, kane.ID, *self._buffers)
-        if abs(self._det[0]) < SINGULAR_RATIO * p.home_det:
-            _check_det_ratio(abs(self._det) / p.home_det)
+        det = self._kernel.inverse_dynamics(pose, pose_rate, pose_acc, base_pose, base_rate, base_acc,
+                                            self.base_mode, self.legs, *self._out)
+        if abs(det) < self._singular:
+            _check_det_ratio(np.array([abs(det) / self.params.home_det]))
         return self.forces, self.leg_lengths, self.leg_rates
 
 

@@ -38,22 +38,33 @@ def main(argv=None):
     if unknown:
         sys.exit(f"scenario error: no scenario file or shipped scenario named {', '.join(map(repr, unknown))}; "
                  f"shipped: {shipped}")
-    try:
-        if args.ssp:
+    if args.ssp:
+        try:
             scenario, paths, descriptions, values = prepare(resolve(names[0]), ci=args.ci)
-            if scenario.sweep:
-                inst, name, value = sweep_value(scenario, descriptions, scenario.sweep[1][0])
-                values[inst][name] = value
-            print(f"SSP written to {export_ssp(scenario, paths, values, args.ssp)}")
-            return
-        for name in names:
+        except ScenarioError as exc:
+            sys.exit(f"scenario error: {exc}")
+        if scenario.sweep:
+            inst, name, value = sweep_value(scenario, descriptions, scenario.sweep[1][0])
+            values[inst][name] = value
+        print(f"SSP written to {export_ssp(scenario, paths, values, args.ssp)}")
+        return
+    errors = []   # one line each; every scenario and every run is still tried
+    for name in names:
+        try:
             scenario, runs, report = run_scenario(name, args.out, ci=args.ci, progress=not args.quiet)
-            print(f"{scenario.name}: report {report}")
-            for run in runs:
+        except ScenarioError as exc:
+            errors.append(f"scenario error: {exc}")
+            continue
+        print(f"{scenario.name}: report {report}")
+        for run in runs:
+            if run.failure:
+                print(f"  {run.label}: FAILED after {run.steps} steps ({run.sim_time:g} s); partial results kept")
+                errors.append(f"run error: {run.failure}")
+            else:
                 print(f"  {run.label}: {run.steps} steps in {run.wall_time:.1f} s of stepping "
                       f"(real-time factor {run.real_time_factor:.1f}; FMU loading and initialisation not counted)")
-    except ScenarioError as exc:
-        sys.exit(f"scenario error: {exc}")
+    if errors:
+        sys.exit("\n".join(errors))
     if not args.scenarios:
         paper_charts(f"{args.out}/paper")
 

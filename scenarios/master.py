@@ -9,17 +9,19 @@ t_k+1. Linear extrapolation replaces a held input u_k by the mean of its linear
 extrapolation over the coming step, u_k + (u_k - u_k-1) / 2, for inputs whose source has
 not yet stepped.
 
-Every FMI call is status-checked (scenarios.fmi); a Discard/Error stops the run with a
-message naming the instance, the time and its log, and the rows recorded so far stay in
-the CSV. Memory stays flat: rows go to disk as they come, metrics keep running sums.
+Every FMI call is status-checked (scenarios.fmi); a Discard/Error stops the run with
+RunFailed: one line naming the instance, the time and the FMU's error log line, and the
+run so far (the rows recorded stay in the CSV, the metrics cover them). Memory stays
+flat: rows go to disk as they come, metrics keep running sums.
 """
 import csv
+import re
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .fmi import Instance, RealPort
+from .fmi import FmuError, Instance, RealPort
 from .spec import Link, expand
 
 
@@ -34,10 +36,29 @@ class Run:
     sim_time: float
     metrics: dict = field(default_factory=dict)
     series: dict = field(default_factory=dict)
+    failure: str = ""       # why the run stopped early ("" if it reached stop_time)
 
     @property
     def real_time_factor(self):
-        return self.sim_time / self.wall_time
+        return self.sim_time / self.wall_time if self.wall_time > 0 else float("nan")
+
+
+class RunFailed(FmuError):
+    """An FMU stopped the run; ``run`` holds what was done up to then."""
+
+    def __init__(self, message, run):
+        super().__init__(message)
+        self.run = run
+
+
+def failure_line(error, instances):
+    """One line from an FmuError: what failed when, and the failing FMU's first error log
+    line (the cause; what follows are refusals of later calls)."""
+    head = str(error).split(" Log:", 1)[0].rstrip(".")
+    named = re.match(r"FMU instance '(.+?)'", head)
+    log = instances[named.group(1)].log if named and named.group(1) in instances else []
+    errors = [line for line in log if line.startswith(("[ERROR]", "[FATAL]"))] or log[-1:]
+    return f"{head}: {errors[0]}" if errors else head
 
 
 def step_order(scenario, parameters=None):
@@ -182,11 +203,12 @@ def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progre
     outdir/<label>.csv. ``progress(done_fraction)`` is called about 200 times."""
     instances = {}
     recorder = None
+    h, t0 = scenario.step, scenario.start_time
+    steps = int(round((scenario.stop_time - t0) / h))
+    done, failure, began = 0, None, time.perf_counter()
     try:
         exchange, _ = start(scenario, fmu_paths, parameters, instances)
         recorder = Recorder(outdir / f"{label}.csv", scenario, instances, list(metrics))
-        h, t0 = scenario.step, scenario.start_time
-        steps = int(round((scenario.stop_time - t0) / h))
         every = int(round(scenario.record_interval / h))
         order = step_order(scenario, parameters) if scenario.master == "gauss-seidel" else list(scenario.fmus)
         extrapolate = scenario.extrapolation == "linear"
@@ -213,17 +235,24 @@ def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progre
                     instances[inst].do_step(t, h)
                     exchange.read(inst)
                 exchange.y_prev[:] = previous
-            if (k + 1) % every == 0:
-                recorder.record(t0 + (k + 1) * h)
+            done = k + 1
+            if done % every == 0:
+                recorder.record(t0 + done * h)
             if progress and k % tick == 0:
                 progress(k / steps)
-        wall = time.perf_counter() - began
+    except FmuError as error:
+        failure = error
     finally:
+        wall = time.perf_counter() - began
         if recorder:
             recorder.close()
         for instance in instances.values():
             instance.terminate()
     series = {m.name: m.series() for m in metrics}
     series.update({m.rotation.name: m.rotation.series() for m in metrics if hasattr(m, "rotation")})  # [rad]
-    return Run(label, outdir / f"{label}.csv", steps, wall, steps * h,
-               {m.name: m.result() for m in metrics}, series)
+    result = Run(label, outdir / f"{label}.csv" if recorder else None, done, wall, done * h,
+                 {m.name: m.result() for m in metrics}, series)
+    if failure is not None:
+        result.failure = failure_line(failure, instances)
+        raise RunFailed(str(failure), result) from None
+    return result

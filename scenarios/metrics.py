@@ -53,7 +53,11 @@ class _Metric:
             self.stride *= 2
 
     def result(self):
-        rms = np.sqrt(self.sum_sq / max(self.count, 1))
+        """RMS and peak in the metric's unit; NaN if nothing was counted (a run that
+        failed before the metric's ``from``), never a reassuring 0."""
+        if not self.count:
+            return {"rms": math.nan, "peak": math.nan, "unit": self.unit}
+        rms = math.sqrt(self.sum_sq / self.count)
         return {"rms": rms * self.scale, "peak": self.peak * self.scale, "unit": self.unit}
 
     def series(self):
@@ -147,7 +151,9 @@ class BaseEffect(_Metric):
 
     def result(self):
         out = super().result()
-        out.update(gravity_peak=self.gravity_peak * self.scale, transport_peak=self.transport_peak * self.scale)
+        counted = 1.0 if self.count else math.nan
+        out.update(gravity_peak=self.gravity_peak * self.scale * counted,
+                   transport_peak=self.transport_peak * self.scale * counted)
         return out
 
 

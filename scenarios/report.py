@@ -31,8 +31,11 @@ RUN_MEANING = {"none": "PID alone, no feedforward",
 
 
 def fmt(value):
-    """A number as the report and README print it: 3 significant digits."""
-    return f"{value:.3g}" if isinstance(value, float) else str(value)
+    """A number as the report and README print it: 3 significant digits ('n/a' for a metric
+    that counted nothing)."""
+    if isinstance(value, float):
+        return "n/a" if value != value else f"{value:.3g}"
+    return str(value)
 
 
 def compare(metrics_by_run, metric, unit="µm"):
@@ -107,10 +110,11 @@ def _telescope(scenario):
 def base_motion(scenario, run):
     """Time, rates [deg/s] and accelerations [deg/s^2] (differenced from the recorded
     rates) of the scenario's telescope axes, read from the run's CSV; None if the axis
-    rates were not recorded or the plant holds its base fixed (moving_base = 0)."""
+    rates were not recorded (or the run failed before writing any), or the plant holds its
+    base fixed (moving_base = 0)."""
     inst = _telescope(scenario)
     plants = [i for i, fmu in scenario.fmus.items() if fmu == "hexapod_plant"]
-    if inst is None or (plants and all(str(scenario.parameters.get(i, {}).get("moving_base", 1)) == "0"
+    if inst is None or run.csv_path is None or (plants and all(str(scenario.parameters.get(i, {}).get("moving_base", 1)) == "0"
                                        for i in plants)):
         return None     # no telescope, or its motion is not applied to the plant
     with open(run.csv_path, newline="") as f:
@@ -145,7 +149,7 @@ def _error_chart(scenario, runs, metric, path):
     floored at FLOOR, the settling cut-off marked; a pose metric gets a position and a
     rotation panel; the telescope's axis rates and accelerations underneath on the same
     time axis. Returns the figure's data panels {title: axes} (the figure is closed)."""
-    motion = base_motion(scenario, runs[0])
+    motion = base_motion(scenario, next((r for r in runs if r.csv_path), runs[0]))
     rows = [("position", 1e0, "µm", MARKS_UM)]
     if metric.kind == "pose_tracking":
         rows = [("position", 1.0, "µm", MARKS_UM), ("rotation", 1e6, "µrad", None)]
@@ -219,7 +223,7 @@ def _summary_chart(scenario, runs, tracked, path):
     for ax, (title, name, rms_key, peak_key, unit) in zip(axes[0], quantities):
         rms = [r.metrics[name][rms_key] for r in runs]
         peak = [r.metrics[name][peak_key] for r in runs]
-        top = max(peak + rms + [1e-30])
+        top = max([v for v in peak + rms if np.isfinite(v)] + [1e-30])   # a failed run's NaN: no bar
         for offset, values, label in ((-0.2, rms, "RMS"), (0.2, peak, "peak")):
             bars = ax.bar(x + offset, values, 0.4, label=label)
             ax.bar_label(bars, [fmt(v) for v in values], fontsize=7.5, padding=2)
@@ -297,6 +301,14 @@ def _cell(result):
     return ", ".join(f"{k} {fmt(v)}" for k, v in result.items() if k != "unit")
 
 
+def _stopped(scenario, run):
+    """'failed at t = 5.01 s, partial: 5.01 of 8 s' for a failed run, else ''."""
+    if not run.failure:
+        return ""
+    return (f"failed at t = {scenario.start_time + run.sim_time:g} s, partial: {run.sim_time:g} of "
+            f"{scenario.stop_time - scenario.start_time:g} s")
+
+
 def write(scenario, runs, outdir):
     """Write charts and report.md into outdir; return the report's path."""
     tracked = [m for m in scenario.metrics if m.kind in TRACKING]
@@ -308,8 +320,11 @@ def write(scenario, runs, outdir):
               "|---" * (len(per_run) + 3) + "|"]
     for run in runs:
         cells = [_cell(run.metrics[m.name]) for m in per_run]
-        lines.append(f"| {run.label} | " + " | ".join(cells) + f" | {run.wall_time:.2f} | {run.real_time_factor:.1f} |")
+        label = f"{run.label} **{_stopped(scenario, run)}**" if run.failure else run.label
+        lines.append(f"| {label} | " + " | ".join(cells) + f" | {run.wall_time:.2f} | {run.real_time_factor:.1f} |")
     lines.append("")
+    lines += [f"- **run {r.label} {_stopped(scenario, r)}**; its row covers the run up to then: {r.failure}"
+              for r in runs if r.failure]
     lines += [f"- {note}" for note in scenario.notes]
     lines += _findings(scenario, runs, tracked)
     for metric in tracked:
@@ -319,7 +334,8 @@ def write(scenario, runs, outdir):
     if tracked and len(runs) > 1:
         _summary_chart(scenario, runs, tracked, outdir / "summary.png")
         lines += ["![summary](summary.png)", ""]
-    lines += [f"Results per run: {', '.join(f'`{r.csv_path.name}`' for r in runs)} (CSV, units in the header)."]
+    lines += [f"Results per run: {', '.join(f'`{r.csv_path.name}`' for r in runs if r.csv_path)} "
+              "(CSV, units in the header)."]
     path = outdir / "report.md"
     path.write_text("\n".join(lines) + "\n")
     return path
@@ -338,11 +354,19 @@ def _findings(scenario, runs, tracked):
     and the size of the base-motion terms."""
     lines = []
     by_label = {r.label: r.metrics for r in runs}
+    by_label_run = {r.label: r for r in runs}
     for metric in tracked:
+        failed = [by_label_run[k] for k in ("fixed_base", "moving_base") if k in by_label_run and by_label_run[k].failure]
+        partial = "".join(f" (run {r.label} {_stopped(scenario, r)})" for r in failed)
+        if failed and any(by_label[r.label][metric.name]["rms"] != by_label[r.label][metric.name]["rms"] for r in failed):
+            lines.append(f"- **{metric.name}**: no fixed- against moving-base comparison: the metric counted "
+                         f"nothing before the run stopped{partial}.")
+            continue
         sentence = compare(by_label, metric.name)
         if sentence:
-            lines.append(f"- **{metric.name}**: {sentence}")
+            lines.append(f"- **{metric.name}**: {sentence}{partial}")
     for metric in scenario.metrics:
         if metric.kind == "base_effect":
-            lines.append(f"- **why**: {base_effect_text(runs[0].metrics[metric.name])}.")
+            partial = f" (run {runs[0].label} {_stopped(scenario, runs[0])})" if runs[0].failure else ""
+            lines.append(f"- **why**: {base_effect_text(runs[0].metrics[metric.name])}{partial}.")
     return lines + [""] if lines else []

@@ -1,5 +1,6 @@
 """Run a scenario file end to end: check it, build the FMUs it needs, co-simulate each
-sweep value with a progress bar, and write results, charts and the report."""
+sweep value with a progress bar, and write results, charts and the report. A run an FMU
+stops is kept with its partial results and marked; the other sweep values still run."""
 import json
 import pathlib
 import sys
@@ -16,11 +17,13 @@ SHIPPED = pathlib.Path(__file__).resolve().parent / "files"
 
 
 def resolve(name):
-    """A scenario file path, or the name of a shipped scenario (scenarios/files/<name>.toml)."""
+    """A scenario file path (".toml" may be left out), or the bare name of a shipped
+    scenario (scenarios/files/<name>.toml); anything else as given, for load to refuse."""
     path = pathlib.Path(name)
-    if path.exists() or path.suffix == ".toml":
-        return path
-    return SHIPPED / f"{name}.toml"
+    candidates = [path, path.with_name(path.name + ".toml")] if path.suffix != ".toml" else [path]
+    if path.parent == pathlib.Path(".") and path.suffix != ".toml":
+        candidates.append(SHIPPED / f"{path.name}.toml")
+    return next((c for c in candidates if c.is_file()), path)
 
 
 def prepare(path, ci=False, implementation=None):
@@ -101,10 +104,23 @@ def run_scenario(path, out="out", ci=False, progress=True, implementation=None):
         try:
             runs.append(master.run(scenario, paths, params, outdir, label,
                                    [metrics.make(m) for m in scenario.metrics], update))
+        except master.RunFailed as failed:   # keep what it did; the other runs still run
+            failed.run.failure = f"{scenario.source}: scene {scenario.name}, run {label}: {failed.run.failure}"
+            runs.append(failed.run)
         finally:
             bar.update(100 - bar.n)
             bar.close()
     summary = {r.label: {"metrics": r.metrics, "wall_time_s": r.wall_time, "steps": r.steps,
-                         "real_time_factor": r.real_time_factor} for r in runs}
-    (outdir / "metrics.json").write_text(json.dumps(summary, indent=2, default=float))
+                         "real_time_factor": r.real_time_factor, **({"failed": r.failure} if r.failure else {})}
+               for r in runs}
+    (outdir / "metrics.json").write_text(json.dumps(_no_nan(summary), indent=2, default=float))
     return scenario, runs, report.write(scenario, runs, outdir)
+
+
+def _no_nan(value):
+    """JSON has no NaN: what was not measured (a failed run's metrics) is written null."""
+    if isinstance(value, dict):
+        return {k: _no_nan(v) for k, v in value.items()}
+    if isinstance(value, float) and value != value:
+        return None
+    return value

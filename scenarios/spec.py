@@ -9,20 +9,29 @@ checked against the unit the FMU declares. The format is documented in the READM
 A parameter written "@inst.var" takes the value of that output of another FMU at the
 start time (e.g. the plant's initial pose from the telescope's reference pose).
 
-Two stages: ``load`` checks the file's own structure; ``bind`` checks it against the FMUs'
-model descriptions (variables exist, causalities, sizes and units of connections, every
-input fed). Both run before the master starts.
+Two stages: ``load`` checks the file's own structure (also: stop_time a whole number of
+steps, metrics that count something); ``bind`` checks it against the FMUs' model
+descriptions (variables exist, causalities, sizes and units of connections, every input
+fed by exactly one source, values within the variables' declared min/max) and what the
+models refuse that min/max cannot say (the telescope profile over the run). Both run
+before the master starts.
 """
+import dataclasses
 import pathlib
 import re
 from dataclasses import dataclass, field
+from datetime import datetime, timezone
 
 try:
     import tomllib
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
-from .units import UnitError, to_si
+import numpy as np
+
+from plant.errors import InvalidInputError
+from plant import telescope
+from .units import UNITS, UnitError, split, to_si
 
 FMU_SCRIPTS = {"hexapod_plant": "hexapod_plant_fmu", "telescope": "telescope_fmu",
                "leg_controller": "leg_controller_fmu", "mechanism3t_plant": "mechanism3t_fmu",
@@ -124,13 +133,17 @@ def parse(text, source="<string>", overrides=None):
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(source, "TOML", str(exc)) from None
+    needs = ("a scenario needs stop_time, step, one [fmus.<instance>] table per FMU and [[connections]] "
+             "(example: scenarios/files/telescope_slew.toml)")
+    if not data:
+        raise ScenarioError(source, "file", f"empty (no TOML keys): {needs}")
     data.update(overrides or {})
     unknown = set(data) - _TOP_KEYS
     if unknown:
         raise ScenarioError(source, sorted(unknown)[0], f"unknown key; allowed: {', '.join(sorted(_TOP_KEYS))}")
     for key in ("stop_time", "step", "fmus", "connections"):
         if key not in data:
-            raise ScenarioError(source, key, "missing")
+            raise ScenarioError(source, key, f"missing; {needs}")
     start = _quantity(source, "start_time", data.get("start_time", 0.0), "s")
     stop = _quantity(source, "stop_time", data["stop_time"], "s")
     step = _quantity(source, "step", data["step"], "s")
@@ -138,6 +151,12 @@ def parse(text, source="<string>", overrides=None):
         raise ScenarioError(source, "step", f"must be positive, got {data['step']!r}")
     if not stop > start:
         raise ScenarioError(source, "stop_time", f"must be after start_time ({start} s)")
+    steps = (stop - start) / step
+    if abs(steps - round(steps)) > 1e-9 * max(1.0, steps):
+        nearest = " and ".join(f"{start + n * step:.12g} s" for n in sorted({max(1, int(steps)), int(steps) + 1}))
+        raise ScenarioError(source, "stop_time", f"{data['stop_time']!r} is not a whole number of steps of "
+                            f"{data['step']!r} after start_time ({steps:.6g} steps); nearest valid stop times: "
+                            f"{nearest}")
     master = data.get("master", "jacobi")
     if master not in MASTERS:
         raise ScenarioError(source, "master", f"unknown master {master!r}; choose one of {MASTERS}")
@@ -180,6 +199,8 @@ def parse(text, source="<string>", overrides=None):
     ratio = interval / step
     if interval < step or abs(ratio - round(ratio)) > 1e-9 * ratio:
         raise ScenarioError(source, "record.interval", "must be a whole multiple of step")
+    every = int(round(ratio))
+    last_record = start + (int(round(steps)) // every) * every * step
     recorded = [_reference(source, "record.variables", v, fmus)
                 for v in _string_list(source, "record.variables", record.get("variables", [])) ] \
         if record.get("variables") else []
@@ -193,7 +214,13 @@ def parse(text, source="<string>", overrides=None):
             raise ScenarioError(source, f"{key}.kind", f"unknown metric kind {kind!r}; choose one of "
                                 f"{', '.join(METRIC_KINDS)}")
         name = metric.pop("name", kind)
-        metric_start = _quantity(source, f"{key}.from", metric.pop("from", "0 s"), "s")
+        metric_start = _quantity(source, f"{key}.from", metric.get("from", "0 s"), "s")
+        if metric_start >= stop or metric_start > last_record + 1e-9 * step:
+            where = f"at or after stop_time ({stop:g} s)" if metric_start >= stop else \
+                f"after the last recorded time ({last_record:g} s)"
+            raise ScenarioError(source, f"{key}.from", f"{metric.pop('from')!r} lies {where}: the metric would "
+                                "count nothing")
+        metric.pop("from", None)
         for required in METRIC_KINDS[kind]:
             if required not in metric:
                 raise ScenarioError(source, f"{key}.{required}", f"missing (metric kind {kind!r})")
@@ -228,10 +255,25 @@ def parse(text, source="<string>", overrides=None):
 
 
 def load(path, overrides=None):
+    """Scenario from a TOML file; a missing path, a directory or a file that is not
+    UTF-8 text is refused with what was expected."""
     path = pathlib.Path(path)
+    if path.is_dir():
+        inside = sorted(p.name for p in path.glob("*.toml"))
+        hint = f"; it holds {', '.join(inside)}" if inside else ""
+        raise ScenarioError(str(path), "file", f"is a directory, not a scenario file (.toml){hint}")
     if not path.exists():
         raise ScenarioError(str(path), "file", "does not exist")
-    return parse(path.read_text(), str(path), overrides)
+    data = path.read_bytes()
+    if b"\0" in data:
+        raise ScenarioError(str(path), "file", f"is a binary file (NUL byte at offset {data.find(0)}), "
+                            "not a TOML scenario")
+    try:
+        text = data.decode("utf-8-sig")   # a leading BOM (some editors write one) is not TOML
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(str(path), "file", f"is not UTF-8 text (byte 0x{data[exc.start]:02x} at offset "
+                            f"{exc.start}); a scenario is a TOML file in UTF-8") from None
+    return parse(text, str(path), overrides)
 
 
 # ------------------------------------------------------------------- binding to the FMUs
@@ -289,6 +331,7 @@ def bind(scenario, model_descriptions):
                     raise ScenarioError(src, key, f"{var.name} is an {var.causality}, not a parameter or input")
                 values[inst][var.name] = _value(src, key, var, item)
                 fed.add((inst, var.name))
+    feeders = {}   # (instance, input) -> (connection index, "source -> target" as written, source)
     for i, (source_ref, targets) in enumerate(scenario.connections):
         key = f"connections[{i}]"
         s_inst, s_vars = scalars(f"{key}.from", source_ref)
@@ -304,18 +347,118 @@ def bind(scenario, model_descriptions):
                 if s.type != t.type or (s.unit or "") != (t.unit or ""):
                     raise ScenarioError(src, key, f"incompatible: {s_inst}.{s.name} ({s.type}, {s.unit}) -> "
                                         f"{t_inst}.{t.name} ({t.type}, {t.unit})")
-                fed.add((t_inst, t.name))
+                _feed_once(src, key, i, f"{source_ref} -> {target}", (s_inst, s.name), (t_inst, t.name),
+                           feeders, fed)
     for inst in scenario.fmus:
         missing = [n for n, v in variables[inst].items() if v.causality == "input" and (inst, n) not in fed]
         if missing:
             raise ScenarioError(src, f"fmus.{inst}", f"inputs neither connected nor set: {', '.join(missing)}")
-    for reference in scenario.record + [r for m in scenario.metrics for r in metric_variables(m)]:
-        scalars("record", reference)
+    for reference in scenario.record:
+        scalars("record.variables", reference)
+    for i, metric in enumerate(scenario.metrics):
+        _check_metric(src, f"metrics[{i}]", metric, scalars)
+    _check_models(src, "fmus", scenario, variables, values)
     if scenario.sweep:
         inst, (var, *_) = scalars("sweep.parameter", scenario.sweep[0])
-        for item in scenario.sweep[1]:
-            _value(src, "sweep.values", var, item)
+        for i, item in enumerate(scenario.sweep[1]):
+            key = f"sweep.values[{i}]"
+            swept = {name: dict(v) for name, v in values.items()}
+            swept[inst][var.name] = _value(src, key, var, item)
+            _check_models(src, key, scenario, variables, swept, {(inst, var.name): item})
     return values
+
+
+def _feed_once(src, key, index, written, source, target, feeders, fed):
+    """Record that connection ``index`` feeds ``target``; refuse a second feed of the same
+    input (another source, the same connection twice, or a parameter value as well):
+    the master would silently keep the last one."""
+    if target in feeders:
+        other, other_written, other_source = feeders[target]
+        what = "duplicate connection" if other_source == source else "two sources connected into one input"
+        raise ScenarioError(src, key, f"{what}: connections[{other}] ({other_written}) and connections[{index}] "
+                            f"({written}) both feed {target[0]}.{target[1]}; keep one")
+    if target in fed:
+        raise ScenarioError(src, key, f"{written} feeds {target[0]}.{target[1]}, which fmus.{target[0]}.parameters "
+                            "also sets; an input takes one source")
+    feeders[target] = (index, written, source)
+    fed.add(target)
+
+
+def _check_metric(src, key, metric, scalars):
+    """The variables a metric reads exist, reported under the metric's own keys, with the
+    sizes its kind needs."""
+    if metric.kind == "base_effect":
+        references = metric_variables(metric)
+        for arg, reads in (("base", references[:3]), ("reference", references[3:])):
+            for reference in reads:
+                scalars(f"{key}.{arg}", reference)
+        return
+    sizes = {arg: len(scalars(f"{key}.{arg}", reference)[1]) for arg, reference in metric.args.items()}
+    needed = {"leg_tracking": {"measured": 6, "reference_pose": 6},
+              "pose_tracking": {"measured": 6, "reference": 6}}.get(metric.kind, {})
+    for arg, size in needed.items():
+        if sizes[arg] != size:
+            raise ScenarioError(src, f"{key}.{arg}", f"{metric.args[arg]} has {sizes[arg]} values; "
+                                f"a {metric.kind} metric needs {size}")
+    if metric.kind == "tracking" and sizes["measured"] != sizes["reference"]:
+        raise ScenarioError(src, key, f"measured {metric.args['measured']} has {sizes['measured']} values, "
+                            f"reference {metric.args['reference']} {sizes['reference']}")
+
+
+# -------------------------------------------------- ranges that min/max cannot declare
+def _check_models(src, key, scenario, variables, values, written=None):
+    """Checks that need several parameters at once, as the models themselves make them
+    (today: the telescope's profile over the run), so the FMU does not refuse them at
+    t = 0. ``written`` maps (instance, name) to the value as the file wrote it."""
+    for inst, fmu in scenario.fmus.items():
+        if fmu == "telescope":
+            _check_telescope(src, key, scenario, inst, variables[inst], values[inst], written or {})
+
+
+def _check_telescope(src, key, scenario, inst, md_variables, values, written):
+    """The profile evaluated as the FMU will (plant.telescope, the same parameters) on a
+    coarse grid over the run; its refusal becomes a ScenarioError naming the settings."""
+    if any(isinstance(v, Link) for v in values.values()):
+        return   # values known only at the start time
+
+    def setting(name):
+        if name in values:
+            return values[name]
+        var = md_variables[name]
+        return int(var.start) if var.type == "Integer" else float(var.start)
+
+    def shown(names):
+        raws = {**scenario.parameters[inst], **{n: r for (i, n), r in written.items() if i == inst}}
+        return ", ".join(f"{n} = {raws[n]!r}" if n in raws else
+                         f"{n} = {setting(n):.6g} {md_variables[n].unit or ''} (default)".replace("  ", " ")
+                         for n in names)
+
+    profiles = _enumeration(md_variables["profile"].description)
+    profile = next((p for p, i in profiles.items() if i == setting("profile")), None)
+    names = {"slew": ("start_azimuth", "start_elevation", "target_azimuth", "target_elevation"),
+             "sidereal": ("right_ascension", "declination", "utc_start", "latitude", "longitude"),
+             "paper": ("paper_duration",)}.get(profile, ())
+    where = f"fmus.{inst}.parameters" if key == "fmus" else key
+    limits = ("lever_arm", "latitude", "longitude", "az_rate_max", "az_acc_max", "el_rate_max", "el_acc_max")
+    try:
+        params = dataclasses.replace(telescope.TelescopeParams.tianma(), **{n: setting(n) for n in limits})
+    except InvalidInputError as exc:
+        raise ScenarioError(src, where, f"{shown(limits)}: plant.telescope refuses them: {exc}") from None
+    # the FMU evaluates the profile at t - start_delay; a grid of <= 1 s spacing over the run
+    times = np.linspace(scenario.start_time, scenario.stop_time,
+                        2 + int(np.ceil(scenario.stop_time - scenario.start_time))) - setting("start_delay")
+    try:
+        if profile == "slew":
+            telescope.slew(params, (setting("start_azimuth"), setting("start_elevation")),
+                           (setting("target_azimuth"), setting("target_elevation")), times)
+        elif profile == "sidereal":
+            utc = datetime.fromtimestamp(setting("utc_start"), tz=timezone.utc)
+            telescope.sidereal_track(params, setting("right_ascension"), setting("declination"), utc, times)
+        elif profile == "paper":
+            telescope.paper_manoeuvre(times, setting("paper_duration"))
+    except (InvalidInputError, OverflowError, OSError, ValueError) as exc:
+        raise ScenarioError(src, where, f"profile {profile!r} with {shown(names)}: plant.telescope refuses it: "
+                            f"{exc}") from None
 
 
 def metric_variables(metric):
@@ -328,16 +471,48 @@ def metric_variables(metric):
 
 
 def _value(source, key, var, raw):
+    """raw converted for var (SI float or integer index), within the FMU's declared range."""
     if var.type == "Integer":
         choices = _enumeration(var.description)
-        if isinstance(raw, str):
-            if raw not in choices:
-                raise ScenarioError(source, key, f"{raw!r} is not one of {', '.join(choices)}")
+        if isinstance(raw, str) and raw in choices:
             return choices[raw]
+        if choices and (isinstance(raw, str) or raw not in choices.values()):
+            raise ScenarioError(source, key, f"{raw!r} is not one of {', '.join(choices)} (or their numbers: "
+                                f"{', '.join(f'{i} {n}' for n, i in choices.items())})")
         if isinstance(raw, bool) or not isinstance(raw, int):
-            raise ScenarioError(source, key, f"expected an integer or a name, got {raw!r}")
-        return raw
-    return _quantity(source, key, raw, var.unit)
+            raise ScenarioError(source, key, f"{raw!r} is not one of the allowed values: "
+                                f"{_range_text(var) or 'an integer'} ({var.name}: {var.description})")
+        value = raw
+    else:
+        value = _quantity(source, key, raw, var.unit)
+    low, high = _limits(var)
+    if (low is not None and value < low) or (high is not None and value > high):
+        converted = isinstance(raw, str) and split(raw)[1] not in (None, var.unit)
+        shown = f"{raw!r} = {value:.6g} {var.unit or ''}".rstrip() if converted else repr(raw)
+        raise ScenarioError(source, key, f"{shown} is outside the range of {var.name} declared by the FMU: "
+                            f"{_range_text(var, raw)}")
+    return value
+
+
+def _limits(var):
+    """(min, max) the model description declares for var, None where it declares none."""
+    return tuple(None if v is None else float(v) for v in (var.min, var.max))
+
+
+def _range_text(var, raw=None):
+    """'[0, 90] deg = [0, 1.5708] rad' (in the unit the user wrote, then SI) or ''."""
+    low, high = _limits(var)
+    if low is None and high is None:
+        return ""
+
+    def interval(factor, unit):
+        text = "[" + ", ".join("-inf" if v is None and i == 0 else "inf" if v is None else f"{v / factor:.6g}"
+                               for i, v in enumerate((low, high))) + "]"
+        return f"{text} {unit}".rstrip()
+
+    si = interval(1.0, var.unit or "")
+    user = split(raw)[1] if isinstance(raw, str) and var.type != "Integer" else None
+    return f"{interval(UNITS[user][0], user)} = {si}" if user in UNITS and user != var.unit else si
 
 
 def sweep_value(scenario, model_descriptions, item):

@@ -23,24 +23,38 @@ class UnitError(ValueError):
     """A quantity with an unknown unit or a unit of the wrong dimension."""
 
 
+def units_of(dimension):
+    """The units written for an SI dimension, e.g. 'rad, deg, mrad, urad' for "rad"."""
+    return ", ".join(u for u, (_, d) in UNITS.items() if d == dimension) or dimension
+
+
+def split(value):
+    """(number, unit or None) of a quantity string; UnitError if it is not one."""
+    match = _QUANTITY.match(value)
+    if not match:
+        raise UnitError(f"cannot read quantity {value!r}: write '<number> <unit>'")
+    return float(match.group(1)), match.group(2)
+
+
 def to_si(value, dimension=None):
     """SI float of a number or a "<number> <unit>" string; checks the unit's dimension
     against ``dimension`` (an SI unit such as "m", "rad", "s") when given."""
     if isinstance(value, bool):
         raise UnitError(f"expected a number or quantity, got {value!r}")
     if isinstance(value, (int, float)):
-        return float(value)
-    if not isinstance(value, str):
+        number = float(value)
+    elif isinstance(value, str):
+        number, unit = split(value)
+        if unit is not None:
+            expected = f"; expected a quantity in {dimension} ({units_of(dimension)})" if dimension else ""
+            if unit not in UNITS:
+                raise UnitError(f"unknown unit {unit!r} in {value!r}{expected or '; known: ' + ', '.join(UNITS)}")
+            factor, unit_dimension = UNITS[unit]
+            if dimension is not None and unit_dimension != dimension:
+                raise UnitError(f"{value!r} is in {unit_dimension}{expected}")
+            number *= factor
+    else:
         raise UnitError(f"expected a number or a quantity string like '1 ms', got {value!r}")
-    match = _QUANTITY.match(value)
-    if not match:
-        raise UnitError(f"cannot read quantity {value!r}: write '<number> <unit>'")
-    number, unit = float(match.group(1)), match.group(2)
-    if unit is None:
-        return number
-    if unit not in UNITS:
-        raise UnitError(f"unknown unit {unit!r} in {value!r}; known: {', '.join(UNITS)}")
-    factor, unit_dimension = UNITS[unit]
-    if dimension is not None and unit_dimension != dimension:
-        raise UnitError(f"{value!r} is in {unit_dimension}, expected a quantity in {dimension}")
-    return number * factor
+    if not math.isfinite(number):
+        raise UnitError(f"{value!r} is not a finite number")
+    return number

@@ -12,7 +12,7 @@ acceleration.
 
 State z = [pose (6), twist (6), PID integral (6)]:
 
-* plant: the same compiled right-hand side as the plant FMU (plant.kane._rhs, the
+* plant: the same compiled right-hand side as the plant FMU (StewartParams.kernel.rhs, the
   scene's fidelity and moving_base setting), but with the base motion evaluated exactly
   at t instead of held and Taylor-extrapolated from the start of a communication step;
 * base and reference motion: exactly what the telescope FMU evaluates (plant.telescope
@@ -179,9 +179,8 @@ class ClosedLoop:
         self.base_mode = base_mode if scene.moving_base else kane.BASE_NONE
         g = scene.gains
         self.kp, self.ki, self.kd, self.limit = g["kp"], g["ki"], g["kd"], g["force_limit"]
-        self._args = (self.plant.base_joints, self.plant.platform_joints, self.plant.kernel_data)
-        self._work = (np.empty((3, 1, 6)), np.empty((1, 6, 6)), np.empty((1, 6)), np.empty((1, 6, 6)),
-                      np.empty((1, 6)), np.empty((1, 6)), np.empty((1, 6)), np.empty(1))
+        self._kernel = self.plant.kernel
+        self._legs = np.empty((3, 6))
         self.forces = np.zeros((1, 6))
         self.base0 = np.zeros((3, 6))
         self.calls = 0
@@ -207,10 +206,9 @@ class ClosedLoop:
     def _plant(self, t, x, forces, sig):
         self.base0[0], self.base0[1], self.base0[2] = sig["base_pose"], sig["base_rate"], sig["base_acc"]
         dx = np.empty(12)
-        base, M, h, J, ldot, length, out, det = self._work
-        kane._rhs(*self._args, x, forces, self.base0, t, t, self.base_mode, self.legs,
-                  base, M, h, J, ldot, length, out, det, dx)
-        return dx, length[0].copy(), ldot[0].copy()
+        self._kernel.rhs(x, forces, self.base0, t, t, self.base_mode, self.legs, dx)
+        self._kernel.leg_kinematics(x, self._legs)
+        return dx, self._legs[0].copy(), self._legs[1].copy()
 
     def control(self, t, z):
         """(leg forces, dI/dt, pose-twist state, base signals, unclamped |F| max) at z, t."""

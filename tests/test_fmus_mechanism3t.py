@@ -241,15 +241,24 @@ def _failing_step(slave, steps, h):
 
 @pytest.mark.parametrize("values, forces, message", [
     ({}, [np.nan, 0.0, 0.0], r"InvalidInputError at t=0 s: slider forces contains NaN"),
-    ({"initial_position[3]": 0.3}, STATIC, r"UnreachableError in initialization: .*D3E3 too short"),
-    ({"mode": -1}, STATIC, r"UnreachableError in initialization: .*eq. 11: arccos argument"),
     ({}, STATIC + [0.0, 0.0, 500.0], r"(SingularConfigurationError|UnreachableError) at t=0\.\d+ s"),
-], ids=["nan force", "unreachable start", "no assembly in mode -1", "pushed out of reach"])
+], ids=["nan force", "pushed out of reach"])
 def test_plant_failures_end_the_step_with_a_message(fmus, values, forces, message):
     plant = open_fmu(fmus[PLANT], **values)
     set_vec(plant, "slider_force", forces)
     error = _failing_step(plant, steps=100, h=5e-3)
     assert "doStep" in error and re.search(message, error), error
+
+
+@pytest.mark.parametrize("values, message", [
+    ({"initial_position[3]": 0.3}, r"UnreachableError in initialization: .*D3E3 too short"),
+    ({"mode": -1}, r"UnreachableError in initialization: .*eq. 11: arccos argument"),
+], ids=["unreachable start", "no assembly in mode -1"])
+def test_plant_refuses_a_start_it_cannot_assemble(fmus, values, message):
+    """At fmi2ExitInitializationMode (pythonfmu answers fmi2Fatal there; freeing after is safe)."""
+    with pytest.raises(FmuError, match="failed in exitInitializationMode") as error:
+        open_fmu(fmus[PLANT], **values)
+    assert re.search(message, str(error.value)), error.value
 
 
 def test_controller_refuses_nan_measurements(fmus):

@@ -1,0 +1,357 @@
+/* Kane kernel of the 6-UPS hexapod (API and conventions in hexapod.h).
+
+   A port, term by term and in the same operation order, of the numba kernel it replaced
+   (git 73017ff:plant/kane.py), so that both round alike (tests/test_kernel_c.py holds them
+   equal). Vectors are 3-element structs passed by value and all scratch lives on the
+   stack: nothing is allocated. Equations: M du/dt + h = J^T F with u = (v, w) of {P}
+   relative to {B} in {B}; a leg reduces to the 3x3 joint mass
+   K = m_m s s^T + k_t (1 - s s^T) acting on its platform-joint velocity v_a = v + w x rho. */
+#include <math.h>
+#include "hexapod.h"
+#include "linalg.h"
+
+typedef struct { double e[3]; } v3;
+
+static inline v3 vec(double a, double b, double c) { v3 r = {{a, b, c}}; return r; }
+
+static inline v3 load(const double *x) { return vec(x[0], x[1], x[2]); }
+
+static inline v3 cross(v3 a, v3 b)
+{
+    return vec(a.e[1] * b.e[2] - a.e[2] * b.e[1], a.e[2] * b.e[0] - a.e[0] * b.e[2],
+               a.e[0] * b.e[1] - a.e[1] * b.e[0]);
+}
+
+static inline double dot(v3 a, v3 b) { return a.e[0] * b.e[0] + a.e[1] * b.e[1] + a.e[2] * b.e[2]; }
+
+/* ca * a + cb * b */
+static inline v3 lin(double ca, v3 a, double cb, v3 b)
+{
+    return vec(ca * a.e[0] + cb * b.e[0], ca * a.e[1] + cb * b.e[1], ca * a.e[2] + cb * b.e[2]);
+}
+
+static inline v3 add(v3 a, v3 b) { return vec(a.e[0] + b.e[0], a.e[1] + b.e[1], a.e[2] + b.e[2]); }
+
+/* R = Rz(yaw) Ry(pitch) Rx(roll), row-major 3x3. */
+static inline void rotation(const double *rpy, double *R)
+{
+    double cr = cos(rpy[0]), sr = sin(rpy[0]);
+    double cp = cos(rpy[1]), sp = sin(rpy[1]);
+    double cy = cos(rpy[2]), sy = sin(rpy[2]);
+    R[0] = cy * cp; R[1] = cy * sp * sr - sy * cr; R[2] = cy * sp * cr + sy * sr;
+    R[3] = sy * cp; R[4] = sy * sp * sr + cy * cr; R[5] = sy * sp * cr - cy * sr;
+    R[6] = -sp;     R[7] = cp * sr;                R[8] = cp * cr;
+}
+
+static inline v3 mul(const double *R, v3 x)
+{
+    return vec(R[0] * x.e[0] + R[1] * x.e[1] + R[2] * x.e[2],
+               R[3] * x.e[0] + R[4] * x.e[1] + R[5] * x.e[2],
+               R[6] * x.e[0] + R[7] * x.e[1] + R[8] * x.e[2]);
+}
+
+static inline v3 mul_t(const double *R, v3 x)
+{
+    return vec(R[0] * x.e[0] + R[3] * x.e[1] + R[6] * x.e[2],
+               R[1] * x.e[0] + R[4] * x.e[1] + R[7] * x.e[2],
+               R[2] * x.e[0] + R[5] * x.e[1] + R[8] * x.e[2]);
+}
+
+/* Angular velocity (parent frame) from RPY angles and rates. */
+static inline v3 omega(const double *rpy, const double *rate)
+{
+    double cp = cos(rpy[1]), sp = sin(rpy[1]), cy = cos(rpy[2]), sy = sin(rpy[2]);
+    return vec(cy * cp * rate[0] - sy * rate[1], sy * cp * rate[0] + cy * rate[1], rate[2] - sp * rate[0]);
+}
+
+/* Angular acceleration: E acc + dE/dt rate. */
+static inline v3 omega_dot(const double *rpy, const double *rate, const double *acc)
+{
+    double cp = cos(rpy[1]), sp = sin(rpy[1]), cy = cos(rpy[2]), sy = sin(rpy[2]);
+    double dr = rate[0], dp = rate[1], dy = rate[2];
+    return vec((-sy * dy * cp - cy * sp * dp) * dr + cy * cp * acc[0] - cy * dy * dp - sy * acc[1],
+               (cy * dy * cp - sy * sp * dp) * dr + sy * cp * acc[0] - sy * dy * dp + cy * acc[1],
+               -cp * dp * dr - sp * acc[0] + acc[2]);
+}
+
+/* RPY rates from angular velocity: E^-1 w (singular at pitch = +-90 deg). */
+static inline v3 rpy_rate(const double *rpy, v3 w)
+{
+    double cp = cos(rpy[1]), sp = sin(rpy[1]), cy = cos(rpy[2]), sy = sin(rpy[2]);
+    double dr = (cy * w.e[0] + sy * w.e[1]) / cp;
+    return vec(dr, -sy * w.e[0] + cy * w.e[1], w.e[2] + sp * dr);
+}
+
+/* Translational acceleration terms of a point r moving at v_rel in {B}, base motion
+   included: a_B - g + eB x r + wB x (wB x r + 2 v_rel). */
+static inline v3 transport(v3 aB, v3 g, v3 eB, v3 wB, v3 r, v3 v_rel)
+{
+    return add(lin(1.0, aB, -1.0, g), add(cross(eB, r), cross(wB, lin(1.0, cross(wB, r), 2.0, v_rel))));
+}
+
+void mb_hexapod_kane(const double *base_joints, const double *platform_joints, const double *data,
+                     int n_states, const double *pose_all, const double *rate_all, const double *arg_all,
+                     const double *base_pose, const double *base_rate, const double *base_acc,
+                     int base_mode, int legs, int twist_speeds, int solve,
+                     double *M_all, double *h_all, double *J_all, double *ldot, double *length,
+                     double *out_all, double *det)
+{
+    const double m_p = data[0], g0 = data[10];
+    const double Ip[3] = {data[1], data[2], data[3]};
+    const double mf = data[4], lf = data[5], mm = data[6], lm = data[7], Ia = data[8], It = data[9];
+    const double zero3[3] = {0.0, 0.0, 0.0};
+    const v3 zero = vec(0.0, 0.0, 0.0);
+    double R[9], Rb[9], A[36], b[6], x[6];
+    for (int n = 0; n < n_states; n++) {
+        const double *pose = pose_all + 6 * n, *rate = rate_all + 6 * n;
+        double M[36], h[6], J[36];   /* built here, copied out at the end: no aliasing */
+        rotation(pose + 3, R);
+        v3 p = load(pose), v = load(rate);
+        v3 w = twist_speeds ? load(rate + 3) : omega(pose + 3, rate + 3);
+
+        /* base motion in {B} */
+        v3 g = vec(0.0, 0.0, -g0), aB = zero, wB = zero, eB = zero;
+        if (base_mode != MB_HEXAPOD_BASE_NONE) {
+            const double *bp = base_pose + 6 * n;
+            rotation(bp + 3, Rb);
+            g = vec(-g0 * Rb[6], -g0 * Rb[7], -g0 * Rb[8]);
+            if (base_mode == MB_HEXAPOD_BASE_FULL) {
+                const double *br = base_rate + 6 * n, *ba = base_acc + 6 * n;
+                aB = mul_t(Rb, load(ba));
+                wB = mul_t(Rb, omega(bp + 3, br + 3));
+                eB = mul_t(Rb, omega_dot(bp + 3, br + 3, ba + 3));
+            }
+        }
+
+        /* platform */
+        for (int i = 0; i < 36; i++) M[i] = 0.0;
+        for (int i = 0; i < 3; i++) {
+            M[7 * i] = m_p;
+            for (int k = 0; k < 3; k++)
+                M[6 * (3 + i) + 3 + k] = R[3 * i] * Ip[0] * R[3 * k] + R[3 * i + 1] * Ip[1] * R[3 * k + 1]
+                                         + R[3 * i + 2] * Ip[2] * R[3 * k + 2];
+        }
+        v3 tr = transport(aB, g, eB, wB, p, v);
+        v3 w_abs = add(w, wB);
+        v3 Rt = mul_t(R, w_abs);
+        v3 Iw_abs = mul(R, vec(Ip[0] * Rt.e[0], Ip[1] * Rt.e[1], Ip[2] * Rt.e[2]));
+        Rt = mul_t(R, add(eB, cross(wB, w)));
+        v3 torque = add(mul(R, vec(Ip[0] * Rt.e[0], Ip[1] * Rt.e[1], Ip[2] * Rt.e[2])), cross(w_abs, Iw_abs));
+        for (int i = 0; i < 3; i++) {
+            h[i] = m_p * tr.e[i];
+            h[3 + i] = torque.e[i];
+        }
+
+        /* legs */
+        for (int j = 0; j < 6; j++) {
+            v3 rho = mul(R, load(platform_joints + 3 * j));
+            v3 Bj = load(base_joints + 3 * j);
+            v3 L = vec(p.e[0] + rho.e[0] - Bj.e[0], p.e[1] + rho.e[1] - Bj.e[1], p.e[2] + rho.e[2] - Bj.e[2]);
+            double l = sqrt(dot(L, L));
+            v3 s = lin(1.0 / l, L, 0.0, L);
+            v3 va = add(v, cross(w, rho));
+            double ld = dot(s, va);
+            v3 sd = lin(1.0 / l, va, -ld / l, s);
+            v3 rs = cross(rho, s);
+            ldot[6 * n + j] = ld;
+            length[6 * n + j] = l;
+            for (int k = 0; k < 3; k++) {
+                J[6 * j + k] = s.e[k];
+                J[6 * j + 3 + k] = rs.e[k];
+            }
+            if (!legs) continue;
+            v3 aa0 = cross(w, cross(w, rho));
+            double ldd0 = dot(s, aa0) + l * dot(sd, sd);
+            v3 sdd0 = lin(1.0 / l, aa0, -ldd0 / l, s);
+            sdd0 = lin(1.0, sdd0, -2.0 * ld / l, sd);
+            double lr = l - lm;
+            v3 r_c = lin(1.0, Bj, lf, s);
+            v3 r_m = lin(1.0, Bj, lr, s);
+            v3 v_c = lin(lf, sd, 0.0, sd);
+            v3 v_m = lin(ld, s, lr, sd);
+            v3 tr_c = transport(aB, g, eB, wB, r_c, v_c);
+            v3 tr_m = transport(aB, g, eB, wB, r_m, v_m);
+            v3 f_c = lin(mf * lf, sdd0, mf, tr_c);
+            v3 f_m = add(lin(mm * ldd0, s, 2.0 * mm * ld, sd), lin(mm * lr, sdd0, mm, tr_m));
+            v3 w_rel = cross(s, sd);
+            v3 w_leg = add(w_rel, wB);
+            v3 alpha = add(cross(s, sdd0), add(eB, cross(wB, w_rel)));
+            v3 I_alpha = lin(It, alpha, (Ia - It) * dot(s, alpha), s);
+            v3 I_w = lin(It, w_leg, (Ia - It) * dot(s, w_leg), s);
+            v3 tau = add(I_alpha, cross(w_leg, I_w));
+            double fcs = dot(s, f_c), fms = dot(s, f_m);
+            v3 f = add(lin(lf / l, f_c, -lf / l * fcs, s), lin(lr / l, f_m, fms * (1.0 - lr / l), s));
+            f = lin(1.0, f, 1.0 / l, cross(tau, s));
+            v3 rf = cross(rho, f);
+            for (int k = 0; k < 3; k++) {
+                h[k] += f.e[k];
+                h[3 + k] += rf.e[k];
+            }
+            /* joint mass: k_t A^T A + (m_m - k_t) j j^T with A = [1, -[rho]x] */
+            double kt = (mf * lf * lf + mm * lr * lr + It) / (l * l);
+            double rr = dot(rho, rho);
+            for (int a = 0; a < 3; a++) {
+                M[7 * a] += kt;
+                M[7 * (3 + a)] += kt * rr;
+                for (int c = 0; c < 3; c++) M[6 * (3 + a) + 3 + c] -= kt * rho.e[a] * rho.e[c];
+            }
+            /* -kt [rho]x in the upper-right block, +kt [rho]x in the lower-left */
+            static const int skew_a[6] = {0, 0, 1, 1, 2, 2}, skew_c[6] = {1, 2, 0, 2, 0, 1};
+            const double skew[6] = {-rho.e[2], rho.e[1], rho.e[2], -rho.e[0], -rho.e[1], rho.e[0]};
+            for (int q = 0; q < 6; q++) {
+                M[6 * skew_a[q] + 3 + skew_c[q]] -= kt * skew[q];
+                M[6 * (3 + skew_a[q]) + skew_c[q]] += kt * skew[q];
+            }
+            double cm = mm - kt;
+            for (int a = 0; a < 6; a++)
+                for (int c = 0; c < 6; c++) M[6 * a + c] += cm * J[6 * j + a] * J[6 * j + c];
+        }
+
+        for (int i = 0; i < 36; i++) {
+            M_all[36 * n + i] = M[i];
+            J_all[36 * n + i] = J[i];
+        }
+        for (int i = 0; i < 6; i++) h_all[6 * n + i] = h[i];
+
+        if (solve == MB_HEXAPOD_ID) {
+            const double *arg = arg_all + 6 * n;
+            double du[6];
+            if (twist_speeds) {
+                for (int k = 0; k < 6; k++) du[k] = arg[k];
+            } else {
+                v3 wd = omega_dot(pose + 3, rate + 3, arg + 3);
+                du[0] = arg[0]; du[1] = arg[1]; du[2] = arg[2];
+                du[3] = wd.e[0]; du[4] = wd.e[1]; du[5] = wd.e[2];
+            }
+            for (int i = 0; i < 6; i++) {
+                double acc = h[i];
+                for (int k = 0; k < 6; k++) {
+                    acc += M[6 * i + k] * du[k];
+                    A[6 * i + k] = J[6 * k + i];
+                }
+                b[i] = acc;
+            }
+            det[n] = mb_solve(6, A, b, x);
+            for (int k = 0; k < 6; k++) out_all[6 * n + k] = x[k];
+            continue;
+        }
+        for (int i = 0; i < 36; i++) A[i] = J[i];
+        for (int i = 0; i < 6; i++) b[i] = 0.0;
+        det[n] = mb_solve(6, A, b, x);
+        if (solve == MB_HEXAPOD_FD) {
+            const double *arg = arg_all + 6 * n;
+            double *out = out_all + 6 * n;
+            for (int i = 0; i < 6; i++) {
+                double acc = -h[i];
+                for (int k = 0; k < 6; k++) {
+                    acc += J[6 * k + i] * arg[k];
+                    A[6 * i + k] = M[6 * i + k];
+                }
+                b[i] = acc;
+            }
+            mb_solve(6, A, b, x);
+            if (twist_speeds) {
+                for (int k = 0; k < 6; k++) out[k] = x[k];
+            } else {
+                v3 wd0 = omega_dot(pose + 3, rate + 3, zero3);
+                v3 rpy_acc = rpy_rate(pose + 3, vec(x[3] - wd0.e[0], x[4] - wd0.e[1], x[5] - wd0.e[2]));
+                out[0] = x[0]; out[1] = x[1]; out[2] = x[2];
+                out[3] = rpy_acc.e[0]; out[4] = rpy_acc.e[1]; out[5] = rpy_acc.e[2];
+            }
+        }
+    }
+}
+
+double mb_hexapod_rhs(const double *bj, const double *pj, const double *data, const double *x,
+                      const double *forces, const double *base0, double t0, double t, int base_mode,
+                      int legs, double *dx)
+{
+    double base[18], M[36], h[6], J[36], ldot[6], length[6], out[6], det;
+    double tau = t - t0;
+    if (base_mode != MB_HEXAPOD_BASE_NONE)
+        for (int k = 0; k < 6; k++) {
+            base[k] = base0[k] + tau * base0[6 + k] + 0.5 * tau * tau * base0[12 + k];
+            base[6 + k] = base0[6 + k] + tau * base0[12 + k];
+            base[12 + k] = base0[12 + k];
+        }
+    mb_hexapod_kane(bj, pj, data, 1, x, x + 6, forces, base, base + 6, base + 12, base_mode, legs, 1,
+                    MB_HEXAPOD_FD, M, h, J, ldot, length, out, &det);
+    v3 rr = rpy_rate(x + 3, load(x + 9));
+    for (int k = 0; k < 3; k++) {
+        dx[k] = x[6 + k];
+        dx[3 + k] = rr.e[k];
+    }
+    for (int k = 0; k < 6; k++) dx[6 + k] = out[k];
+    return fabs(det);
+}
+
+void mb_hexapod_leg_kinematics(const double *bj, const double *pj, const double *x, double *outputs)
+{
+    double R[9];
+    rotation(x + 3, R);
+    v3 v = load(x + 6), w = load(x + 9);
+    for (int j = 0; j < 6; j++) {
+        v3 rho = mul(R, load(pj + 3 * j));
+        v3 L = vec(x[0] + rho.e[0] - bj[3 * j], x[1] + rho.e[1] - bj[3 * j + 1], x[2] + rho.e[2] - bj[3 * j + 2]);
+        double l = sqrt(dot(L, L));
+        outputs[j] = l;
+        outputs[6 + j] = dot(L, add(v, cross(w, rho))) / l;
+    }
+    v3 rr = rpy_rate(x + 3, w);
+    for (int k = 0; k < 3; k++) {
+        outputs[12 + k] = v.e[k];
+        outputs[15 + k] = rr.e[k];
+    }
+}
+
+int mb_hexapod_advance_fixed(int rk4, int substeps, const double *bj, const double *pj,
+                             const double *data, double *x, const double *inputs, double t0, double h,
+                             int base_mode, int legs, const double *bounds, double *outputs,
+                             double *det_min)
+{
+    double k1[12], k2[12], k3[12], k4[12], xs[12];
+    *det_min = 0.0;
+    for (int k = 0; k < 24; k++)
+        if (!isfinite(inputs[k])) return MB_HEXAPOD_BAD_INPUT;
+    const double *forces = inputs, *base0 = inputs + 6;
+    double dt = h / substeps, dmin = INFINITY, d;
+    for (int n = 0; n < substeps; n++) {
+        double t = t0 + n * dt;
+        d = mb_hexapod_rhs(bj, pj, data, x, forces, base0, t0, t, base_mode, legs, k1);
+        if (d < dmin) dmin = d;
+        if (!rk4) {
+            for (int k = 0; k < 12; k++) x[k] += dt * k1[k];
+            continue;
+        }
+        for (int k = 0; k < 12; k++) xs[k] = x[k] + 0.5 * dt * k1[k];
+        d = mb_hexapod_rhs(bj, pj, data, xs, forces, base0, t0, t + 0.5 * dt, base_mode, legs, k2);
+        if (d < dmin) dmin = d;
+        for (int k = 0; k < 12; k++) xs[k] = x[k] + 0.5 * dt * k2[k];
+        d = mb_hexapod_rhs(bj, pj, data, xs, forces, base0, t0, t + 0.5 * dt, base_mode, legs, k3);
+        if (d < dmin) dmin = d;
+        for (int k = 0; k < 12; k++) xs[k] = x[k] + dt * k3[k];
+        d = mb_hexapod_rhs(bj, pj, data, xs, forces, base0, t0, t + dt, base_mode, legs, k4);
+        if (d < dmin) dmin = d;
+        for (int k = 0; k < 12; k++) x[k] += dt / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k]);
+    }
+    *det_min = dmin;
+    for (int k = 0; k < 12; k++)
+        if (!isfinite(x[k]) || (k < 3 && fabs(x[k]) > 100.0)) return MB_HEXAPOD_DIVERGED;
+    mb_hexapod_leg_kinematics(bj, pj, x, outputs);
+    int status = MB_HEXAPOD_OK;
+    for (int j = 0; j < 6; j++)
+        if (outputs[j] < bounds[j] || outputs[j] > bounds[6 + j]) status = MB_HEXAPOD_STROKE;
+    return status;
+}
+
+double mb_hexapod_inverse_dynamics(const double *base_joints, const double *platform_joints,
+                                   const double *data, const double *pose, const double *pose_rate,
+                                   const double *pose_acc, const double *base_pose,
+                                   const double *base_rate, const double *base_acc, int base_mode,
+                                   int legs, double *forces, double *length, double *ldot)
+{
+    double M[36], h[6], J[36], det;
+    mb_hexapod_kane(base_joints, platform_joints, data, 1, pose, pose_rate, pose_acc, base_pose, base_rate,
+                    base_acc, base_mode, legs, 0, MB_HEXAPOD_ID, M, h, J, ldot, length, forces, &det);
+    return det;
+}

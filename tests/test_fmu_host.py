@@ -1,0 +1,90 @@
+"""Every FMU of the kit in a host that is not Python: tests/c_host/fmi2_host.c, compiled
+here and run in a fresh process per case (tests/c_host.py). The process must exit 0 after
+the full FMI calling sequence, every time (issue 10: SIGSEGV/SIGABRT in Py_FinalizeEx at
+exit), and the FMI statuses must say what the FMU did."""
+import math
+
+import numpy as np
+import pytest
+
+from fmu_src.builder import SCRIPTS
+from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
+from tests.c_host import HostFmu, compile_host
+
+STATIC = inverse_dynamics(StewartParams.paper(), HOME_POSE, np.zeros(6), np.zeros(6))
+
+
+@pytest.fixture(scope="module")
+def hosted(fmus, tmp_path_factory):
+    """Each FMU extracted once, by script name."""
+    compile_host()   # a compile error fails here, once
+    return {script: HostFmu(fmus[script], tmp_path_factory.mktemp(script)) for script in SCRIPTS}
+
+
+def _outputs(fmu, n=4):
+    return [v.name for v in fmu.md.modelVariables if v.causality == "output"][:n]
+
+
+@pytest.mark.parametrize("script", SCRIPTS)
+@pytest.mark.parametrize("dlclose", [True, False], ids=["dlclose", "no-dlclose"])
+def test_a_c_host_runs_the_fmu_and_exits_0(hosted, script, dlclose):
+    """Instantiate, initialise, 20 doSteps with a get/set state replay, terminate, free:
+    every call OK, the replay bit-identical, and the process exits 0 (twice, fresh)."""
+    fmu = hosted[script]
+    for _ in range(2):
+        run = fmu.run(steps=20, out=_outputs(fmu), state=9, dlclose=dlclose)
+        assert (run.returncode, run.signal, run.statuses()) == (0, None, []), run.stderr[-2000:]
+        assert run.stdout.endswith("done\n")
+        out, replay = run.lines("out"), run.lines("replay")
+        assert len(out) == 21 and len(replay) == 10
+        assert replay == out[-10:]   # same times, same values, after fmi2SetFMUstate
+
+
+@pytest.mark.parametrize("integrator", [1, 2], ids=["euler", "radau"])
+def test_plant_integrators_in_a_c_host_exit_0(hosted, integrator):
+    """Radau pulls scipy's solve_ivp into the process while stepping (the import that
+    used to be enough for the crash)."""
+    fmu = hosted["hexapod_plant_fmu"]
+    run = fmu.run(steps=5, integer={"integrator": integrator, "moving_base": 0}, out=["pose[3]"])
+    assert (run.returncode, run.signal, run.statuses()) == (0, None, []), run.stderr[-2000:]
+
+
+@pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf], ids=["nan", "inf", "-inf"])
+def test_non_finite_input_at_initialization_fails_exit_initialization_mode(hosted, value):
+    """The failure surfaces at fmi2ExitInitializationMode, not at the first doStep; with
+    pythonfmu 0.7.0 the status is fmi2Fatal (it has no path to fmi2Error), the host stops
+    there, and the process still exits cleanly with that status."""
+    fmu = hosted["leg_controller_fmu"]
+    run = fmu.run(steps=3, real={"leg_rate[2]": value})
+    assert run.signal is None and run.returncode == 4, run.stderr[-2000:]
+    assert run.statuses() == [("fmi2ExitInitializationMode", "Fatal")]
+    assert f"input leg_rate[2] = {value} at initialization: inputs must be finite" in run.stderr
+    assert "[Error]" in run.stderr and not run.lines("out")
+
+
+def test_out_of_range_parameter_fails_exit_initialization_mode(hosted):
+    fmu = hosted["telescope_fmu"]
+    run = fmu.run(steps=3, real={"target_elevation": math.radians(95.0)})
+    assert (run.returncode, run.signal, run.statuses()) == (4, None, [("fmi2ExitInitializationMode", "Fatal")])
+    assert ("parameter target_elevation = 1.65806 rad (95 deg) is outside its valid range "
+            "[0, 1.5708] rad ([0, 90] deg)") in run.stderr
+
+
+def test_discarded_step_keeps_the_last_accepted_outputs_and_time(hosted):
+    """A force pulse runs leg 1 past a 10 mm stroke: doStep answers Discard, the outputs
+    read afterwards are those of the last accepted step (not the rejected state) and
+    fmi2GetRealStatus(fmi2LastSuccessfulTime) names that step's time."""
+    fmu = hosted["hexapod_plant_fmu"]
+    names = ["leg_length[1]", "leg_rate[1]", "pose[3]", "pose_rate[3]"]
+    run = fmu.run(steps=40, integer={"moving_base": 0}, real={"stroke": 0.01, **{
+        f"leg_force[{i + 1}]": STATIC[i] for i in range(6)}}, real_at={(10, "leg_force[1]"): 1e6}, out=names)
+    assert run.signal is None and run.returncode == 2, run.stderr[-2000:]
+    assert run.statuses() == [("fmi2DoStep", "Discard")]
+    accepted, (discarded,) = run.lines("out"), run.lines("discarded")
+    last = accepted[-1]
+    assert accepted[-1][0] < discarded[0]          # the rejected step ends later ...
+    assert discarded[1:] == last[1:]               # ... but the outputs are the accepted state's
+    assert abs(last[1] - StewartParams.paper().home_lengths[0]) < 0.01   # inside the stroke
+    (successful,), = run.lines("last_successful_time")
+    assert successful == pytest.approx(last[0], abs=1e-12)
+    assert "StrokeError" in run.stderr and "leg 1 length" in run.stderr

@@ -1,0 +1,124 @@
+"""Each scenario metric against data with a known answer: analytic RMS and peak, leg
+lengths from an independent geometry (tests/newton_euler.py tables, scipy rotations),
+and the base effect against the Newton-Euler reference dynamics."""
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from scenarios import metrics, spec
+from tests import newton_euler as ne
+
+HOME = np.array([0.0, 0.0, -2.6815, 0.0, 0.0, 0.0])
+
+
+def rpy(R):
+    """[roll, pitch, yaw] of R = Rz(yaw) Ry(pitch) Rx(roll) (scipy, intrinsic ZYX)."""
+    return Rotation.from_matrix(R).as_euler("ZYX")[::-1]
+
+
+def leg_lengths(pose):
+    """|p + R a_i - B_i| from the spec's joint tables, independent of plant.stewart."""
+    table = ne.Table()
+    R = Rotation.from_euler("ZYX", pose[5:2:-1]).as_matrix()
+    return np.linalg.norm(pose[:3] + table.platform_joints @ R.T - table.base_joints, axis=1)
+
+
+def test_tracking_rms_and_peak_of_a_constant_error():
+    metric = metrics.Tracking("e", "p.x", "r.x")
+    for k in range(7):
+        reference = np.array([0.1 * k, -2.0])
+        metric.update(k * 1e-3, {"p.x": reference + [3e-6, -4e-6], "r.x": reference})
+    result = metric.result()
+    assert result["rms"] == pytest.approx(math.sqrt((9 + 16) / 2), rel=1e-9)     # µm, over both elements
+    assert result["peak"] == pytest.approx(4.0, rel=1e-9) and result["unit"] == "µm"
+
+
+def test_tracking_rms_of_a_sine_is_its_amplitude_over_root_two():
+    metric = metrics.Tracking("e", "p.x", "r.x")
+    amplitude, n = 7e-6, 400                                # 400 samples over exactly 5 periods
+    for k in range(n):
+        error = amplitude * math.sin(2 * math.pi * 5 * k / n)
+        metric.update(k, {"p.x": np.array([1.0 + error]), "r.x": np.array([1.0])})
+    assert metric.result()["rms"] == pytest.approx(7 / math.sqrt(2), rel=1e-6)
+    assert metric.result()["peak"] == pytest.approx(7.0, rel=1e-6)   # k = 20 hits the crest
+    t, values = metric.series()
+    assert len(t) == n and values[20] == pytest.approx(7.0, rel=1e-6)
+
+
+def test_peak_is_the_largest_magnitude_in_kilonewton():
+    metric = metrics.Peak("force", "c.f")
+    for forces in ([1500.0, -300.0], [-2500.0, 10.0], [2000.0, 0.0]):
+        metric.update(0.0, {"c.f": np.array(forces)})
+    squares = [1500 ** 2, 300 ** 2, 2500 ** 2, 10 ** 2, 2000 ** 2, 0]
+    assert metric.result()["peak"] == pytest.approx(2.5, rel=1e-12)
+    assert metric.result()["rms"] == pytest.approx(math.sqrt(sum(squares) / 6) / 1e3, rel=1e-12)
+
+
+def test_nothing_counted_is_not_a_number_never_zero():
+    for metric in (metrics.Peak("f", "c.f"), metrics.PoseTracking("p", "a.p", "b.p")):
+        assert all(math.isnan(v) for k, v in metric.result().items() if k != "unit")
+
+
+def test_leg_tracking_against_independent_leg_lengths():
+    reference = HOME + [0.012, -0.007, 0.02, math.radians(0.8), math.radians(-0.5), math.radians(1.2)]
+    offsets = np.array([1.0, 2.0, 3.0, -1.0, -2.0, -3.0]) * 1e-6
+    metric = metrics.LegTracking("legs", "p.l", "r.pose")
+    metric.update(0.0, {"p.l": leg_lengths(reference) + offsets, "r.pose": reference})
+    assert metric.result()["rms"] == pytest.approx(math.sqrt(28 / 6), abs=1e-6)   # µm
+    assert metric.result()["peak"] == pytest.approx(3.0, abs=1e-6)
+
+
+def test_pose_tracking_position_norm_and_rotation_angle():
+    """A (3, 4, 0) mm offset and a 2 mrad turn about the platform's own x axis, built by
+    scipy from a tilted reference: 5000 µm and 2000 µrad."""
+    reference = HOME + [0.0, 0.0, 0.0, 0.01, -0.02, 0.03]
+    R = Rotation.from_euler("ZYX", reference[5:2:-1]).as_matrix() @ Rotation.from_rotvec([2e-3, 0, 0]).as_matrix()
+    pose = np.r_[reference[:3] + [3e-3, 4e-3, 0.0], rpy(R)]
+    metric = metrics.PoseTracking("pose", "p.pose", "r.pose")
+    metric.update(0.0, {"p.pose": pose, "r.pose": reference})
+    result = metric.result()
+    assert result["rms"] == pytest.approx(5000.0, rel=1e-9) and result["peak"] == pytest.approx(5000.0, rel=1e-9)
+    assert result["rotation_rms"] == pytest.approx(2000.0, rel=1e-6)
+
+
+MOTION = [   # (base pose, base rate, base acc): tilted, turning, accelerating
+    ([0.0, 0.0, 0.0, math.radians(30.0), 0.0, math.radians(20.0)], [0.0, 0.0, 0.0, 0.2, 0.0, 0.15],
+     [0.0, 0.0, 0.0, -0.1, 0.0, 0.05]),
+    ([0.5, -1.0, 2.0, math.radians(60.0), 0.0, math.radians(-40.0)], [0.1, 0.0, -0.2, -0.05, 0.0, 0.3],
+     [0.0, 0.3, 0.0, 0.2, 0.0, -0.1]),
+]
+
+
+def test_base_effect_against_newton_euler():
+    """Total: full model minus no base at all; gravity: the base at rest in its pose
+    minus no base; transport: the rest. Each peak over the samples and legs, kN."""
+    metric = metrics.make(spec.Metric("base", "base_effect", {"base": "b", "reference": "r"}))
+    pose, rate, acc = HOME + [0.01, 0.0, 0.02, 0.0, 0.01, 0.0], np.array([0.0, 0.02, 0, 0.1, 0, 0]), np.zeros(6)
+    total, gravity, transport = [], [], []
+    for base_pose, base_rate, base_acc in MOTION:
+        values = {"b.base_pose": np.array(base_pose), "b.base_rate": np.array(base_rate),
+                  "b.base_acc": np.array(base_acc), "r.reference_pose": pose, "r.reference_rate": rate,
+                  "r.reference_acc": acc}
+        metric.update(0.0, values)
+        full = ne.inverse_dynamics(pose, rate, acc, base_pose, base_rate, base_acc)
+        at_rest = ne.inverse_dynamics(pose, rate, acc, base_pose, np.zeros(6), np.zeros(6))
+        none = ne.inverse_dynamics(pose, rate, acc)
+        total.append(np.abs(full - none).max())
+        gravity.append(np.abs(at_rest - none).max())
+        transport.append(np.abs(full - at_rest).max())
+    result = metric.result()
+    scale = np.abs(ne.inverse_dynamics(pose, rate, acc)).max() * 1e-8 / 1e3   # Kane vs Newton-Euler agreement
+    assert result["peak"] == pytest.approx(max(total) / 1e3, abs=scale)
+    assert result["gravity_peak"] == pytest.approx(max(gravity) / 1e3, abs=scale)
+    assert result["transport_peak"] == pytest.approx(max(transport) / 1e3, abs=scale)
+    assert min(max(gravity), max(transport)) > 100.0   # N: both terms present in these samples
+
+
+def test_base_effect_of_a_base_at_rest_upright_is_zero():
+    metric = metrics.make(spec.Metric("base", "base_effect", {"base": "b", "reference": "r"}))
+    zero = np.zeros(6)
+    metric.update(0.0, {"b.base_pose": zero, "b.base_rate": zero, "b.base_acc": zero,
+                        "r.reference_pose": HOME, "r.reference_rate": zero, "r.reference_acc": zero})
+    assert max(abs(v) for k, v in metric.result().items() if k != "unit") < 1e-9
