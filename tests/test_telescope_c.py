@@ -31,12 +31,12 @@ DEG = np.pi / 180
 @pytest.fixture(scope="module")
 def old(tmp_path_factory):
     """The modules of REVISION as a package ``old73017ff`` (telescope, trajectory, and the
-    FMU module as ``telescope_fmu`` importing them)."""
+    FMU module as ``telescope_fmu`` importing them and the slave base of that revision)."""
     folder = tmp_path_factory.mktemp("old") / "old73017ff"
     folder.mkdir()
     (folder / "__init__.py").write_text("")
-    for name in ("errors", "rotations", "trajectory", "telescope", "telescope_fmu"):
-        path = ("fmu_src/" if name == "telescope_fmu" else "plant/") + name + ".py"
+    for name in ("errors", "rotations", "trajectory", "telescope", "slave", "telescope_fmu"):
+        path = ("fmu_src/" if name in ("slave", "telescope_fmu") else "plant/") + name + ".py"
         try:
             text = subprocess.run(["git", "show", f"{REVISION}:{path}"], cwd=ROOT, check=True,
                                   capture_output=True, text=True).stdout
@@ -44,7 +44,8 @@ def old(tmp_path_factory):
             pytest.skip(f"git cannot show {REVISION}:{path}: {exc}")
         if name == "telescope_fmu":
             text = (text.replace("from plant import telescope", "from old73017ff import telescope")
-                        .replace("from plant.trajectory import", "from old73017ff.trajectory import"))
+                        .replace("from plant.trajectory import", "from old73017ff.trajectory import")
+                        .replace("from fmu_src.slave import", "from old73017ff.slave import"))
             assert "old73017ff" in text
         (folder / f"{name}.py").write_text(text)
     sys.path.insert(0, str(folder.parent))
