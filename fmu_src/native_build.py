@@ -130,6 +130,7 @@ def vars_header(identifier, guid, slave, root):
     element), the variable table with exact starts and the XML's ranges, the constants."""
     xml_vars = {v.get("name"): v for v in root.iter("ScalarVariable")}
     exact = starts(slave)
+    allowed = slave.allowed   # Integers whose range has gaps (slave.py)
     rows, enums, seen = [], [], {}
     for vr, var in sorted(slave.vars.items()):
         element = xml_vars[var.name]
@@ -139,7 +140,8 @@ def vars_header(identifier, guid, slave, root):
         limits = [(1, _c(kind.get(k))) if kind.get(k) is not None else (0, "0.0") for k in ("min", "max")]
         rows.append(f'    {{"{var.name}", "{kind.get("unit", "")}", {"MB_REAL" if is_real else "MB_INTEGER"}, '
                     f'{_CAUSALITY[element.get("causality", "local")]}, {_c(start)}, '
-                    f"{limits[0][0]}, {limits[1][0]}, {limits[0][1]}, {limits[1][1]}}},")
+                    f"{limits[0][0]}, {limits[1][0]}, {limits[0][1]}, {limits[1][1]}, "
+                    f"{len(allowed.get(var.name, ()))}, {{{', '.join(map(str, allowed.get(var.name, ()))) or '0'}}}}},")
         base = _c_name(var.name)
         index = int(var.name.split("[", 1)[1].rstrip("]")) if "[" in var.name else 1
         if base not in seen:

@@ -254,6 +254,17 @@ def test_mechanism_driven_out_of_reach_discards(fmus, native):
     assert text.split(":")[0].split(" at ")[0] in ("UnreachableError", "SingularConfigurationError", "ConvergenceError")
 
 
+@pytest.mark.parametrize("script", ["mechanism3t_fmu", "slider_controller_fmu"])
+def test_assembly_mode_zero_is_an_error(fmus, native, script):
+    """mode lies in [-1, 1] but only -1 and +1 are assembly modes."""
+    texts = []
+    for paths in (fmus, native):
+        inst, status = opened(paths[script], mode=0)
+        texts.append(_failure(failure_lines(inst)[-1]))
+    assert texts[0] == texts[1] == "InvalidInputError in initialization: parameter mode = 0 is not one of -1, 1"
+    assert status == ERROR
+
+
 def test_slider_controller_nan_measurement_discards(fmus, native):
     inst, status = opened(native["slider_controller_fmu"])
     inst.set("slider_rate[1]", math.nan)

@@ -333,6 +333,15 @@ static int check_start(mb_instance *inst)
                 quantity(q, sizeof q, value, v->unit);
                 range_text(range, sizeof range, v);
                 snprintf(one, sizeof one, "parameter %s = %s is outside its valid range %s", v->name, q, range);
+            } else if (pass == 0 && v->causality == MB_PARAMETER && v->n_allowed > 0) {
+                int ok = 0;
+                size_t used = 0;
+                char list[64] = "";
+                for (int k = 0; k < v->n_allowed; k++) {
+                    ok |= iv[vr] == v->allowed[k];
+                    used += (size_t)snprintf(list + used, sizeof list - used, "%s%d", k ? ", " : "", v->allowed[k]);
+                }
+                if (!ok) snprintf(one, sizeof one, "parameter %s = %d is not one of %s", v->name, iv[vr], list);
             } else if (pass == 1 && v->causality == MB_INPUT && v->type == MB_REAL && !isfinite(value)) {
                 char text[32];
                 snprintf(one, sizeof one, "input %s = %s at initialization: inputs must be finite", v->name,

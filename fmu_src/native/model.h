@@ -23,6 +23,8 @@ typedef struct {
     double start;
     int has_min, has_max;
     double min, max;
+    int n_allowed;     /* > 0: an Integer whose range has gaps takes only these values */
+    int allowed[4];
 } mb_var;
 
 typedef struct mb_instance mb_instance;
