@@ -8,10 +8,6 @@
 #include "m3t_status.h"
 #include "pid.h"
 
-typedef struct {
-    int unused;
-} Model;
-
 /* Reference, feedforward and forces at t; the integral advances only on a real step. */
 static int update(mb_instance *inst, double *r, int *i, double t, int stepping, double h)
 {
@@ -88,4 +84,5 @@ static int step(mb_instance *inst, double *r, int *i, void *model, double t, dou
     return update(inst, r, i, t, 1, h);
 }
 
-const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), init, step};
+/* no state beyond the variables: the integral is an output */
+const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, 0, init, step};
