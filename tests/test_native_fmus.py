@@ -373,3 +373,33 @@ def test_parameters_outside_their_range_are_refused(fmus, native):
                 inst, status = opened(native[script], **{var.name: value})
                 assert f"parameter {var.name} = " not in " ".join(inst.log), var.name
     assert ranged > 0, "no parameter has a range in the modelDescription"
+
+
+# ------------------------------------------------------------------------- misuse
+def test_misuse_answers_error_with_a_log_line(native):
+    """Calls out of order, unknown value references, outputs set, a fixed parameter set
+    after initialization, foreign state bytes: fmi2Error and a line naming the problem."""
+    path = native["hexapod_plant_fmu"]
+    inst = Instance(path, "misuse")
+    OPENED.append(inst)
+    c = inst.fmu.component
+    vr = (fmpy.fmi2.fmi2ValueReference * 1)
+    value = (fmi2Real * 1)()
+    assert step(inst, 0.0, 1e-3) == ERROR and "only allowed after fmi2ExitInitializationMode" in inst.log[-1]
+    assert inst.raw("fmi2GetReal")(c, vr(10_000), 1, value) == ERROR and "value reference 10000" in inst.log[-1]
+    pose = inst.vr("pose[1]")
+    assert inst.raw("fmi2SetReal")(c, vr(pose), 1, value) == ERROR and "pose[1] is an output" in inst.log[-1]
+    inst.initialize(0.0, {"moving_base": 0})
+    value[0] = 2e-3
+    assert inst.raw("fmi2SetReal")(c, vr(inst.vr("max_step")), 1, value) == ERROR
+    assert "max_step is fixed after initialization" in inst.log[-1]
+    blob = inst.fmu.serializeFMUstate(inst.fmu.getFMUstate())
+    with pytest.raises(Exception):
+        inst.fmu.deSerializeFMUstate(blob[:-1])
+    assert "not a serialised HexapodPlant state" in inst.log[-1]
+    other = Instance(native["leg_controller_fmu"], "other")
+    OPENED.append(other)
+    with pytest.raises(Exception):
+        other.fmu.deSerializeFMUstate(blob)
+    assert "not a serialised LegController state" in other.log[-1]
+    assert step(inst, 0.0, 1e-3) == OK   # the instance still works

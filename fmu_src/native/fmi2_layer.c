@@ -677,12 +677,14 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
     return fmi2OK;
 }
 
-/* Serialised: MAGIC, the block size as 8 bytes, the block (this platform's doubles). */
+/* Serialised: MAGIC, the block size as 8 bytes, the model identifier (ID_BYTES, zero
+   padded), the block (this platform's doubles). */
+enum { ID_BYTES = 64, HEADER = sizeof MAGIC + 8 + ID_BYTES };
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
 {
     if (!usable(c)) return fmi2Error;
     (void)FMUstate;
-    *size = sizeof MAGIC + 8 + ((mb_instance *)c)->size;
+    *size = HEADER + ((mb_instance *)c)->size;
     return fmi2OK;
 }
 
@@ -691,14 +693,16 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byt
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
     saved_state *st = FMUstate;
-    if (!st || st->size != inst->size || size < sizeof MAGIC + 8 + st->size) {
+    if (!st || st->size != inst->size || size < HEADER + st->size) {
         logf_(inst, fmi2Error, CAT_ERROR, "fmi2SerializeFMUstate: no state of this FMU, or the buffer is too small");
         return fmi2Error;
     }
     unsigned long long n = st->size;
     memcpy(serializedState, MAGIC, sizeof MAGIC);
     memcpy(serializedState + sizeof MAGIC, &n, 8);
-    memcpy(serializedState + sizeof MAGIC + 8, st->data, st->size);
+    memset(serializedState + sizeof MAGIC + 8, 0, ID_BYTES);
+    strncpy((char *)serializedState + sizeof MAGIC + 8, MB_MODEL.identifier, ID_BYTES - 1);
+    memcpy(serializedState + HEADER, st->data, st->size);
     return fmi2OK;
 }
 
@@ -709,7 +713,8 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
     mb_instance *inst = c;
     unsigned long long n = 0;
     if (size >= sizeof MAGIC + 8) memcpy(&n, serializedState + sizeof MAGIC, 8);
-    if (size != sizeof MAGIC + 8 + inst->size || memcmp(serializedState, MAGIC, sizeof MAGIC) != 0 || n != inst->size) {
+    if (size != HEADER + inst->size || memcmp(serializedState, MAGIC, sizeof MAGIC) != 0 || n != inst->size ||
+        strncmp((const char *)serializedState + sizeof MAGIC + 8, MB_MODEL.identifier, ID_BYTES) != 0) {
         logf_(inst, fmi2Error, CAT_ERROR, "fmi2DeSerializeFMUstate: the bytes are not a serialised %s state (%zu bytes)",
               MB_MODEL.identifier, size);
         return fmi2Error;
@@ -721,7 +726,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
         if (!st) return fmi2Error;
         st->size = inst->size;
     }
-    memcpy(st->data, serializedState + sizeof MAGIC + 8, inst->size);
+    memcpy(st->data, serializedState + HEADER, inst->size);
     *FMUstate = st;
     return fmi2OK;
 }
