@@ -4,7 +4,8 @@
 pythonfmu packs each script of fmu_src/ (class __init__ runs here, at build time); this
 script then adds what pythonfmu leaves out: SI units with mm/deg display units and the
 parameters' min/max in modelDescription.xml, and resources/requirements.txt naming the Python packages the FMU
-needs at run time (pythonfmu's `deploy` installs from it).
+needs at run time (pythonfmu's `deploy` installs from it). The CLI also builds each FMU's
+native C twin into <out>/native/ (fmu_src/native_build.py).
 """
 import argparse
 import importlib
@@ -23,6 +24,8 @@ except ModuleNotFoundError:  # Python 3.10
 
 from fmpy.validation import validate_fmu
 from pythonfmu.builder import FmuBuilder
+
+from fmu_src import native_build
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent   # the checkout, or site-packages
 PYPROJECT = ROOT / "pyproject.toml"
@@ -86,8 +89,9 @@ def add_ranges(xml_text, ranges):
     return ET.tostring(root, encoding="unicode", xml_declaration=True)
 
 
-def _recorded(fmu):
-    """(units, ranges) the slave recorded, from an instance made on the FMU's own resources."""
+def slave_instance(fmu):
+    """An instance of the FMU's slave class, made on the FMU's own resources (the units it
+    recorded; the exact start values fmu_src/native_build.py compiles in)."""
     with tempfile.TemporaryDirectory() as tmp:
         with zipfile.ZipFile(fmu) as z:
             z.extractall(tmp)
@@ -95,8 +99,13 @@ def _recorded(fmu):
         module = importlib.import_module((resources / "slavemodule.txt").read_text().strip())
         slave_class = next(c for c in vars(module).values()
                            if isinstance(c, type) and c.__module__ == module.__name__ and hasattr(c, "step"))
-        slave = slave_class(instance_name="build", resources=str(resources))
-        return slave.units, slave.ranges
+        return slave_class(instance_name="build", resources=str(resources))
+
+
+def _recorded(fmu):
+    """(units, ranges) the slave recorded."""
+    slave = slave_instance(fmu)
+    return slave.units, slave.ranges
 
 
 def _rewrite(fmu, units, ranges):
@@ -187,5 +196,6 @@ def main(argv=None):
     for name in args.names:
         fmu = build(name, out)
         print(f"built {fmu}")
+        print(f"built {native_build.build_native(fmu, out / 'native')}")
     print(f"FMUs are in {out}")
     return out

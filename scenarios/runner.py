@@ -8,6 +8,7 @@ import sys
 from tqdm import tqdm
 
 from fmu_src.builder import ensure_built
+from fmu_src.native_build import ensure_native
 from plant.stewart import FIDELITIES
 from . import engine, fidelity, master, metrics, report, spec
 from .fmi import unpack
@@ -25,14 +26,18 @@ def resolve(name):
     return next((c for c in candidates if c.is_file()), path)
 
 
-def prepare(path, ci=False):
+def prepare(path, ci=False, implementation=None):
     """Scenario, FMU paths per instance and checked parameter values: all checks done
-    before anything runs. ``ci`` applies the file's [ci] overrides (a shorter run)."""
+    before anything runs. ``ci`` applies the file's [ci] overrides (a shorter run);
+    ``implementation`` ("native" or "python") overrides every instance's choice."""
     scenario = spec.load(path)
     if ci and scenario.ci:
         scenario = spec.load(path, overrides=scenario.ci)
-    scripts = ensure_built(sorted({spec.FMU_SCRIPTS[f] for f in scenario.fmus.values()}))
-    paths = {inst: scripts[spec.FMU_SCRIPTS[fmu]] for inst, fmu in scenario.fmus.items()}
+    if implementation is not None:
+        if implementation not in spec.IMPLEMENTATIONS:
+            raise ValueError(f"implementation must be one of {spec.IMPLEMENTATIONS}, got {implementation!r}")
+        scenario.implementations = dict.fromkeys(scenario.fmus, implementation)
+    paths = fmu_paths(scenario)
     descriptions = {inst: unpack(p)[0] for inst, p in paths.items()}
     auto = [inst for inst, params in scenario.parameters.items() if params.get("fidelity") == "auto"]
     for inst in auto:
@@ -41,6 +46,15 @@ def prepare(path, ci=False):
     for inst in auto:
         _choose_fidelity(scenario, paths, values, inst)
     return scenario, paths, descriptions, values
+
+
+def fmu_paths(scenario):
+    """instance -> FMU file of the implementation the scenario chose for it (built if stale)."""
+    chosen = {inst: (spec.FMU_SCRIPTS[fmu], scenario.implementations.get(inst, spec.IMPLEMENTATIONS[0]))
+              for inst, fmu in scenario.fmus.items()}
+    built = {"python": ensure_built(sorted({s for s, impl in chosen.values() if impl == "python"})),
+             "native": ensure_native(sorted({s for s, impl in chosen.values() if impl == "native"}))}
+    return {inst: built[impl][script] for inst, (script, impl) in chosen.items()}
 
 
 def _choose_fidelity(scenario, paths, values, plant):
@@ -59,13 +73,14 @@ def _choose_fidelity(scenario, paths, values, plant):
                           f"largest leg-force error of each level along this scene: {listed})")
 
 
-def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None):
+def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None, implementation=None):
     """Run every sweep value of a scenario; returns (scenario, runs, report path).
-    ``jobs`` worker processes or the Dask cluster at ``dask`` run the values in parallel."""
+    ``jobs`` worker processes or the Dask cluster at ``dask`` run the values in parallel;
+    ``implementation`` as in prepare."""
     if progress:
         print(f"{pathlib.Path(str(path)).stem}: checking the scenario, building FMUs that are missing or stale "
               "(a first build takes ~10 s)", file=sys.stderr, flush=True)
-    scenario, paths, descriptions, values = prepare(resolve(path), ci)
+    scenario, paths, descriptions, values = prepare(resolve(path), ci, implementation)
     outdir = pathlib.Path(out) / scenario.name
     outdir.mkdir(parents=True, exist_ok=True)
     items = scenario.sweep[1] if scenario.sweep else [None]
@@ -80,8 +95,7 @@ def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None)
             params[inst][name] = value
             label = str(item)
         desc = f"{scenario.name} [{label}]"
-        bar = tqdm(total=100, desc=f"{desc} loading FMUs (the first run on a machine compiles the dynamics "
-                   "kernel, ~15 s)", unit="%", disable=not progress,
+        bar = tqdm(total=100, desc=f"{desc} loading and initialising the FMUs", unit="%", disable=not progress,
                    bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
 
         def update(fraction, bar=bar, desc=desc, begun=[]):

@@ -36,6 +36,8 @@ from .units import UNITS, UnitError, split, to_si
 FMU_SCRIPTS = {"hexapod_plant": "hexapod_plant_fmu", "telescope": "telescope_fmu",
                "leg_controller": "leg_controller_fmu", "mechanism3t_plant": "mechanism3t_fmu",
                "slider_controller": "slider_controller_fmu"}
+# per instance: the native C FMU (no Python in the host) or the pythonfmu one; equal results
+IMPLEMENTATIONS = ("native", "python")
 MASTERS = ("jacobi", "gauss-seidel")
 EXTRAPOLATIONS = ("none", "linear")
 METRIC_KINDS = {  # kind -> required keys
@@ -92,6 +94,7 @@ class Scenario:
     ci: dict = field(default_factory=dict)   # shortened settings for CI: {"stop_time": ...}
     fidelity_tolerance: float = None         # [N], for a plant with fidelity = "auto"
     notes: list = field(default_factory=list)  # what the runner decided (shown in the report)
+    implementations: dict = field(default_factory=dict)  # instance -> one of IMPLEMENTATIONS
 
 
 def _quantity(source, key, value, dimension):
@@ -161,13 +164,18 @@ def parse(text, source="<string>", overrides=None):
     if extrapolation not in EXTRAPOLATIONS:
         raise ScenarioError(source, "extrapolation", f"unknown {extrapolation!r}; choose one of {EXTRAPOLATIONS}")
 
-    fmus, parameters = {}, {}
+    fmus, parameters, implementations = {}, {}, {}
     for instance, table in _table(source, "fmus", data["fmus"]).items():
         key = f"fmus.{instance}"
         table = _table(source, key, table)
-        extra = set(table) - {"fmu", "parameters"}
+        extra = set(table) - {"fmu", "implementation", "parameters"}
         if extra:
-            raise ScenarioError(source, f"{key}.{sorted(extra)[0]}", "unknown key; allowed: fmu, parameters")
+            raise ScenarioError(source, f"{key}.{sorted(extra)[0]}",
+                                "unknown key; allowed: fmu, implementation, parameters")
+        implementations[instance] = table.get("implementation", IMPLEMENTATIONS[0])
+        if implementations[instance] not in IMPLEMENTATIONS:
+            raise ScenarioError(source, f"{key}.implementation", f"unknown implementation "
+                                f"{implementations[instance]!r}; choose one of {', '.join(IMPLEMENTATIONS)}")
         if table.get("fmu") not in FMU_SCRIPTS:
             raise ScenarioError(source, f"{key}.fmu", f"unknown FMU {table.get('fmu')!r}; choose one of "
                                 f"{', '.join(FMU_SCRIPTS)}")
@@ -242,7 +250,8 @@ def parse(text, source="<string>", overrides=None):
                                 '"auto" needs a hexapod_plant and a top-level fidelity_tolerance (a force)')
     name = data.get("name", pathlib.Path(source).stem)
     return Scenario(source, name, data.get("description", ""), start, stop, step, master, extrapolation,
-                    fmus, parameters, connections, interval, recorded, metrics, sweep, ci, tolerance)
+                    fmus, parameters, connections, interval, recorded, metrics, sweep, ci, tolerance,
+                    implementations=implementations)
 
 
 def load(path, overrides=None):

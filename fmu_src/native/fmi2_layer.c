@@ -1,0 +1,749 @@
+/* The FMI 2.0 co-simulation interface shared by every native FMU of the kit, over one
+   model file (model.h says what a model provides). Like the Reference FMUs'
+   fmi2Functions.c / cosimulation.c, without their macros: one instance struct, a
+   variable table for get/set, a byte block holding everything an FMU state needs.
+
+   Behaviour follows the pythonfmu FMUs (fmu_src/slave.py): a failing step answers
+   fmi2Discard with an error log line saying what and when, the instance then refuses
+   further steps, and the outputs keep the last accepted state; a failing initialization
+   answers fmi2Error. The layer never prints and never aborts: every misuse is an
+   fmi2Error with a log line. Memory comes from calloc/free (the modelDescription says
+   canNotUseMemoryManagementFunctions). */
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmi2Functions.h"
+#include "model.h"
+
+enum phase { INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED };
+enum { CAT_WARNING, CAT_DISCARD, CAT_ERROR, CAT_FATAL, CAT_ALL, NCAT };
+static const char *const CATEGORIES[NCAT] = {"logStatusWarning", "logStatusDiscard", "logStatusError",
+                                             "logStatusFatal", "logAll"};
+
+/* Everything of an instance that an FMU state holds, at the start of the block. */
+typedef struct {
+    double start_time;
+    double time;              /* end of the last accepted step (fmi2LastSuccessfulTime) */
+    int failed;
+    int initialized;
+    char failure[1024];
+} layer_state;
+
+struct mb_instance {
+    fmi2CallbackFunctions cb;
+    char *name;
+    int category_on[NCAT];
+    int phase;
+    int dirty;                /* initialization mode: inputs or parameters set since the outputs were computed */
+    size_t size, r_off, i_off, m_off;
+    unsigned char *block;     /* layer_state | double r[n] | int i[n] | model */
+    unsigned char *backup;    /* the block before the running doStep */
+    char kind[64];
+    char message[896];
+};
+
+typedef struct {
+    size_t size;
+    unsigned char data[];
+} saved_state;
+
+static const char MAGIC[8] = {'M', 'B', 'F', 'M', 'U', 'S', '2', '\0'};
+
+#define LAYER(inst) ((layer_state *)(inst)->block)
+#define REALS(inst) ((double *)((inst)->block + (inst)->r_off))
+#define INTS(inst) ((int *)((inst)->block + (inst)->i_off))
+#define MODEL(inst) ((void *)((inst)->block + (inst)->m_off))
+
+static size_t align16(size_t n) { return (n + 15) & ~(size_t)15; }
+
+/* ------------------------------------------------------------------------- logging */
+static void emit(mb_instance *inst, fmi2Status status, int category, const char *text)
+{
+    if (!inst || !inst->cb.logger) return;
+    if (status < fmi2Error && !inst->category_on[category] && !inst->category_on[CAT_ALL]) return;
+    inst->cb.logger(inst->cb.componentEnvironment, inst->name, status, CATEGORIES[category], text);
+}
+
+static void logf_(mb_instance *inst, fmi2Status status, int category, const char *fmt, ...)
+{
+    char text[1400];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(text, sizeof text, fmt, ap);
+    va_end(ap);
+    emit(inst, status, category, text);
+}
+
+void mb_error(mb_instance *inst, const char *kind, const char *fmt, ...)
+{
+    va_list ap;
+    snprintf(inst->kind, sizeof inst->kind, "%s", kind);
+    va_start(ap, fmt);
+    vsnprintf(inst->message, sizeof inst->message, fmt, ap);
+    va_end(ap);
+}
+
+void mb_warning(mb_instance *inst, const char *fmt, ...)
+{
+    char text[1400];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(text, sizeof text, fmt, ap);
+    va_end(ap);
+    emit(inst, fmi2Warning, CAT_WARNING, text);
+}
+
+int mb_nonfinite_rows(int nrows, int width, const double *rows, const char *const *names, char *out, size_t n)
+{
+    int count = 0;
+    size_t used = 0;
+    out[0] = '\0';
+    for (int row = 0; row < nrows; row++) {
+        int bad = 0;
+        for (int k = 0; k < width; k++) bad |= !isfinite(rows[row * width + k]);
+        if (!bad) continue;
+        int w = snprintf(out + used, used < n ? n - used : 0, "%s%s", count ? ", " : "", names[row]);
+        if (w > 0) used += (size_t)w;
+        if (used >= n) used = n - 1;
+        count++;
+    }
+    return count;
+}
+
+const char *mb_repr(double v, char *buf)
+{
+    if (isnan(v)) return strcpy(buf, "nan");
+    if (isinf(v)) return strcpy(buf, v > 0 ? "inf" : "-inf");
+    int p = 1;
+    for (; p < 17; p++) {   /* fewest significant digits that read back as v */
+        snprintf(buf, 32, "%.*e", p - 1, v);
+        if (strtod(buf, NULL) == v) break;
+    }
+    snprintf(buf, 32, "%.*e", p - 1, v);
+    int exponent = atoi(strchr(buf, 'e') + 1);
+    if (exponent < -4 || exponent >= 16) {   /* Python: 1e-05, 1.5e+16 (C pads the exponent to 2 digits too) */
+        return buf;
+    }
+    int decimals = p - 1 - exponent;
+    snprintf(buf, 32, "%.*f", decimals > 0 ? decimals : 0, v);
+    if (!strchr(buf, '.')) strcat(buf, ".0");
+    return buf;
+}
+
+/* Record the model's failure "<kind> <when>: <message>" (slave.py's GuardedSlave.fail). */
+static void record_failure(mb_instance *inst, const char *when)
+{
+    layer_state *s = LAYER(inst);
+    s->failed = 1;
+    snprintf(s->failure, sizeof s->failure, "%s %s: %s", inst->kind, when, inst->message);
+    emit(inst, fmi2Error, CAT_ERROR, s->failure);
+}
+
+/* --------------------------------------------------------------------- instance */
+static void load_starts(mb_instance *inst)
+{
+    memset(inst->block, 0, inst->size);
+    double *r = REALS(inst);
+    int *iv = INTS(inst);
+    for (int vr = 0; vr < MB_MODEL.nvars; vr++) {
+        const mb_var *v = &MB_MODEL.vars[vr];
+        if (v->type == MB_REAL) r[vr] = v->start;
+        else iv[vr] = (int)v->start;
+    }
+}
+
+static int check(mb_instance *inst, const char *function, int ok, const char *why)
+{
+    if (!ok) logf_(inst, fmi2Error, CAT_ERROR, "%s: %s", function, why);
+    return ok;
+}
+
+static int usable(fmi2Component c)
+{
+    return c != NULL && ((mb_instance *)c)->block != NULL;
+}
+
+/* Built with -DMB_EMPTY_MODEL: the same interface, initialization and doStep do nothing
+   (the exchange floor of benchmarks/bench_native.py). */
+#ifdef MB_EMPTY_MODEL
+#define MODEL_INIT(inst, t0) 0
+#define MODEL_STEP(inst, t, h) 0
+#else
+#define MODEL_INIT(inst, t0) MB_MODEL.init(inst, REALS(inst), INTS(inst), MODEL(inst), t0)
+#define MODEL_STEP(inst, t, h) MB_MODEL.step(inst, REALS(inst), INTS(inst), MODEL(inst), t, h)
+#endif
+
+const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+const char *fmi2GetVersion(void) { return fmi2Version; }
+
+fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
+                               const fmi2String categories[])
+{
+    if (!usable(c)) return fmi2Error;
+    mb_instance *inst = c;
+    if (nCategories == 0) {
+        for (int k = 0; k < NCAT; k++) inst->category_on[k] = loggingOn;
+        return fmi2OK;
+    }
+    for (size_t n = 0; n < nCategories; n++) {
+        int found = 0;
+        for (int k = 0; k < NCAT; k++) {
+            if (categories[n] && strcmp(categories[n], CATEGORIES[k]) == 0) {
+                inst->category_on[k] = loggingOn;
+                found = 1;
+            }
+        }
+        if (!found) {
+            logf_(inst, fmi2Error, CAT_ERROR, "fmi2SetDebugLogging: unknown log category '%s'",
+                  categories[n] ? categories[n] : "(null)");
+            return fmi2Error;
+        }
+    }
+    return fmi2OK;
+}
+
+fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                              fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
+                              fmi2Boolean visible, fmi2Boolean loggingOn)
+{
+    (void)fmuResourceLocation;
+    (void)visible;
+    mb_instance probe;
+    memset(&probe, 0, sizeof probe);
+    if (functions) probe.cb = *functions;
+    probe.name = (char *)(instanceName ? instanceName : "?");
+    if (fmuType != fmi2CoSimulation) {
+        logf_(&probe, fmi2Error, CAT_ERROR, "fmi2Instantiate: %s supports co-simulation only", MB_MODEL.identifier);
+        return NULL;
+    }
+    if (!fmuGUID || strcmp(fmuGUID, MB_MODEL.guid) != 0) {
+        logf_(&probe, fmi2Error, CAT_ERROR, "fmi2Instantiate: GUID '%s' is not this FMU's '%s'",
+              fmuGUID ? fmuGUID : "(null)", MB_MODEL.guid);
+        return NULL;
+    }
+    mb_instance *inst = calloc(1, sizeof *inst);
+    if (!inst) return NULL;
+    inst->cb = probe.cb;
+    const char *name = instanceName ? instanceName : "";
+    inst->name = malloc(strlen(name) + 1);
+    inst->r_off = align16(sizeof(layer_state));
+    inst->i_off = inst->r_off + align16(sizeof(double) * (size_t)MB_MODEL.nvars);
+    inst->m_off = inst->i_off + align16(sizeof(int) * (size_t)MB_MODEL.nvars);
+    inst->size = inst->m_off + align16(MB_MODEL.model_size);
+    inst->block = calloc(1, inst->size);
+    inst->backup = calloc(1, inst->size);
+    if (!inst->name || !inst->block || !inst->backup) {
+        free(inst->name);
+        free(inst->block);
+        free(inst->backup);
+        free(inst);
+        return NULL;
+    }
+    strcpy(inst->name, name);
+    for (int k = 0; k < NCAT; k++) inst->category_on[k] = loggingOn;
+    load_starts(inst);
+    inst->phase = INSTANTIATED;
+    return inst;
+}
+
+void fmi2FreeInstance(fmi2Component c)
+{
+    mb_instance *inst = c;
+    if (!inst) return;
+    free(inst->block);
+    free(inst->backup);
+    free(inst->name);
+    free(inst);
+}
+
+fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
+                               fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
+{
+    (void)toleranceDefined, (void)tolerance, (void)stopTimeDefined, (void)stopTime;
+    if (!usable(c)) return fmi2Error;
+    mb_instance *inst = c;
+    if (!check(inst, "fmi2SetupExperiment", inst->phase == INSTANTIATED, "only allowed after fmi2Instantiate")) return fmi2Error;
+    if (!check(inst, "fmi2SetupExperiment", isfinite(startTime), "startTime must be finite")) return fmi2Error;
+    LAYER(inst)->start_time = startTime;
+    LAYER(inst)->time = startTime;
+    return fmi2OK;
+}
+
+fmi2Status fmi2EnterInitializationMode(fmi2Component c)
+{
+    if (!usable(c)) return fmi2Error;
+    mb_instance *inst = c;
+    if (!check(inst, "fmi2EnterInitializationMode", inst->phase == INSTANTIATED, "only allowed after fmi2Instantiate / fmi2SetupExperiment")) return fmi2Error;
+    inst->phase = INITIALIZATION;
+    inst->dirty = 1;
+    return fmi2OK;
+}
+
+/* "value unit" as the Python FMUs write a quantity (slave.py _quantity): 6 digits, degrees
+   beside radians. */
+static void quantity(char *out, size_t n, double v, const char *unit)
+{
+    char number[40];
+    if (isnan(v)) strcpy(number, "nan");
+    else snprintf(number, sizeof number, "%.6g", v);
+    snprintf(out, n, "%s%s%s", number, *unit ? " " : "", unit);
+    if (strncmp(unit, "rad", 3) == 0 && isfinite(v)) {
+        size_t used = strlen(out);
+        snprintf(out + used, n - used, " (%.6g deg%s)", v * (180.0 / 3.141592653589793), unit + 3);
+    }
+}
+
+/* slave.py range_text */
+static void range_text(char *out, size_t n, const mb_var *v)
+{
+    char q[96];
+    if (!v->has_max) {
+        quantity(q, sizeof q, v->min, v->unit);
+        snprintf(out, n, ">= %s", q);
+    } else if (!v->has_min) {
+        quantity(q, sizeof q, v->max, v->unit);
+        snprintf(out, n, "<= %s", q);
+    } else {
+        snprintf(out, n, "[%.6g, %.6g]%s%s", v->min, v->max, *v->unit ? " " : "", v->unit);
+        if (strncmp(v->unit, "rad", 3) == 0) {
+            size_t used = strlen(out);
+            snprintf(out + used, n - used, " ([%.6g, %.6g] deg%s)", v->min * (180.0 / 3.141592653589793),
+                     v->max * (180.0 / 3.141592653589793), v->unit + 3);
+        }
+    }
+}
+
+/* Every parameter outside its range and every input that is not finite, as one message
+   (slave.py GuardedSlave.check_start); 0 when there is none. */
+static int check_start(mb_instance *inst)
+{
+    char problems[sizeof inst->message] = "", one[320], q[96], range[160];
+    const double *r = REALS(inst);
+    const int *iv = INTS(inst);
+    for (int pass = 0; pass < 2; pass++) {
+        for (int vr = 0; vr < MB_MODEL.nvars; vr++) {
+            const mb_var *v = &MB_MODEL.vars[vr];
+            double value = v->type == MB_REAL ? r[vr] : (double)iv[vr];
+            one[0] = '\0';
+            if (pass == 0 && v->causality == MB_PARAMETER && (v->has_min || v->has_max) &&
+                !((!v->has_min || value >= v->min) && (!v->has_max || value <= v->max))) {
+                quantity(q, sizeof q, value, v->unit);
+                range_text(range, sizeof range, v);
+                snprintf(one, sizeof one, "parameter %s = %s is outside its valid range %s", v->name, q, range);
+            } else if (pass == 0 && v->causality == MB_PARAMETER && v->n_allowed > 0) {
+                int ok = 0;
+                size_t used = 0;
+                char list[64] = "";
+                for (int k = 0; k < v->n_allowed; k++) {
+                    ok |= iv[vr] == v->allowed[k];
+                    used += (size_t)snprintf(list + used, sizeof list - used, "%s%d", k ? ", " : "", v->allowed[k]);
+                }
+                if (!ok) snprintf(one, sizeof one, "parameter %s = %d is not one of %s", v->name, iv[vr], list);
+            } else if (pass == 1 && v->causality == MB_INPUT && v->type == MB_REAL && !isfinite(value)) {
+                char text[32];
+                snprintf(one, sizeof one, "input %s = %s at initialization: inputs must be finite", v->name,
+                         mb_repr(value, text));
+            }
+            if (one[0]) {
+                size_t used = strlen(problems);
+                snprintf(problems + used, sizeof problems - used, "%s%s", used ? "; " : "", one);
+            }
+        }
+    }
+    if (!problems[0]) return 0;
+    mb_error(inst, "InvalidInputError", "%s", problems);
+    return 1;
+}
+
+fmi2Status fmi2ExitInitializationMode(fmi2Component c)
+{
+    if (!usable(c)) return fmi2Error;
+    mb_instance *inst = c;
+    if (!check(inst, "fmi2ExitInitializationMode", inst->phase == INITIALIZATION, "only allowed in initialization mode")) return fmi2Error;
+    inst->phase = STEPPING;
+    layer_state *s = LAYER(inst);
+    s->initialized = 1;
+    if (check_start(inst) || MODEL_INIT(inst, s->start_time)) {
+        record_failure(inst, "in initialization");
+        return fmi2Error;
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2Terminate(fmi2Component c)
+{
+    if (!usable(c)) return fmi2Error;
+    ((mb_instance *)c)->phase = TERMINATED;
+    return fmi2OK;
+}
+
+fmi2Status fmi2Reset(fmi2Component c)
+{
+    if (!usable(c)) return fmi2Error;
+    mb_instance *inst = c;
+    load_starts(inst);
+    inst->phase = INSTANTIATED;
+    return fmi2OK;
+}
+
+/* ------------------------------------------------------------------- get and set */
+/* Outputs read in initialization mode are computed from the parameters and inputs set so
+   far (as the Reference FMUs do), so that an importer that propagates values during
+   initialization (libcosim) starts every FMU from its neighbours' initial outputs. If the
+   model cannot compute them yet, they keep their start values; fmi2ExitInitializationMode
+   reports the problem. */
+static void evaluate_initial(mb_instance *inst)
+{
+    if (inst->phase != INITIALIZATION || !inst->dirty) return;
+    inst->dirty = 0;
+    memcpy(inst->backup, inst->block, inst->size);
+    if (MODEL_INIT(inst, LAYER(inst)->start_time)) memcpy(inst->block, inst->backup, inst->size);
+}
+
+static int valid_vr(mb_instance *inst, const char *function, fmi2ValueReference vr, int type)
+{
+    if (vr >= (fmi2ValueReference)MB_MODEL.nvars || MB_MODEL.vars[vr].type != type) {
+        logf_(inst, fmi2Error, CAT_ERROR, "%s: no %s variable has value reference %u", function,
+              type == MB_REAL ? "Real" : "Integer", (unsigned)vr);
+        return 0;
+    }
+    return 1;
+}
+
+/* May the variable be set now? (outputs never; parameters before the end of
+   initialization; inputs always). Ranges are checked at fmi2ExitInitializationMode. */
+static int settable(mb_instance *inst, const char *function, fmi2ValueReference vr)
+{
+    const mb_var *v = &MB_MODEL.vars[vr];
+    if (v->causality == MB_OUTPUT || v->causality == MB_LOCAL) {
+        logf_(inst, fmi2Error, CAT_ERROR, "%s: %s is an output and cannot be set", function, v->name);
+        return 0;
+    }
+    if (v->causality == MB_PARAMETER) {
+        if (inst->phase != INSTANTIATED && inst->phase != INITIALIZATION) {
+            logf_(inst, fmi2Error, CAT_ERROR, "%s: parameter %s is fixed after initialization", function, v->name);
+            return 0;
+        }
+    }
+    return 1;
+}
+
+fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
+{
+    if (!usable(c)) return fmi2Error;
+    mb_instance *inst = c;
+    evaluate_initial(inst);
+    const double *r = REALS(inst);
+    for (size_t k = 0; k < nvr; k++) {
+        if (!valid_vr(inst, "fmi2GetReal", vr[k], MB_REAL)) return fmi2Error;
+        value[k] = r[vr[k]];
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[])
+{
+    if (!usable(c)) return fmi2Error;
+    mb_instance *inst = c;
+    evaluate_initial(inst);
+    const int *iv = INTS(inst);
+    for (size_t k = 0; k < nvr; k++) {
+        if (!valid_vr(inst, "fmi2GetInteger", vr[k], MB_INTEGER)) return fmi2Error;
+        value[k] = iv[vr[k]];
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[])
+{
+    if (!usable(c)) return fmi2Error;
+    mb_instance *inst = c;
+    double *r = REALS(inst);
+    for (size_t k = 0; k < nvr; k++) {
+        if (!valid_vr(inst, "fmi2SetReal", vr[k], MB_REAL) || !settable(inst, "fmi2SetReal", vr[k]))
+            return fmi2Error;
+        r[vr[k]] = value[k];
+    }
+    inst->dirty = 1;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[])
+{
+    if (!usable(c)) return fmi2Error;
+    mb_instance *inst = c;
+    int *iv = INTS(inst);
+    for (size_t k = 0; k < nvr; k++) {
+        if (!valid_vr(inst, "fmi2SetInteger", vr[k], MB_INTEGER) ||
+            !settable(inst, "fmi2SetInteger", vr[k]))
+            return fmi2Error;
+        iv[vr[k]] = value[k];
+    }
+    inst->dirty = 1;
+    return fmi2OK;
+}
+
+static fmi2Status no_variables(fmi2Component c, const char *function, size_t nvr, const char *type)
+{
+    if (!usable(c)) return fmi2Error;
+    if (nvr == 0) return fmi2OK;
+    logf_(c, fmi2Error, CAT_ERROR, "%s: %s has no %s variables", function, MB_MODEL.identifier, type);
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[])
+{
+    (void)vr, (void)value;
+    return no_variables(c, "fmi2GetBoolean", nvr, "Boolean");
+}
+
+fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[])
+{
+    (void)vr, (void)value;
+    return no_variables(c, "fmi2SetBoolean", nvr, "Boolean");
+}
+
+fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[])
+{
+    (void)vr, (void)value;
+    return no_variables(c, "fmi2GetString", nvr, "String");
+}
+
+fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[])
+{
+    (void)vr, (void)value;
+    return no_variables(c, "fmi2SetString", nvr, "String");
+}
+
+/* ---------------------------------------------------------------------- stepping */
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
+                      fmi2Boolean noSetFMUStatePriorToCurrentPoint)
+{
+    (void)noSetFMUStatePriorToCurrentPoint;
+    if (!usable(c)) return fmi2Error;
+    mb_instance *inst = c;
+    layer_state *s = LAYER(inst);
+    if (!check(inst, "fmi2DoStep", inst->phase == STEPPING, "only allowed after fmi2ExitInitializationMode")) return fmi2Error;
+    if (s->failed) {
+        logf_(inst, fmi2Error, CAT_ERROR, "refusing doStep at t=%.6g s after: %s", currentCommunicationPoint,
+              s->failure);
+        return fmi2Discard;
+    }
+    double t = currentCommunicationPoint, h = communicationStepSize;
+    if (!isfinite(t) || !isfinite(h) || h < 0) {
+        mb_error(inst, "ValueError", "communication step from t=%.17g over h=%.17g s is not a finite, non-negative step", t, h);
+    } else {
+        memcpy(inst->backup, inst->block, inst->size);
+        if (!MODEL_STEP(inst, t, h)) {
+            s->time = t + h;
+            return fmi2OK;
+        }
+        memcpy(inst->block, inst->backup, inst->size);   /* outputs keep the last accepted state */
+    }
+    char when[64];
+    snprintf(when, sizeof when, "at t=%.6g s", t);
+    record_failure(inst, when);
+    return fmi2Discard;
+}
+
+fmi2Status fmi2CancelStep(fmi2Component c)
+{
+    if (!usable(c)) return fmi2Error;
+    logf_(c, fmi2Error, CAT_ERROR, "fmi2CancelStep: fmi2DoStep never returns fmi2Pending, nothing to cancel");
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value)
+{
+    if (!usable(c)) return fmi2Error;
+    if (s == fmi2DoStepStatus) {   /* doStep is synchronous: the last one is done */
+        *value = LAYER((mb_instance *)c)->failed ? fmi2Discard : fmi2OK;
+        return fmi2OK;
+    }
+    logf_(c, fmi2Error, CAT_ERROR, "fmi2GetStatus: status kind %d is not an fmi2Status", (int)s);
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value)
+{
+    if (!usable(c)) return fmi2Error;
+    if (s == fmi2LastSuccessfulTime) {
+        *value = LAYER((mb_instance *)c)->time;
+        return fmi2OK;
+    }
+    logf_(c, fmi2Error, CAT_ERROR, "fmi2GetRealStatus: only fmi2LastSuccessfulTime is a Real status");
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value)
+{
+    (void)value;
+    if (!usable(c)) return fmi2Error;
+    logf_(c, fmi2Error, CAT_ERROR, "fmi2GetIntegerStatus: no Integer status (kind %d)", (int)s);
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value)
+{
+    if (!usable(c)) return fmi2Error;
+    if (s == fmi2Terminated) {   /* a failed instance has ended its simulation */
+        *value = LAYER((mb_instance *)c)->failed ? fmi2True : fmi2False;
+        return fmi2OK;
+    }
+    logf_(c, fmi2Error, CAT_ERROR, "fmi2GetBooleanStatus: only fmi2Terminated is a Boolean status");
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value)
+{
+    (void)value;
+    if (!usable(c)) return fmi2Error;
+    logf_(c, fmi2Error, CAT_ERROR, "fmi2GetStringStatus: no String status (kind %d)", (int)s);
+    return fmi2Error;
+}
+
+fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                       const fmi2Integer order[], const fmi2Real value[])
+{
+    (void)vr, (void)nvr, (void)order, (void)value;
+    if (!usable(c)) return fmi2Error;
+    logf_(c, fmi2Error, CAT_ERROR, "fmi2SetRealInputDerivatives: canInterpolateInputs is false");
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                        const fmi2Integer order[], fmi2Real value[])
+{
+    (void)vr, (void)nvr, (void)order, (void)value;
+    if (!usable(c)) return fmi2Error;
+    logf_(c, fmi2Error, CAT_ERROR, "fmi2GetRealOutputDerivatives: maxOutputDerivativeOrder is 0");
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
+                                        const fmi2ValueReference vKnown_ref[], size_t nKnown,
+                                        const fmi2Real dvKnown[], fmi2Real dvUnknown[])
+{
+    (void)vUnknown_ref, (void)nUnknown, (void)vKnown_ref, (void)nKnown, (void)dvKnown, (void)dvUnknown;
+    if (!usable(c)) return fmi2Error;
+    logf_(c, fmi2Error, CAT_ERROR, "fmi2GetDirectionalDerivative: providesDirectionalDerivative is false");
+    return fmi2Error;
+}
+
+/* ------------------------------------------------------------------- FMU states */
+fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
+{
+    if (!usable(c) || !FMUstate) return fmi2Error;
+    mb_instance *inst = c;
+    saved_state *st = *FMUstate;
+    if (st && st->size != inst->size) {
+        logf_(inst, fmi2Error, CAT_ERROR, "fmi2GetFMUstate: the given state is not one of this FMU's");
+        return fmi2Error;
+    }
+    if (!st) {
+        st = calloc(1, sizeof *st + inst->size);
+        if (!st) return fmi2Error;
+        st->size = inst->size;
+    }
+    memcpy(st->data, inst->block, inst->size);
+    *FMUstate = st;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
+{
+    if (!usable(c)) return fmi2Error;
+    mb_instance *inst = c;
+    saved_state *st = FMUstate;
+    if (!st || st->size != inst->size) {
+        logf_(inst, fmi2Error, CAT_ERROR, "fmi2SetFMUstate: the given state is not one of this FMU's");
+        return fmi2Error;
+    }
+    memcpy(inst->block, st->data, inst->size);
+    inst->phase = LAYER(inst)->initialized ? STEPPING : INSTANTIATED;
+    return fmi2OK;
+}
+
+fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
+{
+    if (!usable(c)) return fmi2Error;
+    if (FMUstate) {
+        free(*FMUstate);
+        *FMUstate = NULL;
+    }
+    return fmi2OK;
+}
+
+/* Serialised: MAGIC, the block size as 8 bytes, the model identifier (ID_BYTES, zero
+   padded), the block (this platform's doubles). */
+enum { ID_BYTES = 64, HEADER = sizeof MAGIC + 8 + ID_BYTES };
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
+{
+    if (!usable(c)) return fmi2Error;
+    (void)FMUstate;
+    *size = HEADER + ((mb_instance *)c)->size;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[], size_t size)
+{
+    if (!usable(c)) return fmi2Error;
+    mb_instance *inst = c;
+    saved_state *st = FMUstate;
+    if (!st || st->size != inst->size || size < HEADER + st->size) {
+        logf_(inst, fmi2Error, CAT_ERROR, "fmi2SerializeFMUstate: no state of this FMU, or the buffer is too small");
+        return fmi2Error;
+    }
+    unsigned long long n = st->size;
+    memcpy(serializedState, MAGIC, sizeof MAGIC);
+    memcpy(serializedState + sizeof MAGIC, &n, 8);
+    memset(serializedState + sizeof MAGIC + 8, 0, ID_BYTES);
+    strncpy((char *)serializedState + sizeof MAGIC + 8, MB_MODEL.identifier, ID_BYTES - 1);
+    memcpy(serializedState + HEADER, st->data, st->size);
+    return fmi2OK;
+}
+
+fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
+                                   fmi2FMUstate *FMUstate)
+{
+    if (!usable(c) || !FMUstate) return fmi2Error;
+    mb_instance *inst = c;
+    unsigned long long n = 0;
+    if (size >= sizeof MAGIC + 8) memcpy(&n, serializedState + sizeof MAGIC, 8);
+    if (size != HEADER + inst->size || memcmp(serializedState, MAGIC, sizeof MAGIC) != 0 || n != inst->size ||
+        strncmp((const char *)serializedState + sizeof MAGIC + 8, MB_MODEL.identifier, ID_BYTES) != 0) {
+        logf_(inst, fmi2Error, CAT_ERROR, "fmi2DeSerializeFMUstate: the bytes are not a serialised %s state (%zu bytes)",
+              MB_MODEL.identifier, size);
+        return fmi2Error;
+    }
+    saved_state *st = *FMUstate;
+    if (st && st->size != inst->size) return fmi2Error;
+    if (!st) {
+        st = calloc(1, sizeof *st + inst->size);
+        if (!st) return fmi2Error;
+        st->size = inst->size;
+    }
+    memcpy(st->data, serializedState + HEADER, inst->size);
+    *FMUstate = st;
+    return fmi2OK;
+}
+
+/* ------------------------------------------- model exchange: not this FMU's type */
+#define NOT_ME(call) \
+    logf_(c, fmi2Error, CAT_ERROR, "%s: %s is a co-simulation FMU", call, MB_MODEL.identifier); \
+    return fmi2Error;
+
+fmi2Status fmi2EnterEventMode(fmi2Component c) { NOT_ME("fmi2EnterEventMode") }
+fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *e) { (void)e; NOT_ME("fmi2NewDiscreteStates") }
+fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) { NOT_ME("fmi2EnterContinuousTimeMode") }
+fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean a, fmi2Boolean *b, fmi2Boolean *d)
+{ (void)a, (void)b, (void)d; NOT_ME("fmi2CompletedIntegratorStep") }
+fmi2Status fmi2SetTime(fmi2Component c, fmi2Real t) { (void)t; NOT_ME("fmi2SetTime") }
+fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t n) { (void)x, (void)n; NOT_ME("fmi2SetContinuousStates") }
+fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real d[], size_t n) { (void)d, (void)n; NOT_ME("fmi2GetDerivatives") }
+fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real e[], size_t n) { (void)e, (void)n; NOT_ME("fmi2GetEventIndicators") }
+fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t n) { (void)x, (void)n; NOT_ME("fmi2GetContinuousStates") }
+fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x[], size_t n) { (void)x, (void)n; NOT_ME("fmi2GetNominalsOfContinuousStates") }

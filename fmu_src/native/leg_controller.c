@@ -1,0 +1,110 @@
+/* LegController, native: the variables of fmu_src/leg_controller_fmu.py over the
+   single-state inverse dynamics of the hexapod kernel (plant/c/hexapod.h) and the PID of
+   controller/c/pid.h, with the checks, messages and saturation warning of the Python FMU.
+   The eight inputs (reference pose/rate/acc, leg length/rate, base pose/rate/acc) are
+   consecutive value references: one NaN/inf check, rows read in place. */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "LegController_vars.h"
+#include "hexapod.h"
+#include "pid.h"
+
+typedef struct {
+    int base_mode, legs, feedforward_on, saturated;
+} Model;
+
+static const char *const INPUT_NAMES[8] = {"reference_pose", "reference_rate", "reference_acc", "leg_length",
+                                           "leg_rate", "base_pose", "base_rate", "base_acc"};
+
+/* Forces from the inputs now; the integral advances only on a real step (h > 0 given). */
+static int update(mb_instance *inst, double *r, Model *m, int stepping, double h)
+{
+    const double *in = &r[VR_reference_pose];
+    char bad[160];
+    if (mb_nonfinite_rows(8, 6, in, INPUT_NAMES, bad, sizeof bad)) {
+        mb_error(inst, "InvalidInputError", "%s input contains NaN or inf", bad);
+        return 1;
+    }
+    const double *ref = in, *ref_rate = in + 6, *ref_acc = in + 12, *lengths = in + 18, *rates = in + 24;
+    const double *base = in + 30;
+    double ff[6], ref_lengths[6], ref_rates[6];
+    double det = mb_hexapod_inverse_dynamics(BASE_JOINTS, PLATFORM_JOINTS, KERNEL_DATA, ref, ref_rate, ref_acc,
+                                             base, base + 6, base + 12, m->base_mode, m->legs, ff, ref_lengths,
+                                             ref_rates);
+    if (fabs(det) < SINGULAR_RATIO * HOME_DET) {
+        mb_error(inst, "SingularConfigurationError", "singular configuration: |det J| is %.2e of its home value (< %s)",
+                 fabs(det) / HOME_DET, SINGULAR_RATIO_TEXT);
+        return 1;
+    }
+    if (!m->feedforward_on) memset(ff, 0, sizeof ff);
+    double *forces = &r[VR_leg_force], *integral = &r[VR_integral];
+    if (!stepping) {
+        memcpy(forces, ff, sizeof ff);
+    } else {
+        double error[6], error_rate[6], new_integral[6];
+        for (int k = 0; k < 6; k++) {
+            error[k] = ref_lengths[k] - lengths[k];
+            error_rate[k] = ref_rates[k] - rates[k];
+        }
+        mb_pid_update(r[VR_kp], r[VR_ki], r[VR_kd], r[VR_force_limit], 6, integral, error, error_rate, ff, h, forces,
+                      new_integral);
+        memcpy(integral, new_integral, sizeof new_integral);
+    }
+    memcpy(&r[VR_feedforward_force], ff, sizeof ff);
+    return 0;
+}
+
+static int init(mb_instance *inst, double *r, int *i, void *model, double start_time)
+{
+    char buf[32];
+    (void)start_time;
+    Model *m = model;
+    int mode = i[VR_feedforward];
+    if (mode < 0 || mode >= N_FEEDFORWARD_NAMES) {
+        mb_error(inst, "IndexError", "feedforward %d is not one of 0..%d", mode, N_FEEDFORWARD_NAMES - 1);
+        return 1;
+    }
+    static const char *const GAINS[3] = {"kp", "ki", "kd"};
+    const double gains[3] = {r[VR_kp], r[VR_ki], r[VR_kd]};
+    for (int k = 0; k < 3; k++) {   /* controller.pid.PIDGains */
+        if (!(isfinite(gains[k]) && gains[k] >= 0)) {
+            mb_error(inst, "ValueError", "gain %s must be finite and >= 0, got %s", GAINS[k], mb_repr(gains[k], buf));
+            return 1;
+        }
+    }
+    if (!(isfinite(r[VR_force_limit]) && r[VR_force_limit] > 0)) {
+        mb_error(inst, "ValueError", "force_limit must be finite and > 0, got %s", mb_repr(r[VR_force_limit], buf));
+        return 1;
+    }
+    int fidelity = FEEDFORWARD_FIDELITY[mode];
+    m->base_mode = FIDELITY_BASE_MODE[fidelity];
+    m->legs = FIDELITY_LEGS[fidelity];
+    m->feedforward_on = mode != FEEDFORWARD_NONE;
+    m->saturated = 0;
+    return update(inst, r, m, 0, 0.0);
+}
+
+static int step(mb_instance *inst, double *r, int *i, void *model, double t, double h)
+{
+    (void)i;
+    Model *m = model;
+    if (update(inst, r, m, 1, h)) return 1;
+    const double *forces = &r[VR_leg_force], limit = r[VR_force_limit];
+    char legs[32] = "";
+    size_t used = 0;
+    int saturated = 0;
+    for (int k = 0; k < 6; k++) {
+        if (fabs(forces[k]) >= limit) {
+            used += (size_t)snprintf(legs + used, sizeof legs - used, "%s%d", saturated ? ", " : "", k + 1);
+            saturated = 1;
+        }
+    }
+    if (saturated && !m->saturated)   /* say so once per episode: an unstable loop saturates quietly */
+        mb_warning(inst, "leg forces saturated at +-%g N at t=%.6g s (legs %s)", limit, t + h, legs);
+    m->saturated = saturated;
+    return 0;
+}
+
+const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), init, step};

@@ -1,0 +1,65 @@
+#ifndef MB_MODEL_H
+#define MB_MODEL_H
+/* What one model file (hexapod_plant.c, telescope_base.c, ...) gives the shared FMI 2.0
+   co-simulation layer (fmi2_layer.c), and what the layer gives it back.
+
+   Every variable lives in one of two arrays indexed by value reference: r[vr] for Reals,
+   i[vr] for Integers (the vr namespace is shared, as pythonfmu numbers them); vector
+   elements name[1..n] have consecutive vrs, so a model passes &r[VR_name] to a kernel.
+   The variable table (names, types, causalities, starts, ranges) is generated from the
+   pythonfmu FMU at build time (fmu_src/native_build.py) into <modelIdentifier>_vars.h.
+   The model keeps its own state in a plain struct (no pointers) of model_size bytes, so
+   the layer saves, restores and serialises an FMU state as bytes. */
+#include <stddef.h>
+
+enum mb_type { MB_REAL = 0, MB_INTEGER = 1 };
+enum mb_causality { MB_PARAMETER = 0, MB_INPUT = 1, MB_OUTPUT = 2, MB_LOCAL = 3 };
+
+typedef struct {
+    const char *name;
+    const char *unit;  /* "" when none */
+    int type;          /* enum mb_type */
+    int causality;     /* enum mb_causality */
+    double start;
+    int has_min, has_max;
+    double min, max;
+    int n_allowed;     /* > 0: an Integer whose range has gaps takes only these values */
+    int allowed[4];
+} mb_var;
+
+typedef struct mb_instance mb_instance;
+
+typedef struct {
+    const char *identifier;
+    const char *guid;
+    int nvars;
+    const mb_var *vars;
+    size_t model_size;
+    /* exitInitializationMode: outputs at the start time from the parameters and inputs.
+       Returns 0, or 1 after mb_error. */
+    int (*init)(mb_instance *inst, double *r, int *i, void *model, double start_time);
+    /* doStep(t, h): returns 0 (accepted), or 1 after mb_error (the layer answers
+       fmi2Discard and restores r, i and the model to their state before the step). */
+    int (*step)(mb_instance *inst, double *r, int *i, void *model, double t, double h);
+} mb_model_info;
+
+extern const mb_model_info MB_MODEL;
+
+/* Record the failure of init/step: kind names it as the Python FMU's exception class
+   does (InvalidInputError, StrokeError, ...); the layer adds when it happened and logs
+   it at error level. */
+void mb_error(mb_instance *inst, const char *kind, const char *fmt, ...);
+
+/* A warning log line (category logStatusWarning). */
+void mb_warning(mb_instance *inst, const char *fmt, ...);
+
+/* v as Python's repr(float) writes it (shortest round trip, "0.0", "1e-05"), into buf
+   (at least 32 chars); returns buf. For messages worded as the Python FMUs word them. */
+const char *mb_repr(double v, char *buf);
+
+/* "a, b" list of the names whose row of `width` values in `rows` holds NaN or inf,
+   written into out (size n); returns the number of such rows. */
+int mb_nonfinite_rows(int nrows, int width, const double *rows, const char *const *names,
+                      char *out, size_t n);
+
+#endif

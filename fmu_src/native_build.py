@@ -1,0 +1,266 @@
+"""Native FMI 2.0 co-simulation FMUs of the kit: the same variables as the pythonfmu FMUs,
+compiled from C (fmu_src/native/: one FMI layer and one model file per FMU, over the
+plant/controller C kernels), so that a host needs no Python.
+
+Nothing is typed twice. From the pythonfmu FMU (after fmu_src/builder.py has added units
+and ranges) this takes the modelDescription.xml (new guid, generation tool, SourceFiles,
+FMU-state capabilities) and, from an instance of its slave class, the exact start values;
+from the Python sources of truth (StewartParams.paper(), TelescopeParams.tianma(),
+mechanism3t_kernel.pack) the numbers the C needs. Both go into a generated header
+<modelIdentifier>_vars.h. The binary is compiled by the machine's cc with the flags of the
+cffi build (kernel_build.CFLAGS), so native and Python results agree bit for bit.
+"""
+import os
+import pathlib
+import shutil
+import subprocess
+import sys
+import tempfile
+import uuid
+import zipfile
+import xml.etree.ElementTree as ET
+
+import fmpy
+import numpy as np
+from fmpy.validation import validate_fmu
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+NATIVE = ROOT / "fmu_src" / "native"
+KERNELS = (ROOT / "plant" / "c", ROOT / "controller" / "c")
+FMI_HEADERS = pathlib.Path(fmpy.__file__).parent / "c-code"
+CFLAGS = ["-shared", "-fPIC", "-O2", "-std=c99", "-ffp-contract=off", "-fvisibility=hidden"]
+MODEL_FILES = {"HexapodPlant": "hexapod_plant.c", "TelescopeBase": "telescope_base.c",
+               "LegController": "leg_controller.c", "Mechanism3TPlant": "mechanism3t_plant.c",
+               "SliderController": "slider_controller.c"}
+_CAUSALITY = {"parameter": "MB_PARAMETER", "input": "MB_INPUT", "output": "MB_OUTPUT", "local": "MB_LOCAL"}
+
+
+def _c(value):
+    """A C literal that parses to exactly this double (repr round-trips)."""
+    value = float(value)
+    if np.isnan(value):
+        return "NAN"
+    if np.isinf(value):
+        return "INFINITY" if value > 0 else "-INFINITY"
+    text = repr(value)
+    return text if any(ch in text for ch in ".en") else text + ".0"
+
+
+def _array(name, values):
+    values = np.asarray(values, dtype=float).ravel()
+    return f"static const double {name}[{values.size}] = {{{', '.join(map(_c, values))}}};"
+
+
+def _stewart_constants():
+    from plant.stewart import FIDELITIES, SINGULAR_RATIO, StewartParams, fidelity_mode
+    p = StewartParams.paper()
+    modes = [fidelity_mode(f) for f in FIDELITIES]
+    return [_array("BASE_JOINTS", p.base_joints), _array("PLATFORM_JOINTS", p.platform_joints),
+            _array("KERNEL_DATA", p.kernel_data), _array("HOME_LENGTHS", p.home_lengths),
+            f"static const double HOME_DET = {_c(p.home_det)};",
+            f"static const double SINGULAR_RATIO = {_c(SINGULAR_RATIO)};",
+            f'#define SINGULAR_RATIO_TEXT "{SINGULAR_RATIO}"',
+            f"static const int FIDELITY_BASE_MODE[{len(modes)}] = {{{', '.join(str(int(m)) for m, _ in modes)}}};",
+            f"static const int FIDELITY_LEGS[{len(modes)}] = {{{', '.join(str(int(bool(l))) for _, l in modes)}}};",
+            _strings("FIDELITY_NAMES", FIDELITIES)]
+
+
+def _strings(name, values):
+    return (f"#define N_{name} {len(values)}\n"
+            f"static const char *const {name}[{len(values)}] = {{{', '.join(chr(34) + v + chr(34) for v in values)}}};")
+
+
+def _integrators():
+    from plant.integrators import INTEGRATORS
+    return [_strings("INTEGRATOR_NAMES", INTEGRATORS),
+            f"enum {{ INTEGRATOR_RK4 = {INTEGRATORS.index('rk4')}, INTEGRATOR_EULER = {INTEGRATORS.index('euler')}, "
+            f"INTEGRATOR_RADAU = {INTEGRATORS.index('radau')} }};"]
+
+
+def _hexapod_plant():
+    return _stewart_constants() + _integrators()
+
+
+def _leg_controller():
+    from controller.feedforward import FEEDFORWARD_MODES, model_fidelity
+    from plant.stewart import FIDELITIES
+    fid = [FIDELITIES.index(model_fidelity(m)) for m in FEEDFORWARD_MODES]
+    return _stewart_constants() + [
+        _strings("FEEDFORWARD_NAMES", FEEDFORWARD_MODES),
+        f"static const int FEEDFORWARD_FIDELITY[{len(fid)}] = {{{', '.join(map(str, fid))}}};",
+        f"enum {{ FEEDFORWARD_NONE = {FEEDFORWARD_MODES.index('none')} }};"]
+
+
+def _telescope_base():
+    from fmu_src.telescope_fmu import BLOCK, PROFILES
+    from plant.stewart import HOME_POSE, S_BAND_POSE
+    from plant.telescope import TelescopeParams
+    t = TelescopeParams.tianma()
+    fields = ("b_y", "c_y", "b_z", "c_z")
+    return [_strings("PROFILE_NAMES", PROFILES), f"#define BLOCK {BLOCK}",
+            *(f"static const double TIANMA_{f.upper()} = {_c(getattr(t, f))};" for f in fields),
+            _array("TIANMA_HOME", t.home), _array("HOME_POSE", HOME_POSE), _array("S_BAND_POSE", S_BAND_POSE),
+            f"enum {{ PROFILE_SLEW = {PROFILES.index('slew')}, PROFILE_SIDEREAL = {PROFILES.index('sidereal')}, "
+            f"PROFILE_PAPER = {PROFILES.index('paper')} }};"]
+
+
+def _mechanism3t():
+    from plant import mechanism3t_kernel as kernel
+    from plant.mechanism3t import Mechanism1Params
+    return [_array("PACKED", kernel.pack(Mechanism1Params.paper()))] + _integrators()
+
+
+CONSTANTS = {"HexapodPlant": _hexapod_plant, "TelescopeBase": _telescope_base, "LegController": _leg_controller,
+             "Mechanism3TPlant": _mechanism3t, "SliderController": _mechanism3t}
+
+
+def _c_name(name):
+    return name.split("[", 1)[0]
+
+
+def starts(slave):
+    """value reference -> start value of the slave instance, exactly."""
+    from pythonfmu.variables import Real
+    return {vr: (slave.get_real([vr]) if isinstance(var, Real) else slave.get_integer([vr]))[0]
+            for vr, var in slave.vars.items()}
+
+
+def vars_header(identifier, guid, slave, root):
+    """The generated C header: guid, one VR_ constant per variable (a vector's first
+    element), the variable table with exact starts and the XML's ranges, the constants."""
+    xml_vars = {v.get("name"): v for v in root.iter("ScalarVariable")}
+    exact = starts(slave)
+    allowed = slave.allowed   # Integers whose range has gaps (slave.py)
+    rows, enums, seen = [], [], {}
+    for vr, var in sorted(slave.vars.items()):
+        element = xml_vars[var.name]
+        kind = element[0]
+        is_real = kind.tag == "Real"
+        start = exact[vr]
+        limits = [(1, _c(kind.get(k))) if kind.get(k) is not None else (0, "0.0") for k in ("min", "max")]
+        rows.append(f'    {{"{var.name}", "{kind.get("unit", "")}", {"MB_REAL" if is_real else "MB_INTEGER"}, '
+                    f'{_CAUSALITY[element.get("causality", "local")]}, {_c(start)}, '
+                    f"{limits[0][0]}, {limits[1][0]}, {limits[0][1]}, {limits[1][1]}, "
+                    f"{len(allowed.get(var.name, ()))}, {{{', '.join(map(str, allowed.get(var.name, ()))) or '0'}}}}},")
+        base = _c_name(var.name)
+        index = int(var.name.split("[", 1)[1].rstrip("]")) if "[" in var.name else 1
+        if base not in seen:
+            seen[base] = vr
+            enums.append(f"    VR_{base} = {vr},")
+        elif seen[base] + index - 1 != vr:
+            raise RuntimeError(f"{identifier}: elements of {base} do not have consecutive value references")
+    lines = [f"/* Generated by fmu_src/native_build.py from the pythonfmu {identifier}: do not edit. */",
+             f"#ifndef MB_{identifier.upper()}_VARS_H", f"#define MB_{identifier.upper()}_VARS_H",
+             "#include <math.h>", '#include "model.h"', f'#define MB_IDENTIFIER "{identifier}"',
+             f'#define MB_GUID "{guid}"', f"#define MB_NVARS {len(rows)}", "enum {", *enums, "};",
+             "static const mb_var MB_VARS[MB_NVARS] = {", *rows, "};", *CONSTANTS[identifier](), "#endif", ""]
+    return "\n".join(lines)
+
+
+def model_description(xml_text, guid, sources, exact):
+    """The pythonfmu modelDescription made the native FMU's: guid, tool, capabilities,
+    SourceFiles; Real starts (``exact``: by value reference) written to round-trip
+    (pythonfmu rounds them to 16 digits)."""
+    root = ET.fromstring(xml_text)
+    for var in root.iter("ScalarVariable"):
+        real = var.find("Real")
+        if real is not None and real.get("start") is not None:
+            real.set("start", repr(float(exact[int(var.get("valueReference"))])))
+    root.set("guid", guid)
+    root.set("generationTool", "movingbase fmu_src/native_build.py (FMI 2.0 C, no Python at run time)")
+    cs = root.find("CoSimulation")
+    cs.set("needsExecutionTool", "false")
+    cs.set("canGetAndSetFMUstate", "true")
+    cs.set("canSerializeFMUstate", "true")
+    files = ET.SubElement(cs, "SourceFiles")
+    for name in sources:
+        if name.endswith(".c"):
+            ET.SubElement(files, "File", name=name)
+    return root
+
+
+def _sources(identifier):
+    """Every C file the FMU's binary is built from (flat names, as in the FMU's sources/)."""
+    files = [NATIVE / "fmi2_layer.c", NATIVE / MODEL_FILES[identifier], *sorted(NATIVE.glob("*.h"))]
+    for folder in KERNELS:
+        files += sorted(folder.glob("*.c")) + sorted(folder.glob("*.h"))
+    return files
+
+
+def compile_binary(source_dir, c_files, target, defines=()):
+    """cc the sources into one shared library; raises with the compiler's output on failure."""
+    cc = os.environ.get("CC", "cc")
+    cmd = [cc, *CFLAGS, *(f"-D{d}" for d in defines), f"-I{FMI_HEADERS}", f"-I{source_dir}",
+           *(str(source_dir / f) for f in c_files), "-o", str(target), "-lm"]
+    run = subprocess.run(cmd, capture_output=True, text=True)
+    if run.returncode:
+        raise RuntimeError(f"compiling {target.name} failed:\n{' '.join(cmd)}\n{run.stderr}")
+
+
+def build_native(python_fmu, out, empty=False):
+    """The native FMU of the pythonfmu FMU ``python_fmu`` in ``out`` (same file name);
+    ``empty``: the same interface with doStep and initialization doing nothing (the
+    exchange floor of benchmarks/bench_native.py)."""
+    from fmu_src import builder
+    python_fmu = pathlib.Path(python_fmu)
+    out = pathlib.Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(python_fmu) as z:
+        xml_text = z.read("modelDescription.xml").decode()
+    root = ET.fromstring(xml_text)
+    identifier = root.find("CoSimulation").get("modelIdentifier")
+    guid = "{" + str(uuid.uuid4()) + "}"
+    builder._import_path()
+    slave = builder.slave_instance(python_fmu)
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = pathlib.Path(tmp)
+        sources = tmp / "sources"
+        sources.mkdir()
+        for f in _sources(identifier):
+            shutil.copy(f, sources / f.name)
+        (sources / f"{identifier}_vars.h").write_text(vars_header(identifier, guid, slave, root))
+        names = sorted(p.name for p in sources.iterdir())
+        binaries = tmp / "binaries" / "linux64"
+        binaries.mkdir(parents=True)
+        compile_binary(sources, [n for n in names if n.endswith(".c")], binaries / f"{identifier}.so",
+                       ["MB_EMPTY_MODEL"] if empty else [])
+        md = model_description(xml_text, guid, names, starts(slave))
+        (tmp / "modelDescription.xml").write_text(ET.tostring(md, encoding="unicode", xml_declaration=True))
+        fmu = out / python_fmu.name
+        with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as z:
+            for path in sorted(tmp.rglob("*")):
+                if path.is_file():
+                    z.write(path, path.relative_to(tmp).as_posix())
+    problems = validate_fmu(str(fmu))
+    if problems:
+        raise RuntimeError(f"native {fmu.name} fails fmpy validation:\n" + "\n".join(problems))
+    return fmu
+
+
+def _inputs():
+    """Files a native FMU is made from: its C, and the Python its numbers come from."""
+    files = list(NATIVE.glob("*")) + [p for folder in KERNELS for p in folder.glob("*")]
+    files += [p for folder in ("plant", "controller", "fmu_src") for p in (ROOT / folder).glob("*.py")]
+    return files
+
+
+def ensure_native(scripts, out=None):
+    """Paths of the native FMUs of ``scripts`` (fmu_src/<script>.py names), rebuilt when
+    missing or older than their pythonfmu FMU or any file they are made from."""
+    from fmu_src import builder
+    out = pathlib.Path(out) if out is not None else builder.OUT / "native"
+    python = builder.ensure_built(scripts)
+    out.mkdir(parents=True, exist_ok=True)
+    newest = max(p.stat().st_mtime for p in _inputs())
+    paths = {}
+    for script in scripts:
+        target = out / python[script].name
+        if not (target.exists() and target.stat().st_mtime >= max(newest, python[script].stat().st_mtime)):
+            build_native(python[script], out)
+        paths[script] = target
+    return paths
+
+
+if __name__ == "__main__":   # python -m fmu_src.native_build [scripts]: build into build/fmu/native
+    for path in ensure_native(sys.argv[1:] or __import__("fmu_src.builder").builder.available()).values():
+        print(f"built {path}")
