@@ -58,7 +58,6 @@ static int update(mb_instance *inst, double *r, Model *m, int stepping, double h
 
 static int init(mb_instance *inst, double *r, int *i, void *model, double start_time)
 {
-    char buf[32];
     (void)start_time;
     Model *m = model;
     int mode = i[VR_feedforward];
@@ -66,18 +65,8 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
         mb_error(inst, "IndexError", "feedforward %d is not one of 0..%d", mode, N_FEEDFORWARD_NAMES - 1);
         return 1;
     }
-    static const char *const GAINS[3] = {"kp", "ki", "kd"};
-    const double gains[3] = {r[VR_kp], r[VR_ki], r[VR_kd]};
-    for (int k = 0; k < 3; k++) {   /* controller.pid.PIDGains */
-        if (!(isfinite(gains[k]) && gains[k] >= 0)) {
-            mb_error(inst, "ValueError", "gain %s must be finite and >= 0, got %s", GAINS[k], mb_repr(gains[k], buf));
-            return 1;
-        }
-    }
-    if (!(isfinite(r[VR_force_limit]) && r[VR_force_limit] > 0)) {
-        mb_error(inst, "ValueError", "force_limit must be finite and > 0, got %s", mb_repr(r[VR_force_limit], buf));
+    if (mb_check_pid_gains(inst, r[VR_kp], r[VR_ki], r[VR_kd], r[VR_force_limit]))
         return 1;
-    }
     int fidelity = FEEDFORWARD_FIDELITY[mode];
     m->base_mode = FIDELITY_BASE_MODE[fidelity];
     m->legs = FIDELITY_LEGS[fidelity];

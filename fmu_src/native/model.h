@@ -57,6 +57,10 @@ void mb_warning(mb_instance *inst, const char *fmt, ...);
    (at least 32 chars); returns buf. For messages worded as the Python FMUs word them. */
 const char *mb_repr(double v, char *buf);
 
+/* The checks of controller.pid.PIDGains (gains finite and >= 0, force_limit finite and
+   > 0): 0, or 1 after mb_error naming the gain. Both native controllers use it. */
+int mb_check_pid_gains(mb_instance *inst, double kp, double ki, double kd, double force_limit);
+
 /* "a, b" list of the names whose row of `width` values in `rows` holds NaN or inf,
    written into out (size n); returns the number of such rows. */
 int mb_nonfinite_rows(int nrows, int width, const double *rows, const char *const *names,

@@ -56,24 +56,13 @@ static int update(mb_instance *inst, double *r, int *i, double t, int stepping, 
 
 static int init(mb_instance *inst, double *r, int *i, void *model, double start_time)
 {
-    char buf[32];
     (void)model;
     if (i[VR_feedforward] != 0 && i[VR_feedforward] != 1) {
         mb_error(inst, "InvalidInputError", "feedforward must be 0 (off) or 1 (on), got %d", i[VR_feedforward]);
         return 1;
     }
-    static const char *const GAINS[3] = {"kp", "ki", "kd"};
-    const double gains[3] = {r[VR_kp], r[VR_ki], r[VR_kd]};
-    for (int k = 0; k < 3; k++) {   /* controller.pid.PIDGains */
-        if (!(isfinite(gains[k]) && gains[k] >= 0)) {
-            mb_error(inst, "ValueError", "gain %s must be finite and >= 0, got %s", GAINS[k], mb_repr(gains[k], buf));
-            return 1;
-        }
-    }
-    if (!(isfinite(r[VR_force_limit]) && r[VR_force_limit] > 0)) {
-        mb_error(inst, "ValueError", "force_limit must be finite and > 0, got %s", mb_repr(r[VR_force_limit], buf));
+    if (mb_check_pid_gains(inst, r[VR_kp], r[VR_ki], r[VR_kd], r[VR_force_limit]))
         return 1;
-    }
     memset(&r[VR_integral], 0, 3 * sizeof(double));
     return update(inst, r, i, start_time, 0, 0.0);
 }
