@@ -20,8 +20,11 @@
  *   wrapper answered fmi2Fatal and the slave had logged an fmi2Error during the call
  *   (GuardedSlave (fmu_src/slave.py) does so before it raises, and keeps the
  *   instance alive for later doStep/terminate/free), the call answers fmi2Error and
- *   the wrapper's fatal line is delivered as an error line. A fatal without the
- *   slave's error (an exception our slave did not catch) stays fmi2Fatal.
+ *   the wrapper's own fatal line is dropped: it says only "Fatal py exception
+ *   encountered: [exitInitializationMode] PyObject_CallMethod unknown error", against
+ *   the status, after the slave's line has said what is wrong. A fatal without the
+ *   slave's error (an exception our slave did not catch) stays fmi2Fatal, its
+ *   messages delivered as they came.
  *   fmi2SetupExperiment and fmi2EnterInitializationMode are forwarded unchanged:
  *   GuardedSlave leaves them to pythonfmu, whose methods do nothing, so a fatal there
  *   is one no slave code guarded, and fmi2Fatal is then the truth.
@@ -41,7 +44,6 @@
 #include <dlfcn.h>
 #include <link.h>
 #include <pthread.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -191,12 +193,14 @@ static void finalize_before_exit(void) {
 }
 
 /* ---------------------------------------------------------------------- logging */
+/* The wrapper passes each message as the format, with no arguments (a ctypes host such
+ * as fmpy reads that format as the text), so it is passed on unchanged the same way. */
 static void deliver(Shim *s, fmi2Status status, const char *category, const char *text) {
-    if (s->host.logger) s->host.logger(s->host.componentEnvironment, s->name, status, category, "%s", text);
+    if (s->host.logger) s->host.logger(s->host.componentEnvironment, s->name, status, category, text);
 }
 
-/* Keep a message (text is taken over) until release(); 0 if out of memory. */
-static int hold(Shim *s, fmi2Status status, const char *category, char *text) {
+/* Keep a copy of a message until release(); 0 if out of memory. */
+static int hold(Shim *s, fmi2Status status, const char *category, const char *text) {
     if (s->n_held == s->max_held) {
         size_t more = 2 * s->max_held + 4;
         Held *held = realloc(s->held, more * sizeof *held);
@@ -204,40 +208,33 @@ static int hold(Shim *s, fmi2Status status, const char *category, char *text) {
         s->held = held;
         s->max_held = more;
     }
-    char *copy = strdup(category);
-    if (!copy) return 0;
-    s->held[s->n_held++] = (Held){status, copy, text};
+    char *category_copy = strdup(category), *text_copy = strdup(text);
+    if (!category_copy || !text_copy) {
+        free(category_copy);
+        free(text_copy);
+        return 0;
+    }
+    s->held[s->n_held++] = (Held){status, category_copy, text_copy};
     return 1;
 }
 
-/* The wrapper's messages: formatted as the host's printf would have, then passed on or
- * held. */
+/* The wrapper's messages: passed on, or held during fmi2ExitInitializationMode. */
 static void logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status, fmi2String category,
                    fmi2String message, ...) {
     Shim *s = env;
-    va_list args, again;
     (void)instance;
-    va_start(args, message);
-    va_copy(again, args);
-    int n = vsnprintf(NULL, 0, message, args);
-    char *text = n >= 0 ? malloc((size_t)n + 1) : NULL;
-    if (text) vsnprintf(text, (size_t)n + 1, message, again);
-    va_end(again);
-    va_end(args);
-    if (!text) return;
+    if (!message) return;
+    if (!category) category = "";
     if (s->holding && status == fmi2Error) s->slave_error = 1;
-    if (!(s->holding && hold(s, status, category ? category : "", text))) {
-        deliver(s, status, category ? category : "", text);
-        free(text);
-    }
+    if (!(s->holding && hold(s, status, category, message))) deliver(s, status, category, message);
 }
 
-/* Deliver the held messages, a fatal as an error if ``fatal_as_error``. */
-static void release(Shim *s, int fatal_as_error) {
+/* Deliver the held messages; with ``drop_fatal``, not the wrapper's fatal ones. */
+static void release(Shim *s, int drop_fatal) {
     s->holding = 0;
     for (size_t i = 0; i < s->n_held; i++) {
         Held *m = &s->held[i];
-        deliver(s, fatal_as_error && m->status == fmi2Fatal ? fmi2Error : m->status, m->category, m->text);
+        if (!(drop_fatal && m->status == fmi2Fatal)) deliver(s, m->status, m->category, m->text);
         free(m->category);
         free(m->text);
     }
@@ -267,7 +264,7 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
     if (!functions) return NULL;
     if (!loaded()) {
         if (functions->logger) functions->logger(functions->componentEnvironment, name, fmi2Fatal, "logStatusFatal",
-                                                 "%s", load_error[0] ? load_error : "pythonfmu shim: not loaded");
+                                                 load_error[0] ? load_error : "pythonfmu shim: not loaded");
         return NULL;
     }
     Shim *s = calloc(1, sizeof *s);
