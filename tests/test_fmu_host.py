@@ -106,3 +106,15 @@ def test_discarded_step_keeps_the_last_accepted_outputs_and_time(hosted):
     (successful,), = run.lines("last_successful_time")
     assert successful == pytest.approx(last[0], abs=1e-12)
     assert "StrokeError" in run.stderr and "leg 1 length" in run.stderr
+
+
+def test_a_missing_pythonfmu_wrapper_is_named_by_the_shim(fmus, tmp_path):
+    """The shim (binaries/linux64/<id>.so) loads pythonfmu's wrapper from beside itself at
+    fmi2Instantiate: without it, instantiate answers NULL and the log names the file."""
+    fmu = HostFmu(fmus["telescope_fmu"], tmp_path)
+    wrapper = fmu.folder / "binaries" / "linux64" / "TelescopeBase.pythonfmu.so"
+    wrapper.unlink()
+    run = fmu.run(steps=1)
+    assert (run.returncode, run.signal) == (12, None), run.stderr
+    assert f"[Fatal] host logStatusFatal: pythonfmu shim: dlopen {wrapper}: " in run.stderr
+    assert "No such file" in run.stderr
