@@ -4,13 +4,18 @@
 pythonfmu packs each script of fmu_src/ (class __init__ runs here, at build time); this
 script then adds what pythonfmu leaves out: SI units with mm/deg display units and the
 parameters' min/max in modelDescription.xml, and resources/requirements.txt naming the Python packages the FMU
-needs at run time (pythonfmu's `deploy` installs from it). The CLI also builds each FMU's
-native C twin into <out>/native/ (fmu_src/native_build.py).
+needs at run time (pythonfmu's `deploy` installs from it). It puts fmu_src/pythonfmu_shim.c,
+compiled with the machine's cc, in front of pythonfmu's Linux wrapper (fmi2Error, not
+fmi2Fatal, for a failed initialization; a clean exit in a C host; see that file); the
+win64 DLL pythonfmu ships stays as it is. The CLI also builds each FMU's native C twin into
+<out>/native/ (fmu_src/native_build.py).
 """
 import argparse
 import importlib
 import json
+import os
 import pathlib
+import subprocess
 import sys
 import tempfile
 import zipfile
@@ -22,6 +27,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
+import fmpy
 from fmpy.validation import validate_fmu
 from pythonfmu.builder import FmuBuilder
 
@@ -30,6 +36,7 @@ from fmu_src import native_build
 ROOT = pathlib.Path(__file__).resolve().parent.parent   # the checkout, or site-packages
 PYPROJECT = ROOT / "pyproject.toml"
 OUT = (ROOT if PYPROJECT.exists() else pathlib.Path.cwd()) / "build" / "fmu"
+SHIM = ROOT / "fmu_src" / "pythonfmu_shim.c"
 SCRIPTS = ("hexapod_plant_fmu", "telescope_fmu", "leg_controller_fmu", "mechanism3t_fmu", "slider_controller_fmu")
 
 _BASE = {"m": {"m": "1"}, "rad": {"rad": "1"}, "s": {"s": "1"}, "N": {"kg": "1", "m": "1", "s": "-2"},
@@ -108,11 +115,33 @@ def _recorded(fmu):
     return slave.units, slave.ranges
 
 
-def _rewrite(fmu, units, ranges):
+def compile_shim(folder):
+    """fmu_src/pythonfmu_shim.c compiled into ``folder`` against fmpy's FMI 2 headers; its path."""
+    library = pathlib.Path(folder) / "pythonfmu_shim.so"
+    headers = pathlib.Path(fmpy.__file__).resolve().parent / "c-code"
+    cc = os.environ.get("CC", "cc")
+    command = [cc, "-shared", "-fPIC", "-O2", "-Wall", "-Wextra", "-Werror", "-I", str(headers), str(SHIM),
+               "-o", str(library), "-ldl", "-lpthread"]
+    try:
+        p = subprocess.run(command, capture_output=True, text=True)
+    except FileNotFoundError:
+        raise RuntimeError(f"no C compiler '{cc}' (set CC): it compiles {SHIM.name} into every pythonfmu FMU") from None
+    if p.returncode:
+        raise RuntimeError(f"compiling {SHIM.name} with {cc} failed:\n{p.stderr}")
+    return library
+
+
+def _rewrite(fmu, units, ranges, shim):
+    """Units and ranges into modelDescription.xml; the shim in front of the Linux wrapper,
+    which is kept beside it as <id>.pythonfmu.so."""
     with zipfile.ZipFile(fmu) as z:
         files = {name: z.read(name) for name in z.namelist()}
     xml_text = add_ranges(add_units(files["modelDescription.xml"].decode(), units), ranges)
     files["modelDescription.xml"] = xml_text.encode()
+    identifier = ET.fromstring(xml_text).find("CoSimulation").get("modelIdentifier")
+    wrapper = f"binaries/linux64/{identifier}.so"
+    files[f"binaries/linux64/{identifier}.pythonfmu.so"] = files.pop(wrapper)
+    files[wrapper] = pathlib.Path(shim).read_bytes()
     with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as z:
         for name, data in files.items():
             z.writestr(name, data)
@@ -143,7 +172,7 @@ def build(script, out):
             project_files.append(pathlib.Path(tmp) / name)
             project_files[-1].write_text(make())
         fmu = FmuBuilder.build_FMU(path, dest=out, project_files=project_files, canGetAndSetFMUstate=True)
-    _rewrite(fmu, *_recorded(fmu))
+        _rewrite(fmu, *_recorded(fmu), compile_shim(tmp))
     problems = validate_fmu(str(fmu))
     if problems:
         raise RuntimeError(f"{fmu.name} fails fmpy validation:\n" + "\n".join(problems))
@@ -157,7 +186,7 @@ def available():
 
 def _sources():
     return [p for folder in ("fmu_src", "controller") for p in (ROOT / folder).glob("*.py")] + \
-        [p for p in (PYPROJECT,) if p.exists()]
+        [p for p in (PYPROJECT, SHIM) if p.exists()]
 
 
 def ensure_built(scripts, out=OUT):

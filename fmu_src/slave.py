@@ -13,9 +13,11 @@ is checked against its range (and enumerations with gaps against their values), 
 input must be finite, and a violation is logged naming variable, value and range.
 
 Init failures: pythonfmu 0.7.0's wrapper ignores what exit_initialization_mode returns and
-answers fmi2Fatal for any exception (never fmi2Error), so a failed initialization raises
-and the host sees fmi2Fatal from fmi2ExitInitializationMode; keep-alive references make the
-host's later calls (doStep, terminate, free) safe (see exit_initialization_mode).
+answers fmi2Fatal for any exception, so a failed initialization logs its error and raises;
+the shim in front of the wrapper (fmu_src/pythonfmu_shim.c) answers that fatal with
+fmi2Error, since keep-alive references make the host's later calls (doStep, terminate,
+free) safe (see exit_initialization_mode). The shim also has the wrapper finalize Python
+before the process's library destructors run (the crash of a C host at exit).
 
 Discarded steps: the output arrays (whole: the integrator state of every FMU lives in
 them or in arrays they are views of) are put back as they were before the step,
@@ -26,10 +28,7 @@ The FMU scripts import this module from the installed `movingbase` package (not 
 the FMU's resources): one copy in the process, and the plant's compiled kernels stay
 cached on disk instead of recompiling in every extracted FMU.
 """
-import ctypes
 import math
-import pathlib
-import sys
 
 import numpy as np
 from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability
@@ -63,37 +62,6 @@ def _flat_slot(values, i, flat_views):
     offset = values.__array_interface__["data"][0] - root.__array_interface__["data"][0]
     flat = flat_views.setdefault(id(root), root.reshape(-1))
     return flat, (offset + i * values.strides[0]) // values.itemsize
-
-
-def finalize_python_before_exit(resources):
-    """Have the C wrapper finalize the interpreter it started before the process's
-    C++/Fortran destructors run (a C host; harmless in a Python one).
-
-    pythonfmu 0.7.0's wrapper calls Py_Finalize from the destructor of a global in the
-    FMU's library, which runs at exit() after the destructors of every library loaded
-    later (scipy's C++ and gfortran runtimes, numpy's ...): Python's teardown then frees
-    objects whose C++ state is gone and corrupts the heap (SIGSEGV/SIGABRT in
-    Py_FinalizeEx after fmi2FreeInstance returned; docs/fmi-notes-measured.md).
-    Exit handlers run last-registered first, so registering the wrapper's own exported
-    ``finalizePythonInterpreter`` with atexit() after those libraries are loaded makes
-    the teardown run while they are intact. It finalizes only once no instance is left
-    (the instances share the interpreter); later calls do nothing. The CDLL reference
-    is never released, so the library stays mapped for the handler. In a Python host
-    (fmpy) the host's main() finalizes Python before exit: nothing is registered.
-    """
-    if resources is None or not sys.platform.startswith("linux") or getattr(sys, "orig_argv", None):
-        return   # orig_argv is empty only in an interpreter the wrapper started (a C host)
-    binaries = pathlib.Path(resources).parent / "binaries" / "linux64"
-    for library in binaries.glob("*.so"):
-        wrapper = ctypes.CDLL(str(library))
-        finalize = getattr(wrapper, "finalizePythonInterpreter", None)
-        if finalize is not None:
-            _KEEP.append(wrapper)
-            # atexit() itself is not exported by glibc; it is __cxa_atexit(f, arg, NULL)
-            ctypes.CDLL(None).__cxa_atexit(ctypes.cast(finalize, ctypes.c_void_p), None, None)
-
-
-_KEEP = []   # wrapper libraries whose finalizer is registered with atexit
 
 
 _SURVIVORS = []   # (instance, class, log queue) of instances whose initialization failed
@@ -149,7 +117,6 @@ class GuardedSlave(Fmi2Slave):
         self.settable = {}  # the same for vector inputs and parameters
         self._plans = {}
         self._flat_views = {}
-        finalize_python_before_exit(self.resources)
 
     # ---------------------------------------------------------------- variables
     def real(self, name, causality, description, unit, start=0.0, getter=None, setter=None, valid=None):
@@ -289,9 +256,10 @@ class GuardedSlave(Fmi2Slave):
             self.initialize()
         except Exception as exc:   # noqa: BLE001 - reported through FMI status, see module doc
             self.fail(exc, "in initialization")
-            # The wrapper answers fmi2Fatal and drops its references to this instance, its
-            # class and its log queue, then drops them again in fmi2FreeInstance (pythonfmu
-            # 0.7.0, PySlaveInstance::cleanPyObject): one extra reference of each keeps them
+            # The wrapper answers fmi2Fatal (the shim: fmi2Error, seeing the error logged
+            # above) and drops its references to this instance, its class and its log
+            # queue, then drops them again in fmi2FreeInstance (pythonfmu 0.7.0,
+            # PySlaveInstance::cleanPyObject): one extra reference of each keeps them
             # alive, so a later doStep (refused), terminate or free is safe.
             _SURVIVORS.append((self, type(self), self.log_queue))
             raise RuntimeError(self.failure) from None
@@ -311,9 +279,6 @@ class GuardedSlave(Fmi2Slave):
                 np.copyto(root, saved)
             self.fail(exc, f"at t={current_time:.6g} s")
             return False
-
-    def terminate(self):
-        finalize_python_before_exit(self.resources)   # again: libraries loaded while running
 
     def initialize(self):
         """Compute the outputs at the start time (after parameters are set)."""

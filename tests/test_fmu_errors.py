@@ -1,21 +1,42 @@
 """Bad parameters and inputs given to the FMUs (issue 10), each with exactly that input:
 the declared ranges in the model description, the message at initialization naming
 parameter, value and range, and what a host reads after a discarded step."""
+import ctypes
 import math
 import re
+import zipfile
 
 import numpy as np
 import pytest
 from fmpy import read_model_description
-from fmpy.fmi2 import fmi2LastSuccessfulTime
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import fmi2DoStepStatus, fmi2LastSuccessfulTime, fmi2Status
 
 from fmu_src.builder import SCRIPTS
 from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
-from scenarios.fmi import FmuError, RealPort
-from tests.fmu_helpers import open_fmu
+from scenarios.fmi import FmuError, Instance, RealPort
+from tests.fmu_helpers import OPENED, open_fmu
 
 STATIC = inverse_dynamics(StewartParams.paper(), HOME_POSE, np.zeros(6), np.zeros(6))
 VECTOR_START = ("initial_pose", "initial_position", "initial_rate")   # checked by the kinematics instead
+DISCARD, ERROR, FATAL = 2, 3, 4
+
+# per FMU: a non-finite value at initialization (an input; TelescopeBase has none: a
+# parameter) and a parameter outside its declared range, with what the log must say
+BAD_INIT = {
+    "hexapod_plant_fmu": ("base_acc[6]", "input base_acc[6] = {} at initialization: inputs must be finite",
+                          "max_step", 0.0, "max_step = 0 s is outside its valid range >= 1e-09 s"),
+    "telescope_fmu": ("start_elevation", "parameter start_elevation = {} rad is outside its valid range",
+                      "target_elevation", math.radians(95.0),
+                      "target_elevation = 1.65806 rad (95 deg) is outside its valid range [0, 1.5708] rad "
+                      "([0, 90] deg)"),
+    "leg_controller_fmu": ("leg_rate[2]", "input leg_rate[2] = {} at initialization: inputs must be finite",
+                           "force_limit", 0.0, "force_limit = 0 N is outside its valid range >= 1e-09 N"),
+    "mechanism3t_fmu": ("slider_force[2]", "input slider_force[2] = {} at initialization: inputs must be finite",
+                        "max_step", -1e-3, "max_step = -0.001 s is outside its valid range >= 1e-09 s"),
+    "slider_controller_fmu": ("slider_rate[1]", "input slider_rate[1] = {} at initialization: inputs must be "
+                              "finite", "kd", -5.0, "kd = -5 N.s/m is outside its valid range >= 0 N.s/m"),
+}
 
 
 def _parameters(path):
@@ -85,8 +106,7 @@ def test_the_declared_range_is_the_one_checked(fmus):
                                            ("mechanism3t_fmu", "slider_force[2]")])
 @pytest.mark.parametrize("value", [math.nan, math.inf], ids=["nan", "inf"])
 def test_non_finite_input_at_initialization_fails_there(fmus, script, name, value):
-    """Refused by fmi2ExitInitializationMode (fmi2Fatal with pythonfmu 0.7.0), not by the
-    first doStep; the failed instance still answers doStep (refusing) and is freed safely,
+    """Refused by fmi2ExitInitializationMode (fmi2Error), not by the first doStep; the failed instance still answers doStep (refusing) and is freed safely,
     and a new instance in the same process works."""
     error = _refused_at_init(fmus[script], **{name: value})
     assert f"input {name} = {value} at initialization: inputs must be finite" in error, error
@@ -145,3 +165,81 @@ def test_a_joint_condition_on_valid_parameters_is_refused_at_initialization(fmus
     latitude = next(float(v.start) for v in _parameters(fmus["telescope_fmu"]) if v.name == "latitude")
     error = _refused_at_init(fmus["telescope_fmu"], profile=1, declination=latitude - math.radians(95.0))
     assert "InvalidInputError in initialization: the source is below the horizon" in error, error
+
+
+def _initialized(path, name, value):
+    """(instance, the FMICallException fmpy raised from exitInitializationMode) with
+    ``name`` set to ``value`` in initialization mode, through fmpy's FMU2Slave itself."""
+    instance = Instance(path, "bad")
+    OPENED.append(instance)
+    instance.fmu.setupExperiment(startTime=0.0)
+    instance.fmu.enterInitializationMode()
+    instance.set(name, value)
+    with pytest.raises(FMICallException) as error:
+        instance.fmu.exitInitializationMode()
+    return instance, error.value
+
+
+@pytest.mark.parametrize("script", SCRIPTS)
+@pytest.mark.parametrize("case", ["nan", "inf", "out of range"])
+def test_fmpy_sees_fmi2_error_from_a_failed_initialization(fmus, script, case):
+    """fmpy's FMICallException carries status 3 (fmi2Error, not 4 fmi2Fatal: the shim in
+    front of pythonfmu's wrapper), the log's last line says what is wrong, and the
+    instance stays usable: doStep answers Discard, terminate and free are safe."""
+    if case == "out of range":
+        name, value, text = BAD_INIT[script][2:]
+        text = f"parameter {text}"
+    else:
+        name, text = BAD_INIT[script][:2]
+        value = math.nan if case == "nan" else math.inf
+        text = text.format(value)
+    instance, error = _initialized(fmus[script], name, value)
+    assert (error.function, error.status) == ("fmi2ExitInitializationMode", ERROR)
+    assert instance.log[-1].startswith("[ERROR] InvalidInputError in initialization: ") and text in instance.log[-1]
+    assert not any("Fatal" in line or line.startswith("[FATAL]") for line in instance.log), instance.log
+    assert instance.raw("fmi2DoStep")(instance.fmu.component, 0.0, 1e-3, 1) == DISCARD
+    assert "refusing doStep at t=0 s after: InvalidInputError in initialization" in instance.log[-1]
+    instance.terminate()
+
+
+def _unshimmed(fmu, folder):
+    """A copy of ``fmu`` whose binaries/linux64/<id>.so is pythonfmu's wrapper itself (the
+    FMU as pythonfmu built it, before the shim)."""
+    identifier = read_model_description(str(fmu)).coSimulation.modelIdentifier
+    copy = folder / fmu.name
+    with zipfile.ZipFile(fmu) as z, zipfile.ZipFile(copy, "w") as out:
+        for item in z.namelist():
+            if item == f"binaries/linux64/{identifier}.so":
+                continue
+            data = z.read(item)
+            out.writestr(item.replace(".pythonfmu.so", ".so"), data)
+    return copy
+
+
+def _trace(path):
+    """Statuses and answers of one discarded-step run of the plant and one failed
+    initialization: what the host reads after a Discard (fmi2GetRealStatus for the last
+    successful time, fmi2GetStatus) and the status of the failure."""
+    plant = open_fmu(path, "trace", moving_base=0, stroke=0.01, **{f"leg_force[{i + 1}]": STATIC[i] for i in range(6)})
+    RealPort(plant, ["leg_force[1]"]).write([STATIC[0] + 1e6])
+    steps = [plant.raw("fmi2DoStep")(plant.fmu.component, k * 1e-3, 1e-3, 1) for k in range(12)]
+    value = fmi2Status()
+    get_status = plant.raw("fmi2GetStatus")(plant.fmu.component, fmi2DoStepStatus, ctypes.byref(value))
+    trace = {"doStep": steps, "lastSuccessfulTime": plant.fmu.getRealStatus(fmi2LastSuccessfulTime),
+             "getStatus": (get_status, plant.log[-1])}
+    plant.terminate()
+    _, error = _initialized(path, "max_step", 0.0)
+    trace["exitInitializationMode"] = error.status
+    return trace
+
+
+def test_the_shim_changes_only_the_failed_initialization_status(fmus, tmp_path):
+    """The same calls through the shim and on pythonfmu's wrapper directly: the same
+    statuses and answers (doStep up to the Discard, fmi2GetRealStatus(
+    fmi2LastSuccessfulTime) after it, fmi2GetStatus, which the wrapper does not
+    support), except fmi2ExitInitializationMode's failure: Error instead of Fatal."""
+    shimmed = _trace(fmus["hexapod_plant_fmu"])
+    direct = _trace(_unshimmed(fmus["hexapod_plant_fmu"], tmp_path))
+    assert (direct.pop("exitInitializationMode"), shimmed.pop("exitInitializationMode")) == (FATAL, ERROR)
+    assert shimmed == direct
+    assert DISCARD in shimmed["doStep"] and shimmed["lastSuccessfulTime"] > 0

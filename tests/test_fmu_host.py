@@ -10,6 +10,7 @@ import pytest
 from fmu_src.builder import SCRIPTS
 from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
 from tests.c_host import HostFmu, compile_host
+from tests.test_fmu_errors import BAD_INIT
 
 STATIC = inverse_dynamics(StewartParams.paper(), HOME_POSE, np.zeros(6), np.zeros(6))
 
@@ -49,25 +50,42 @@ def test_plant_integrators_in_a_c_host_exit_0(hosted, integrator):
     assert (run.returncode, run.signal, run.statuses()) == (0, None, []), run.stderr[-2000:]
 
 
+def _assert_refused_with_error(run, text):
+    """fmi2ExitInitializationMode answered fmi2Error (not fmi2Fatal: fmu_src/pythonfmu_shim.c),
+    the host stopped there, freed the instance and exited normally with 3 = fmi2Error."""
+    assert (run.returncode, run.signal) == (3, None), run.stderr[-2000:]
+    assert run.statuses() == [("fmi2ExitInitializationMode", "Error")]
+    assert run.stdout.endswith("done\n") and not run.lines("out")
+    assert text in run.stderr, run.stderr[-2000:]
+    errors = [line for line in run.stderr.splitlines() if line.startswith("[")]
+    assert errors[-1].startswith("[Error] host logStatusError: InvalidInputError in initialization: ")
+    assert "Fatal" not in run.stderr   # the wrapper's fatal line ("Fatal py exception ...") is dropped
+
+
+@pytest.mark.parametrize("script", SCRIPTS)
+@pytest.mark.parametrize("value, dlclose", [(math.nan, True), (math.inf, False)], ids=["nan-dlclose",
+                                                                                      "inf-no-dlclose"])
+def test_non_finite_value_at_initialization_is_fmi2_error_in_a_c_host(hosted, script, value, dlclose):
+    """The failure surfaces at fmi2ExitInitializationMode, not at the first doStep, as
+    fmi2Error, and the process exits normally with that status."""
+    name, text = BAD_INIT[script][:2]
+    run = hosted[script].run(steps=3, real={name: value}, dlclose=dlclose)
+    _assert_refused_with_error(run, text.format(value))
+
+
+@pytest.mark.parametrize("script", SCRIPTS)
+@pytest.mark.parametrize("dlclose", [True, False], ids=["dlclose", "no-dlclose"])
+def test_out_of_range_parameter_is_fmi2_error_in_a_c_host(hosted, script, dlclose):
+    name, value, text = BAD_INIT[script][2:]
+    run = hosted[script].run(steps=3, real={name: value}, dlclose=dlclose)
+    _assert_refused_with_error(run, f"parameter {text}")
+
+
 @pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf], ids=["nan", "inf", "-inf"])
-def test_non_finite_input_at_initialization_fails_exit_initialization_mode(hosted, value):
-    """The failure surfaces at fmi2ExitInitializationMode, not at the first doStep; with
-    pythonfmu 0.7.0 the status is fmi2Fatal (it has no path to fmi2Error), the host stops
-    there, and the process still exits cleanly with that status."""
+def test_every_non_finite_input_value_is_refused_the_same_way(hosted, value):
     fmu = hosted["leg_controller_fmu"]
-    run = fmu.run(steps=3, real={"leg_rate[2]": value})
-    assert run.signal is None and run.returncode == 4, run.stderr[-2000:]
-    assert run.statuses() == [("fmi2ExitInitializationMode", "Fatal")]
-    assert f"input leg_rate[2] = {value} at initialization: inputs must be finite" in run.stderr
-    assert "[Error]" in run.stderr and not run.lines("out")
-
-
-def test_out_of_range_parameter_fails_exit_initialization_mode(hosted):
-    fmu = hosted["telescope_fmu"]
-    run = fmu.run(steps=3, real={"target_elevation": math.radians(95.0)})
-    assert (run.returncode, run.signal, run.statuses()) == (4, None, [("fmi2ExitInitializationMode", "Fatal")])
-    assert ("parameter target_elevation = 1.65806 rad (95 deg) is outside its valid range "
-            "[0, 1.5708] rad ([0, 90] deg)") in run.stderr
+    run = fmu.run(steps=3, real={"leg_rate[2]": value}, real_init={"leg_rate[3]": 0.5})
+    _assert_refused_with_error(run, f"input leg_rate[2] = {value} at initialization: inputs must be finite")
 
 
 def test_discarded_step_keeps_the_last_accepted_outputs_and_time(hosted):
@@ -88,3 +106,15 @@ def test_discarded_step_keeps_the_last_accepted_outputs_and_time(hosted):
     (successful,), = run.lines("last_successful_time")
     assert successful == pytest.approx(last[0], abs=1e-12)
     assert "StrokeError" in run.stderr and "leg 1 length" in run.stderr
+
+
+def test_a_missing_pythonfmu_wrapper_is_named_by_the_shim(fmus, tmp_path):
+    """The shim (binaries/linux64/<id>.so) loads pythonfmu's wrapper from beside itself at
+    fmi2Instantiate: without it, instantiate answers NULL and the log names the file."""
+    fmu = HostFmu(fmus["telescope_fmu"], tmp_path)
+    wrapper = fmu.folder / "binaries" / "linux64" / "TelescopeBase.pythonfmu.so"
+    wrapper.unlink()
+    run = fmu.run(steps=1)
+    assert (run.returncode, run.signal) == (12, None), run.stderr
+    assert f"[Fatal] host logStatusFatal: pythonfmu shim: dlopen {wrapper}: " in run.stderr
+    assert "No such file" in run.stderr

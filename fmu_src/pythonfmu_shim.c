@@ -1,0 +1,312 @@
+/* A shim in front of pythonfmu 0.7.0's C wrapper: binaries/linux64/<id>.so of each of
+ * our pythonfmu FMUs (fmu_src/builder.py compiles this file with the machine's cc
+ * against fmpy's FMI 2 headers and renames pythonfmu's wrapper <id>.pythonfmu.so).
+ *
+ * Why: the wrapper turns every Python exception into fmi2Fatal, so a failed
+ * initialization (a parameter outside its range, a NaN input) reaches the host as
+ * fmi2Fatal, where FMI 2 asks for fmi2Error: the instance is still there to be freed
+ * (issue 10). And it finalizes its embedded Python from a global destructor, which a C
+ * host runs at exit() after the destructors of the libraries Python loaded later
+ * (numpy, scipy's C++ and Fortran runtimes): a crash after main returns
+ * (docs/fmi-notes-measured.md).
+ *
+ * What it does:
+ * - fmi2Instantiate dlopens the wrapper (RTLD_NOW | RTLD_LOCAL) from beside this
+ *   library (its own path from dladdr) and forwards every FMI 2 function of
+ *   fmi2Functions.h the wrapper exports (common and co-simulation: the FUNCTIONS
+ *   table), each to the wrapper's own, with the wrapper's component inside ours.
+ * - The host's logger is called through ours (same text, same status). During
+ *   fmi2ExitInitializationMode the messages are held until the call returns: if the
+ *   wrapper answered fmi2Fatal and the slave had logged an fmi2Error during the call
+ *   (GuardedSlave (fmu_src/slave.py) does so before it raises, and keeps the
+ *   instance alive for later doStep/terminate/free), the call answers fmi2Error and
+ *   the wrapper's own fatal line is dropped: it says only "Fatal py exception
+ *   encountered: [exitInitializationMode] PyObject_CallMethod unknown error", against
+ *   the status, after the slave's line has said what is wrong. A fatal without the
+ *   slave's error (an exception our slave did not catch) stays fmi2Fatal, its
+ *   messages delivered as they came.
+ *   fmi2SetupExperiment and fmi2EnterInitializationMode are forwarded unchanged:
+ *   GuardedSlave leaves them to pythonfmu, whose methods do nothing, so a fatal there
+ *   is one no slave code guarded, and fmi2Fatal is then the truth.
+ * - After each fmi2Instantiate, fmi2Terminate and before each fmi2FreeInstance, if
+ *   libraries were loaded since the last time, the wrapper's exported
+ *   finalizePythonInterpreter is registered to run at exit (handlers run
+ *   last-registered first, so before those libraries' destructors). It releases the
+ *   wrapper's reference to its Python state: Python is finalized then if no instance
+ *   is left, and only if the wrapper started it (in a Python host, e.g. fmpy, it did
+ *   not, and the call does nothing). This library is made unloadable (RTLD_NODELETE,
+ *   as the wrapper already is: it has STB_GNU_UNIQUE symbols) so the handler
+ *   registered from here is still mapped at exit after a host's dlclose.
+ * The model-exchange functions are not exported (pythonfmu FMUs are co-simulation
+ * only). Windows (binaries/win64) keeps pythonfmu's DLL as it is.
+ */
+#define _GNU_SOURCE
+#include <dlfcn.h>
+#include <link.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmi2Functions.h"
+
+/* X(name, parameters, arguments): every function forwarded as is; INNER is the
+ * wrapper's component inside ours. */
+#define INNER (((Shim *)c)->inner)
+#define FORWARDED(X) \
+    X(fmi2SetDebugLogging, (fmi2Component c, fmi2Boolean on, size_t n, const fmi2String categories[]), \
+      (INNER, on, n, categories)) \
+    X(fmi2SetupExperiment, (fmi2Component c, fmi2Boolean tolerance_defined, fmi2Real tolerance, \
+                            fmi2Real start, fmi2Boolean stop_defined, fmi2Real stop), \
+      (INNER, tolerance_defined, tolerance, start, stop_defined, stop)) \
+    X(fmi2EnterInitializationMode, (fmi2Component c), (INNER)) \
+    X(fmi2Reset, (fmi2Component c), (INNER)) \
+    X(fmi2GetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real v[]), (INNER, vr, n, v)) \
+    X(fmi2GetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[]), (INNER, vr, n, v)) \
+    X(fmi2GetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[]), (INNER, vr, n, v)) \
+    X(fmi2GetString, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[]), (INNER, vr, n, v)) \
+    X(fmi2SetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]), (INNER, vr, n, v)) \
+    X(fmi2SetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer v[]), \
+      (INNER, vr, n, v)) \
+    X(fmi2SetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean v[]), \
+      (INNER, vr, n, v)) \
+    X(fmi2SetString, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String v[]), \
+      (INNER, vr, n, v)) \
+    X(fmi2GetFMUstate, (fmi2Component c, fmi2FMUstate *state), (INNER, state)) \
+    X(fmi2SetFMUstate, (fmi2Component c, fmi2FMUstate state), (INNER, state)) \
+    X(fmi2FreeFMUstate, (fmi2Component c, fmi2FMUstate *state), (INNER, state)) \
+    X(fmi2SerializedFMUstateSize, (fmi2Component c, fmi2FMUstate state, size_t *size), (INNER, state, size)) \
+    X(fmi2SerializeFMUstate, (fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size), \
+      (INNER, state, bytes, size)) \
+    X(fmi2DeSerializeFMUstate, (fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate *state), \
+      (INNER, bytes, size, state)) \
+    X(fmi2GetDirectionalDerivative, (fmi2Component c, const fmi2ValueReference unknown[], size_t n_unknown, \
+                                     const fmi2ValueReference known[], size_t n_known, const fmi2Real dv_known[], \
+                                     fmi2Real dv_unknown[]), \
+      (INNER, unknown, n_unknown, known, n_known, dv_known, dv_unknown)) \
+    X(fmi2SetRealInputDerivatives, (fmi2Component c, const fmi2ValueReference vr[], size_t n, \
+                                    const fmi2Integer order[], const fmi2Real v[]), (INNER, vr, n, order, v)) \
+    X(fmi2GetRealOutputDerivatives, (fmi2Component c, const fmi2ValueReference vr[], size_t n, \
+                                     const fmi2Integer order[], fmi2Real v[]), (INNER, vr, n, order, v)) \
+    X(fmi2DoStep, (fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_prior), (INNER, t, h, no_set_prior)) \
+    X(fmi2CancelStep, (fmi2Component c), (INNER)) \
+    X(fmi2GetStatus, (fmi2Component c, const fmi2StatusKind kind, fmi2Status *v), (INNER, kind, v)) \
+    X(fmi2GetRealStatus, (fmi2Component c, const fmi2StatusKind kind, fmi2Real *v), (INNER, kind, v)) \
+    X(fmi2GetIntegerStatus, (fmi2Component c, const fmi2StatusKind kind, fmi2Integer *v), (INNER, kind, v)) \
+    X(fmi2GetBooleanStatus, (fmi2Component c, const fmi2StatusKind kind, fmi2Boolean *v), (INNER, kind, v)) \
+    X(fmi2GetStringStatus, (fmi2Component c, const fmi2StatusKind kind, fmi2String *v), (INNER, kind, v))
+
+/* The functions this file defines itself (they do more than forward). */
+#define OWN(Y) Y(fmi2GetTypesPlatform) Y(fmi2GetVersion) Y(fmi2Instantiate) Y(fmi2FreeInstance) \
+    Y(fmi2ExitInitializationMode) Y(fmi2Terminate)
+
+/* The wrapper's functions, found by dlsym at the first fmi2Instantiate. */
+#define MEMBER(name, ...) name##TYPE *name;
+#define OWN_MEMBER(name) name##TYPE *name;
+static struct {
+    FORWARDED(MEMBER)
+    OWN(OWN_MEMBER)
+    void (*finalize)(void);   /* finalizePythonInterpreter */
+} wrapper;
+
+#define ENTRY(name, ...) {#name, (void **)&wrapper.name},
+#define OWN_ENTRY(name) {#name, (void **)&wrapper.name},
+static const struct { const char *name; void **slot; } SYMBOLS[] = {FORWARDED(ENTRY) OWN(OWN_ENTRY)};
+
+typedef struct { fmi2Status status; char *category, *text; } Held;
+
+typedef struct {
+    fmi2Component inner;
+    fmi2CallbackFunctions host;      /* the host's callbacks */
+    fmi2CallbackFunctions callbacks; /* given to the wrapper: ours, with this Shim as environment */
+    int holding;                     /* messages are held (during fmi2ExitInitializationMode) */
+    int slave_error;                 /* an fmi2Error message arrived while holding */
+    Held *held;
+    size_t n_held, max_held;
+    char *name;
+} Shim;
+
+static pthread_once_t load_once = PTHREAD_ONCE_INIT;
+static char load_error[4200];   /* empty once the wrapper is loaded */
+
+/* dlopen the wrapper <this library's name without .so>.pythonfmu.so beside this one. */
+static void load(void) {
+    Dl_info self;
+    char path[4096];
+    if (!dladdr((void *)&load, &self) || !self.dli_fname) {
+        snprintf(load_error, sizeof load_error, "pythonfmu shim: dladdr cannot name its own library");
+        return;
+    }
+    size_t n = strlen(self.dli_fname);
+    if (n < 3 || strcmp(self.dli_fname + n - 3, ".so") || n + 20 > sizeof path) {
+        snprintf(load_error, sizeof load_error, "pythonfmu shim: unexpected library name %s", self.dli_fname);
+        return;
+    }
+    snprintf(path, sizeof path, "%.*s.pythonfmu.so", (int)(n - 3), self.dli_fname);
+    dlopen(self.dli_fname, RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);   /* see the header: never unloaded */
+    void *lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!lib) {
+        snprintf(load_error, sizeof load_error, "pythonfmu shim: dlopen %s: %s", path, dlerror());
+        return;
+    }
+    for (size_t i = 0; i < sizeof SYMBOLS / sizeof SYMBOLS[0]; i++) {
+        *SYMBOLS[i].slot = dlsym(lib, SYMBOLS[i].name);
+        if (!*SYMBOLS[i].slot) {
+            snprintf(load_error, sizeof load_error, "pythonfmu shim: %s has no %s", path, SYMBOLS[i].name);
+            return;
+        }
+    }
+    *(void **)&wrapper.finalize = dlsym(lib, "finalizePythonInterpreter");   /* optional */
+    load_error[0] = '\0';
+}
+
+static int loaded(void) {
+    if (pthread_once(&load_once, load) != 0) return 0;
+    return load_error[0] == '\0' && wrapper.fmi2Instantiate != NULL;
+}
+
+/* ------------------------------------------------------------------ exit handler */
+extern int __cxa_atexit(void (*function)(void *), void *argument, void *dso);   /* glibc */
+static pthread_mutex_t finalizer_lock = PTHREAD_MUTEX_INITIALIZER;
+static unsigned long long registered_at = 0;   /* libraries loaded so far when last registered */
+
+static int count_loads(struct dl_phdr_info *info, size_t size, void *data) {
+    (void)size;
+    *(unsigned long long *)data = info->dlpi_adds;
+    return 1;   /* the counter is the same in every entry: the first one is enough */
+}
+
+static void finalize_python(void *unused) {
+    (void)unused;
+    wrapper.finalize();
+}
+
+/* Register finalize_python to run at exit, before the destructors of every library
+ * loaded so far; again only if more were loaded since. */
+static void finalize_before_exit(void) {
+    static unsigned long long loads;   /* under finalizer_lock */
+    if (!wrapper.finalize) return;
+    pthread_mutex_lock(&finalizer_lock);
+    dl_iterate_phdr(count_loads, &loads);
+    if (loads != registered_at && __cxa_atexit(finalize_python, NULL, NULL) == 0) registered_at = loads;
+    pthread_mutex_unlock(&finalizer_lock);
+}
+
+/* ---------------------------------------------------------------------- logging */
+/* The wrapper passes each message as the format, with no arguments (a ctypes host such
+ * as fmpy reads that format as the text), so it is passed on unchanged the same way. */
+static void deliver(Shim *s, fmi2Status status, const char *category, const char *text) {
+    if (s->host.logger) s->host.logger(s->host.componentEnvironment, s->name, status, category, text);
+}
+
+/* Keep a copy of a message until release(); 0 if out of memory. */
+static int hold(Shim *s, fmi2Status status, const char *category, const char *text) {
+    if (s->n_held == s->max_held) {
+        size_t more = 2 * s->max_held + 4;
+        Held *held = realloc(s->held, more * sizeof *held);
+        if (!held) return 0;
+        s->held = held;
+        s->max_held = more;
+    }
+    char *category_copy = strdup(category), *text_copy = strdup(text);
+    if (!category_copy || !text_copy) {
+        free(category_copy);
+        free(text_copy);
+        return 0;
+    }
+    s->held[s->n_held++] = (Held){status, category_copy, text_copy};
+    return 1;
+}
+
+/* The wrapper's messages: passed on, or held during fmi2ExitInitializationMode. */
+static void logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status, fmi2String category,
+                   fmi2String message, ...) {
+    Shim *s = env;
+    (void)instance;
+    if (!message) return;
+    if (!category) category = "";
+    if (s->holding && status == fmi2Error) s->slave_error = 1;
+    if (!(s->holding && hold(s, status, category, message))) deliver(s, status, category, message);
+}
+
+/* Deliver the held messages; with ``drop_fatal``, not the wrapper's fatal ones. */
+static void release(Shim *s, int drop_fatal) {
+    s->holding = 0;
+    for (size_t i = 0; i < s->n_held; i++) {
+        Held *m = &s->held[i];
+        if (!(drop_fatal && m->status == fmi2Fatal)) deliver(s, m->status, m->category, m->text);
+        free(m->category);
+        free(m->text);
+    }
+    s->n_held = 0;
+}
+
+static void step_finished(fmi2ComponentEnvironment env, fmi2Status status) {
+    Shim *s = env;
+    s->host.stepFinished(s->host.componentEnvironment, status);
+}
+
+/* -------------------------------------------------------------------- functions */
+#define DEFINE(name, parameters, arguments) \
+    fmi2Status name parameters { return wrapper.name arguments; }
+FORWARDED(DEFINE)
+
+const char *fmi2GetTypesPlatform(void) {
+    return loaded() ? wrapper.fmi2GetTypesPlatform() : fmi2TypesPlatform;
+}
+
+const char *fmi2GetVersion(void) {
+    return loaded() ? wrapper.fmi2GetVersion() : fmi2Version;
+}
+
+fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
+                              const fmi2CallbackFunctions *functions, fmi2Boolean visible, fmi2Boolean logging) {
+    if (!functions) return NULL;
+    if (!loaded()) {
+        if (functions->logger) functions->logger(functions->componentEnvironment, name, fmi2Fatal, "logStatusFatal",
+                                                 load_error[0] ? load_error : "pythonfmu shim: not loaded");
+        return NULL;
+    }
+    Shim *s = calloc(1, sizeof *s);
+    if (!s || !(s->name = strdup(name ? name : ""))) {
+        free(s);
+        return NULL;
+    }
+    s->host = *functions;
+    s->callbacks = (fmi2CallbackFunctions){logger, functions->allocateMemory, functions->freeMemory,
+                                           functions->stepFinished ? step_finished : NULL, s};
+    s->inner = wrapper.fmi2Instantiate(name, type, guid, resources, &s->callbacks, visible, logging);
+    finalize_before_exit();
+    if (!s->inner) {
+        free(s->name);
+        free(s);
+        return NULL;
+    }
+    return s;
+}
+
+void fmi2FreeInstance(fmi2Component c) {
+    Shim *s = c;
+    if (!s) return;
+    finalize_before_exit();
+    wrapper.fmi2FreeInstance(s->inner);
+    free(s->held);
+    free(s->name);
+    free(s);
+}
+
+fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
+    Shim *s = c;
+    s->holding = 1;
+    s->slave_error = 0;
+    fmi2Status status = wrapper.fmi2ExitInitializationMode(s->inner);
+    int as_error = status == fmi2Fatal && s->slave_error;
+    release(s, as_error);
+    return as_error ? fmi2Error : status;
+}
+
+fmi2Status fmi2Terminate(fmi2Component c) {
+    fmi2Status status = wrapper.fmi2Terminate(INNER);
+    finalize_before_exit();
+    return status;
+}
