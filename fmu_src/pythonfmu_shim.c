@@ -88,17 +88,15 @@
                                     const fmi2Integer order[], const fmi2Real v[]), (INNER, vr, n, order, v)) \
     X(fmi2GetRealOutputDerivatives, (fmi2Component c, const fmi2ValueReference vr[], size_t n, \
                                      const fmi2Integer order[], fmi2Real v[]), (INNER, vr, n, order, v)) \
-    X(fmi2DoStep, (fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_prior), (INNER, t, h, no_set_prior)) \
     X(fmi2CancelStep, (fmi2Component c), (INNER)) \
     X(fmi2GetStatus, (fmi2Component c, const fmi2StatusKind kind, fmi2Status *v), (INNER, kind, v)) \
-    X(fmi2GetRealStatus, (fmi2Component c, const fmi2StatusKind kind, fmi2Real *v), (INNER, kind, v)) \
     X(fmi2GetIntegerStatus, (fmi2Component c, const fmi2StatusKind kind, fmi2Integer *v), (INNER, kind, v)) \
     X(fmi2GetBooleanStatus, (fmi2Component c, const fmi2StatusKind kind, fmi2Boolean *v), (INNER, kind, v)) \
     X(fmi2GetStringStatus, (fmi2Component c, const fmi2StatusKind kind, fmi2String *v), (INNER, kind, v))
 
 /* The functions this file defines itself (they do more than forward). */
 #define OWN(Y) Y(fmi2GetTypesPlatform) Y(fmi2GetVersion) Y(fmi2Instantiate) Y(fmi2FreeInstance) \
-    Y(fmi2ExitInitializationMode) Y(fmi2Terminate)
+    Y(fmi2ExitInitializationMode) Y(fmi2Terminate) Y(fmi2DoStep) Y(fmi2GetRealStatus)
 
 /* The wrapper's functions, found by dlsym at the first fmi2Instantiate. */
 #define MEMBER(name, ...) name##TYPE *name;
@@ -124,6 +122,8 @@ typedef struct {
     Held *held;
     size_t n_held, max_held;
     char *name;
+    int stepped;                     /* a doStep was accepted: last_ok holds its end */
+    fmi2Real last_ok;
 } Shim;
 
 static pthread_once_t load_once = PTHREAD_ONCE_INIT;
@@ -309,4 +309,25 @@ fmi2Status fmi2Terminate(fmi2Component c) {
     fmi2Status status = wrapper.fmi2Terminate(INNER);
     finalize_before_exit();
     return status;
+}
+
+/* fmi2LastSuccessfulTime: the end of the last accepted step. The wrapper answers the start
+   of the latest doStep, which moves on with every refused step a host keeps sending. */
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_prior) {
+    Shim *s = c;
+    fmi2Status status = wrapper.fmi2DoStep(s->inner, t, h, no_set_prior);
+    if (status == fmi2OK || status == fmi2Warning) {
+        s->stepped = 1;
+        s->last_ok = t + h;
+    }
+    return status;
+}
+
+fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind kind, fmi2Real *v) {
+    Shim *s = c;
+    if (kind == fmi2LastSuccessfulTime && s->stepped) {
+        *v = s->last_ok;
+        return fmi2OK;
+    }
+    return wrapper.fmi2GetRealStatus(s->inner, kind, v);
 }

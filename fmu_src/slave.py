@@ -22,11 +22,10 @@ before the process's library destructors run (the crash of a C host at exit).
 Discarded steps: the output arrays (whole: the integrator state of every FMU lives in
 them or in arrays they are views of) are put back as they were before the step,
 so a host reading outputs after fmi2Discard sees the last accepted state, at the time
-fmi2GetRealStatus(fmi2LastSuccessfulTime) answers (the wrapper's: the rejected step's start).
+fmi2GetRealStatus(fmi2LastSuccessfulTime) answers (the shim's: the end of the last accepted step).
 
 The FMU scripts import this module from the installed `movingbase` package (not from
-the FMU's resources): one copy in the process, and the plant's compiled kernels stay
-cached on disk instead of recompiling in every extracted FMU.
+the FMU's resources): one copy in the process, sharing the C kernel built at install.
 """
 import math
 

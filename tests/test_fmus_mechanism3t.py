@@ -255,7 +255,7 @@ def test_plant_failures_end_the_step_with_a_message(fmus, values, forces, messag
     ({"mode": -1}, r"UnreachableError in initialization: .*eq. 11: arccos argument"),
 ], ids=["unreachable start", "no assembly in mode -1"])
 def test_plant_refuses_a_start_it_cannot_assemble(fmus, values, message):
-    """At fmi2ExitInitializationMode (pythonfmu answers fmi2Fatal there; freeing after is safe)."""
+    """At fmi2ExitInitializationMode (the shim in front of pythonfmu answers fmi2Error there; freeing after is safe)."""
     with pytest.raises(FmuError, match="failed in exitInitializationMode") as error:
         open_fmu(fmus[PLANT], **values)
     assert re.search(message, str(error.value)), error.value
