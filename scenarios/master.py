@@ -7,7 +7,8 @@ the other in an order taken from the connection graph (sources first; a cycle is
 at the FMU declared first in the file), each seeing the outputs already computed for
 t_k+1. Linear extrapolation replaces a held input u_k by the mean of its linear
 extrapolation over the coming step, u_k + (u_k - u_k-1) / 2, for inputs whose source has
-not yet stepped.
+not yet stepped. The stepping runs in C (scenarios/c/cosim.c, class Loop) between the
+record points; Python sets up, records, feeds the metrics and reports.
 
 Every FMI call is status-checked (scenarios.fmi); a Discard/Error stops the run with
 RunFailed: one line naming the instance, the time and the FMU's error log line, and the
