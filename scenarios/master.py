@@ -142,14 +142,15 @@ class Loop:
     step writes the connected inputs, steps the FMUs and reads their outputs with the
     FMUs' own fmi2SetReal/fmi2DoStep/fmi2GetReal, for Jacobi (inputs from the outputs
     of t_k, optionally extrapolated) or Gauss-Seidel (in ``order``, inputs whose source
-    has not stepped yet extrapolated). A per-step Python loop cost ~20 us per macro step
-    of three FMUs; this costs the FMUs' own work."""
+    has not stepped yet extrapolated). A Python loop making the same calls cost ~16 us
+    more per macro step of three FMUs (benchmarks/bench_scenarios.py); this adds under
+    0.3 us to the FMUs' own work (benchmarks/bench_native.py, empty FMUs)."""
 
     _CALLS = ("setReal", "doStep", "getReal")
 
     def __init__(self, exchange, instances, order, gauss_seidel, extrapolate, t0, h):
         self.instances = [instances[inst] for inst in order]
-        self._keep = [exchange.y, exchange.y_prev]          # what the C structs point into
+        self._keep = [exchange.y, exchange.y_prev]          # everything the C structs point into
         fmus = self._new("cosim_fmu[]", len(order))
         for i, (inst, instance) in enumerate(zip(order, self.instances)):
             f = fmus[i]
@@ -174,12 +175,17 @@ class Loop:
         m.fmus, m.n_fmus = fmus, len(order)
         m.read_order = self._new("size_t[]", [order.index(inst) for inst in exchange.read_ports])
         m.n_read_order = len(exchange.read_ports)
-        m.y = ffi.cast("double *", ffi.from_buffer(exchange.y))
-        m.y_prev = ffi.cast("double *", ffi.from_buffer(exchange.y_prev))
+        m.y = ffi.cast("double *", self._view(exchange.y))
+        m.y_prev = ffi.cast("double *", self._view(exchange.y_prev))
         m.y_start = self._new("double[]", max(1, exchange.y.size))
         m.n_y = exchange.y.size
         m.gauss_seidel, m.extrapolate, m.t0, m.h = gauss_seidel, extrapolate, t0, h
         self.master, self.fmus = m, fmus
+
+    def _view(self, array):
+        value = ffi.from_buffer(array)
+        self._keep.append(value)
+        return value
 
     def _new(self, kind, init=None):
         value = ffi.new(kind, init)
@@ -187,22 +193,20 @@ class Loop:
         return value
 
     def steps(self, k, count):
-        """Run macro steps k .. k+count-1; returns how many completed. Each instance's time
-        becomes that of its last doStep; a status above Warning raises FmuError as the
-        Python call would have (Instance.fail: the instance, its time and log)."""
+        """Run macro steps k .. k+count-1; returns how many completed (fewer: a call
+        answered above Warning, see ``check``). Each instance's time becomes that of its
+        last doStep, as Instance.do_step sets it, for the error message."""
         done = lib.cosim_steps(self.master, k, count)
         for f, instance in zip(self.fmus, self.instances):
             instance.time = f.time
-        m = self.master
-        if m.failed_fmu >= 0:
-            self.failure = (self.instances[m.failed_fmu], self._CALLS[m.failed_call], m.failed_status)
         return done
 
     def check(self):
-        """Raise the FmuError of the call that stopped the last ``steps``, if any."""
-        if self.master.failed_fmu >= 0:
-            instance, call, status = self.failure
-            instance.fail(call, f"status {_LABELS[status]}")
+        """Raise the FmuError of the call that stopped the last ``steps``, if any, as the
+        Python call would have (Instance.fail: instance, call, time, status, log)."""
+        m = self.master
+        if m.failed_fmu >= 0:
+            self.instances[m.failed_fmu].fail(self._CALLS[m.failed_call], f"status {_LABELS[m.failed_status]}")
 
 
 class Recorder:

@@ -232,3 +232,18 @@ def test_a_failing_get_or_set_stops_both_loops_alike(master_kind, inst, function
     assert ref[0] == "failed" and f"FMU instance '{inst}' failed in {call} at t = " in ref[1], ref
     assert c == ref
     assert c_csv == ref_csv
+
+
+def test_progress_is_reported_as_the_python_loop_did_and_changes_nothing(tmp_path):
+    """With a progress callback the C loop also stops at every progress point: the
+    callback sees k / steps after each step k with k % tick == 0 (tick = steps // 200, as
+    the Python loop called it) and the CSV is the one of a run without progress."""
+    scenario, paths, values = prepared("paper_manoeuvre", "native", "jacobi", "linear")
+    seen = []
+    for outdir, progress in ((tmp_path / "with", seen.append), (tmp_path / "without", None)):
+        outdir.mkdir()
+        master.run(scenario, paths, values, outdir, "run", [], progress)
+    steps = round((scenario.stop_time - scenario.start_time) / scenario.step)
+    tick = max(1, steps // 200)
+    assert seen == [k / steps for k in range(steps) if k % tick == 0]
+    assert (tmp_path / "with" / "run.csv").read_text() == (tmp_path / "without" / "run.csv").read_text()
