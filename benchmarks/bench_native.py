@@ -7,12 +7,15 @@
    as the scenario asks) under our master: wall time per macro step, native vs pythonfmu
    (asks >= 5x), and as a multiple of the floor: three empty native FMUs (the same
    variables, initialization and doStep doing nothing, fmu_src/native_build.py
-   empty=True) doing the same exchange through the same master.
+   empty=True) doing the same exchange through the same master. The master steps in C
+   (scenarios/c/cosim.c); Python records every 10 ms and feeds the metrics. Also shown:
+   the same with no recording and no metrics (the stepping alone).
 Repeats interleave the implementations (median), so machine load hits both alike.
 
     python benchmarks/bench_native.py [--repeats N]
 """
 import argparse
+import dataclasses
 import pathlib
 import statistics
 import tempfile
@@ -74,19 +77,24 @@ def main(argv=None):
         values[inst][name] = value
     by_impl = {impl: {i: paths[spec.FMU_SCRIPTS[f]] for i, f in scenario.fmus.items()}
                for impl, paths in (("python", python), ("native", native), ("empty", empty))}
-    macro = {k: [] for k in by_impl}
+    bare = dataclasses.replace(scenario, metrics=[], record_interval=scenario.stop_time - scenario.start_time)
+    macro = {(k, v): [] for v in ("scenario", "bare") for k in by_impl}
     for r in range(max(1, args.repeats // 2)):
-        for impl, paths in by_impl.items():
-            macro[impl].append(manoeuvre_us(scenario, paths, values, out, f"{impl}{r}"))
-    py, nat, floor = (statistics.median(macro[k]) for k in ("python", "native", "empty"))
+        for variant, scene in (("scenario", scenario), ("bare", bare)):
+            for impl, paths in by_impl.items():
+                macro[impl, variant].append(manoeuvre_us(scene, paths, values, out, f"{impl}{r}"))
     steps = round((scenario.stop_time - scenario.start_time) / scenario.step)
     print(f"paper manoeuvre ({steps} macro steps of {scenario.step * 1e3:g} ms, {len(scenario.fmus)} FMUs, "
-          f"master {scenario.master}, extrapolation {scenario.extrapolation}):")
-    print(f"  pythonfmu {py:.1f} us/step (RTF {1e6 * scenario.step / py:.1f}), native {nat:.1f} us/step "
-          f"(RTF {1e6 * scenario.step / nat:.1f}) -> {py / nat:.1f}x")
-    print(f"  floor (three empty native FMUs, same exchange) {floor:.1f} us/step: native = {nat / floor:.2f}x floor, "
-          f"pythonfmu = {py / floor:.2f}x floor")
-
+          f"master {scenario.master}, extrapolation {scenario.extrapolation}, stepping in C):")
+    for variant, what in (("scenario", "as the scenario runs (record every "
+                                       f"{scenario.record_interval * 1e3:g} ms, {len(scenario.metrics)} metrics)"),
+                          ("bare", "stepping alone (no recording, no metrics)")):
+        py, nat, floor = (statistics.median(macro[k, variant]) for k in ("python", "native", "empty"))
+        print(f"  {what}:")
+        print(f"    pythonfmu {py:.1f} us/step (RTF {1e6 * scenario.step / py:.1f}), native {nat:.1f} us/step "
+              f"(RTF {1e6 * scenario.step / nat:.1f}) -> {py / nat:.1f}x")
+        print(f"    floor (three empty native FMUs, same exchange) {floor:.2f} us/step: native = {nat / floor:.1f}x "
+              f"floor, pythonfmu = {py / floor:.1f}x floor")
 
 if __name__ == "__main__":
     main()

@@ -1,0 +1,49 @@
+/* The stepping loop of the co-simulation master (scenarios/master.py): K macro steps of
+   Jacobi or Gauss-Seidel over FMI 2.0 co-simulation instances, called through cffi with
+   the instances' own fmi2DoStep/fmi2GetReal/fmi2SetReal, so a macro step costs the FMUs'
+   work and no Python. Plain declarations only (kernel_build.py strips preprocessor lines). */
+#include <stddef.h>
+
+/* FMI 2.0 (fmi2FunctionTypes.h): fmi2Status is an int-sized enum, fmi2Component void *,
+   fmi2ValueReference unsigned int, fmi2Real double, fmi2Boolean int. */
+typedef int (*cosim_do_step_fn)(void *component, double t, double h, int no_set_prior_state);
+typedef int (*cosim_get_real_fn)(void *component, const unsigned int vr[], size_t nvr, double value[]);
+typedef int (*cosim_set_real_fn)(void *component, const unsigned int vr[], size_t nvr, const double value[]);
+
+typedef struct {
+    void *component;
+    cosim_do_step_fn do_step;
+    cosim_get_real_fn get_real;
+    cosim_set_real_fn set_real;
+    const unsigned int *read_vr;   /* its connected outputs, read into y[read_at ...] */
+    size_t n_read;
+    size_t read_at;
+    const unsigned int *write_vr;  /* its connected inputs, input j fed by y[write_from[j]] */
+    size_t n_write;
+    const size_t *write_from;
+    const double *write_half;      /* Gauss-Seidel: 0.5 where input j's source steps after it, else 0 */
+    double *write_buf;             /* n_write values, the last ones written */
+    double time;                   /* the t of its last doStep call */
+} cosim_fmu;
+
+enum cosim_call { COSIM_SET_REAL = 0, COSIM_DO_STEP = 1, COSIM_GET_REAL = 2 };
+
+typedef struct {
+    cosim_fmu *fmus;               /* in stepping order */
+    size_t n_fmus;
+    const size_t *read_order;      /* Jacobi: the fmus read after every step, in this order */
+    size_t n_read_order;
+    double *y;                     /* all connected outputs */
+    double *y_prev;                /* their values one macro step earlier */
+    double *y_start;               /* scratch, n_y (Gauss-Seidel: y at the start of the step) */
+    size_t n_y;
+    int gauss_seidel;
+    int extrapolate;               /* linear extrapolation of held inputs */
+    double t0;
+    double h;
+    int failed_fmu;                /* on a status above fmi2Warning: which fmu, call, status */
+    int failed_call;
+    int failed_status;
+} cosim_master;
+
+long cosim_steps(cosim_master *m, long k, long count);

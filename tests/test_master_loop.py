@@ -1,0 +1,249 @@
+"""The master's stepping loop in C (scenarios/c/cosim.c) against the per-step numpy loop
+it replaced, kept here as the independent reference (a copy of that code driving the
+same FMUs through fmpy's ctypes functions): full CSVs byte for byte for every shipped
+scenario's [ci] version, Jacobi and Gauss-Seidel, with and without linear extrapolation,
+native and pythonfmu FMUs; and the same failure message and partial rows when an FMU
+call fails mid-run (doStep, setReal or getReal)."""
+import ctypes
+import dataclasses
+import time
+
+import numpy as np
+import pytest
+
+from scenarios import master, metrics, runner, spec
+from scenarios.fmi import FmuError, Instance, RealPort
+from scenarios.spec import Link, expand
+
+MASTERS = [("jacobi", "none"), ("jacobi", "linear"), ("gauss-seidel", "none"), ("gauss-seidel", "linear")]
+SHIPPED = sorted(p.stem for p in runner.SHIPPED.glob("*.toml"))
+
+
+class ReferenceExchange:
+    """Today's (before the C loop) connection data path, verbatim: numpy extrapolation,
+    one RealPort read/write per instance."""
+
+    def __init__(self, scenario, instances):
+        md = {inst: i.variables for inst, i in instances.items()}
+        sources = {}
+        pairs = []
+        for source, targets in scenario.connections:
+            s_inst = source.split(".", 1)[0]
+            for target in targets:
+                t_inst = target.split(".", 1)[0]
+                for s, t in zip(expand(md[s_inst], source), expand(md[t_inst], target)):
+                    sources.setdefault(s_inst, [])
+                    if s not in sources[s_inst]:
+                        sources[s_inst].append(s)
+                    pairs.append((s_inst, s, t_inst, t))
+        self.read_ports, offset, index = {}, 0, {}
+        for inst, names in sources.items():
+            self.read_ports[inst] = (RealPort(instances[inst], names), slice(offset, offset + len(names)))
+            index.update({(inst, n): offset + k for k, n in enumerate(names)})
+            offset += len(names)
+        self.y = np.zeros(offset)
+        self.y_prev = np.zeros(offset)
+        self._halves = {}
+        self.write_ports = {}
+        for inst in scenario.fmus:
+            mine = [(t, index[(s_inst, s)], s_inst) for s_inst, s, t_inst, t in pairs if t_inst == inst]
+            if mine:
+                port = RealPort(instances[inst], [t for t, _, _ in mine])
+                self.write_ports[inst] = (port, np.array([k for _, k, _ in mine]), [s for _, _, s in mine])
+
+    def read(self, inst=None):
+        for name, (port, where) in self.read_ports.items():
+            if inst is None or name == inst:
+                self.y[where] = port.read()
+
+    def initial_inputs(self, inst, ready):
+        if inst not in self.write_ports:
+            return {}
+        port, idx, sources = self.write_ports[inst]
+        for source in set(sources) & ready:
+            self.read(source)
+        return {name: self.y[k] for name, k, s in zip(port.names, idx, sources) if s in ready}
+
+    def extrapolated(self):
+        return self.y + 0.5 * (self.y - self.y_prev)
+
+    def write(self, inst, extrapolate_from=(), source=None):
+        if inst not in self.write_ports:
+            return
+        port, idx, sources = self.write_ports[inst]
+        values = (self.y if source is None else source)[idx]
+        if extrapolate_from:
+            key = (inst, extrapolate_from)
+            if key not in self._halves:
+                self._halves[key] = 0.5 * np.array([s in extrapolate_from for s in sources])
+            values = values + self._halves[key] * (values - self.y_prev[idx])
+        port.write(values)
+
+
+def reference_run(scenario, fmu_paths, parameters, outdir, label, metric_list):
+    """Today's master.run with its per-step Python loop (start included: it initialises
+    through the reference exchange)."""
+    instances, recorder = {}, None
+    h, t0 = scenario.step, scenario.start_time
+    steps = int(round((scenario.stop_time - t0) / h))
+    done, failure, began = 0, None, time.perf_counter()
+    try:
+        for inst in scenario.fmus:
+            instances[inst] = Instance(fmu_paths[inst], inst)
+        exchange = ReferenceExchange(scenario, instances)
+        ready = set()
+        for inst in master.step_order(scenario, parameters):
+            resolved = {name: instances[v.instance].get_real(v.variable) if isinstance(v, Link) else v
+                        for name, v in parameters.get(inst, {}).items()}
+            instances[inst].initialize(scenario.start_time, {**resolved, **exchange.initial_inputs(inst, ready)})
+            ready.add(inst)
+        recorder = master.Recorder(outdir / f"{label}.csv", scenario, instances, list(metric_list))
+        every = int(round(scenario.record_interval / h))
+        order = master.step_order(scenario, parameters) if scenario.master == "gauss-seidel" else list(scenario.fmus)
+        extrapolate = scenario.extrapolation == "linear"
+        not_yet = [frozenset(order[i:]) for i in range(len(order))]
+        exchange.read()
+        exchange.y_prev[:] = exchange.y
+        recorder.record(t0)
+        for k in range(steps):
+            t = t0 + k * h
+            if scenario.master == "jacobi":
+                source = exchange.extrapolated() if extrapolate and k else exchange.y
+                for inst in order:
+                    exchange.write(inst, source=source)
+                exchange.y_prev[:] = exchange.y
+                for inst in order:
+                    instances[inst].do_step(t, h)
+                exchange.read()
+            else:
+                previous = exchange.y.copy()
+                for i, inst in enumerate(order):
+                    exchange.write(inst, not_yet[i] if extrapolate and k else ())
+                    instances[inst].do_step(t, h)
+                    exchange.read(inst)
+                exchange.y_prev[:] = previous
+            done = k + 1
+            if done % every == 0:
+                recorder.record(t0 + done * h)
+    except FmuError as error:
+        failure = error
+    finally:
+        if recorder:
+            recorder.close()
+        for instance in instances.values():
+            instance.terminate()
+    result = master.Run(label, outdir / f"{label}.csv" if recorder else None, done, 0.0, done * h,
+                        {m.name: m.result() for m in metric_list})
+    if failure is not None:
+        result.failure = master.failure_line(failure, instances)
+        raise master.RunFailed(str(failure), result) from None
+    return result
+
+
+def prepared(name, implementation, master_kind, extrapolation, item=0):
+    """A shipped scenario's [ci] version with the given master, at its sweep value number item."""
+    scenario, paths, descriptions, values = runner.prepare(runner.resolve(name), ci=True,
+                                                           implementation=implementation)
+    if scenario.sweep:
+        inst, var, value = spec.sweep_value(scenario, descriptions, scenario.sweep[1][item])
+        values[inst][var] = value
+    return dataclasses.replace(scenario, master=master_kind, extrapolation=extrapolation), paths, values
+
+
+def both(scenario, paths, values, tmp_path):
+    """(outcome, csv text) of the reference loop and of master.run; an outcome is the
+    run's steps and metrics, or the RunFailed message, failure line and steps."""
+    results = []
+    for which, run in (("reference", reference_run), ("c", master.run)):
+        outdir = tmp_path / which
+        outdir.mkdir()
+        try:
+            done = run(scenario, paths, values, outdir, "run", [metrics.make(m) for m in scenario.metrics])
+            outcome = ("ok", done.steps, repr(done.metrics))
+        except master.RunFailed as failed:
+            outcome = ("failed", str(failed), failed.run.failure, failed.run.steps, repr(failed.run.metrics))
+        results.append((outcome, (outdir / "run.csv").read_text()))
+    return results
+
+
+@pytest.mark.parametrize("implementation", ["native", "python"])
+@pytest.mark.parametrize("master_kind, extrapolation", MASTERS)
+@pytest.mark.parametrize("name", SHIPPED)
+def test_the_c_loop_gives_byte_identical_csvs(name, master_kind, extrapolation, implementation, tmp_path):
+    scenario, paths, values = prepared(name, implementation, master_kind, extrapolation)
+    (ref, ref_csv), (c, c_csv) = both(scenario, paths, values, tmp_path)
+    assert ref[0] == "ok", ref      # a run that completes: the comparison covers every step
+    assert c == ref
+    assert len(c_csv.splitlines()) > 10
+    assert c_csv == ref_csv
+
+
+@pytest.mark.parametrize("master_kind, step", [("jacobi", 0.016), ("gauss-seidel", 0.032)])
+def test_a_failing_dostep_stops_both_loops_alike(master_kind, step, tmp_path):
+    """A 16 ms (Jacobi) or 32 ms (Gauss-Seidel) step is past the controller's stability
+    limit: a leg leaves its stroke (doStep Discard with a log line) mid-run with the
+    fixed-base feedforward."""
+    scenario, paths, values = prepared("telescope_slew", "native", master_kind, "linear", item=1)
+    scenario = dataclasses.replace(scenario, step=step, record_interval=step)
+    (ref, ref_csv), (c, c_csv) = both(scenario, paths, values, tmp_path)
+    assert ref[0] == "failed" and "failed in doStep at t = " in ref[1] and "StrokeError" in ref[2], ref
+    assert 10 < ref[3] < 500
+    assert c == ref
+    assert c_csv == ref_csv
+
+
+def failing_after(monkeypatch, inst, function, calls, status):
+    """Make instance ``inst``'s FMI function ``function`` answer ``status`` from its
+    ``calls``-th call on (counted over every caller of that instance), for every Instance
+    created from now on: the reference and the C loop call it through the same kind of
+    address, so both see the same failure if they make the same calls."""
+    real_raw = Instance.raw
+    kind = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.POINTER(ctypes.c_uint), ctypes.c_size_t,
+                            ctypes.POINTER(ctypes.c_double))
+
+    def raw(self, name):
+        fn = real_raw(self, name)
+        if self.name != inst or name != function:
+            return fn
+        if not hasattr(self, "_failing"):
+            count = [0]
+
+            def wrapped(component, vr, n, values):
+                count[0] += 1
+                return status if count[0] >= calls else fn(component, vr, n, values)
+            self._failing = kind(wrapped)    # kept alive with the instance
+        return self._failing
+    monkeypatch.setattr(Instance, "raw", raw)
+
+
+@pytest.mark.parametrize("master_kind", ["jacobi", "gauss-seidel"])
+@pytest.mark.parametrize("inst, function, calls, status", [("controller", "fmi2SetReal", 1234, 3),
+                                                           ("plant", "fmi2GetReal", 777, 2),
+                                                           ("base", "fmi2GetReal", 501, 4)])
+def test_a_failing_get_or_set_stops_both_loops_alike(master_kind, inst, function, calls, status, monkeypatch,
+                                                      tmp_path):
+    """getReal/setReal answering Error/Discard/Fatal mid-run: the same message (call,
+    instance, time, status, log), steps, metrics and partial CSV as the Python loop."""
+    failing_after(monkeypatch, inst, function, calls, status)
+    scenario, paths, values = prepared("paper_manoeuvre", "native", master_kind, "linear")
+    (ref, ref_csv), (c, c_csv) = both(scenario, paths, values, tmp_path)
+    call = function.removeprefix("fmi2")
+    call = call[0].lower() + call[1:]
+    assert ref[0] == "failed" and f"FMU instance '{inst}' failed in {call} at t = " in ref[1], ref
+    assert c == ref
+    assert c_csv == ref_csv
+
+
+def test_progress_is_reported_as_the_python_loop_did_and_changes_nothing(tmp_path):
+    """With a progress callback the C loop also stops at every progress point: the
+    callback sees k / steps after each step k with k % tick == 0 (tick = steps // 200, as
+    the Python loop called it) and the CSV is the one of a run without progress."""
+    scenario, paths, values = prepared("paper_manoeuvre", "native", "jacobi", "linear")
+    seen = []
+    for outdir, progress in ((tmp_path / "with", seen.append), (tmp_path / "without", None)):
+        outdir.mkdir()
+        master.run(scenario, paths, values, outdir, "run", [], progress)
+    steps = round((scenario.stop_time - scenario.start_time) / scenario.step)
+    tick = max(1, steps // 200)
+    assert seen == [k / steps for k in range(steps) if k % tick == 0]
+    assert (tmp_path / "with" / "run.csv").read_text() == (tmp_path / "without" / "run.csv").read_text()
