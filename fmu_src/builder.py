@@ -40,6 +40,9 @@ _DISPLAY = {"m": ("mm", 1e3), "rad": ("deg", 57.29577951308232), "m/s": ("mm/s",
             "rad/s": ("deg/s", 57.29577951308232), "m/s2": ("mm/s2", 1e3),
             "rad/s2": ("deg/s2", 57.29577951308232)}
 
+# units of the leg actuator and sensor parameters (Hz written 1/s, as scenarios/units.py reads it)
+_BASE.update({"kg": {"kg": "1"}, "N.m": {"kg": "1", "m": "2", "s": "-2"}, "1/s": {"s": "-1"}})
+
 
 def requirements():
     """Runtime requirements of the FMUs: the pinned dependencies plus this kit."""
