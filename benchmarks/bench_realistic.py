@@ -24,7 +24,7 @@ from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
 from scenarios import runner
 from scenarios.fmi import Instance, RealPort
 
-STEPS, H = 1000, 1e-3
+STEPS, H = 3000, 1e-3
 CASES = {   # label: plant parameters
     "actuator off (ideal)": {},
     "force loop 50 Hz": {"actuator_bandwidth": 50.0},
