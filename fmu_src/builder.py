@@ -30,7 +30,8 @@ from fmu_src import native_build
 ROOT = pathlib.Path(__file__).resolve().parent.parent   # the checkout, or site-packages
 PYPROJECT = ROOT / "pyproject.toml"
 OUT = (ROOT if PYPROJECT.exists() else pathlib.Path.cwd()) / "build" / "fmu"
-SCRIPTS = ("hexapod_plant_fmu", "telescope_fmu", "leg_controller_fmu", "mechanism3t_fmu", "slider_controller_fmu")
+SCRIPTS = ("hexapod_plant_fmu", "telescope_fmu", "leg_controller_fmu", "mechanism3t_fmu", "slider_controller_fmu",
+           "base_sensor_fmu")
 
 _BASE = {"m": {"m": "1"}, "rad": {"rad": "1"}, "s": {"s": "1"}, "N": {"kg": "1", "m": "1", "s": "-2"},
          "m/s": {"m": "1", "s": "-1"}, "rad/s": {"rad": "1", "s": "-1"}, "m/s2": {"m": "1", "s": "-2"},
