@@ -36,6 +36,10 @@ BAD_INIT = {
                         "max_step", -1e-3, "max_step = -0.001 s is outside its valid range >= 1e-09 s"),
     "slider_controller_fmu": ("slider_rate[1]", "input slider_rate[1] = {} at initialization: inputs must be "
                               "finite", "kd", -5.0, "kd = -5 N.s/m is outside its valid range >= 0 N.s/m"),
+    "leg_sensor_fmu": ("leg_length[4]", "input leg_length[4] = {} at initialization: inputs must be finite",
+                       "noise", -1e-6, "noise = -1e-06 m is outside its valid range [0, 0.01] m"),
+    "base_sensor_fmu": ("true_base_rate[2]", "input true_base_rate[2] = {} at initialization: inputs must be "
+                        "finite", "rate_cutoff", -1.0, "rate_cutoff = -1 1/s is outside its valid range [0, 10000] 1/s"),
 }
 
 
