@@ -91,15 +91,17 @@ class _Metric:
         self.count += size * len(t)
         self.sum_sq = float(np.add.accumulate(np.r_[self.sum_sq, squares])[-1])   # added in time order
         self.peak = max(self.peak, _largest(errors), _largest(-errors))
-        i = self._countdown - 1
-        while i < len(t):
-            self.t.append(float(t[i]))
-            self.values.append(math.sqrt(squares[i] / size))
-            i += self.stride
+        times, rms = t.tolist(), np.sqrt(squares / size).tolist()
+        i = self._countdown - 1   # the next row the series keeps
+        while i < len(times):     # up to the next thinning at a time
+            stop = min(len(times), i + (MAX_POINTS - len(self.t)) * self.stride)
+            self.t += times[i:stop:self.stride]
+            self.values += rms[i:stop:self.stride]
+            i += len(range(i, stop, self.stride)) * self.stride
             if len(self.t) >= MAX_POINTS:   # thin to half and keep half as often from now on
                 self.t, self.values = self.t[::2], self.values[::2]
                 self.stride *= 2
-        self._countdown = i - len(t) + 1
+        self._countdown = i - len(times) + 1
 
     def result(self):
         """RMS and peak in the metric's unit; NaN if nothing was counted (a run that
