@@ -1,5 +1,10 @@
 """Metrics computed while a run streams: running RMS and peak, plus a decimated time
 series for the charts (at most MAX_POINTS points, so memory stays flat on long runs).
+A metric copies each row it is fed into a block of BLOCK rows and evaluates a full block
+(and what is left at result()/series()) with batched plant calls: the paper manoeuvre's
+four metrics took 60-130 µs per recorded row evaluated one row at a time, 10-20 µs in
+blocks. The sums, the peak and the series still run row by row in time order, so the
+numbers equal one-row-at-a-time evaluation.
 
 Kinds (scenario key ``kind``):
 * ``leg_tracking``: measured leg lengths against the legs of the reference pose
@@ -57,10 +62,10 @@ class _Metric:
         """Copy this row's needs into the block (the caller may overwrite its arrays
         afterwards); a full block is evaluated."""
         if self._rows is None:
-            widths = [np.size(values[name]) for name in self.needs]
-            self._cuts = np.cumsum(widths)[:-1]
-            self._where = list(zip(self.needs, (slice(a - w, a) for a, w in zip(np.cumsum(widths), widths))))
-            self._rows = np.empty((BLOCK, sum(widths)))
+            ends = np.cumsum([0] + [np.size(values[name]) for name in self.needs]).tolist()
+            self._where = [(name, slice(a, b)) for name, a, b in zip(self.needs, ends, ends[1:])]
+            self._cuts = ends[1:-1]
+            self._rows = np.empty((BLOCK, ends[-1]))
         row = self._rows[self._filled]
         for name, where in self._where:
             row[where] = values[name]
