@@ -7,10 +7,14 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from plant.errors import InvalidInputError
+from plant.rotations import rpy_matrix
+from plant.stewart import StateInverseDynamics, StewartParams, inverse_kinematics
 from scenarios import metrics, spec
 from tests import newton_euler as ne
 
 HOME = np.array([0.0, 0.0, -2.6815, 0.0, 0.0, 0.0])
+PAPER = StewartParams.paper()
 
 
 def rpy(R):
@@ -122,3 +126,112 @@ def test_base_effect_of_a_base_at_rest_upright_is_zero():
     metric.update(0.0, {"b.base_pose": zero, "b.base_rate": zero, "b.base_acc": zero,
                         "r.reference_pose": HOME, "r.reference_rate": zero, "r.reference_acc": zero})
     assert max(abs(v) for k, v in metric.result().items() if k != "unit") < 1e-9
+
+
+# ------------------------------------------------------------- block against per row
+def _per_row_errors(kind, values):
+    """One row's errors by the single-state calls, as each row was evaluated on arrival."""
+    if kind == "tracking":
+        return values["p.x"] - values["r.x"]
+    if kind == "peak":
+        return values["c.f"]
+    if kind == "leg_tracking":
+        return values["p.l"] - inverse_kinematics(PAPER, values["r.pose"])
+    if kind == "pose_tracking":
+        pose, ref = values["p.pose"], values["r.pose"]
+        offset = pose[:3] - ref[:3]
+        ref_R, pose_R = rpy_matrix(np.stack([ref[3:], pose[3:]]))
+        r = ref_R.T @ pose_R
+        axis = math.hypot(r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1])
+        return [math.sqrt(offset @ offset)], [math.atan2(axis, r[0, 0] + r[1, 1] + r[2, 2] - 1.0)]
+    motion = [values[f"r.reference_{k}"] for k in ("pose", "rate", "acc")] + \
+             [values[f"b.base_{k}"] for k in ("pose", "rate", "acc")]
+    full, gravity, none = (StateInverseDynamics(PAPER, f)(*motion)[0][0].copy()
+                           for f in ("full", "base_gravity", "no_base"))
+    return full - none, np.abs(gravity - none).max(), np.abs(full - gravity).max()
+
+
+class _RowByRow:
+    """Sum of squares, peak and the stride-decimated series, one row at a time."""
+
+    def __init__(self):
+        self.count, self.sum_sq, self.peak, self.t, self.values, self.stride, self.countdown = 0, 0.0, 0.0, [], [], 1, 1
+
+    def add(self, t, error):
+        error = np.asarray(error, dtype=float)
+        square = float(error @ error)
+        self.count += error.size
+        self.sum_sq += square
+        self.peak = max(self.peak, float(error.max()), -float(error.min()))
+        self.countdown -= 1
+        if self.countdown == 0:
+            self.countdown = self.stride
+            self.t.append(t)
+            self.values.append(math.sqrt(square / error.size))
+            if len(self.t) >= metrics.MAX_POINTS:
+                self.t, self.values, self.stride = self.t[::2], self.values[::2], 2 * self.stride
+
+    def check(self, metric):
+        t, values = metric.series()   # flushes the block
+        assert (metric.count, metric.sum_sq, metric.peak) == (self.count, self.sum_sq, self.peak)
+        assert t.tolist() == self.t and values.tolist() == (np.array(self.values) * metric.scale).tolist()
+
+
+ROWS = {  # kind: scenario args, {variable: (centre, random spread)}
+    "tracking": ({"measured": "p.x", "reference": "r.x"}, {"p.x": (0.0, 1e-5), "r.x": (0.0, 1e-5)}),
+    "peak": ({"variable": "c.f"}, {"c.f": (0.0, 3e3)}),
+    "leg_tracking": ({"measured": "p.l", "reference_pose": "r.pose"},
+                     {"p.l": (inverse_kinematics(PAPER, HOME), 1e-4),
+                      "r.pose": (HOME, 0.02)}),
+    "pose_tracking": ({"measured": "p.pose", "reference": "r.pose"},
+                      {"p.pose": (HOME, 0.02), "r.pose": (HOME, 0.02)}),
+    "base_effect": ({"base": "b", "reference": "r"},
+                    {"b.base_pose": (0.0, 0.5), "b.base_rate": (0.0, 0.2), "b.base_acc": (0.0, 0.2),
+                     "r.reference_pose": (HOME, 0.02), "r.reference_rate": (0.0, 0.05), "r.reference_acc": (0.0, 0.1)}),
+}
+
+
+@pytest.mark.parametrize("kind", ROWS)
+def test_block_evaluation_equals_row_by_row_evaluation(kind, monkeypatch):
+    """Random rows over 2.5 blocks, the series thinned several times (MAX_POINTS 40), a
+    series() read inside the second block (a partial flush) and the rows handed over in
+    one buffer the caller overwrites (as the Recorder does): every sum, peak and series
+    point equals the single-row calls' bit for bit."""
+    monkeypatch.setattr(metrics, "MAX_POINTS", 40)
+    args, spread = ROWS[kind]
+    metric = metrics.make(spec.Metric("m", kind, args))
+    rows = [_RowByRow() for _ in range(2 if kind == "pose_tracking" else 1)]
+    peaks = [0.0, 0.0]
+    rng = np.random.default_rng(9)
+    buffer = {name: np.empty(6 if kind != "tracking" else 2) for name in spread}
+    n = int(2.5 * metrics.BLOCK) + 3
+    for k in range(n):
+        t = k * 1e-2
+        for name, (centre, scale) in spread.items():
+            buffer[name][:] = centre + scale * rng.standard_normal(buffer[name].size)
+        metric.update(t, buffer)
+        errors = _per_row_errors(kind, buffer)
+        if kind == "base_effect":
+            errors, *more = errors
+            peaks = [max(p, float(m)) for p, m in zip(peaks, more)]
+        for row, error in zip(rows, errors if kind == "pose_tracking" else [errors]):
+            row.add(t, error)
+        if k == metrics.BLOCK + metrics.BLOCK // 3:
+            rows[0].check(metric)
+    assert rows[0].stride >= 8   # thinned three times, across blocks
+    rows[0].check(metric)
+    if kind == "pose_tracking":
+        rows[1].check(metric.rotation)
+    if kind == "base_effect":
+        result = metric.result()
+        assert [result["gravity_peak"], result["transport_peak"]] == [p * 1e-3 for p in peaks]
+
+
+def test_a_bad_row_in_a_block_raises_with_the_rows_before_it_counted():
+    metric = metrics.LegTracking("legs", "p.l", "r.pose")
+    with pytest.raises(InvalidInputError, match="pose contains NaN"):
+        for k in range(20):
+            pose = HOME + [0.0, 0.0, 0.0, 0.0, 0.0, math.nan if k == 10 else 0.0]
+            metric.update(k * 1e-2, {"p.l": np.full(6, 2.9), "r.pose": pose})
+        metric.result()
+    assert metric.count == 10 * 6
