@@ -227,13 +227,13 @@ class Recorder:
         self.row = np.zeros(offset)
         self.metrics = metrics
         self.file = open(path, "w", newline="")
-        self.writer = csv.writer(self.file)
-        self.writer.writerow(["time [s]"] + self.columns)
+        csv.writer(self.file).writerow(["time [s]"] + self.columns)
 
     def record(self, t):
         for port, where in self.ports:
             self.row[where] = port.read()
-        self.writer.writerow([repr(t)] + [repr(v) for v in self.row.tolist()])
+        # the bytes csv.writer gives (numbers need no quoting), a quarter cheaper: shortest repr, \r\n
+        self.file.write(",".join(map(repr, [t] + self.row.tolist())) + "\r\n")
         values = {ref: self.row[s] for ref, s in self.slices.items()}
         for metric in self.metrics:
             if t >= metric.start - 1e-12:
