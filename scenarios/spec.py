@@ -35,7 +35,8 @@ from .units import UNITS, UnitError, split, to_si
 
 FMU_SCRIPTS = {"hexapod_plant": "hexapod_plant_fmu", "telescope": "telescope_fmu",
                "leg_controller": "leg_controller_fmu", "mechanism3t_plant": "mechanism3t_fmu",
-               "slider_controller": "slider_controller_fmu"}
+               "slider_controller": "slider_controller_fmu",
+               "wind": "wind_fmu"}
 # per instance: the native C FMU (no Python in the host) or the pythonfmu one; equal results
 IMPLEMENTATIONS = ("native", "python")
 MASTERS = ("jacobi", "gauss-seidel")
