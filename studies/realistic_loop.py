@@ -347,7 +347,7 @@ def budget_chart(s, scene, path):
     fig, axes = plt.subplots(1, 2, figsize=(13, 0.48 * len(rows) + 1.6), sharey=True)
     colours = {"fixed_base": "#b0b0b0", "moving_base": "#1f77b4"}
     values = [e[k] for _, row in rows for e in row.values() if e for k in ("rms", "peak")]
-    low, high = max(min(values) / 3, 1e-4), max(max(values) * 4, 300.0)
+    low, high = max(min(values) / 3, 1e-4), max(max(values) * 4, 2000.0)
     for ax, key, title in zip(axes, ("peak", "rms"), ("peak pose error", "RMS pose error")):
         for i, (label, row) in enumerate(rows):
             for j, mode in enumerate(("fixed_base", "moving_base")):
@@ -361,9 +361,15 @@ def budget_chart(s, scene, path):
                 ax.barh(y, entry[key] - low, left=low, height=0.36, color=colours[mode],
                         label=MODE_NAMES[mode] if i == 0 else None)
                 ax.text(entry[key] * 1.1, y, f"{fmt(entry[key])} µm", va="center", fontsize=7.5)
-        for mark, text in zip(MARKS, ("10 µm (focus)", "0.1 mm (metrology)")):
+        for mark, text, side in zip(MARKS, ("focus 10 µm", "0.1 mm metrology"), ("right", "left")):
             ax.axvline(mark, color="#d62728", lw=1, ls="--")
-            ax.text(mark, -0.9, text, color="#d62728", fontsize=8, ha="center", va="bottom")
+            ax.text(mark / 1.1 if side == "right" else mark * 1.1, -0.75, text, color="#d62728", fontsize=8,
+                    ha=side, va="center")
+        for mode, entry in rows[0][1].items():   # the ideal loop's value, down the chart
+            if entry:
+                ax.axvline(entry[key], color=colours[mode], lw=1, ls=":", zorder=0)
+        for edge in (0.5, len(EFFECTS) + len(SOURCES[2:]) + 0.5):   # ideal | one effect | everything
+            ax.axhline(edge, color="black", lw=0.6)
         ax.set_xscale("log")
         ax.set_xlim(low, high)
         ax.set_xlabel(f"{title} [µm], after settling (log scale)")
@@ -372,8 +378,8 @@ def budget_chart(s, scene, path):
     axes[0].set_yticks(range(len(rows)), [label for label, _ in rows], fontsize=8.5)
     axes[0].set_ylim(len(rows) - 0.4, -1.2)
     axes[0].legend(loc="lower right", fontsize=8)
-    fig.suptitle(f"{scene}: what each effect alone adds to the pose error (the ideal loop on top, everything at the "
-                 f"bottom)", fontsize=10)
+    fig.suptitle(f"{scene}: pose error with each effect alone on top of the ideal loop (dotted: the ideal loop), "
+                 f"and with everything on", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
