@@ -62,6 +62,8 @@ def main():
         "mechanism3t_fmu": ({}, vector("slider_force", 3), slider_static, vector("slider_position", 3)),
         "slider_controller_fmu": ({}, vector("slider_position", 3) + vector("slider_rate", 3),
                                   np.r_[rho, np.zeros(3)], vector("slider_force", 3)),
+        "leg_sensor_fmu": ({"resolution": 1e-7, "noise": 2e-8, "rate_cutoff": 200.0}, vector("leg_length"),
+                           StewartParams.paper().home_lengths, vector("measured_length") + vector("estimated_rate")),
     }
     for name, (params, ins, values, outs) in cases.items():
         if name not in fmus:

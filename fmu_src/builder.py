@@ -31,7 +31,7 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent   # the checkout, or site-
 PYPROJECT = ROOT / "pyproject.toml"
 OUT = (ROOT if PYPROJECT.exists() else pathlib.Path.cwd()) / "build" / "fmu"
 SCRIPTS = ("hexapod_plant_fmu", "telescope_fmu", "leg_controller_fmu", "mechanism3t_fmu", "slider_controller_fmu",
-           "wind_fmu")
+           "leg_sensor_fmu", "wind_fmu")
 
 _BASE = {"m": {"m": "1"}, "rad": {"rad": "1"}, "s": {"s": "1"}, "N": {"kg": "1", "m": "1", "s": "-2"},
          "m/s": {"m": "1", "s": "-1"}, "rad/s": {"rad": "1", "s": "-1"}, "m/s2": {"m": "1", "s": "-2"},
@@ -41,6 +41,9 @@ _BASE = {"m": {"m": "1"}, "rad": {"rad": "1"}, "s": {"s": "1"}, "N": {"kg": "1",
 _DISPLAY = {"m": ("mm", 1e3), "rad": ("deg", 57.29577951308232), "m/s": ("mm/s", 1e3),
             "rad/s": ("deg/s", 57.29577951308232), "m/s2": ("mm/s2", 1e3),
             "rad/s2": ("deg/s2", 57.29577951308232)}
+
+# units of the leg actuator and sensor parameters (Hz written 1/s, as scenarios/units.py reads it)
+_BASE.update({"kg": {"kg": "1"}, "N.m": {"kg": "1", "m": "2", "s": "-2"}, "1/s": {"s": "-1"}})
 
 
 def requirements():

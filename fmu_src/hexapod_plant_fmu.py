@@ -5,12 +5,18 @@ Over a communication step the leg forces are held and the base motion is extrapo
 by its rates and accelerations (with moving_base = 0 the base inputs are ignored); the
 FMU variables are views of the ODE's input/output arrays, so a step copies nothing.
 The state survives get/set FMU state.
+
+The leg actuator (plant.hexapod_ode.Actuator) is off by default: the commanded force
+appears in the leg at once, as before. Its defaults are 0 (off), not a real screw's
+values; the realistic scenario (scenarios/files/telescope_slew_realistic.toml) sets them,
+with their sources. With a bandwidth the six motor forces are states, saved with the FMU
+state; they start at the commanded force at initialization (no start transient).
 """
 import numpy as np
 
 from fmu_src.slave import (INPUT, OUTPUT, PARAMETER, POSE_UNITS, POSITIVE_TIME, GuardedSlave, acc_units,
                            rate_units)
-from plant.hexapod_ode import HexapodODE
+from plant.hexapod_ode import Actuator, HexapodODE
 from plant.integrators import INTEGRATORS
 from plant.stewart import FIDELITIES, HOME_POSE, StewartParams
 
@@ -35,10 +41,22 @@ class HexapodPlant(GuardedSlave):
                   valid=(POSITIVE_TIME, None))
         self.real("stroke", PARAMETER, "half stroke of every leg about its home length (assumed)", "m", self.stroke,
                   valid=STROKE_RANGE)
+        self.actuator = self.parameters((
+            ("actuator_bandwidth", "1/s", 0.0, "leg force-loop bandwidth, F/F_cmd = 1/(1 + s/(2 pi f)); 0: ideal "
+             "(the force appears at once)", (0.0, 1e4)),
+            ("reflected_mass", "kg", 0.0, "motor rotor + screw inertia reflected along each leg, "
+             "J (2 pi / pitch)^2; 0: none", (0.0, 1e5)),
+            ("coulomb_friction", "N", 0.0, "Coulomb friction of each leg's screw; 0: none", (0.0, 1e5)),
+            ("viscous_friction", "N.s/m", 0.0, "viscous friction of each leg's screw; 0: none", (0.0, 1e7)),
+            ("friction_velocity", "m/s", 1e-4, "tanh smoothing velocity of the Coulomb friction; > 0",
+             (1e-9, 1.0)),
+            ("actuator_force_limit", "N", 0.0, "motor force limit (the command is clipped to +-limit); 0: none",
+             (0.0, None)),
+        ))
         self.initial_pose = self.vector("initial_pose", 6, PARAMETER,
                                         [f"initial platform {n} in {{B}}" for n in POSE_NAMES], POSE_UNITS,
                                         HOME_POSE)
-        self.inputs, self.outputs = np.zeros((4, 6)), np.zeros((3, 6))   # shared with the ODE
+        self.inputs, self.outputs = np.zeros((5, 6)), np.zeros((4, 6))   # shared with the ODE
         self.vector("leg_force", 6, INPUT, "actuator force along the leg, + extends", "N", values=self.inputs[0])
         self.vector("base_pose", 6, INPUT, [f"base {n} in {{W}}" for n in POSE_NAMES], POSE_UNITS,
                     values=self.inputs[1])
@@ -46,26 +64,36 @@ class HexapodPlant(GuardedSlave):
                     values=self.inputs[2])
         self.vector("base_acc", 6, INPUT, [f"d2/dt2 base {n}" for n in POSE_NAMES], acc_units(POSE_UNITS),
                     values=self.inputs[3])
+        self.vector("platform_wrench", 6, INPUT, [f"external {n} on the platform at {{P}}'s origin, in {{B}}"
+                                                  for n in ("force x", "force y", "force z", "moment x", "moment y",
+                                                            "moment z")], ("N", "N", "N", "N.m", "N.m", "N.m"),
+                    values=self.inputs[4])
         self.outputs[0] = StewartParams.paper().home_lengths
         self.vector("leg_length", 6, OUTPUT, "leg length B_i to a_i", "m", values=self.outputs[0])
         self.vector("leg_rate", 6, OUTPUT, "leg extension rate", "m/s", values=self.outputs[1])
         self.vector("pose_rate", 6, OUTPUT, [f"d/dt platform {n}" for n in POSE_NAMES], rate_units(POSE_UNITS),
                     values=self.outputs[2])
-        self.x = np.r_[HOME_POSE, np.zeros(6)]
+        self.vector("leg_force_actual", 6, OUTPUT, "force the actuator delivers to the leg (after lag, limit and "
+                    "friction), + extends", "N", values=self.outputs[3])
+        self.x = np.r_[HOME_POSE, np.zeros(12)]   # pose, twist, motor forces (used with a bandwidth)
         self.vector("pose", 6, OUTPUT, [f"platform {n} in {{B}}" for n in POSE_NAMES], POSE_UNITS,
                     values=self.x[:6])
         self.ode = None
 
     def initialize(self):
         params = StewartParams.paper(stroke=(-self.stroke, self.stroke))
+        a = self.actuator
+        actuator = Actuator(a["actuator_bandwidth"], a["reflected_mass"], a["coulomb_friction"], a["viscous_friction"],
+                            a["friction_velocity"], a["actuator_force_limit"])
         self.ode = HexapodODE(params, FIDELITIES[self.fidelity], bool(self.moving_base),
-                              INTEGRATORS[self.integrator], self.max_step, self.inputs, self.outputs)
-        self.x[:] = np.r_[self.initial_pose, np.zeros(6)]
-        self.ode.advance(self.x, 0.0)
+                              INTEGRATORS[self.integrator], self.max_step, self.inputs, self.outputs, actuator)
+        self.state = self.x[:12 + actuator.states]   # the ODE's state: a view of x
+        self.state[:] = self.ode.initial_state(self.initial_pose)
+        self.ode.advance(self.state, 0.0)
 
     def step(self, t, h):
         self.ode.t0 = t
-        self.ode.advance(self.x, h)
+        self.ode.advance(self.state, h)
 
     def extra_state(self):
         return self.x.copy()

@@ -14,8 +14,14 @@ around the compiled right-hand side costs ~20 µs, one C call a few µs. Inputs 
 outputs live in two arrays the caller may share (the FMU maps its variables onto them);
 their C pointers are taken once here, so a step copies nothing. "radau" goes through
 plant.integrators with the C right-hand side.
+
+The leg actuator (Actuator: force-loop bandwidth, reflected mass, screw friction, force
+limit) and an external wrench on the platform are terms of the same C call
+(mb_hexapod_advance_actuated); all off, it is advance_fixed bit for bit. With a
+bandwidth the six motor forces join the state: x = [pose, twist, motor forces] (18).
 """
 import math
+from dataclasses import astuple, dataclass
 
 import numpy as np
 
@@ -24,14 +30,60 @@ from .errors import ConvergenceError, InvalidInputError, SingularConfigurationEr
 from .stewart import SINGULAR_RATIO, fidelity_mode, check_stroke, inverse_kinematics, jacobian
 
 
+# RK4's real-axis stability limit is 2.785: a force loop faster than this per substep diverges
+RK4_STABLE_RATE_STEP = 2.5
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """The electromechanical leg actuator (motor + ball screw), the same on every leg;
+    all zero: ideal (the commanded force appears in the leg at once). Units SI."""
+
+    bandwidth: float = 0.0          # Hz, force loop F/F_cmd = 1 / (1 + s / (2 pi bandwidth)); 0: ideal
+    reflected_mass: float = 0.0     # kg, rotor + screw inertia reflected along the leg
+    coulomb: float = 0.0            # N, Coulomb friction of the screw
+    viscous: float = 0.0            # N s/m, viscous friction of the screw
+    friction_velocity: float = 1e-4  # m/s, tanh smoothing of the Coulomb friction
+    force_limit: float = 0.0        # N, clip of the command; 0: none
+
+    def __post_init__(self):
+        for name in ("bandwidth", "reflected_mass", "coulomb", "viscous", "force_limit"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise InvalidInputError(f"actuator {name} must be finite and >= 0, got {value!r}")
+        if not (math.isfinite(self.friction_velocity) and self.friction_velocity > 0):
+            raise InvalidInputError(f"actuator friction_velocity must be finite and > 0, got {self.friction_velocity!r}")
+
+    @property
+    def data(self):
+        """The kernel's array (plant/c/hexapod.h MB_ACTUATOR_NDATA)."""
+        return np.array(astuple(self), dtype=float)
+
+    @property
+    def states(self):
+        """State count the actuator adds: the six motor forces when it has a bandwidth."""
+        return 6 if self.bandwidth > 0 else 0
+
+    def check_step(self, max_step, method):
+        """InvalidInputError if the explicit integrator cannot follow the force loop."""
+        rate_step = 2 * math.pi * self.bandwidth * max_step
+        if method in ("rk4", "euler") and rate_step > (RK4_STABLE_RATE_STEP if method == "rk4" else 1.0):
+            raise InvalidInputError(
+                f"actuator bandwidth {self.bandwidth:g} Hz is too fast for {method} at max_step {max_step:g} s "
+                f"(2 pi f max_step = {rate_step:.3g}); lower max_step below "
+                f"{(RK4_STABLE_RATE_STEP if method == 'rk4' else 1.0) / (2 * math.pi * self.bandwidth):.3g} s")
+
+
 class HexapodODE:
     """The hexapod plant between communication points: hold inputs, advance, read out.
 
-    ``inputs`` (4, 6): leg forces, base pose, base rate, base acc (held over a step).
-    ``outputs`` (3, 6): leg lengths, leg rates, pose rates after the last step."""
+    ``inputs`` (5, 6): leg forces (commanded), base pose, base rate, base acc, platform
+    wrench in {B} (held over a step). ``outputs`` (4, 6): leg lengths, leg rates, pose
+    rates and the forces the actuators deliver, after the last step. The state x given
+    to ``advance`` is (12,) + actuator.states."""
 
     def __init__(self, params, fidelity="full", moving_base=True, method="rk4", max_step=1e-3,
-                 inputs=None, outputs=None):
+                 inputs=None, outputs=None, actuator=None):
         if method not in integrators.INTEGRATORS:
             raise InvalidInputError(f"unknown integrator {method!r}; choose one of {integrators.INTEGRATORS}")
         if not max_step > 0:
@@ -39,26 +91,44 @@ class HexapodODE:
         self.params, self.method, self.max_step = params, method, max_step
         base_mode, self.legs = fidelity_mode(fidelity)
         self.base_mode = base_mode if moving_base else kane.BASE_NONE
-        self.inputs = np.zeros((4, 6)) if inputs is None else inputs
-        self.outputs = np.zeros((3, 6)) if outputs is None else outputs
+        self.actuator = Actuator() if actuator is None else actuator
+        self.actuator.check_step(max_step, method)
+        self.inputs = np.zeros((5, 6)) if inputs is None else inputs
+        self.outputs = np.zeros((4, 6)) if outputs is None else outputs
         self.bounds = params.home_lengths + np.array(params.stroke)[:, None]
         self.t0 = 0.0
         self._kernel = params.kernel
         # the arrays are shared with the caller and written in place: checked, never copied
-        self._inputs = kane.pointer(self.inputs, (4, 6), "inputs")
-        self._outputs = kane.pointer(self.outputs, (3, 6), "outputs")
+        self._inputs = kane.pointer(self.inputs, (5, 6), "inputs")
+        self._outputs = kane.pointer(self.outputs, (4, 6), "outputs")
+        self._actuator_data = self.actuator.data
+        self._force = np.zeros(6)   # delivered leg forces of the last rhs (radau's read-out)
+        self._actuator = kane.pointer(self._actuator_data, (kane.ACTUATOR_NDATA,), "actuator")
         self._bounds = kane.pointer(self.bounds, (2, 6), "bounds")
         self._base0 = kane.pointer(self.inputs[1:4], (3, 6), "base inputs")
 
-    def set_inputs(self, t0, forces, base_pose=0.0, base_rate=0.0, base_acc=0.0):
-        """Hold ``forces`` and the base motion given at t0 for the coming step."""
+    def set_inputs(self, t0, forces, base_pose=0.0, base_rate=0.0, base_acc=0.0, wrench=0.0):
+        """Hold ``forces`` (commanded), the base motion given at t0 and the platform wrench
+        for the coming step."""
         self.t0 = t0
-        for row, values in zip(self.inputs, (forces, base_pose, base_rate, base_acc)):
+        for row, values in zip(self.inputs, (forces, base_pose, base_rate, base_acc, wrench)):
             row[:] = values
 
+    def initial_state(self, pose):
+        """x at rest at ``pose``, the motor forces (if states) at the held, limited command:
+        a loop that starts in equilibrium starts without an actuator transient."""
+        x = np.zeros(12 + self.actuator.states)
+        x[:6] = pose
+        if self.actuator.states:
+            limit = self.actuator.force_limit
+            x[12:] = np.clip(self.inputs[0], -limit, limit) if limit > 0 else self.inputs[0]
+        return x
+
     def rhs(self, t, x):
-        dx = np.empty(12)   # scipy's Jacobian differencing passes strided x: the kernel copies it
-        det = self._kernel.rhs(x, self._inputs, self._base0, self.t0, t, self.base_mode, self.legs, dx)
+        dx = np.empty(len(x))   # scipy's Jacobian differencing passes strided x: the kernel copies it
+        wrench = self.inputs[4] if self.inputs[4].any() else None
+        det = self._kernel.rhs_actuated(self._actuator_data, x, self.inputs[0], wrench, self.inputs[1:4], self.t0, t,
+                                        self.base_mode, self.legs, dx, self._force)
         self._check_det(det)
         return dx
 
@@ -74,12 +144,13 @@ class HexapodODE:
         if self.method == "radau":
             return self._advance_radau(x, h)
         substeps = max(1, math.ceil(h / self.max_step - 1e-9))
-        det, status = self._kernel.advance_fixed(self.method == "rk4", substeps, x, self._inputs, self.t0, h,
-                                                 self.base_mode, self.legs, self._bounds, self._outputs)
+        det, status = self._kernel.advance_actuated(self.method == "rk4", substeps, self._actuator, x, self._inputs,
+                                                    self.t0, h, self.base_mode, self.legs, self._bounds,
+                                                    self._outputs)
         if status == kane.OK and det >= SINGULAR_RATIO * self.params.home_det:
             return self.outputs
         if status == kane.BAD_INPUT:
-            names = ("leg forces", "base pose", "base rate", "base acc")
+            names = ("leg forces", "base pose", "base rate", "base acc", "platform wrench")
             bad = [n for n, row in zip(names, self.inputs) if not np.isfinite(row).all()]
             raise InvalidInputError(f"{', '.join(bad)} input contains NaN or inf")
         if status == kane.DIVERGED:
@@ -95,7 +166,8 @@ class HexapodODE:
         if h > 0:
             x[:] = integrators.advance("radau", self.rhs, self.t0, x, h, self.max_step)
         self.outputs[0] = inverse_kinematics(self.params, x[:6])
-        self.outputs[1] = jacobian(self.params, x[:6]) @ x[6:]
+        self.outputs[1] = jacobian(self.params, x[:6]) @ x[6:12]
         self.outputs[2] = self.rhs(self.t0 + h, x)[:6]
+        self.outputs[3] = self._force
         check_stroke(self.params, self.outputs[0])
         return self.outputs

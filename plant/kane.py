@@ -27,6 +27,7 @@ BASE_NONE, BASE_GRAVITY, BASE_FULL = (lib.MB_HEXAPOD_BASE_NONE, lib.MB_HEXAPOD_B
 OK, BAD_INPUT, DIVERGED, STROKE = (lib.MB_HEXAPOD_OK, lib.MB_HEXAPOD_BAD_INPUT, lib.MB_HEXAPOD_DIVERGED,
                                    lib.MB_HEXAPOD_STROKE)  # advance_fixed status codes
 NDATA = lib.MB_HEXAPOD_NDATA   # length of StewartParams.kernel_data
+ACTUATOR_NDATA = lib.MB_ACTUATOR_NDATA   # [bandwidth, reflected_mass, coulomb, viscous, friction_velocity, force_limit]
 _F64 = np.dtype(np.float64)   # numpy's float64 dtype is one object: compared by identity
 
 
@@ -72,11 +73,16 @@ def readings(arrays, shape, names):
     return [reading(a, shape, name) for a, name in zip(arrays, names)]
 
 
+def _bandwidth(actuator):
+    """The bandwidth [Hz] in an actuator array or pointer (decides the state size)."""
+    return actuator[lib.MB_ACT_BANDWIDTH]
+
+
 STATE_NAMES = ("pose", "rate", "arg", "base_pose", "base_rate", "base_acc")
 
 
 def kane(base_joints, platform_joints, data, pose, rate, arg, base_pose, base_rate, base_acc,
-         base_mode, legs, twist_speeds, solve, M, h, J, ldot, length, out, det):
+         base_mode, legs, twist_speeds, solve, M, h, J, ldot, length, out, det, reflected_mass=0.0, wrench=None):
     """Fill M, h, J, leg rates for every state n and solve for ``out``.
 
     data = [m_p, I_p(3), m_f, l_f, m_m, l_m, I_axial, I_transverse, g].
@@ -85,17 +91,19 @@ def kane(base_joints, platform_joints, data, pose, rate, arg, base_pose, base_ra
     out: forces (ID) or pose_acc (twist acceleration when twist_speeds) (FD).
     length, ldot: leg lengths and rates.
     det: det(J) of each state, for the singularity check.
-    All (n, 6) but M, J (n, 6, 6) and det (n,); the base arrays are read per base_mode."""
+    All (n, 6) but M, J (n, 6, 6) and det (n,); the base arrays are read per base_mode.
+    reflected_mass [kg] along every leg, wrench (n, 6) on the platform in {B} (None: none):
+    plant/c/hexapod.h mb_hexapod_kane_ext (h then holds -wrench)."""
     n = pose.shape[0] if isinstance(pose, np.ndarray) and pose.ndim == 2 else -1
     if n < 0:
         raise InvalidInputError(f"pose must be an (n, 6) array, got {np.shape(pose)}")
     s6, s66 = (n, 6), (n, 6, 6)
-    lib.mb_hexapod_kane(
+    lib.mb_hexapod_kane_ext(
         reading(base_joints, (6, 3), "base_joints"), reading(platform_joints, (6, 3), "platform_joints"),
         reading(data, (NDATA,), "data"), n, reading(pose, s6, "pose"), reading(rate, s6, "rate"),
         reading(arg, s6, "arg"), reading(base_pose, s6, "base_pose"), reading(base_rate, s6, "base_rate"),
-        reading(base_acc, s6, "base_acc"), base_mode, bool(legs), bool(twist_speeds), solve,
-        pointer(M, s66, "M"), pointer(h, s6, "h"), pointer(J, s66, "J"), pointer(ldot, s6, "ldot"),
+        reading(base_acc, s6, "base_acc"), base_mode, bool(legs), bool(twist_speeds), solve, float(reflected_mass),
+        ffi.NULL if wrench is None else reading(wrench, s6, "wrench"), pointer(M, s66, "M"), pointer(h, s6, "h"), pointer(J, s66, "J"), pointer(ldot, s6, "ldot"),
         pointer(length, s6, "length"), pointer(out, s6, "out"), pointer(det, (n,), "det"))
 
 
@@ -169,6 +177,37 @@ class HexapodKernel:
         status = lib.mb_hexapod_advance_fixed(bool(rk4), substeps, *self.params, pointer(x, (12,), "x"),
                                               inputs, t0, h, base_mode, bool(legs), bounds, outputs, self._det)
         return self._det[0], status
+
+    def advance_actuated(self, rk4, substeps, actuator, x, inputs, t0, h, base_mode, legs, bounds, outputs):
+        """advance_fixed with the leg actuator ``actuator`` (MB_ACTUATOR_NDATA values: plant/c/hexapod.h)
+        and the platform wrench: x (12,) or (18,) with a bandwidth (the six motor forces
+        last), inputs (5, 6) with the wrench last, outputs (4, 6) with the delivered leg
+        forces last; arrays or pointers from ``pointer``."""
+        if isinstance(actuator, np.ndarray):
+            actuator = reading(actuator, (ACTUATOR_NDATA,), "actuator")
+        if isinstance(inputs, np.ndarray):
+            inputs = reading(inputs, (5, 6), "inputs")
+        if isinstance(bounds, np.ndarray):
+            bounds = reading(bounds, (2, 6), "bounds")
+        if isinstance(outputs, np.ndarray):
+            outputs = pointer(outputs, (4, 6), "outputs")
+        if not substeps >= 1:
+            raise InvalidInputError(f"substeps must be >= 1, got {substeps}")
+        nx = 18 if _bandwidth(actuator) > 0 else 12
+        status = lib.mb_hexapod_advance_actuated(bool(rk4), substeps, *self.params, actuator,
+                                                 pointer(x, (nx,), "x"), inputs, t0, h, base_mode, bool(legs),
+                                                 bounds, outputs, self._det)
+        return self._det[0], status
+
+    def rhs_actuated(self, actuator, x, command, wrench, base0, t0, t, base_mode, legs, dx, force=None):
+        """|det J| of x ((12,) or (18,) with a bandwidth); dx/dt into dx (same shape), the
+        delivered leg forces into ``force`` (6,) when given; wrench (6,) or None."""
+        n = len(x)
+        return lib.mb_hexapod_rhs_actuated(
+            *self.params, reading(actuator, (ACTUATOR_NDATA,), "actuator"), reading(x, (n,), "x"),
+            reading(command, (6,), "command"), ffi.NULL if wrench is None else reading(wrench, (6,), "wrench"),
+            reading(base0, (3, 6), "base0"), t0, t, base_mode, bool(legs), pointer(dx, (n,), "dx"),
+            ffi.NULL if force is None else pointer(force, (6,), "force"))
 
     def rhs(self, x, forces, base0, t0, t, base_mode, legs, dx):
         """|det J| of x (12,), dx/dt written into dx (12,); forces, base0 arrays or bound

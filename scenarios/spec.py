@@ -35,8 +35,10 @@ from .units import UNITS, UnitError, split, to_si
 
 FMU_SCRIPTS = {"hexapod_plant": "hexapod_plant_fmu", "telescope": "telescope_fmu",
                "leg_controller": "leg_controller_fmu", "mechanism3t_plant": "mechanism3t_fmu",
-               "slider_controller": "slider_controller_fmu",
+               "slider_controller": "slider_controller_fmu", "leg_sensor": "leg_sensor_fmu",
                "wind": "wind_fmu"}
+# inputs that may stay unconnected, held at their start value (0: the effect they feed is off)
+OPTIONAL_INPUTS = {"hexapod_plant": ("platform_wrench",)}
 # per instance: the native C FMU (no Python in the host) or the pythonfmu one; equal results
 IMPLEMENTATIONS = ("native", "python")
 MASTERS = ("jacobi", "gauss-seidel")
@@ -351,7 +353,9 @@ def bind(scenario, model_descriptions):
                 _feed_once(src, key, i, f"{source_ref} -> {target}", (s_inst, s.name), (t_inst, t.name),
                            feeders, fed)
     for inst in scenario.fmus:
-        missing = [n for n, v in variables[inst].items() if v.causality == "input" and (inst, n) not in fed]
+        optional = OPTIONAL_INPUTS.get(scenario.fmus[inst], ())
+        missing = [n for n, v in variables[inst].items() if v.causality == "input" and (inst, n) not in fed
+                   and n.split("[", 1)[0] not in optional]
         if missing:
             raise ScenarioError(src, f"fmus.{inst}", f"inputs neither connected nor set: {', '.join(missing)}")
     for reference in scenario.record:

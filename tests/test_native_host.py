@@ -20,6 +20,8 @@ CASES = {   # script: (parameters, Integer parameters, outputs watched)
     "leg_controller_fmu": ({"leg_length[2]": 3.0}, {}, ["leg_force[2]", "integral[2]"]),
     "mechanism3t_fmu": ({"slider_force[1]": 20.0}, {}, ["platform_position[3]"]),
     "slider_controller_fmu": ({}, {}, ["slider_force[1]", "reference_position[1]"]),
+    "leg_sensor_fmu": ({"leg_length[1]": 3.1, "noise": 1e-6, "resolution": 1e-7, "rate_cutoff": 200.0},
+                       {"seed": 7, "delay_steps": 1}, ["measured_length[1]", "estimated_rate[1]"]),
 }
 
 

@@ -1,23 +1,31 @@
 /* HexapodPlant, native: the variables of fmu_src/hexapod_plant_fmu.py over the hexapod
-   kernel (plant/c/hexapod.h, mb_hexapod_advance_fixed), with the checks and messages of
+   kernel (plant/c/hexapod.h, mb_hexapod_advance_actuated), with the checks and messages of
    plant/hexapod_ode.py HexapodODE.advance. The inputs (leg_force, base_pose, base_rate,
-   base_acc) and the outputs (leg_length, leg_rate, pose_rate) are consecutive value
-   references, so the kernel reads and writes the variable array in place. Radau needs
-   scipy: the native plant refuses it at initialization. */
+   base_acc, platform_wrench) and the outputs (leg_length, leg_rate, pose_rate,
+   leg_force_actual) are consecutive value references, so the kernel reads and writes the
+   variable array in place. Radau needs scipy: the native plant refuses it at
+   initialization. With an actuator bandwidth the six motor forces are x[12..17]. */
 #include <math.h>
 #include <string.h>
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
 
 #include "HexapodPlant_vars.h"
 #include "hexapod.h"
 
 typedef struct {
-    double x[12];        /* pose (6), twist (6) */
+    double x[18];        /* pose (6), twist (6), motor forces (6, with a bandwidth) */
+    double act[MB_ACTUATOR_NDATA];
     double bounds[12];   /* (2, 6) lowest and highest leg lengths */
     double max_step;
     int base_mode, legs, rk4;
 } Model;
 
-static const char *const INPUT_NAMES[4] = {"leg forces", "base pose", "base rate", "base acc"};
+static const char *const INPUT_NAMES[5] = {"leg forces", "base pose", "base rate", "base acc",
+                                           "platform wrench"};
+#define RK4_STABLE_RATE_STEP 2.5   /* plant/hexapod_ode.py */
 
 /* Advance over [t0, t0 + h] and fill the outputs; 0, or 1 after mb_error. */
 static int advance(mb_instance *inst, double *r, Model *m, double t0, double h)
@@ -25,15 +33,16 @@ static int advance(mb_instance *inst, double *r, Model *m, double t0, double h)
     double n = ceil(h / m->max_step - 1e-9);
     int substeps = n > 1 ? (int)n : 1;
     double det = 0.0, *outputs = &r[VR_leg_length];
-    int status = mb_hexapod_advance_fixed(m->rk4, substeps, BASE_JOINTS, PLATFORM_JOINTS, KERNEL_DATA, m->x,
-                                          &r[VR_leg_force], t0, h, m->base_mode, m->legs, m->bounds, outputs, &det);
+    int status = mb_hexapod_advance_actuated(m->rk4, substeps, BASE_JOINTS, PLATFORM_JOINTS, KERNEL_DATA, m->act,
+                                             m->x, &r[VR_leg_force], t0, h, m->base_mode, m->legs, m->bounds,
+                                             outputs, &det);
     if (status == MB_HEXAPOD_OK && det >= SINGULAR_RATIO * HOME_DET) {
         memcpy(&r[VR_pose], m->x, 6 * sizeof(double));
         return 0;
     }
     if (status == MB_HEXAPOD_BAD_INPUT) {
         char bad[96];
-        mb_nonfinite_rows(4, 6, &r[VR_leg_force], INPUT_NAMES, bad, sizeof bad);
+        mb_nonfinite_rows(5, 6, &r[VR_leg_force], INPUT_NAMES, bad, sizeof bad);
         mb_error(inst, "InvalidInputError", "%s input contains NaN or inf", bad);
     } else if (status == MB_HEXAPOD_DIVERGED) {
         mb_error(inst, "ConvergenceError", "integrator %s diverged over [%.6g, %.6g] s (substep %.3g s): "
@@ -80,6 +89,20 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
         return 1;
     }
     m->rk4 = integrator == INTEGRATOR_RK4;
+    m->act[MB_ACT_BANDWIDTH] = r[VR_actuator_bandwidth];
+    m->act[MB_ACT_REFLECTED_MASS] = r[VR_reflected_mass];
+    m->act[MB_ACT_COULOMB] = r[VR_coulomb_friction];
+    m->act[MB_ACT_VISCOUS] = r[VR_viscous_friction];
+    m->act[MB_ACT_FRICTION_VELOCITY] = r[VR_friction_velocity];
+    m->act[MB_ACT_FORCE_LIMIT] = r[VR_actuator_force_limit];
+    double bw = m->act[MB_ACT_BANDWIDTH], rate_step = 2 * M_PI * bw * m->max_step;
+    double stable = m->rk4 ? RK4_STABLE_RATE_STEP : 1.0;
+    if (rate_step > stable) {   /* Actuator.check_step */
+        mb_error(inst, "InvalidInputError", "actuator bandwidth %g Hz is too fast for %s at max_step %g s "
+                 "(2 pi f max_step = %.3g); lower max_step below %.3g s", bw,
+                 INTEGRATOR_NAMES[integrator], m->max_step, rate_step, stable / (2 * M_PI * bw));
+        return 1;
+    }
     m->legs = FIDELITY_LEGS[fidelity];
     m->base_mode = i[VR_moving_base] ? FIDELITY_BASE_MODE[fidelity] : MB_HEXAPOD_BASE_NONE;
     double stroke = r[VR_stroke];
@@ -88,7 +111,12 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
         m->bounds[6 + leg] = HOME_LENGTHS[leg] + stroke;
     }
     memcpy(m->x, &r[VR_initial_pose], 6 * sizeof(double));
-    memset(m->x + 6, 0, 6 * sizeof(double));
+    memset(m->x + 6, 0, 12 * sizeof(double));
+    if (bw > 0)   /* HexapodODE.initial_state: the motor forces start at the held, limited command */
+        for (int leg = 0; leg < 6; leg++) {
+            double f = r[VR_leg_force + leg], limit = m->act[MB_ACT_FORCE_LIMIT];
+            m->x[12 + leg] = limit > 0 ? (f > limit ? limit : (f < -limit ? -limit : f)) : f;
+        }
     return advance(inst, r, m, 0.0, 0.0);
 }
 

@@ -7,7 +7,12 @@
    relative to {B} in {B}; a leg reduces to the 3x3 joint mass
    K = m_m s s^T + k_t (1 - s s^T) acting on its platform-joint velocity v_a = v + w x rho. */
 #include <math.h>
+#include <stddef.h>
 #include "hexapod.h"
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
 #include "linalg.h"
 
 typedef struct { double e[3]; } v3;
@@ -89,12 +94,12 @@ static inline v3 transport(v3 aB, v3 g, v3 eB, v3 wB, v3 r, v3 v_rel)
     return add(lin(1.0, aB, -1.0, g), add(cross(eB, r), cross(wB, lin(1.0, cross(wB, r), 2.0, v_rel))));
 }
 
-void mb_hexapod_kane(const double *base_joints, const double *platform_joints, const double *data,
-                     int n_states, const double *pose_all, const double *rate_all, const double *arg_all,
-                     const double *base_pose, const double *base_rate, const double *base_acc,
-                     int base_mode, int legs, int twist_speeds, int solve,
-                     double *M_all, double *h_all, double *J_all, double *ldot, double *length,
-                     double *out_all, double *det)
+void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joints, const double *data,
+                         int n_states, const double *pose_all, const double *rate_all, const double *arg_all,
+                         const double *base_pose, const double *base_rate, const double *base_acc,
+                         int base_mode, int legs, int twist_speeds, int solve, double m_r,
+                         const double *wrench_all, double *M_all, double *h_all, double *J_all, double *ldot,
+                         double *length, double *out_all, double *det)
 {
     const double m_p = data[0], g0 = data[10];
     const double Ip[3] = {data[1], data[2], data[3]};
@@ -159,6 +164,14 @@ void mb_hexapod_kane(const double *base_joints, const double *platform_joints, c
                 J[6 * j + k] = s.e[k];
                 J[6 * j + 3 + k] = rs.e[k];
             }
+            if (m_r != 0.0) {   /* reflected mass: T += m_r ld^2 / 2, ld = J_j u, ldd = J_j du + ldd0 */
+                v3 aa = cross(w, cross(w, rho));
+                double ldd_v = dot(s, aa) + l * dot(sd, sd);
+                for (int a = 0; a < 6; a++) {
+                    h[a] += m_r * J[6 * j + a] * ldd_v;
+                    for (int c = 0; c < 6; c++) M[6 * a + c] += m_r * J[6 * j + a] * J[6 * j + c];
+                }
+            }
             if (!legs) continue;
             v3 aa0 = cross(w, cross(w, rho));
             double ldd0 = dot(s, aa0) + l * dot(sd, sd);
@@ -207,6 +220,8 @@ void mb_hexapod_kane(const double *base_joints, const double *platform_joints, c
                 for (int c = 0; c < 6; c++) M[6 * a + c] += cm * J[6 * j + a] * J[6 * j + c];
         }
 
+        if (wrench_all)   /* an external wrench W: M du + (h - W) = J^T F */
+            for (int i = 0; i < 6; i++) h[i] -= wrench_all[6 * n + i];
         for (int i = 0; i < 36; i++) {
             M_all[36 * n + i] = M[i];
             J_all[36 * n + i] = J[i];
@@ -262,20 +277,74 @@ void mb_hexapod_kane(const double *base_joints, const double *platform_joints, c
     }
 }
 
-double mb_hexapod_rhs(const double *bj, const double *pj, const double *data, const double *x,
-                      const double *forces, const double *base0, double t0, double t, int base_mode,
-                      int legs, double *dx)
+void mb_hexapod_kane(const double *base_joints, const double *platform_joints, const double *data,
+                     int n_states, const double *pose, const double *rate, const double *arg,
+                     const double *base_pose, const double *base_rate, const double *base_acc,
+                     int base_mode, int legs, int twist_speeds, int solve,
+                     double *M, double *h, double *J, double *ldot, double *length, double *out, double *det)
 {
-    double base[18], M[36], h[6], J[36], ldot[6], length[6], out[6], det;
+    mb_hexapod_kane_ext(base_joints, platform_joints, data, n_states, pose, rate, arg, base_pose, base_rate,
+                        base_acc, base_mode, legs, twist_speeds, solve, 0.0, NULL, M, h, J, ldot, length, out, det);
+}
+
+/* Leg rates [m/s] of x = [pose, twist] (the formula of mb_hexapod_leg_kinematics). */
+static void leg_rates(const double *bj, const double *pj, const double *x, double *ld)
+{
+    double R[9];
+    rotation(x + 3, R);
+    v3 v = load(x + 6), w = load(x + 9);
+    for (int j = 0; j < 6; j++) {
+        v3 rho = mul(R, load(pj + 3 * j));
+        v3 L = vec(x[0] + rho.e[0] - bj[3 * j], x[1] + rho.e[1] - bj[3 * j + 1], x[2] + rho.e[2] - bj[3 * j + 2]);
+        ld[j] = dot(L, add(v, cross(w, rho))) / sqrt(dot(L, L));
+    }
+}
+
+static inline double clamp(double f, double limit)
+{
+    return limit > 0.0 ? (f > limit ? limit : (f < -limit ? -limit : f)) : f;
+}
+
+/* The force each actuator delivers to its leg: the motor's (the lag state x[12 + j]
+   with a bandwidth, else the limited command) less the screw's friction at the leg
+   rates ld (read only with friction on). */
+static void delivered(const double *act, const double *x, const double *command, const double *ld, double *force)
+{
+    double fc = act[MB_ACT_COULOMB], c = act[MB_ACT_VISCOUS], vs = act[MB_ACT_FRICTION_VELOCITY];
+    int lag = act[MB_ACT_BANDWIDTH] > 0.0, friction = fc != 0.0 || c != 0.0;
+    for (int j = 0; j < 6; j++) {
+        double f = lag ? x[12 + j] : clamp(command[j], act[MB_ACT_FORCE_LIMIT]);
+        force[j] = friction ? f - (fc * tanh(ld[j] / vs) + c * ld[j]) : f;
+    }
+}
+
+double mb_hexapod_rhs_actuated(const double *bj, const double *pj, const double *data, const double *act,
+                               const double *x, const double *command, const double *wrench, const double *base0,
+                               double t0, double t, int base_mode, int legs, double *dx, double *force)
+{
+    double base[18], M[36], h[6], J[36], ldot[6], length[6], out[6], det, f[6], ld[6];
     double tau = t - t0;
+    const double *forces = command;
+    if (act) {
+        if (act[MB_ACT_COULOMB] != 0.0 || act[MB_ACT_VISCOUS] != 0.0) leg_rates(bj, pj, x, ld);
+        delivered(act, x, command, ld, f);
+        forces = f;
+        if (act[MB_ACT_BANDWIDTH] > 0.0) {   /* dF/dt = 2 pi f_bw (F_cmd - F) */
+            double rate = 2.0 * M_PI * act[MB_ACT_BANDWIDTH];
+            for (int j = 0; j < 6; j++) dx[12 + j] = rate * (clamp(command[j], act[MB_ACT_FORCE_LIMIT]) - x[12 + j]);
+        }
+    }
+    if (force)
+        for (int j = 0; j < 6; j++) force[j] = forces[j];
     if (base_mode != MB_HEXAPOD_BASE_NONE)
         for (int k = 0; k < 6; k++) {
             base[k] = base0[k] + tau * base0[6 + k] + 0.5 * tau * tau * base0[12 + k];
             base[6 + k] = base0[6 + k] + tau * base0[12 + k];
             base[12 + k] = base0[12 + k];
         }
-    mb_hexapod_kane(bj, pj, data, 1, x, x + 6, forces, base, base + 6, base + 12, base_mode, legs, 1,
-                    MB_HEXAPOD_FD, M, h, J, ldot, length, out, &det);
+    mb_hexapod_kane_ext(bj, pj, data, 1, x, x + 6, forces, base, base + 6, base + 12, base_mode, legs, 1,
+                        MB_HEXAPOD_FD, act ? act[MB_ACT_REFLECTED_MASS] : 0.0, wrench, M, h, J, ldot, length, out,
+                        &det);
     v3 rr = rpy_rate(x + 3, load(x + 9));
     for (int k = 0; k < 3; k++) {
         dx[k] = x[6 + k];
@@ -283,6 +352,13 @@ double mb_hexapod_rhs(const double *bj, const double *pj, const double *data, co
     }
     for (int k = 0; k < 6; k++) dx[6 + k] = out[k];
     return fabs(det);
+}
+
+double mb_hexapod_rhs(const double *bj, const double *pj, const double *data, const double *x,
+                      const double *forces, const double *base0, double t0, double t, int base_mode,
+                      int legs, double *dx)
+{
+    return mb_hexapod_rhs_actuated(bj, pj, data, NULL, x, forces, NULL, base0, t0, t, base_mode, legs, dx, NULL);
 }
 
 void mb_hexapod_leg_kinematics(const double *bj, const double *pj, const double *x, double *outputs)
@@ -304,44 +380,68 @@ void mb_hexapod_leg_kinematics(const double *bj, const double *pj, const double 
     }
 }
 
+/* advance_fixed and advance_actuated: act NULL (ideal actuators, no wrench, 4 input rows,
+   3 output rows) or the actuator data (5 input rows with the wrench, 4 output rows). */
+static int advance(int rk4, int substeps, const double *bj, const double *pj, const double *data,
+                   const double *act, double *x, const double *inputs, double t0, double h, int base_mode,
+                   int legs, const double *bounds, double *outputs, double *det_min)
+{
+    double k1[18], k2[18], k3[18], k4[18], xs[18];
+    int nx = act && act[MB_ACT_BANDWIDTH] > 0.0 ? 18 : 12, ninputs = act ? 30 : 24;
+    *det_min = 0.0;
+    for (int k = 0; k < ninputs; k++)
+        if (!isfinite(inputs[k])) return MB_HEXAPOD_BAD_INPUT;
+    const double *forces = inputs, *base0 = inputs + 6, *wrench = NULL;
+    if (act)
+        for (int k = 24; k < 30; k++)
+            if (inputs[k] != 0.0) wrench = inputs + 24;
+    double dt = h / substeps, dmin = INFINITY, d;
+    for (int n = 0; n < substeps; n++) {
+        double t = t0 + n * dt;
+        d = mb_hexapod_rhs_actuated(bj, pj, data, act, x, forces, wrench, base0, t0, t, base_mode, legs, k1, NULL);
+        if (d < dmin) dmin = d;
+        if (!rk4) {
+            for (int k = 0; k < nx; k++) x[k] += dt * k1[k];
+            continue;
+        }
+        for (int k = 0; k < nx; k++) xs[k] = x[k] + 0.5 * dt * k1[k];
+        d = mb_hexapod_rhs_actuated(bj, pj, data, act, xs, forces, wrench, base0, t0, t + 0.5 * dt, base_mode, legs,
+                                    k2, NULL);
+        if (d < dmin) dmin = d;
+        for (int k = 0; k < nx; k++) xs[k] = x[k] + 0.5 * dt * k2[k];
+        d = mb_hexapod_rhs_actuated(bj, pj, data, act, xs, forces, wrench, base0, t0, t + 0.5 * dt, base_mode, legs,
+                                    k3, NULL);
+        if (d < dmin) dmin = d;
+        for (int k = 0; k < nx; k++) xs[k] = x[k] + dt * k3[k];
+        d = mb_hexapod_rhs_actuated(bj, pj, data, act, xs, forces, wrench, base0, t0, t + dt, base_mode, legs, k4,
+                                    NULL);
+        if (d < dmin) dmin = d;
+        for (int k = 0; k < nx; k++) x[k] += dt / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k]);
+    }
+    *det_min = dmin;
+    for (int k = 0; k < nx; k++)
+        if (!isfinite(x[k]) || (k < 3 && fabs(x[k]) > 100.0)) return MB_HEXAPOD_DIVERGED;
+    mb_hexapod_leg_kinematics(bj, pj, x, outputs);
+    if (act) delivered(act, x, forces, outputs + 6, outputs + 18);
+    int status = MB_HEXAPOD_OK;
+    for (int j = 0; j < 6; j++)
+        if (outputs[j] < bounds[j] || outputs[j] > bounds[6 + j]) status = MB_HEXAPOD_STROKE;
+    return status;
+}
+
 int mb_hexapod_advance_fixed(int rk4, int substeps, const double *bj, const double *pj,
                              const double *data, double *x, const double *inputs, double t0, double h,
                              int base_mode, int legs, const double *bounds, double *outputs,
                              double *det_min)
 {
-    double k1[12], k2[12], k3[12], k4[12], xs[12];
-    *det_min = 0.0;
-    for (int k = 0; k < 24; k++)
-        if (!isfinite(inputs[k])) return MB_HEXAPOD_BAD_INPUT;
-    const double *forces = inputs, *base0 = inputs + 6;
-    double dt = h / substeps, dmin = INFINITY, d;
-    for (int n = 0; n < substeps; n++) {
-        double t = t0 + n * dt;
-        d = mb_hexapod_rhs(bj, pj, data, x, forces, base0, t0, t, base_mode, legs, k1);
-        if (d < dmin) dmin = d;
-        if (!rk4) {
-            for (int k = 0; k < 12; k++) x[k] += dt * k1[k];
-            continue;
-        }
-        for (int k = 0; k < 12; k++) xs[k] = x[k] + 0.5 * dt * k1[k];
-        d = mb_hexapod_rhs(bj, pj, data, xs, forces, base0, t0, t + 0.5 * dt, base_mode, legs, k2);
-        if (d < dmin) dmin = d;
-        for (int k = 0; k < 12; k++) xs[k] = x[k] + 0.5 * dt * k2[k];
-        d = mb_hexapod_rhs(bj, pj, data, xs, forces, base0, t0, t + 0.5 * dt, base_mode, legs, k3);
-        if (d < dmin) dmin = d;
-        for (int k = 0; k < 12; k++) xs[k] = x[k] + dt * k3[k];
-        d = mb_hexapod_rhs(bj, pj, data, xs, forces, base0, t0, t + dt, base_mode, legs, k4);
-        if (d < dmin) dmin = d;
-        for (int k = 0; k < 12; k++) x[k] += dt / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k]);
-    }
-    *det_min = dmin;
-    for (int k = 0; k < 12; k++)
-        if (!isfinite(x[k]) || (k < 3 && fabs(x[k]) > 100.0)) return MB_HEXAPOD_DIVERGED;
-    mb_hexapod_leg_kinematics(bj, pj, x, outputs);
-    int status = MB_HEXAPOD_OK;
-    for (int j = 0; j < 6; j++)
-        if (outputs[j] < bounds[j] || outputs[j] > bounds[6 + j]) status = MB_HEXAPOD_STROKE;
-    return status;
+    return advance(rk4, substeps, bj, pj, data, NULL, x, inputs, t0, h, base_mode, legs, bounds, outputs, det_min);
+}
+
+int mb_hexapod_advance_actuated(int rk4, int substeps, const double *bj, const double *pj, const double *data,
+                                const double *act, double *x, const double *inputs, double t0, double h,
+                                int base_mode, int legs, const double *bounds, double *outputs, double *det_min)
+{
+    return advance(rk4, substeps, bj, pj, data, act, x, inputs, t0, h, base_mode, legs, bounds, outputs, det_min);
 }
 
 double mb_hexapod_inverse_dynamics(const double *base_joints, const double *platform_joints,

@@ -68,6 +68,47 @@ void mb_hexapod_kane(const double *base_joints, const double *platform_joints, c
                      double *M, double *h, double *J, double *ldot, double *length,
                      double *out, double *det);
 
+/* mb_hexapod_kane with two more terms (both off when 0 / NULL, then bit for bit the same):
+   reflected_mass m_r [kg]: motor rotor and screw inertia reflected along every leg
+     (J_rotor (2 pi / pitch)^2), kinetic energy m_r ld_j^2 / 2 per leg: M += m_r J^T J and
+     h += m_r J^T (dJ/dt u). The rotor's spin coupling to the leg's own rotation
+     (J_rotor 2 pi / pitch * axial angular acceleration) is left out: ~1e-3 N here.
+   wrench (n, 6) or NULL: external force [N] and moment [N m] on the platform at {P}'s
+     origin, in {B}: M du + (h - W) = J^T F, so h is written with -W in it. */
+void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joints, const double *data,
+                         int n, const double *pose, const double *rate, const double *arg,
+                         const double *base_pose, const double *base_rate, const double *base_acc,
+                         int base_mode, int legs, int twist_speeds, int solve, double reflected_mass,
+                         const double *wrench, double *M, double *h, double *J, double *ldot,
+                         double *length, double *out, double *det);
+
+/* The electromechanical leg actuator (motor + ball screw), one set for all six legs:
+   act (MB_ACTUATOR_NDATA) = [bandwidth, reflected_mass, coulomb, viscous,
+   friction_velocity, force_limit]:
+     bandwidth [Hz]          0: the motor force is the command at once; > 0: a first-order
+                             force loop per leg, dF/dt = 2 pi bandwidth (F_cmd - F), whose
+                             six forces F are states x[12..17]
+     reflected_mass [kg]     see mb_hexapod_kane_ext
+     coulomb [N], viscous [N s/m], friction_velocity [m/s]: screw friction
+                             F_fric = coulomb tanh(ld / friction_velocity) + viscous ld,
+                             opposing the leg rate ld (0, 0: none; friction_velocity > 0)
+     force_limit [N]         0: none; > 0: the command is clipped to +-force_limit
+   The force delivered to leg j is F_j (or the clipped command) - F_fric(ld_j).
+   All zero: the ideal actuator of mb_hexapod_advance_fixed, bit for bit. */
+enum { MB_ACTUATOR_NDATA = 6 };
+enum mb_actuator_field {
+    MB_ACT_BANDWIDTH = 0, MB_ACT_REFLECTED_MASS = 1, MB_ACT_COULOMB = 2, MB_ACT_VISCOUS = 3,
+    MB_ACT_FRICTION_VELOCITY = 4, MB_ACT_FORCE_LIMIT = 5
+};
+
+/* mb_hexapod_rhs with the actuator act (or NULL: ideal) and an external wrench (6, or NULL):
+   x is (12) or, with a bandwidth, (18) = [pose, twist, motor forces]; command (6) the
+   commanded leg forces [N]; dx as x; force (6, or NULL) receives the delivered leg forces. */
+double mb_hexapod_rhs_actuated(const double *base_joints, const double *platform_joints, const double *data,
+                               const double *act, const double *x, const double *command, const double *wrench,
+                               const double *base0, double t0, double t, int base_mode, int legs, double *dx,
+                               double *force);
+
 /* dx/dt of one state x (12) = [pose, twist (v, w) in {B}] under leg forces (6) [N],
    with the base extrapolated from base0 (3, 6) = [base pose, rate, acc] at time t0 [s] to
    time t [s] (second-order Taylor; base0 is not read for BASE_NONE and may be NULL). Writes dx (12) = [pose rates (RPY rates), twist
@@ -88,6 +129,16 @@ int mb_hexapod_advance_fixed(int rk4, int substeps, const double *base_joints,
                              const double *platform_joints, const double *data, double *x,
                              const double *inputs, double t0, double h, int base_mode, int legs,
                              const double *bounds, double *outputs, double *det_min);
+
+/* mb_hexapod_advance_fixed with the actuator act (see above; all zero = advance_fixed):
+   x (12) or, with a bandwidth, (18) = [pose, twist, motor forces];
+   inputs (5, 6) = commanded leg forces [N], base pose, rate, acc, and the external
+                   wrench on the platform [N, N m] in {B} (all zero: no wrench term)
+   outputs (4, 6) = leg lengths, leg rates, pose rates and the delivered leg forces [N]. */
+int mb_hexapod_advance_actuated(int rk4, int substeps, const double *base_joints, const double *platform_joints,
+                                const double *data, const double *act, double *x, const double *inputs,
+                                double t0, double h, int base_mode, int legs, const double *bounds,
+                                double *outputs, double *det_min);
 
 /* Kinematic read-out of x (12) = [pose, twist]: outputs (3, 6) = leg lengths [m], leg
    rates [m/s], pose rates (velocity [m/s], RPY rates [rad/s]). */
