@@ -31,16 +31,18 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent   # the checkout, or site-
 PYPROJECT = ROOT / "pyproject.toml"
 OUT = (ROOT if PYPROJECT.exists() else pathlib.Path.cwd()) / "build" / "fmu"
 SCRIPTS = ("hexapod_plant_fmu", "telescope_fmu", "leg_controller_fmu", "mechanism3t_fmu", "slider_controller_fmu",
-           "leg_sensor_fmu", "wind_fmu")
+           "leg_sensor_fmu", "base_sensor_fmu", "wind_fmu")
 
 _BASE = {"m": {"m": "1"}, "rad": {"rad": "1"}, "s": {"s": "1"}, "N": {"kg": "1", "m": "1", "s": "-2"},
          "m/s": {"m": "1", "s": "-1"}, "rad/s": {"rad": "1", "s": "-1"}, "m/s2": {"m": "1", "s": "-2"},
          "rad/s2": {"rad": "1", "s": "-2"}, "N/m": {"kg": "1", "s": "-2"},
-         "N/(m.s)": {"kg": "1", "s": "-3"}, "N.s/m": {"kg": "1", "s": "-1"}, "m.s": {"m": "1", "s": "1"},
-         "m2": {"m": "2"}, "kg/m3": {"kg": "1", "m": "-3"}, "N.m": {"kg": "1", "m": "2", "s": "-2"}}
+         "N/(m.s)": {"kg": "1", "s": "-3"}, "N.s/m": {"kg": "1", "s": "-1"}, "m.s": {"m": "1", "s": "1"}, "1/s": {"s": "-1"},
+         "m2": {"m": "2"}, "kg/m3": {"kg": "1", "m": "-3"}, "N.m": {"kg": "1", "m": "2", "s": "-2"},
+         # noise densities: s^(-1/2), which FMI's integer BaseUnit exponents cannot say (no BaseUnit)
+         "rad/s/sqrt(Hz)": None, "m/s2/sqrt(Hz)": None}
 _DISPLAY = {"m": ("mm", 1e3), "rad": ("deg", 57.29577951308232), "m/s": ("mm/s", 1e3),
             "rad/s": ("deg/s", 57.29577951308232), "m/s2": ("mm/s2", 1e3),
-            "rad/s2": ("deg/s2", 57.29577951308232)}
+            "rad/s2": ("deg/s2", 57.29577951308232), "1/s": ("Hz", 1.0)}
 
 # units of the leg actuator and sensor parameters (Hz written 1/s, as scenarios/units.py reads it)
 _BASE.update({"kg": {"kg": "1"}, "N.m": {"kg": "1", "m": "2", "s": "-2"}, "1/s": {"s": "-1"}})
@@ -65,7 +67,8 @@ def add_units(xml_text, units):
     definitions = ET.Element("UnitDefinitions")
     for name in sorted(set(units.values())):
         unit = ET.SubElement(definitions, "Unit", name=name)
-        ET.SubElement(unit, "BaseUnit", _BASE[name])
+        if _BASE[name] is not None:
+            ET.SubElement(unit, "BaseUnit", _BASE[name])
         if name in _DISPLAY:
             ET.SubElement(unit, "DisplayUnit", name=_DISPLAY[name][0], factor=repr(_DISPLAY[name][1]))
     position = list(root).index(root.find("CoSimulation")) + 1

@@ -8,6 +8,13 @@ kernel fills a whole block of output rows in one call).
 The profile is a known function of time, so it is evaluated ahead in blocks of BLOCK
 communication points (one vectorised call costs about what one point does); a step off
 the block's grid (another step size, a restored state) starts a new block there.
+
+The antenna's own axis servo (servo_bandwidth > 0): each axis follows the profile, now
+the command, through w^2 / (s^2 + 2 zeta w s + w^2); its state is integrated step by step
+in the C (mb_tel_servo_advance: RK4 with the command's analytic angles and rates at both
+ends of the step, Hermite-interpolated between them), base_*, reference_* and axis* are
+the actual motion and command_base_* the commanded one. Off (0, the default), the outputs
+are today's block rows, and command_base_* equal base_*.
 """
 from dataclasses import replace
 
@@ -50,11 +57,15 @@ class TelescopeBase(GuardedSlave):
             ("paper_duration", "s", 6.0, "duration of the paper's stress manoeuvre; > 0", (POSITIVE_TIME, None)),
             ("start_delay", "s", 0.0, "the profile starts this late; before it, the start pointing holds",
              (0.0, None)),
+            ("servo_bandwidth", "1/s", 0.0, "the antenna's axis servo bandwidth in Hz (natural frequency of each axis's "
+             "second-order loop); 0 = off, the axes follow the command exactly. Assumed: large-antenna axis servos "
+             "have ~0.5-1 Hz locked-rotor bandwidth (SRT, GBT)", (0.0, 10.0)),
+            ("servo_damping", "", 0.7, "damping ratio of the antenna's axis servo (assumed)", (0.01, 10.0)),
         ))
         pose_desc = lambda prefix: [f"{prefix} {n}" for n in POSE_NAMES]
-        self.now = np.zeros(40)   # every output, one row of the evaluated block
+        self.now = np.zeros(60)   # every output, one row of the evaluated block
         self.now[18:24] = tianma.home
-        for start, (name, size, desc, units) in zip((0, 6, 12, 18, 24, 30, 36, 38), (
+        for start, (name, size, desc, units) in zip((0, 6, 12, 18, 24, 30, 36, 38, 40, 46, 52, 58), (
             ("base_pose", 6, pose_desc("base, in {W},"), POSE_UNITS),
             ("base_rate", 6, pose_desc("d/dt base"), rate_units(POSE_UNITS)),
             ("base_acc", 6, pose_desc("d2/dt2 base"), acc_units(POSE_UNITS)),
@@ -63,6 +74,10 @@ class TelescopeBase(GuardedSlave):
             ("reference_acc", 6, pose_desc("d2/dt2 reference"), acc_units(POSE_UNITS)),
             ("axis", 2, ["astronomical azimuth (north through east; the mount angle A = 180 deg - it)", "elevation"], "rad"),
             ("axis_rate", 2, ["astronomical azimuth rate", "elevation rate"], "rad/s"),
+            ("command_base_pose", 6, pose_desc("commanded base, in {W},"), POSE_UNITS),
+            ("command_base_rate", 6, pose_desc("d/dt commanded base"), rate_units(POSE_UNITS)),
+            ("command_base_acc", 6, pose_desc("d2/dt2 commanded base"), acc_units(POSE_UNITS)),
+            ("axis_acc", 2, ["astronomical azimuth acceleration", "elevation acceleration"], "rad/s2"),
         )):
             self.vector(name, size, OUTPUT, desc, units, values=self.now[start:start + size])
 
@@ -79,18 +94,44 @@ class TelescopeBase(GuardedSlave):
             paper_duration=s["paper_duration"], start_delay=s["start_delay"],
             reference=(HOME_POSE, S_BAND_POSE))   # the paper's platform motion: home to S-band
         self.block_t, self.block_h, self.block = np.inf, 0.0, None
-        self._publish(0.0, 0.0)
+        self.servo = s["servo_bandwidth"] > 0
+        if self.servo:
+            telescope.check_servo(s["servo_bandwidth"], s["servo_damping"])
+            self.command = telescope.profile_axes(self.params, self.motion, 0.0)[0]
+            self.state = self.command[[0, 1, 3, 4]].copy()   # starts on the command
+            self._publish_servo(0.0)
+        else:
+            self._publish(0.0, 0.0)
 
     def step(self, t, h):
-        self._publish(t + h, h)
+        if self.servo:
+            command = telescope.profile_axes(self.params, self.motion, t + h)[0]
+            telescope.servo_advance(self.settings["servo_bandwidth"], self.settings["servo_damping"], h,
+                                    self.command, command, self.state)
+            self.command = command
+            self._publish_servo(t + h)
+        else:
+            self._publish(t + h, h)
+
+    def _publish_servo(self, t):
+        s = self.settings
+        self.now[:] = telescope.servo_row(self.params, self.motion, s["servo_bandwidth"], s["servo_damping"], t,
+                                          self.command, self.state)
+
+    def extra_state(self):
+        return (self.command.copy(), self.state.copy()) if self.servo else None
+
+    def set_extra_state(self, extra):
+        if extra is not None:
+            self.command, self.state = (a.copy() for a in extra)
 
     def _publish(self, t, h):
         index = round((t - self.block_t) / self.block_h) if self.block_h == h and h > 0 else -1
         if not (0 <= index < BLOCK and abs(self.block_t + index * h - t) <= 1e-9 * max(1.0, abs(t))):
             self.block_t, self.block_h, index = t, h, 0
-            self.block = self._evaluate(t + h * np.arange(BLOCK if h > 0 else 1))
+            self.block = telescope.fmu_outputs(self.params, self.motion, t + h * np.arange(BLOCK if h > 0 else 1))
         self.now[:] = self.block[index]
 
     def _evaluate(self, times):
-        """All outputs at the given times, (n, 40) in the order of self.now."""
+        """Today's 40 outputs (no servo) at the given times, (n, 40) in the order of self.now."""
         return telescope.telescope_outputs(self.params, self.motion, times)

@@ -371,3 +371,67 @@ def reference_pose(params, axes):
     lib.mb_tel_reference_pose(_c_params(params), axes.A.size, _doubles(_axis_rows(axes)),
                               _doubles(pose), _doubles(rate), _doubles(acc))
     return pose, rate, acc
+
+
+# --- the antenna's own axis servo -------------------------------------------------------
+
+def fmu_outputs(params, profile, t):
+    """``telescope_outputs`` plus 20 columns, (n, 60): command_base_pose, command_base_rate,
+    command_base_acc (equal to the base's: no servo) and axis_acc (Az'', E'')."""
+    t = np.ascontiguousarray(t, dtype=float)
+    rows, bad = np.empty((t.size, 60)), ffi.new("int *")
+    status = lib.mb_tel_fmu_rows_full(_c_params(params), profile, t.size, _doubles(t), _doubles(rows), bad)
+    if status:
+        raise _status_error(status, profile, t, bad[0])
+    return rows
+
+
+def profile_axes(params, profile, t):
+    """(n, 6) command axes [A, A', A'', E, E', E''] of ``profile`` at times t (unchecked
+    order: the FMU asks one time at a time)."""
+    t = np.ascontiguousarray(np.atleast_1d(t), dtype=float)
+    axes, bad = np.empty((t.size, 6)), ffi.new("int *")
+    status = lib.mb_tel_axes(_c_params(params), profile, t.size, _doubles(t), _doubles(axes), bad)
+    if status:
+        raise _status_error(status, profile, t, bad[0])
+    return axes
+
+
+def check_servo(bandwidth, damping):
+    """InvalidInputError unless bandwidth [Hz] > 0 and damping [1] > 0, both finite."""
+    for name, value in (("servo_bandwidth", bandwidth), ("servo_damping", damping)):
+        if not (np.isfinite(value) and value > 0):
+            raise InvalidInputError(f"{name} must be finite and > 0, got {value!r}")
+
+
+def servo_advance(bandwidth, damping, h, command0, command1, state):
+    """Advance the servo state (A, A', E, E') in place over a step h [s] from the command
+    axes row ``command0`` to ``command1`` (mb_tel_servo_advance: RK4 with the command's
+    cubic Hermite interpolant between the samples)."""
+    lib.mb_tel_servo_advance(bandwidth, damping, h, _doubles(command0), _doubles(command1), _doubles(state))
+
+
+def servo_row(params, profile, bandwidth, damping, t, command, state):
+    """The telescope FMU's 60 outputs at time t with the servo on (mb_tel_servo_row)."""
+    row = np.empty(60)
+    lib.mb_tel_servo_row(_c_params(params), profile, bandwidth, damping, t, _doubles(command),
+                         _doubles(state), _doubles(row))
+    return row
+
+
+def axis_servo(axes, bandwidth, damping):
+    """The actual axes of an antenna whose axis servo (bandwidth [Hz], damping [1]) follows
+    the commanded ``axes`` (an AxisMotion): each angle through w^2 / (s^2 + 2 zeta w s +
+    w^2), w = 2 pi bandwidth, starting on the command at axes.t[0] (angle and rate), and
+    integrated between the samples as the telescope FMU does (servo_advance)."""
+    check_servo(bandwidth, damping)
+    command = _axis_rows(axes)
+    state = np.ascontiguousarray(command[0, [0, 1, 3, 4]])
+    actual = np.empty_like(command)
+    cmd_c, state_c, out = _doubles(command), _doubles(state), _doubles(actual)
+    for i in range(command.shape[0]):
+        if i:
+            lib.mb_tel_servo_advance(bandwidth, damping, axes.t[i] - axes.t[i - 1], cmd_c + 6 * (i - 1),
+                                     cmd_c + 6 * i, state_c)
+        lib.mb_tel_servo_axes(bandwidth, damping, cmd_c + 6 * i, state_c, out + 6 * i)
+    return AxisMotion(axes.t, *actual.T.copy())

@@ -234,7 +234,7 @@ def test_fmu_rows_equal_the_old_fmu(old, case):
     profile, settings = FMU_CASES[case]
     new, previous = fmu_pair(old, profile, **settings)
     rest, axis = old_rows(new, previous, profile, np.zeros(1))
-    assert_same(new.now[None], np.concatenate([rest, axis], axis=1), "outputs after initialisation",
+    assert_same(new.now[None, :40], np.concatenate([rest, axis], axis=1), "outputs after initialisation",
                 np.r_[np.zeros(36), np.pi, 0, 0, 0])
     for t0, h, n in ((0.0, 1e-3, telescope_fmu.BLOCK), (3.7, 0.05, 500), (-2.0, 0.25, 200), (1e4, 1.0, 1)):
         times = t0 + h * np.arange(n)

@@ -13,6 +13,9 @@ typedef struct {
     mb_tel_params params;
     mb_tel_profile profile;
     double block_t, block_h;
+    int servo;               /* servo_bandwidth > 0 */
+    double command[6];       /* command axes at the last communication point */
+    double state[4];         /* actual axes (A, A', E, E') */
 } Model;
 
 /* slave.py's message for a kernel status (plant/telescope.py _status_error). */
@@ -44,15 +47,33 @@ static int publish(mb_instance *inst, double *r, Model *m, double t, double h)
         m->block_h = h;
         index = 0.0;
     }
-    double time = m->block_t + h * index, row[40];
+    double time = m->block_t + h * index, row[60];
     int first_bad = -1;
-    int status = mb_tel_fmu_rows(&m->params, &m->profile, 1, &time, row, &first_bad);
+    int status = mb_tel_fmu_rows_full(&m->params, &m->profile, 1, &time, row, &first_bad);
     if (status) {
         fail_status(inst, m, status, time);
         return 1;
     }
-    memcpy(&r[VR_base_pose], row, sizeof row);
+    memcpy(&r[VR_base_pose], row, sizeof row);   /* the 60 outputs have consecutive vrs */
     return 0;
+}
+
+/* The command axes at t, or 1 after mb_error (servo on). */
+static int command_at(mb_instance *inst, Model *m, double t, double *axes)
+{
+    int first_bad = -1;
+    int status = mb_tel_axes(&m->params, &m->profile, 1, &t, axes, &first_bad);
+    if (status) {
+        fail_status(inst, m, status, t);
+        return 1;
+    }
+    return 0;
+}
+
+static void publish_servo(double *r, Model *m, double t)
+{
+    mb_tel_servo_row(&m->params, &m->profile, r[VR_servo_bandwidth], r[VR_servo_damping], t, m->command, m->state,
+                     &r[VR_base_pose]);
 }
 
 static int init(mb_instance *inst, double *r, int *i, void *model, double start_time)
@@ -98,12 +119,37 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     }
     m->block_t = INFINITY;
     m->block_h = 0.0;
+    m->servo = r[VR_servo_bandwidth] > 0;
+    if (m->servo) {
+        char buf[32];
+        if (!(isfinite(r[VR_servo_damping]) && r[VR_servo_damping] > 0)) {   /* telescope.check_servo */
+            mb_error(inst, "InvalidInputError", "servo_damping must be finite and > 0, got %s",
+                     mb_repr(r[VR_servo_damping], buf));
+            return 1;
+        }
+        if (command_at(inst, m, 0.0, m->command)) return 1;
+        m->state[0] = m->command[0];   /* starts on the command */
+        m->state[1] = m->command[1];
+        m->state[2] = m->command[3];
+        m->state[3] = m->command[4];
+        publish_servo(r, m, 0.0);
+        return 0;
+    }
     return publish(inst, r, m, 0.0, 0.0);
 }
 
 static int step(mb_instance *inst, double *r, int *i, void *model, double t, double h)
 {
     (void)i;
+    Model *m = model;
+    if (m->servo) {
+        double command[6];
+        if (command_at(inst, m, t + h, command)) return 1;
+        mb_tel_servo_advance(r[VR_servo_bandwidth], r[VR_servo_damping], h, m->command, command, m->state);
+        memcpy(m->command, command, sizeof command);
+        publish_servo(r, m, t + h);
+        return 0;
+    }
     return publish(inst, r, model, t + h, h);
 }
 

@@ -6,6 +6,7 @@
    to the last bits (up to the libm each one's sin/cos/atan2 comes from). */
 #include <math.h>
 #include <stddef.h>
+#include <string.h>
 #include "telescope.h"
 
 static const double PI = 3.141592653589793;        /* np.pi */
@@ -372,8 +373,41 @@ void mb_tel_reference_pose(const mb_tel_params *p, int n, const double *axes,
 
 /* --- the telescope FMU's outputs ------------------------------------------------------ */
 
-int mb_tel_fmu_rows(const mb_tel_params *p, const mb_tel_profile *prof, int n,
-                    const double *t, double *rows, int *first_bad)
+/* Reference columns of one row (18..35): the paper's platform quintic at t, else the
+   gravity correction at the axes' elevation. */
+static void reference_columns(const mb_tel_params *p, const mb_tel_profile *prof, double t,
+                              const double *ax, double *row)
+{
+    if (prof->kind == MB_TEL_PAPER) {   /* the paper's platform motion, same quintic */
+        double sv, ds, dds;
+        quintic_scalars(prof->paper_duration, t - prof->start_delay, &sv, &ds, &dds);
+        for (int k = 0; k < 6; k++) {
+            double delta = prof->ref_stop[k] - prof->ref_start[k];
+            row[18 + k] = prof->ref_start[k] + sv * delta;
+            row[24 + k] = ds * delta;
+            row[30 + k] = dds * delta;
+        }
+    } else {
+        reference_row(p, ax, row + 18, row + 24, row + 30);
+    }
+}
+
+/* The 40 outputs of axes ax at time t, and with width 60 the 20 more with command = ax. */
+static void fmu_row(const mb_tel_params *p, const mb_tel_profile *prof, double t, const double *ax,
+                    double *row, int width)
+{
+    base_row(p->lever_arm, ax, row, row + 6, row + 12);
+    reference_columns(p, prof, t, ax, row);
+    /* the axis outputs: astronomical azimuth (the mount angle's involution), elevation */
+    row[36] = mount_angle(ax[0]); row[37] = ax[3]; row[38] = -ax[1]; row[39] = ax[4];
+    if (width == 60) {
+        memcpy(row + 40, row, 18 * sizeof(double));
+        row[58] = -ax[2]; row[59] = ax[5];
+    }
+}
+
+static int fmu_rows(const mb_tel_params *p, const mb_tel_profile *prof, int n, const double *t,
+                    double *rows, int *first_bad, int width)
 {
     enum { CHUNK = 64 };   /* axes of CHUNK times at once on the stack: no workspace */
     int status = MB_TEL_OK;
@@ -390,25 +424,84 @@ int mb_tel_fmu_rows(const mb_tel_params *p, const mb_tel_profile *prof, int n,
             status = s;
             if (first_bad) *first_bad = i0 + bad;
         }
-        for (int j = 0; j < m; j++) {
-            const double *ax = axes + 6 * j;
-            double *row = rows + 40 * (i0 + j);
-            base_row(p->lever_arm, ax, row, row + 6, row + 12);
-            if (prof->kind == MB_TEL_PAPER) {   /* the paper's platform motion, same quintic */
-                double sv, ds, dds;
-                quintic_scalars(prof->paper_duration, t[i0 + j] - prof->start_delay, &sv, &ds, &dds);
-                for (int k = 0; k < 6; k++) {
-                    double delta = prof->ref_stop[k] - prof->ref_start[k];
-                    row[18 + k] = prof->ref_start[k] + sv * delta;
-                    row[24 + k] = ds * delta;
-                    row[30 + k] = dds * delta;
-                }
-            } else {
-                reference_row(p, ax, row + 18, row + 24, row + 30);
-            }
-            /* the axis outputs: astronomical azimuth (the mount angle's involution), elevation */
-            row[36] = mount_angle(ax[0]); row[37] = ax[3]; row[38] = -ax[1]; row[39] = ax[4];
-        }
+        for (int j = 0; j < m; j++)
+            fmu_row(p, prof, t[i0 + j], axes + 6 * j, rows + width * (i0 + j), width);
     }
     return status;
+}
+
+int mb_tel_fmu_rows(const mb_tel_params *p, const mb_tel_profile *prof, int n,
+                    const double *t, double *rows, int *first_bad)
+{
+    return fmu_rows(p, prof, n, t, rows, first_bad, 40);
+}
+
+int mb_tel_fmu_rows_full(const mb_tel_params *p, const mb_tel_profile *prof, int n,
+                         const double *t, double *rows, int *first_bad)
+{
+    return fmu_rows(p, prof, n, t, rows, first_bad, 60);
+}
+
+/* --- the antenna's axis servo ------------------------------------------------------------ */
+
+static const double SERVO_MAX_WH = 0.05;   /* w h of one RK4 substep: error ~ (w h)^5 / 120 */
+
+/* Cubic Hermite interpolant of (c0, d0) at 0 and (c1, d1) at h, at s in [0, h]. */
+static double hermite(double c0, double d0, double c1, double d1, double h, double s)
+{
+    double u = s / h, u2 = u * u, u3 = u2 * u;
+    return c0 + (c1 - c0) * (3 * u2 - 2 * u3) + h * (d0 * (u3 - 2 * u2 + u) + d1 * (u3 - u2));   /* exact at rest */
+}
+
+void mb_tel_servo_advance(double bandwidth, double damping, double h, const double *cmd0,
+                          const double *cmd1, double *state)
+{
+    if (!(h > 0)) return;
+    double w = TWO_PI * bandwidth, w2 = w * w, zw2 = 2 * damping * w;
+    int n = (int)ceil(w * h / SERVO_MAX_WH);
+    if (n < 1) n = 1;
+    double hs = h / n;
+    for (int axis = 0; axis < 2; axis++) {
+        const double c0 = cmd0[3 * axis], d0 = cmd0[3 * axis + 1], c1 = cmd1[3 * axis], d1 = cmd1[3 * axis + 1];
+        double x = state[2 * axis], v = state[2 * axis + 1];
+        for (int k = 0; k < n; k++) {
+            double s = k * hs;
+            double ca = hermite(c0, d0, c1, d1, h, s), cm = hermite(c0, d0, c1, d1, h, s + 0.5 * hs);
+            double cb = k == n - 1 ? c1 : hermite(c0, d0, c1, d1, h, s + hs);
+            double k1x = v, k1v = w2 * (ca - x) - zw2 * v;
+            double x2 = x + 0.5 * hs * k1x, v2 = v + 0.5 * hs * k1v;
+            double k2x = v2, k2v = w2 * (cm - x2) - zw2 * v2;
+            double x3 = x + 0.5 * hs * k2x, v3 = v + 0.5 * hs * k2v;
+            double k3x = v3, k3v = w2 * (cm - x3) - zw2 * v3;
+            double x4 = x + hs * k3x, v4 = v + hs * k3v;
+            double k4x = v4, k4v = w2 * (cb - x4) - zw2 * v4;
+            x += hs / 6 * (k1x + 2 * k2x + 2 * k3x + k4x);
+            v += hs / 6 * (k1v + 2 * k2v + 2 * k3v + k4v);
+        }
+        state[2 * axis] = x;
+        state[2 * axis + 1] = v;
+    }
+}
+
+void mb_tel_servo_axes(double bandwidth, double damping, const double *cmd, const double *state,
+                       double *axes)
+{
+    double w = TWO_PI * bandwidth;
+    for (int axis = 0; axis < 2; axis++) {
+        double x = state[2 * axis], v = state[2 * axis + 1];
+        axes[3 * axis] = x;
+        axes[3 * axis + 1] = v;
+        axes[3 * axis + 2] = w * w * (cmd[3 * axis] - x) - 2 * damping * w * v;
+    }
+}
+
+void mb_tel_servo_row(const mb_tel_params *p, const mb_tel_profile *prof, double bandwidth,
+                      double damping, double t, const double *cmd, const double *state,
+                      double *row)
+{
+    double actual[6];
+    mb_tel_servo_axes(bandwidth, damping, cmd, state, actual);
+    fmu_row(p, prof, t, actual, row, 40);
+    base_row(p->lever_arm, cmd, row + 40, row + 46, row + 52);
+    row[58] = -actual[2]; row[59] = actual[5];
 }

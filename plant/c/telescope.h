@@ -108,4 +108,34 @@ int mb_tel_quintic(int dim, const double *start, const double *stop, double dura
 int mb_tel_fmu_rows(const mb_tel_params *p, const mb_tel_profile *prof, int n,
                     const double *t, double *rows, int *first_bad);
 
+/* The same 40 outputs plus 20 more, rows (n, 60): command_base_pose, command_base_rate,
+   command_base_acc (6 each; the commanded motion, here equal to base_*), axis_acc
+   (Az'' = -A'', E''). The telescope FMU's outputs with its axis servo off. */
+int mb_tel_fmu_rows_full(const mb_tel_params *p, const mb_tel_profile *prof, int n,
+                         const double *t, double *rows, int *first_bad);
+
+/* The antenna's own axis servo: each axis angle x follows its command c through
+   x'' = w^2 (c - x) - 2 zeta w x' (transfer function w^2 / (s^2 + 2 zeta w s + w^2),
+   w = 2 pi bandwidth). state = (A, A', E, E'), the actual axes. One call advances it over
+   a step h from the command axes cmd0 (at the step's start) to cmd1 (at its end), rows
+   (A, A', A'', E, E', E''): classical RK4 on substeps of w h_sub <= 0.05, the command
+   between the samples the cubic Hermite interpolant of (c, c') at both ends (exact for
+   a cubic, so for the slew's piecewise-quadratic trapezoid except in the steps that hold
+   one of its corners). bandwidth > 0, damping > 0, h >= 0. */
+void mb_tel_servo_advance(double bandwidth, double damping, double h, const double *cmd0,
+                          const double *cmd1, double *state);
+
+/* The actual axes (A, A', A'', E, E', E'') of servo state (A, A', E, E') under command
+   cmd: A'' and E'' from the servo's law at that instant. */
+void mb_tel_servo_axes(double bandwidth, double damping, const double *cmd, const double *state,
+                       double *axes);
+
+/* The 60 outputs at time t with the servo on, from the actual axes (state) and the command
+   axes cmd at t: base_*, reference_* (the gravity correction follows the actual
+   elevation; paper profile: the quintic at t), axis, axis_rate, axis_acc actual,
+   command_base_* from cmd. */
+void mb_tel_servo_row(const mb_tel_params *p, const mb_tel_profile *prof, double bandwidth,
+                      double damping, double t, const double *cmd, const double *state,
+                      double *row);
+
 #endif
