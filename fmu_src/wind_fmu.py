@@ -1,7 +1,8 @@
 """FMU: wind on the subreflector, a disturbance wrench on the hexapod's platform.
 
 The along-wind gust u(t) of a Kaimal or Davenport spectrum and the quasi-steady drag
-0.5 rho Cd A (U + u)^2 along the wind, with the moment of a centre of pressure off the
+0.5 rho Cd A (U + u_A)^2 along the wind (u_A the gust averaged over the drag area, through
+the aerodynamic admittance of a plate), with the moment of a centre of pressure off the
 platform's origin, as the platform_wrench the hexapod plant takes (in {B}, turned from
 {W} with the base pose input). The model is the C kernel's (plant/c/wind.h says its
 equations and simplifications); u(t) is a fixed function of time drawn from the seed at
@@ -43,11 +44,12 @@ def gust_model(settings, spectrum=0, seed=0):
     return model
 
 
-def gusts(model, times):
-    """u (m/s) at the given times."""
+def gusts(model, times, area=False):
+    """u (m/s) at the given times; ``area``: the area-averaged gust u_A the drag sees."""
     times = np.ascontiguousarray(times, dtype=float)
     out = np.empty_like(times)
-    lib.mb_wind_gusts(model, times.size, ffi.from_buffer("double[]", times), ffi.from_buffer("double[]", out))
+    f = lib.mb_wind_area_gusts if area else lib.mb_wind_gusts
+    f(model, times.size, ffi.from_buffer("double[]", times), ffi.from_buffer("double[]", out))
     return out
 
 
@@ -86,7 +88,8 @@ class Wind(GuardedSlave):
                     [f"wind {n} on the platform at {{P}}'s origin, in {{B}}" for n in
                      ("force x", "force y", "force z", "moment x", "moment y", "moment z")],
                     ("N", "N", "N", "N.m", "N.m", "N.m"), values=self.out[:6])
-        self.real("gust", OUTPUT, "along-wind gust u (the wind speed is U + u)", "m/s",
+        self.real("gust", OUTPUT, "along-wind gust u at a point (the wind speed is U + u; the drag sees it averaged "
+                  "over the drag area)", "m/s",
                   getter=lambda: self.out.item(6))
 
     def initialize(self):

@@ -56,27 +56,36 @@ SOURCES = ("exact", "commanded", "encoders", "imu")
 SOURCE_NAMES = {"exact": "(a) exact", "commanded": "(b) commanded", "encoders": "(c) axis encoders",
                 "imu": "(d) IMU"}
 EFFECTS = ("leg_sensors", "delay", "actuator", "servo", "wind")
-EFFECT_NAMES = {"leg_sensors": "leg sensors (1 µm encoder, noise, differenced rate)",
-                "delay": "computation delay (1 sample)", "actuator": "actuator (50 Hz force loop, screw friction)",
-                "servo": "antenna axis servo (1 Hz)", "wind": "wind (10 m/s, Kaimal gust)"}
+EFFECT_NAMES = {"leg_sensors": "leg encoders (0.1 µm, noise, differenced rate)",
+                "delay": "computation delay (1 sample)", "actuator": "ball-screw actuator (50 Hz, friction)",
+                "servo": "antenna axis servo (0.8 Hz)", "wind": "wind (10 m/s, Kaimal gust)"}
 MARKS = (10.0, 100.0)   # µm: focus, hexapod metrology
 METRIC = "pose error"
 
 # The realistic loop's values. None has a public source for this telescope: each is
-# assumed, from the comparable instrument named beside it (README, "Assumptions").
-LEG_SENSOR = {"resolution": "1 um",     # leg length encoder quantum (incremental scale on a screw-driven leg)
-              "noise": "0.1 um",        # RMS read noise of that encoder
-              "rate_cutoff": "100 Hz",  # low-pass of the differenced rate (above the 8 Hz loop crossover)
+# assumed, from the comparable instrument named beside it; the leg and actuator values are
+# those of scenarios/files/telescope_slew_realistic.toml, the servo and base-sensor values
+# those of telescope_slew_base_sources.toml (which say where each comes from).
+LEG_SENSOR = {"resolution": "0.1 um",   # absolute linear encoders of precision hexapods (PI H-840, Symetrie BORA)
+              "noise": "0.02 um",       # RMS per sample, a fifth of the resolution
+              "rate_cutoff": "100 Hz",  # low-pass of the differenced rate, a decade above the 8 Hz crossover
               "seed": 1}
 DELAY = {"delay_steps": 1}              # one sample of computation on top of the communication step
-ACTUATOR = {"actuator_bandwidth": "50 Hz",   # servo motor current/force loop, as on electromechanical hexapod legs
-            "reflected_mass": 200.0,         # kg: rotor + screw J (2 pi / lead)^2, a ~5 kW servo motor, 10 mm lead
-            "coulomb_friction": "100 N",     # ball screw + bearings, ~2 % of the 5 kN static leg load
-            "viscous_friction": 2000.0,      # N s/m
-            "actuator_force_limit": "50 kN"}  # as the controller's limit
-SERVO = {"servo_bandwidth": "1 Hz", "servo_damping": 0.7}   # large-antenna axis servos (SRT, GBT: 0.5-1 Hz)
-WIND = {"mean_speed": "10 m/s", "turbulence_intensity": 0.15, "spectrum": "kaimal", "seed": 1}
-BASE_SENSOR = {"seed": 1}
+ACTUATOR = {"actuator_bandwidth": "50 Hz",    # servo motor force loop closed through screw and joint compliance
+            "reflected_mass": 758.0,          # kg: rotor + 25 mm screw J (2 pi / 5 mm)^2 (Siemens 1FK7 / AKM class)
+            "coulomb_friction": "200 N",      # preloaded 25 mm ball nut drag torque (NSK / THK catalogues)
+            "viscous_friction": "2000 N.s/m",  # lubricant and seals
+            "friction_velocity": "0.1 mm/s",  # tanh smoothing of the Coulomb friction
+            "actuator_force_limit": "25 kN",  # ~20 N m peak motor torque through the 5 mm pitch
+            "max_step": "0.1 ms"}             # RK4 substeps that follow the friction's steep slope
+SERVO = {"servo_bandwidth": "0.8 Hz", "servo_damping": 0.7}   # large-antenna axis servos (SRT, GBT: 0.5-1 Hz)
+WIND = {"mean_speed": "10 m/s", "turbulence_intensity": 0.15, "spectrum": "kaimal", "seed": 1}   # fmu_src/wind_fmu.py
+BASE_SENSOR = {"encoder_resolution": "0.1 arcsec",           # GBT / Effelsberg / SRT axis encoders
+               "rate_cutoff": "5 Hz",
+               "gyro_noise_density": "0.01 deg/sqrt(h)",     # fibre-optic gyro
+               "gyro_bias": "0.05 deg/h",
+               "accel_noise_density": "50 ug/sqrt(Hz)",      # navigation-grade servo accelerometer
+               "accel_bias": "100 ug", "seed": 1}
 
 
 # ------------------------------------------------------------------------ scenario text
@@ -399,7 +408,7 @@ def costs(s):
 def settings_text():
     rows = [("leg sensors (LegSensor)", LEG_SENSOR), ("computation delay (LegSensor)", DELAY),
             ("actuator (HexapodPlant)", ACTUATOR), ("antenna axis servo (TelescopeBase)", SERVO),
-            ("wind (Wind)", WIND), ("base sensors (BaseSensor, its own defaults otherwise)", BASE_SENSOR)]
+            ("wind (Wind)", WIND), ("base sensors (BaseSensor)", BASE_SENSOR)]
     return "\n".join(f"| {name} | {', '.join(f'`{k} = {v}`' for k, v in values.items())} |" for name, values in rows)
 
 

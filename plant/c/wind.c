@@ -67,6 +67,8 @@ int mb_wind_init(mb_wind *w, const mb_wind_params *p, unsigned long long seed)
         w->omega[k] = TWO_PI * f;
         w->phase[k] = TWO_PI * mb_rng_uniform(&rng);
         w->amplitude[k] = sqrt(2.0 * variance);
+        w->area_amplitude[k] = calm ? 0.0 : w->amplitude[k] / (1.0 + pow(2.0 * f * sqrt(p->drag_area) / p->mean_speed,
+                                                                           4.0 / 3.0));
         w->band_variance += variance;
         low = high;
         above_low = above_high;
@@ -74,25 +76,40 @@ int mb_wind_init(mb_wind *w, const mb_wind_params *p, unsigned long long seed)
     return MB_WIND_OK;
 }
 
-static double gust(const mb_wind *w, double t)
+/* The point gust u and the area-averaged gust u_A at t (one cosine per component). */
+static void gust(const mb_wind *w, double t, double *u, double *u_area)
 {
-    double u = 0.0;
-    for (int k = 0; k < N_COMPONENTS; k++)
-        u += w->amplitude[k] * cos(w->omega[k] * t + w->phase[k]);
-    return u;
+    double a = 0.0, b = 0.0;
+    for (int k = 0; k < N_COMPONENTS; k++) {
+        double c = cos(w->omega[k] * t + w->phase[k]);
+        a += w->amplitude[k] * c;
+        b += w->area_amplitude[k] * c;
+    }
+    *u = a;
+    *u_area = b;
 }
 
 void mb_wind_gusts(const mb_wind *w, int n, const double *t, double *u)
 {
+    double ignored;
     for (int i = 0; i < n; i++)
-        u[i] = gust(w, t[i]);
+        gust(w, t[i], &u[i], &ignored);
+}
+
+void mb_wind_area_gusts(const mb_wind *w, int n, const double *t, double *u)
+{
+    double ignored;
+    for (int i = 0; i < n; i++)
+        gust(w, t[i], &ignored, &u[i]);
 }
 
 int mb_wind_wrench(const mb_wind *w, double t, const double *base_pose, double *wrench, double *gust_out)
 {
     for (int k = 0; k < 6; k++)
         if (!isfinite(base_pose[k])) return MB_WIND_NONFINITE;
-    double u = gust(w, t), speed = w->p.mean_speed + u;
+    double u, u_area;
+    gust(w, t, &u, &u_area);
+    double speed = w->p.mean_speed + u_area;
     double force = 0.5 * w->p.air_density * w->p.drag_coefficient * w->p.drag_area * speed * fabs(speed);
     /* the wind comes from azimuth `direction`: it blows towards -(sin, cos, 0) in {W} */
     double fw[3] = {-force * sin(w->p.direction), -force * cos(w->p.direction), 0.0};

@@ -22,13 +22,16 @@
    scale: Kaimal L = 8.1 * 0.7 * min(height, 60 m) (IEC 61400-1 ed. 3), Davenport
    L = 1200 m.
 
-   Force: quasi-steady drag, the gust fully coherent over the drag area (conservative
-   above U / D ~ 1.5 Hz for a 6.5 m disc, where the aerodynamic admittance would lower it):
-       F = 0.5 rho Cd A (U + u) |U + u|  along the wind, in {W} horizontal,
-   the wind coming from astronomical azimuth `direction` (north through east;
-   {W} = east, north, up), turned into {B} with the base pose, R_WB = Rz(yaw) Ry(pitch)
-   Rx(roll). Moment about {P}'s origin from a centre of pressure at moment_arm along
-   {B}'s z (the platform's attitude relative to the base, micro-radians, is neglected):
+   Force: quasi-steady drag of the gust averaged over the drag area,
+       F = 0.5 rho Cd A (U + u_A) |U + u_A|  along the wind, in {W} horizontal,
+   u_A(t) = sum_k chi(f_k) a_k cos(omega_k t + phi_k) with the aerodynamic admittance of
+   a compact plate (Vickery 1965), chi(f) = 1 / (1 + (2 f sqrt(A) / U)^(4/3)): gusts
+   smaller than the plate do not load it all at once (chi = 0.5 at 0.87 Hz for a 6.5 m
+   disc at 10 m/s). The wind comes from astronomical azimuth `direction` (north through
+   east; {W} = east, north, up), turned into {B} with the base pose,
+   R_WB = Rz(yaw) Ry(pitch) Rx(roll). Moment about {P}'s origin from a centre of pressure
+   at moment_arm along {B}'s z (the platform's attitude relative to the base,
+   micro-radians, is neglected):
        M = (0, 0, moment_arm) x F. */
 
 enum mb_wind_spectrum { MB_WIND_KAIMAL = 0, MB_WIND_DAVENPORT = 1 };
@@ -58,7 +61,8 @@ typedef struct {
     double scale;          /* m, the length scale used */
     double band_variance;  /* m2/s2, the target spectrum's variance over the band */
     double omega[256];     /* rad/s */
-    double amplitude[256]; /* m/s */
+    double amplitude[256]; /* m/s, of the point gust u */
+    double area_amplitude[256]; /* m/s, of the area-averaged gust u_A (chi(f) amplitude) */
     double phase[256];     /* rad */
 } mb_wind;
 
@@ -79,8 +83,11 @@ double mb_wind_cumulative(const mb_wind *w, double f);
 /* The gust u (m/s) at the n times t. */
 void mb_wind_gusts(const mb_wind *w, int n, const double *t, double *u);
 
+/* The area-averaged gust u_A (m/s) at the n times t. */
+void mb_wind_area_gusts(const mb_wind *w, int n, const double *t, double *u);
+
 /* The platform wrench (Fx, Fy, Fz in N, Mx, My, Mz in N.m, in {B}) at time t with the
-   base pose (x, y, z, roll, pitch, yaw of {B} in {W}); *gust receives u(t). */
+   base pose (x, y, z, roll, pitch, yaw of {B} in {W}); *gust receives the point gust u(t). */
 int mb_wind_wrench(const mb_wind *w, double t, const double *base_pose, double *wrench, double *gust);
 
 #endif
