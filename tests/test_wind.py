@@ -86,7 +86,7 @@ def test_mean_drag_is_half_rho_cd_a_times_mean_square_speed():
     """Over 20 seeds of a 1 h record, the mean along-wind force is 0.5 rho Cd A (U^2 +
     sigma_A^2) (sigma_A^2 the variance of the area-averaged gust: the integral of chi^2 S
     over the generator's band, by quadrature) within four standard errors of the
-    seed-to-seed spread; the sigma_A^2 term (1.6 % here) is many standard errors away, so
+    seed-to-seed spread; the sigma_A^2 term (1.7 % here) is many standard errors away, so
     the test sees it."""
     q = 0.5 * DEFAULTS["air_density"] * DEFAULTS["drag_coefficient"] * DEFAULTS["drag_area"]
     length = 8.1 * 0.7 * 60.0
