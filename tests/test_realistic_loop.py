@@ -91,6 +91,7 @@ def test_moving_base_with_the_actual_motion_still_beats_fixed_base_in_the_realis
 def _single(tmp_path, scene, effects, overrides, modes=("moving_base",), source="exact"):
     """One variant's [ci] runs in this process (runner.run_scenario)."""
     data = study.variant(scene, effects, source, modes, overrides)
+    tmp_path.mkdir(parents=True, exist_ok=True)
     path = tmp_path / f"{data['name']}.toml"
     path.write_text(study.toml_text(data))
     return runner.run_scenario(path, tmp_path / "out", ci=True, progress=False)[1]
