@@ -261,3 +261,34 @@ def test_native_plant_equals_python_with_the_actuator_on(fmus, tmp_path):
         runs.append(np.array(rows))
     assert runs[0].tobytes() == runs[1].tobytes()
     assert np.abs(runs[0][-1, 6:] - STATIC).max() > 1.0   # the actuator acted
+
+
+def test_radau_follows_rk4_with_every_effect_on():
+    """The python plant's implicit path (scipy Radau over the same C right-hand side, 18
+    states) against RK4: the same motion to Radau's tolerance."""
+    actuator = Actuator(bandwidth=20.0, reflected_mass=300.0, coulomb=50.0, viscous=1000.0, friction_velocity=1e-3)
+    results = []
+    for method in ("rk4", "radau"):
+        ode = HexapodODE(PARAMS, moving_base=False, method=method, actuator=actuator)
+        ode.set_inputs(0.0, STATIC + 100.0, wrench=[10.0, 0.0, 0.0, 0.0, 0.0, 5.0])
+        x = ode.initial_state(HOME_POSE)
+        x[12:] = STATIC
+        for k in range(50):
+            ode.t0 = k * 1e-3
+            ode.advance(x, 1e-3)
+        results.append((x.copy(), ode.outputs[3].copy()))
+    np.testing.assert_allclose(results[0][0][:12], results[1][0][:12], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(results[0][1], results[1][1], rtol=0, atol=1e-3)
+    assert (results[0][0][12:] - STATIC > 90.0).all()   # the force loop followed the 100 N step
+
+
+def test_native_plant_refuses_a_force_loop_too_fast_as_python_does(fmus, tmp_path):
+    from tests.test_native_fmus import failure_lines, opened
+    native = native_build.build_native(fmus["hexapod_plant_fmu"], tmp_path)
+    lines = []
+    for path in (fmus["hexapod_plant_fmu"], native):
+        inst, status = opened(path, actuator_bandwidth=1000.0)
+        assert status != 0
+        lines.append([line for line in failure_lines(inst) if "too fast" in line])
+    assert lines[0] == lines[1] and len(lines[0]) == 1
+    assert "actuator bandwidth 1000 Hz is too fast for rk4 at max_step 0.001 s" in lines[0][0]
