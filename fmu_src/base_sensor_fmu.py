@@ -19,6 +19,8 @@ from plant.errors import InvalidInputError
 SOURCES = ("encoders", "imu")   # enum mb_bs_source
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 ARCSEC = np.pi / 648000
+INPUTS = (("axis", 0, 2), ("axis_rate", 2, 2), ("true_base_pose", 4, 6), ("true_base_rate", 10, 6),
+          ("true_base_acc", 16, 6))   # (name, start in self.truth, size), in value-reference order
 
 
 class BaseSensor(GuardedSlave):
@@ -44,13 +46,15 @@ class BaseSensor(GuardedSlave):
             ("lever_arm", "m", telescope.TelescopeParams.tianma().lever_arm,
              "axis intersection to base along boresight (as TelescopeBase's; assumed)", (0.0, None)),
         ))
-        self.truth = np.zeros(22)      # axis, axis_rate, base_pose, base_rate, base_acc (inputs)
+        self.truth = np.zeros(22)      # the inputs, INPUTS
         self.truth[1] = np.radians(30.0)
-        for start, (name, size, units) in zip((0, 2, 4, 10, 16), (
-                ("axis", 2, "rad"), ("axis_rate", 2, "rad/s"), ("true_base_pose", 6, POSE_UNITS),
-                ("true_base_rate", 6, rate_units(POSE_UNITS)), ("true_base_acc", 6, acc_units(POSE_UNITS)))):
-            desc = [f"actual {name} (TelescopeBase)" for name in ("astronomical azimuth", "elevation")] if size == 2 \
-                else [f"actual {name[5:]} {n} (TelescopeBase)" for n in POSE_NAMES]
+        units_of = {"axis": "rad", "axis_rate": "rad/s", "true_base_pose": POSE_UNITS,
+                    "true_base_rate": rate_units(POSE_UNITS), "true_base_acc": acc_units(POSE_UNITS)}
+        for name, start, size in INPUTS:
+            units = units_of[name]
+            axes = [f"actual astronomical azimuth{name[4:]}", f"actual elevation{name[4:]}"]   # "", "_rate"
+            desc = [a.replace("_", " ") + " (TelescopeBase)" for a in axes] if size == 2 else \
+                [f"actual {name[5:].replace('_', ' ')} {n} (TelescopeBase)" for n in POSE_NAMES]
             self.vector(name, size, INPUT, desc, units, values=self.truth[start:start + size])
         self.now = np.zeros(18)
         pose_desc = lambda prefix: [f"{prefix} {n}" for n in POSE_NAMES]
@@ -79,6 +83,9 @@ class BaseSensor(GuardedSlave):
         return ffi.from_buffer("double[]", self.now)
 
     def step(self, t, h):
+        bad = [name for name, start, size in INPUTS if not np.all(np.isfinite(self.truth[start:start + size]))]
+        if bad:
+            raise InvalidInputError(f"inputs must be finite: {', '.join(bad)}")
         lib.mb_bs_step(self.params, h, *self._in(0, 4, 10, 16), self.state, self._out())
 
     def extra_state(self):

@@ -60,7 +60,7 @@ class TelescopeBase(GuardedSlave):
             ("servo_bandwidth", "1/s", 0.0, "the antenna's axis servo bandwidth in Hz (natural frequency of each axis's "
              "second-order loop); 0 = off, the axes follow the command exactly. Assumed: large-antenna axis servos "
              "have ~0.5-1 Hz locked-rotor bandwidth (SRT, GBT)", (0.0, 10.0)),
-            ("servo_damping", "", 0.7, "damping ratio of the antenna's axis servo (assumed)", (0.01, 10.0)),
+            ("servo_damping", "1", 0.7, "damping ratio of the antenna's axis servo (assumed)", (0.01, 10.0)),
         ))
         pose_desc = lambda prefix: [f"{prefix} {n}" for n in POSE_NAMES]
         self.now = np.zeros(60)   # every output, one row of the evaluated block

@@ -15,10 +15,6 @@ UNITS = {
     "m/s2": (1.0, "m/s2"), "mm/s2": (1e-3, "m/s2"),
     "N/m": (1.0, "N/m"), "N/(m.s)": (1.0, "N/(m.s)"), "N.s/m": (1.0, "N.s/m"),
     "Hz": (1.0, "1/s"),
-    "arcsec": (math.pi / 648000, "rad"), "deg/h": (math.pi / 180 / 3600, "rad/s"),
-    "ug": (9.80665e-6, "m/s2"),
-    "rad/s/sqrt(Hz)": (1.0, "rad/s/sqrt(Hz)"), "deg/sqrt(h)": (math.pi / 180 / 60, "rad/s/sqrt(Hz)"),
-    "m/s2/sqrt(Hz)": (1.0, "m/s2/sqrt(Hz)"), "ug/sqrt(Hz)": (9.80665e-6, "m/s2/sqrt(Hz)"),
 }
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(\S+)?\s*$")
 

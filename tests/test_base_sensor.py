@@ -155,3 +155,10 @@ def test_native_equals_python_bit_for_bit(fmus, native, source):
         runs.append(np.array(rows))
     np.testing.assert_array_equal(runs[0], runs[1])
     assert np.abs(runs[0]).max() > 0
+
+
+def test_non_finite_input_discards_with_the_same_words(fmus, native):
+    from tests.test_native_fmus import _stepping_failure
+    text = _stepping_failure(fmus, {"base_sensor_fmu": native}, "base_sensor_fmu", {},
+                             {"true_base_rate[2]": np.nan, "axis[1]": np.inf})
+    assert text == "InvalidInputError at t=0 s: inputs must be finite: axis, true_base_rate"

@@ -2,6 +2,7 @@
    kernel (plant/c/base_estimate.h; named apart from this file, as the FMU's sources/ are
    flat): the same calls in the same order, so the two agree bit for bit; the kernel's
    state (the generator's 8 bytes with it) lives in the Model, saved with the FMU state. */
+#include <math.h>
 #include <string.h>
 
 #include "BaseSensor_vars.h"
@@ -35,10 +36,28 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     return 0;
 }
 
+/* base_sensor_fmu.py INPUTS: the inputs in value-reference order. */
+static const char *const INPUT_NAMES[5] = {"axis", "axis_rate", "true_base_pose", "true_base_rate", "true_base_acc"};
+static const int INPUT_SIZES[5] = {2, 2, 6, 6, 6};
+
 static int step(mb_instance *inst, double *r, int *i, void *model, double t, double h)
 {
-    (void)inst; (void)i; (void)t;
+    (void)i; (void)t;
     Model *m = model;
+    char bad[160] = "";
+    const double *v = &r[VR_axis];
+    for (int k = 0, at = 0; k < 5; at += INPUT_SIZES[k++]) {
+        int finite = 1;
+        for (int j = 0; j < INPUT_SIZES[k]; j++) finite &= isfinite(v[at + j]) != 0;
+        if (!finite) {
+            if (bad[0]) strcat(bad, ", ");
+            strcat(bad, INPUT_NAMES[k]);
+        }
+    }
+    if (bad[0]) {
+        mb_error(inst, "InvalidInputError", "inputs must be finite: %s", bad);
+        return 1;
+    }
     mb_bs_step(&m->params, h, &r[VR_axis], &r[VR_true_base_pose], &r[VR_true_base_rate], &r[VR_true_base_acc],
                &m->state, &r[VR_base_pose]);
     return 0;
