@@ -62,7 +62,7 @@ class Wind(GuardedSlave):
         self.settings = self.parameters((
             ("mean_speed", "m/s", d["mean_speed"], "mean wind speed U at the subreflector (10-minute mean; 0 = calm)",
              (0.0, 60.0)),
-            ("turbulence_intensity", "", d["turbulence_intensity"],
+            ("turbulence_intensity", "1", d["turbulence_intensity"],
              "sigma_u / U of the along-wind gust (assumed 0.15: open country at 60 m)", (0.0, 1.0)),
             ("length_scale", "m", d["length_scale"], "integral length scale L of the spectrum; 0 = the spectrum's "
              "standard scale (Kaimal: 8.1 * 0.7 * min(height, 60 m), IEC 61400-1; Davenport: 1200 m)", (0.0, 1e5)),
@@ -70,7 +70,7 @@ class Wind(GuardedSlave):
              "high)", (1e-3, 1e3)),
             ("air_density", "kg/m3", d["air_density"], "air density (ISA sea level; the site is near sea level)",
              (0.0, 2.0)),
-            ("drag_coefficient", "", d["drag_coefficient"], "drag coefficient Cd (assumed 1.2, a flat disc)",
+            ("drag_coefficient", "1", d["drag_coefficient"], "drag coefficient Cd (assumed 1.2, a flat disc)",
              (0.0, 5.0)),
             ("drag_area", "m2", d["drag_area"], "drag area A (assumed: a 6.5 m subreflector, pi 6.5^2 / 4)",
              (0.0, 1e3)),

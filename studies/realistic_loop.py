@@ -88,12 +88,12 @@ ACTUATOR = {"actuator_bandwidth": "50 Hz",    # servo motor force loop closed th
             "max_step": "0.1 ms"}             # RK4 substeps that follow the friction's steep slope
 SERVO = {"servo_bandwidth": "0.8 Hz", "servo_damping": 0.7}   # large-antenna axis servos (SRT, GBT: 0.5-1 Hz)
 WIND = {"mean_speed": "10 m/s", "turbulence_intensity": 0.15, "spectrum": "kaimal", "seed": 1}   # fmu_src/wind_fmu.py
-BASE_SENSOR = {"encoder_resolution": "0.1 arcsec",           # GBT / Effelsberg / SRT axis encoders
+BASE_SENSOR = {"encoder_resolution": "0.484813681109536 urad",   # 0.1 arcsec: GBT / Effelsberg / SRT axis encoders
                "rate_cutoff": "5 Hz",
-               "gyro_noise_density": "0.01 deg/sqrt(h)",     # fibre-optic gyro
-               "gyro_bias": "0.05 deg/h",
-               "accel_noise_density": "50 ug/sqrt(Hz)",      # navigation-grade servo accelerometer
-               "accel_bias": "100 ug", "seed": 1}
+               "gyro_noise_density": 2.908882086657216e-6,     # rad/s/sqrt(Hz) = 0.01 deg/sqrt(h): fibre-optic gyro
+               "gyro_bias": 2.42406840554768e-7,               # rad/s = 0.05 deg/h
+               "accel_noise_density": 4.903325e-4,             # m/s2/sqrt(Hz) = 50 ug/sqrt(Hz): navigation-grade
+               "accel_bias": "0.980665 mm/s2", "seed": 1}      # 100 ug
 
 
 # ------------------------------------------------------------------------ scenario text
