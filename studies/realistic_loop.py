@@ -442,7 +442,9 @@ def costs(s):
 def settings_text():
     rows = [("leg sensors (LegSensor)", LEG_SENSOR), ("computation delay (LegSensor)", DELAY),
             ("actuator (HexapodPlant)", ACTUATOR), ("antenna axis servo (TelescopeBase)", SERVO),
-            ("wind (Wind)", WIND), ("base sensors (BaseSensor)", BASE_SENSOR)]
+            ("wind (Wind)", WIND),
+            ("base sensors (BaseSensor), in SI: 0.1 arcsec encoders, gyro 0.01 deg/√h and 0.05 deg/h, accelerometer "
+             "50 µg/√Hz and 100 µg", BASE_SENSOR)]
     return "\n".join(f"| {name} | {', '.join(f'`{k} = {v}`' for k, v in values.items())} |" for name, values in rows)
 
 
