@@ -31,8 +31,8 @@ FMI_HEADERS = pathlib.Path(fmpy.__file__).parent / "c-code"
 CFLAGS = ["-shared", "-fPIC", "-O2", "-std=c99", "-ffp-contract=off", "-fvisibility=hidden"]
 MODEL_FILES = {"HexapodPlant": "hexapod_plant.c", "TelescopeBase": "telescope_base.c",
                "LegController": "leg_controller.c", "Mechanism3TPlant": "mechanism3t_plant.c",
-               "SliderController": "slider_controller.c", "LegSensor": "leg_sensor.c",
-               "BaseSensor": "base_sensor.c"}
+               "SliderController": "slider_controller.c", "LegSensor": "leg_sensor.c", "BaseSensor": "base_sensor.c",
+               "Wind": "wind_wrench.c"}
 _CAUSALITY = {"parameter": "MB_PARAMETER", "input": "MB_INPUT", "output": "MB_OUTPUT", "local": "MB_LOCAL"}
 
 
@@ -112,8 +112,8 @@ def _mechanism3t():
 
 
 CONSTANTS = {"HexapodPlant": _hexapod_plant, "TelescopeBase": _telescope_base, "LegController": _leg_controller,
-             "Mechanism3TPlant": _mechanism3t, "SliderController": _mechanism3t, "LegSensor": list,
-             "BaseSensor": list}
+             "Mechanism3TPlant": _mechanism3t, "SliderController": _mechanism3t, "LegSensor": list, "BaseSensor": list,
+             "Wind": list}
 
 
 def _c_name(name):

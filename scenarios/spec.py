@@ -36,7 +36,7 @@ from .units import UNITS, UnitError, split, to_si
 FMU_SCRIPTS = {"hexapod_plant": "hexapod_plant_fmu", "telescope": "telescope_fmu",
                "leg_controller": "leg_controller_fmu", "mechanism3t_plant": "mechanism3t_fmu",
                "slider_controller": "slider_controller_fmu", "leg_sensor": "leg_sensor_fmu",
-               "base_sensor": "base_sensor_fmu"}
+               "base_sensor": "base_sensor_fmu", "wind": "wind_fmu"}
 # inputs that may stay unconnected, held at their start value (0: the effect they feed is off)
 OPTIONAL_INPUTS = {"hexapod_plant": ("platform_wrench",)}
 # per instance: the native C FMU (no Python in the host) or the pythonfmu one; equal results

@@ -293,6 +293,7 @@ CLOSED_LOOP = ("hexapod_plant_fmu", {"leg_force[1]": 5.3e3, "leg_force[4]": 5.1e
     ("telescope_fmu", {}, ["base_acc[5]", "reference_pose[3]"]),
     ("mechanism3t_fmu", {"slider_force[1]": 20.0}, ["platform_position[3]", "slider_rate[1]"]),
     ("slider_controller_fmu", {"slider_position[3]": 0.1}, ["slider_force[3]", "integral[3]"]),
+    ("wind_fmu", {"base_pose[5]": 0.3}, ["platform_wrench[1]", "gust"]),
 ])
 def test_state_get_set_and_serialisation_replay_bit_for_bit(native, script, inputs, watch):
     """From a state saved after 5 steps: the rest of the run replays identically after

@@ -1,0 +1,50 @@
+/* Wind, native: the variables of fmu_src/wind_fmu.py over the wind kernel
+   (plant/c/wind.h; this file is not wind.c because the kernel's wind.c lands in the same
+   flat sources/ folder of the FMU). The gust's components are drawn from the seed at initialization and
+   fixed afterwards: the model struct holds them, so an FMU state carries them too. */
+#include "Wind_vars.h"
+#include "wind.h"
+
+typedef struct {
+    mb_wind wind;
+} Model;
+
+static int publish(mb_instance *inst, double *r, Model *m, double t)
+{
+    if (mb_wind_wrench(&m->wind, t, &r[VR_base_pose], &r[VR_platform_wrench], &r[VR_gust])) {
+        mb_error(inst, "InvalidInputError", "base pose input contains NaN or inf");
+        return 1;
+    }
+    return 0;
+}
+
+static int init(mb_instance *inst, double *r, int *i, void *model, double start_time)
+{
+    (void)start_time;
+    Model *m = model;
+    mb_wind_params p;
+    p.mean_speed = r[VR_mean_speed];
+    p.turbulence_intensity = r[VR_turbulence_intensity];
+    p.length_scale = r[VR_length_scale];
+    p.height = r[VR_height];
+    p.air_density = r[VR_air_density];
+    p.drag_coefficient = r[VR_drag_coefficient];
+    p.drag_area = r[VR_drag_area];
+    p.moment_arm = r[VR_moment_arm];
+    p.direction = r[VR_direction];
+    p.spectrum = i[VR_spectrum];
+    int status = mb_wind_init(&m->wind, &p, (unsigned long long)i[VR_seed]);
+    if (status) {
+        mb_error(inst, "ValueError", "%s", mb_wind_status_text(status));
+        return 1;
+    }
+    return publish(inst, r, m, 0.0);
+}
+
+static int step(mb_instance *inst, double *r, int *i, void *model, double t, double h)
+{
+    (void)i;
+    return publish(inst, r, model, t + h);
+}
+
+const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), init, step};

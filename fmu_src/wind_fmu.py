@@ -1,0 +1,107 @@
+"""FMU: wind on the subreflector, a disturbance wrench on the hexapod's platform.
+
+The along-wind gust u(t) of a Kaimal or Davenport spectrum and the quasi-steady drag
+0.5 rho Cd A (U + u_A)^2 along the wind (u_A the gust averaged over the drag area, through
+the aerodynamic admittance of a plate), with the moment of a centre of pressure off the
+platform's origin, as the platform_wrench the hexapod plant takes (in {B}, turned from
+{W} with the base pose input). The model is the C kernel's (plant/c/wind.h says its
+equations and simplifications); u(t) is a fixed function of time drawn from the seed at
+initialisation, so the same seed gives the same run byte for byte, and the native twin
+(fmu_src/native/wind.c) calls the same kernel.
+
+Values (assumed, labelled in each description): the subreflector of a 65 m antenna
+~6.5 m across (a tenth of the primary, as on comparable Cassegrain antennas; Tianma's
+own figure not found in public sources) -> drag area pi 6.5^2 / 4 = 33.2 m2; Cd 1.2,
+a flat disc's (a concave subreflector face-on lies near it); the subreflector 60 m above
+ground (the antenna is 70 m high); turbulence intensity 0.15 (open country at that
+height); the centre of pressure 1 m from the platform's origin along z.
+"""
+import numpy as np
+
+from fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave
+from plant._kernel import ffi, lib
+from plant.errors import InvalidInputError
+
+SPECTRA = ("kaimal", "davenport")
+SETTINGS = ("mean_speed", "turbulence_intensity", "length_scale", "height", "air_density", "drag_coefficient",
+            "drag_area", "moment_arm", "direction")
+SUBREFLECTOR_DIAMETER = 6.5   # m (assumed)
+DEFAULTS = {"mean_speed": 10.0, "turbulence_intensity": 0.15, "length_scale": 0.0, "height": 60.0,
+            "air_density": 1.225, "drag_coefficient": 1.2, "drag_area": np.pi * SUBREFLECTOR_DIAMETER ** 2 / 4,
+            "moment_arm": 1.0, "direction": 0.0}
+
+
+def gust_model(settings, spectrum=0, seed=0):
+    """The kernel's seeded gust (an ``mb_wind *``) for the settings (SETTINGS names, SI)."""
+    params = ffi.new("mb_wind_params *")
+    for name in SETTINGS:
+        setattr(params, name, float(settings[name]))
+    params.spectrum = int(spectrum)
+    model = ffi.new("mb_wind *")
+    status = lib.mb_wind_init(model, params, int(seed))
+    if status:
+        raise ValueError(ffi.string(lib.mb_wind_status_text(status)).decode())
+    return model
+
+
+def gusts(model, times, area=False):
+    """u (m/s) at the given times; ``area``: the area-averaged gust u_A the drag sees."""
+    times = np.ascontiguousarray(times, dtype=float)
+    out = np.empty_like(times)
+    f = lib.mb_wind_area_gusts if area else lib.mb_wind_gusts
+    f(model, times.size, ffi.from_buffer("double[]", times), ffi.from_buffer("double[]", out))
+    return out
+
+
+class Wind(GuardedSlave):
+    description = "Wind on the subreflector: Kaimal/Davenport gust, quasi-steady drag -> platform wrench in {B}"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        d = DEFAULTS
+        self.settings = self.parameters((
+            ("mean_speed", "m/s", d["mean_speed"], "mean wind speed U at the subreflector (10-minute mean; 0 = calm)",
+             (0.0, 60.0)),
+            ("turbulence_intensity", "1", d["turbulence_intensity"],
+             "sigma_u / U of the along-wind gust (assumed 0.15: open country at 60 m)", (0.0, 1.0)),
+            ("length_scale", "m", d["length_scale"], "integral length scale L of the spectrum; 0 = the spectrum's "
+             "standard scale (Kaimal: 8.1 * 0.7 * min(height, 60 m), IEC 61400-1; Davenport: 1200 m)", (0.0, 1e5)),
+            ("height", "m", d["height"], "height of the subreflector above ground (assumed 60 m; the antenna is 70 m "
+             "high)", (1e-3, 1e3)),
+            ("air_density", "kg/m3", d["air_density"], "air density (ISA sea level; the site is near sea level)",
+             (0.0, 2.0)),
+            ("drag_coefficient", "1", d["drag_coefficient"], "drag coefficient Cd (assumed 1.2, a flat disc)",
+             (0.0, 5.0)),
+            ("drag_area", "m2", d["drag_area"], "drag area A (assumed: a 6.5 m subreflector, pi 6.5^2 / 4)",
+             (0.0, 1e3)),
+            ("moment_arm", "m", d["moment_arm"], "centre of pressure along {B}'s z from {P}'s origin (assumed 1 m)",
+             (-50.0, 50.0)),
+            ("direction", "rad", d["direction"], "astronomical azimuth the wind comes from (north through east)",
+             (-2 * np.pi, 2 * np.pi)),
+        ))
+        self.enumeration("spectrum", "gust spectrum", SPECTRA, 0)
+        self.integer("seed", "seed of the gust's random phases and frequencies", 0, (0, 2 ** 31 - 1))
+        self.base_pose = self.vector("base_pose", 6, INPUT, [f"base, in {{W}}, {n}" for n in
+                                                           ("x", "y", "z", "roll", "pitch", "yaw")], POSE_UNITS)
+        self.out = np.zeros(7)   # wrench (6), gust
+        self.vector("platform_wrench", 6, OUTPUT,
+                    [f"wind {n} on the platform at {{P}}'s origin, in {{B}}" for n in
+                     ("force x", "force y", "force z", "moment x", "moment y", "moment z")],
+                    ("N", "N", "N", "N.m", "N.m", "N.m"), values=self.out[:6])
+        self.real("gust", OUTPUT, "along-wind gust u at a point (the wind speed is U + u; the drag sees it averaged "
+                  "over the drag area)", "m/s",
+                  getter=lambda: self.out.item(6))
+
+    def initialize(self):
+        self.model = gust_model(self.settings, self.spectrum, self.seed)
+        self._pose = ffi.from_buffer("double[]", self.base_pose)
+        self._wrench = ffi.from_buffer("double[]", self.out)
+        self._gust = ffi.from_buffer("double[]", self.out[6:])
+        self._publish(0.0)
+
+    def step(self, t, h):
+        self._publish(t + h)
+
+    def _publish(self, t):
+        if lib.mb_wind_wrench(self.model, t, self._pose, self._wrench, self._gust):
+            raise InvalidInputError("base pose input contains NaN or inf")

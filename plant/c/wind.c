@@ -1,0 +1,130 @@
+/* The gust and drag wrench of plant/c/wind.h. */
+#include <math.h>
+
+#include "random.h"
+#include "wind.h"
+
+#define N_COMPONENTS 256
+#define BAND_LOW (1.0 / 600.0)   /* Hz: below it, the 10-minute mean */
+#define BAND_HIGH 50.0           /* Hz */
+#define TWO_PI 6.283185307179586
+
+const char *mb_wind_status_text(int status)
+{
+    switch (status) {
+    case MB_WIND_OK: return "ok";
+    case MB_WIND_NONFINITE: return "a wind parameter or the base pose is NaN or inf";
+    case MB_WIND_BAD_SPECTRUM: return "spectrum must be 0 (kaimal) or 1 (davenport)";
+    default: return "unknown wind status";
+    }
+}
+
+double mb_wind_band_low(void) { return BAND_LOW; }
+double mb_wind_band_high(void) { return BAND_HIGH; }
+int mb_wind_components(void) { return N_COMPONENTS; }
+
+/* 1 - C(f) / sigma_u^2: the fraction of the variance above f. */
+static double above(const mb_wind *w, double f)
+{
+    double n = f * w->scale / w->p.mean_speed;
+    if (w->p.spectrum == MB_WIND_KAIMAL)
+        return pow(1.0 + 6.0 * n, -2.0 / 3.0);
+    return pow(1.0 + n * n, -1.0 / 3.0);
+}
+
+double mb_wind_cumulative(const mb_wind *w, double f)
+{
+    double sigma = w->p.turbulence_intensity * w->p.mean_speed;
+    if (!(sigma > 0.0)) return 0.0;
+    return sigma * sigma * (1.0 - above(w, f));
+}
+
+int mb_wind_init(mb_wind *w, const mb_wind_params *p, unsigned long long seed)
+{
+    const double *values = &p->mean_speed;
+    for (int k = 0; k < 9; k++)   /* the nine doubles of mb_wind_params, in order */
+        if (!isfinite(values[k])) return MB_WIND_NONFINITE;
+    if (p->spectrum != MB_WIND_KAIMAL && p->spectrum != MB_WIND_DAVENPORT) return MB_WIND_BAD_SPECTRUM;
+    w->p = *p;
+    if (p->length_scale > 0.0)
+        w->scale = p->length_scale;
+    else if (p->spectrum == MB_WIND_KAIMAL)
+        w->scale = 8.1 * 0.7 * (p->height < 60.0 ? p->height : 60.0);
+    else
+        w->scale = 1200.0;
+    double sigma = p->turbulence_intensity * p->mean_speed;
+    double sigma2 = sigma * sigma, step = log(BAND_HIGH / BAND_LOW) / N_COMPONENTS;
+    int calm = !(sigma > 0.0);
+    mb_rng rng;
+    mb_rng_seed(&rng, seed);
+    double low = BAND_LOW, above_low = calm ? 0.0 : above(w, low);
+    w->band_variance = 0.0;
+    for (int k = 0; k < N_COMPONENTS; k++) {
+        double high = k + 1 == N_COMPONENTS ? BAND_HIGH : BAND_LOW * exp(step * (k + 1));
+        double above_high = calm ? 0.0 : above(w, high);
+        double variance = sigma2 * (above_low - above_high);
+        double f = low + (high - low) * mb_rng_uniform(&rng);
+        w->omega[k] = TWO_PI * f;
+        w->phase[k] = TWO_PI * mb_rng_uniform(&rng);
+        w->amplitude[k] = sqrt(2.0 * variance);
+        w->area_amplitude[k] = calm ? 0.0 : w->amplitude[k] / (1.0 + pow(2.0 * f * sqrt(p->drag_area) / p->mean_speed,
+                                                                           4.0 / 3.0));
+        w->band_variance += variance;
+        low = high;
+        above_low = above_high;
+    }
+    return MB_WIND_OK;
+}
+
+/* The point gust u and the area-averaged gust u_A at t (one cosine per component). */
+static void gust(const mb_wind *w, double t, double *u, double *u_area)
+{
+    double a = 0.0, b = 0.0;
+    for (int k = 0; k < N_COMPONENTS; k++) {
+        double c = cos(w->omega[k] * t + w->phase[k]);
+        a += w->amplitude[k] * c;
+        b += w->area_amplitude[k] * c;
+    }
+    *u = a;
+    *u_area = b;
+}
+
+void mb_wind_gusts(const mb_wind *w, int n, const double *t, double *u)
+{
+    double ignored;
+    for (int i = 0; i < n; i++)
+        gust(w, t[i], &u[i], &ignored);
+}
+
+void mb_wind_area_gusts(const mb_wind *w, int n, const double *t, double *u)
+{
+    double ignored;
+    for (int i = 0; i < n; i++)
+        gust(w, t[i], &ignored, &u[i]);
+}
+
+int mb_wind_wrench(const mb_wind *w, double t, const double *base_pose, double *wrench, double *gust_out)
+{
+    for (int k = 0; k < 6; k++)
+        if (!isfinite(base_pose[k])) return MB_WIND_NONFINITE;
+    double u, u_area;
+    gust(w, t, &u, &u_area);
+    double speed = w->p.mean_speed + u_area;
+    double force = 0.5 * w->p.air_density * w->p.drag_coefficient * w->p.drag_area * speed * fabs(speed);
+    /* the wind comes from azimuth `direction`: it blows towards -(sin, cos, 0) in {W} */
+    double fw[3] = {-force * sin(w->p.direction), -force * cos(w->p.direction), 0.0};
+    double cr = cos(base_pose[3]), sr = sin(base_pose[3]);
+    double cp = cos(base_pose[4]), sp = sin(base_pose[4]);
+    double cy = cos(base_pose[5]), sy = sin(base_pose[5]);
+    double R[9] = {cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr,
+                   sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr,
+                   -sp, cp * sr, cp * cr};   /* R_WB, rows */
+    for (int i = 0; i < 3; i++)   /* F_B = R_WB^T F_W */
+        wrench[i] = R[i] * fw[0] + R[3 + i] * fw[1] + R[6 + i] * fw[2];
+    double a = w->p.moment_arm;
+    wrench[3] = -a * wrench[1];   /* (0, 0, a) x F */
+    wrench[4] = a * wrench[0];
+    wrench[5] = 0.0;
+    *gust_out = u;
+    return MB_WIND_OK;
+}
