@@ -40,6 +40,8 @@ BAD_INIT = {
                        "noise", -1e-6, "noise = -1e-06 m is outside its valid range [0, 0.01] m"),
     "base_sensor_fmu": ("true_base_rate[2]", "input true_base_rate[2] = {} at initialization: inputs must be "
                         "finite", "rate_cutoff", -1.0, "rate_cutoff = -1 1/s is outside its valid range [0, 10000] 1/s"),
+    "wind_fmu": ("base_pose[4]", "input base_pose[4] = {} at initialization: inputs must be finite",
+                 "mean_speed", 80.0, "mean_speed = 80 m/s is outside its valid range [0, 60] m/s"),
 }
 
 
