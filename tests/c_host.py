@@ -100,7 +100,7 @@ class HostFmu:
         return self.vars[name].valueReference
 
     def run(self, steps=10, h=1e-3, real=None, integer=None, real_init=None, real_at=None, out=(),
-            state=None, keep_going=False, dlclose=True, env=None, timeout=120):
+            state=None, keep_going=False, dlclose=True, env=None, timeout=120, timed=False):
         """Run the host once on this FMU. ``real``/``integer``/``real_init``: {name: value};
         ``real_at``: {(step, name): value}; ``out``: names printed every step."""
         args = [str(compile_host()), str(self.folder), self.md.coSimulation.modelIdentifier, self.md.guid,
@@ -118,6 +118,8 @@ class HostFmu:
             args.append("--keep-going")
         if not dlclose:
             args.append("--no-dlclose")
+        if timed:
+            args.append("--time")
         p = subprocess.run(args, capture_output=True, text=True, timeout=timeout,
                            env=pythonfmu_env() if env is None else env)
         sig = signal.Signals(-p.returncode).name if p.returncode < 0 else None

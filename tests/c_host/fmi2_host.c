@@ -18,6 +18,8 @@
  *   --keep-going       go on stepping after a Discard (default: stop stepping)
  *   --no-dlclose       leave the library loaded at exit
  *   --quiet            no logger output
+ *   --time             print "step_us X": wall-clock µs per doStep over the run (for
+ *                      benchmarks/bench_native.py; pass no --out so nothing else is timed)
  *
  * stdout lines: "status CALL STATUS" for every call that did not return fmi2OK,
  * "out T V..." / "replay T V..." for outputs, "last_successful_time T" after a
@@ -30,6 +32,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "fmi2Functions.h"
 
@@ -114,7 +117,7 @@ int main(int argc, char **argv) {
         return 10;
     }
     const char *dir = argv[1], *id = argv[2], *guid = argv[3];
-    int steps = 10, state_step = -1, keep_going = 0, do_dlclose = 1;
+    int steps = 10, state_step = -1, keep_going = 0, do_dlclose = 1, timed = 0;
     double h = 1e-3, start = 0.0;
     Setting before[MAX_SETS], in_init[MAX_SETS], at_step[MAX_SETS];
     size_t n_before = 0, n_init = 0, n_at = 0, n_out = 0;
@@ -126,6 +129,7 @@ int main(int argc, char **argv) {
         if (!strcmp(a, "--keep-going")) { keep_going = 1; continue; }
         if (!strcmp(a, "--no-dlclose")) { do_dlclose = 0; continue; }
         if (!strcmp(a, "--quiet")) { quiet = 1; continue; }
+        if (!strcmp(a, "--time")) { timed = 1; continue; }
         if (!v) { fprintf(stderr, "fmi2_host: %s needs a value\n", a); return 10; }
         i++;
         if (!strcmp(a, "--steps")) steps = atoi(v);
@@ -183,6 +187,8 @@ int main(int argc, char **argv) {
     fmi2FMUstate saved = NULL;
     int k = 0, first = 0, stopped = 0;
     const char *tag = "out";
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
     while (alive && k < steps) {
         double t = start + k * h;
         for (size_t i = 0; i < n_at; i++)
@@ -212,6 +218,9 @@ int main(int argc, char **argv) {
         }
     }
     (void)stopped;
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    if (timed && k > 0)
+        printf("step_us %.6g\n", ((t1.tv_sec - t0.tv_sec) * 1e9 + (t1.tv_nsec - t0.tv_nsec)) / 1e3 / k);
     if (saved && worst < fmi2Fatal) check("fmi2FreeFMUstate", freeState(c, &saved));
     if (worst < fmi2Error) check("fmi2Terminate", terminate(c));
     if (worst < fmi2Fatal) freeInstance(c);
