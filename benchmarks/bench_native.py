@@ -3,6 +3,9 @@
 1. HexapodPlant doStep under fmpy (RK4, 1 ms, leg forces holding the platform at rest,
    fixed base): native vs pythonfmu, the ratio (issue 9 asks >= 20x), and the empty
    native doStep (what FMI and ctypes cost without the kernel).
+   The same doStep in a host that is not Python (tests/c_host/fmi2_host.c timing its own
+   doStep loop): the native FMU alone in the process, the pythonfmu one with libpython
+   preloaded, as a C tool must run it.
 2. The paper manoeuvre (telescope, plant, controller; 1 ms; first sweep value; metrics
    as the scenario asks) under our master: wall time per macro step, native vs pythonfmu
    (asks >= 5x), and as a multiple of the floor: three empty native FMUs (the same
@@ -21,7 +24,12 @@ import statistics
 import tempfile
 import time
 
+import sys
+
 import numpy as np
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))   # the checkout: tests.c_host
+from tests.c_host import HostFmu  # noqa: E402
 
 from fmu_src import builder, native_build
 from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
@@ -44,6 +52,29 @@ def plant_step_us(path, steps=STEPS):
         return (time.perf_counter() - start) / steps * 1e6
     finally:
         inst.terminate()
+
+
+def c_host_step_us(path, folder, steps):
+    """µs per doStep of a HexapodPlant holding the platform at rest, timed by the C host."""
+    forces = inverse_dynamics(StewartParams.paper(), HOME_POSE, np.zeros(6), np.zeros(6))
+    run = HostFmu(path, folder).run(steps=steps, real={f"leg_force[{i + 1}]": f for i, f in enumerate(forces)},
+                                    integer={"moving_base": 0}, timed=True)
+    if run.returncode != 0:
+        raise RuntimeError(f"C host failed on {path}: exit {run.returncode}\n{run.stderr[-2000:]}")
+    return float(run.lines("step_us")[0][0])
+
+
+def bound(py, kernel, floor, host, ratio=20.0):
+    """What a doStep ratio of ``ratio`` would take: both plants run the same C kernel step
+    (``kernel`` µs), so pythonfmu's doStep is its own cost W plus that step and the native
+    one is the host's call ``floor`` plus it; (W + k) / (floor + k) >= ratio needs
+    k <= (W - ratio floor) / (ratio - 1)."""
+    wrapper = py - kernel
+    need = (wrapper - ratio * floor) / (ratio - 1.0)
+    verdict = (f"{ratio:g}x would need a kernel step of {need:.2f} us" if need > 0 else
+               f"{ratio:g}x is out of reach even with a free kernel ({wrapper / floor:.1f}x at most)")
+    return (f"pythonfmu's own cost per doStep in {host}: {wrapper:.2f} us over the {kernel:.2f} us kernel step; "
+            + verdict)
 
 
 def manoeuvre_us(scenario, paths, values, outdir, label):
@@ -70,6 +101,16 @@ def main(argv=None):
     print(f"HexapodPlant doStep (RK4, 1 ms): pythonfmu {py:.1f} us, native {nat:.2f} us -> {py / nat:.1f}x "
           f"(an empty native doStep through fmpy's ctypes: {floor:.2f} us, so the native step is "
           f"{nat - floor:.2f} us of kernel)")
+    print("  " + bound(py, nat - floor, floor, "fmpy"))
+
+    host = {"python": [], "native": []}
+    for r in range(args.repeats):
+        for impl, paths in (("python", python), ("native", native)):
+            host[impl].append(c_host_step_us(paths["hexapod_plant_fmu"], out / f"host-{impl}{r}", 5 * STEPS))
+    py, nat = (statistics.median(host[k]) for k in ("python", "native"))
+    print(f"the same doStep in a C host (tests/c_host/fmi2_host.c): pythonfmu {py:.1f} us, native {nat:.2f} us "
+          f"-> {py / nat:.1f}x")
+    print("  " + bound(py, nat, 0.0, "the C host"))
 
     scenario, _, descriptions, values = runner.prepare(runner.resolve("paper_manoeuvre"))
     if scenario.sweep:
