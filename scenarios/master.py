@@ -260,6 +260,9 @@ def start(scenario, fmu_paths, parameters, instances):
     return exchange, resolved
 
 
+CHUNK = 2048   # most macro steps per C call: Ctrl-C is seen within one (~10 ms native, ~0.1 s pythonfmu)
+
+
 def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progress=None):
     """Co-simulate ``scenario`` once. ``fmu_paths``: instance -> FMU file; ``parameters``:
     instance -> {variable: value} (already converted, see spec.bind); results go to
@@ -282,7 +285,7 @@ def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progre
         recorder.record(t0)
         began = time.perf_counter()
         while done < steps:   # C runs the steps up to the next record (or progress) point
-            stop = min(steps, (done // every + 1) * every)
+            stop = min(steps, (done // every + 1) * every, done + CHUNK)
             if progress:
                 stop = min(stop, (done - 1) // tick * tick + tick + 1)   # after step k with k % tick == 0
             done += loop.steps(done, stop - done)

@@ -247,3 +247,38 @@ def test_progress_is_reported_as_the_python_loop_did_and_changes_nothing(tmp_pat
     tick = max(1, steps // 200)
     assert seen == [k / steps for k in range(steps) if k % tick == 0]
     assert (tmp_path / "with" / "run.csv").read_text() == (tmp_path / "without" / "run.csv").read_text()
+
+
+def test_a_long_unrecorded_run_returns_to_python_every_chunk(monkeypatch, tmp_path):
+    """A run recording only its ends still leaves C every master.CHUNK steps (so Ctrl-C is
+    seen within one chunk), with the CSV of a run stepped in one call; an interrupt
+    between chunks propagates and leaves the CSV written so far, closed."""
+    scenario, paths, values = prepared("paper_manoeuvre", "native", "jacobi", "linear")
+    scenario = dataclasses.replace(scenario, metrics=[], record_interval=scenario.stop_time - scenario.start_time)
+    steps = round((scenario.stop_time - scenario.start_time) / scenario.step)
+    assert steps > 3 * 512
+    counts, real_steps = [], master.Loop.steps
+
+    def counted(self, k, count):
+        counts.append(count)
+        return real_steps(self, k, count)
+    monkeypatch.setattr(master.Loop, "steps", counted)
+    for outdir, chunk in ((tmp_path / "chunked", 512), (tmp_path / "whole", 10 * steps)):
+        outdir.mkdir()
+        monkeypatch.setattr(master, "CHUNK", chunk)
+        counts.clear()
+        master.run(scenario, paths, values, outdir, "run")
+        assert sum(counts) == steps and max(counts) == min(chunk, steps)
+    assert (tmp_path / "chunked" / "run.csv").read_text() == (tmp_path / "whole" / "run.csv").read_text()
+
+    def interrupted(self, k, count):
+        if k > 0:
+            raise KeyboardInterrupt
+        return real_steps(self, k, count)
+    monkeypatch.setattr(master.Loop, "steps", interrupted)
+    monkeypatch.setattr(master, "CHUNK", 512)
+    (tmp_path / "stopped").mkdir()
+    with pytest.raises(KeyboardInterrupt):
+        master.run(scenario, paths, values, tmp_path / "stopped", "run")
+    rows = (tmp_path / "stopped" / "run.csv").read_text().splitlines()
+    assert len(rows) == 2 and rows[1].startswith("0.0,")   # header and the t0 row, on disk
