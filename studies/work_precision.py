@@ -6,6 +6,8 @@ For each scene the user's choices are swept:
 * communication step h: 0.25, 0.5, 1, 2, 4 ms;
 * master: Jacobi, Gauss-Seidel, Jacobi with linear input extrapolation;
 * plant integrator and substeps: rk4 / euler / radau, max_step (substeps = ceil(h / max_step));
+  the FMUs are the shipped scenarios' (native), but radau runs the pythonfmu plant (the
+  native one has no scipy), so its cost holds pythonfmu's per-step overhead too;
 * plant model fidelity: full, massless_legs, base_gravity, no_base;
 
 not as a full factorial but as the step sweep of every master with the shipped plant
@@ -210,7 +212,11 @@ def cosimulate(prep, config, outdir, stop_time=None):
     plant = next(i for i, f in scenario.fmus.items() if f == "hexapod_plant")
     params[plant].update(integrator=INTEGRATORS.index(config.integrator), max_step=config.max_step,
                          fidelity=FIDELITIES.index(config.fidelity))
-    run = master.run(scenario, prep.paths, params, pathlib.Path(outdir), "run")
+    paths = prep.paths
+    if config.integrator == "radau":   # scipy's Radau: only the pythonfmu plant has it
+        paths = runner.fmu_paths(dataclasses.replace(scenario, implementations={**scenario.implementations,
+                                                                                plant: "python"}))
+    run = master.run(scenario, paths, params, pathlib.Path(outdir), "run")
     with open(run.csv_path) as f:
         header = next(csv.reader(f))
     data = np.loadtxt(run.csv_path, delimiter=",", skiprows=1, ndmin=2)
