@@ -204,7 +204,8 @@ def test_outputs_read_in_initialization_mode_are_computed_as_the_native_fmus_com
         np.testing.assert_allclose(ours, native_values, rtol=1e-13, atol=1e-13)
     first, second, after_exit, start = python
     assert np.array_equal(second, after_exit)      # the last inputs set are the ones initialization used
-    assert not np.array_equal(first, start)         # computed, not the start values
+    moved = ~np.isclose(first, start, rtol=1e-12, atol=0)   # computed, not the start values (16 digits in the XML)
+    assert moved.any()
     worst = np.max(np.abs(python[0] - theirs[0]) / np.maximum(np.abs(theirs[0]), 1e-300))
-    print(f"{script}: {len(first)} outputs in initialization mode, {np.sum(first != start)} away from their "
+    print(f"{script}: {len(first)} outputs in initialization mode, {np.sum(moved)} away from their "
           f"start values; python vs native: largest relative difference {worst:.3g}")
