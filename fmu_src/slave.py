@@ -39,6 +39,7 @@ The FMU scripts import this module from the installed `movingbase` package (not 
 the FMU's resources): one copy in the process, sharing the C kernel built at install.
 """
 import math
+from xml.etree import ElementTree
 
 import numpy as np
 from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability
@@ -135,9 +136,10 @@ class GuardedSlave(Fmi2Slave):
         """Register one Real; parameters are fixed, inputs/outputs continuous; ``valid``
         (min, max) the parameter's range."""
         variability = Fmi2Variability.fixed if causality == PARAMETER else Fmi2Variability.continuous
-        initial = Fmi2Initial.exact if causality == OUTPUT else None
+        output = causality == OUTPUT   # initial="calculated" (no start attribute): see to_xml
         var = Real(name, causality=causality, description=description, variability=variability,
-                   initial=initial, start=start, getter=getter, setter=setter)
+                   initial=Fmi2Initial.calculated if output else None, start=None if output else start,
+                   getter=getter, setter=setter)
         self.register_variable(var, nested=False)
         if unit:
             self.units[name] = unit
@@ -212,6 +214,27 @@ class GuardedSlave(Fmi2Slave):
             groups[id(array)][1].append(index)
             groups[id(array)][2].append(position)
         return [(a, np.array(i), np.array(p)) for a, i, p in groups.values()]
+
+    def to_xml(self, model_options=None):
+        """pythonfmu's modelDescription with ModelStructure/InitialUnknowns: every output.
+
+        FMI 2.0 (2.2.7, 2.2.8): an output with initial="exact" is initialized to its start
+        value, and only outputs with initial="approx" or "calculated" are unknowns of
+        initialization mode, to be read from the FMU after the parameters and inputs are
+        set. Ours are computed then (base pose from the start pointing, forces from the
+        inputs), so they are "calculated", without a start value (FMI forbids one), and
+        listed here with no dependencies attribute (each may depend on every parameter and
+        input). pythonfmu 0.7.0 writes no InitialUnknowns, which is why fmpy's validation
+        rejects its default (calculated) outputs."""
+        root = super().to_xml(model_options or {})
+        structure = root.find("ModelStructure")
+        outputs = structure.find("Outputs")
+        if outputs is not None:
+            unknowns = ElementTree.Element("InitialUnknowns")
+            for unknown in outputs:
+                ElementTree.SubElement(unknowns, "Unknown", index=unknown.get("index"))
+            structure.insert(list(structure).index(outputs) + 1, unknowns)
+        return root
 
     def parameters(self, rows):
         """Real parameters (name, unit, default, description, valid range) backed by a
