@@ -24,9 +24,10 @@ fmi2ExitInitializationMode, the outputs are computed from the parameters and inp
 far (initialize() run again whenever something was set since), as the native FMUs do
 (fmu_src/native/fmi2_layer.c evaluate_initial): an importer that propagates values
 during initialization (libcosim) then starts every FMU from its neighbours' initial
-outputs. Such an evaluation checks the start values first and, if they are bad or
-initialize() fails, leaves the outputs as they were, silently: fmi2ExitInitializationMode,
-which runs the check and initialize() once more, reports it. initialize() computes from
+outputs. Such an evaluation checks the start values first (the native layer does not:
+with bad values the outputs mean nothing either way, and the kernels never see them here)
+and, if they are bad or initialize() fails, leaves the outputs as they were, silently:
+fmi2ExitInitializationMode, which runs the check and initialize() once more, reports it. initialize() computes from
 parameters and inputs only, so the outputs after exit are the same bits with or without
 these evaluations.
 
