@@ -26,8 +26,10 @@
  *   slave's error (an exception our slave did not catch) stays fmi2Fatal, its
  *   messages delivered as they came.
  *   fmi2SetupExperiment and fmi2EnterInitializationMode are forwarded unchanged:
- *   GuardedSlave leaves them to pythonfmu, whose methods do nothing, so a fatal there
- *   is one no slave code guarded, and fmi2Fatal is then the truth.
+ *   GuardedSlave's methods there only record values (the start time, that
+ *   initialization mode began), so a fatal there is one no slave code guarded, and
+ *   fmi2Fatal is then the truth. fmi2GetReal/fmi2GetInteger in initialization mode may
+ *   run the slave's initialize(); GuardedSlave catches whatever it raises.
  * - After each fmi2Instantiate, fmi2Terminate and before each fmi2FreeInstance, if
  *   libraries were loaded since the last time, the wrapper's exported
  *   finalizePythonInterpreter is registered to run at exit (handlers run

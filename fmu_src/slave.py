@@ -19,6 +19,18 @@ fmi2Error, since keep-alive references make the host's later calls (doStep, term
 free) safe (see exit_initialization_mode). The shim also has the wrapper finalize Python
 before the process's library destructors run (the crash of a C host at exit).
 
+Outputs in initialization mode: read between fmi2EnterInitializationMode and
+fmi2ExitInitializationMode, the outputs are computed from the parameters and inputs set so
+far (initialize() run again whenever something was set since), as the native FMUs do
+(fmu_src/native/fmi2_layer.c evaluate_initial): an importer that propagates values
+during initialization (libcosim) then starts every FMU from its neighbours' initial
+outputs. Such an evaluation checks the start values first (the native layer does not:
+with bad values the outputs mean nothing either way, and the kernels never see them here)
+and, if they are bad or initialize() fails, leaves the outputs as they were, silently:
+fmi2ExitInitializationMode, which runs the check and initialize() once more, reports it. initialize() computes from
+parameters and inputs only, so the outputs after exit are the same bits with or without
+these evaluations.
+
 Discarded steps: the output arrays (whole: the integrator state of every FMU lives in
 them or in arrays they are views of) are put back as they were before the step,
 so a host reading outputs after fmi2Discard sees the last accepted state, at the time
@@ -28,6 +40,7 @@ The FMU scripts import this module from the installed `movingbase` package (not 
 the FMU's resources): one copy in the process, sharing the C kernel built at install.
 """
 import math
+from xml.etree import ElementTree
 
 import numpy as np
 from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability
@@ -116,15 +129,18 @@ class GuardedSlave(Fmi2Slave):
         self.settable = {}  # the same for vector inputs and parameters
         self._plans = {}
         self._flat_views = {}
+        self._initializing = False   # between enter_ and exit_initialization_mode
+        self._stale = False          # initialization mode: set since the outputs were computed
 
     # ---------------------------------------------------------------- variables
     def real(self, name, causality, description, unit, start=0.0, getter=None, setter=None, valid=None):
         """Register one Real; parameters are fixed, inputs/outputs continuous; ``valid``
         (min, max) the parameter's range."""
         variability = Fmi2Variability.fixed if causality == PARAMETER else Fmi2Variability.continuous
-        initial = Fmi2Initial.exact if causality == OUTPUT else None
+        output = causality == OUTPUT   # initial="calculated" (no start attribute): see to_xml
         var = Real(name, causality=causality, description=description, variability=variability,
-                   initial=initial, start=start, getter=getter, setter=setter)
+                   initial=Fmi2Initial.calculated if output else None, start=None if output else start,
+                   getter=getter, setter=setter)
         self.register_variable(var, nested=False)
         if unit:
             self.units[name] = unit
@@ -157,6 +173,8 @@ class GuardedSlave(Fmi2Slave):
     def get_real(self, vrs):
         """Vector elements straight from their arrays (pythonfmu's per-variable getters
         cost ~0.6 µs a value, and the master reads dozens every step)."""
+        if self._stale:
+            self._evaluate_initial()
         try:
             return [array.item(i) for array, i in map(self.slots.__getitem__, vrs)]
         except KeyError:
@@ -165,6 +183,7 @@ class GuardedSlave(Fmi2Slave):
     def set_real(self, vrs, values):
         """Vector inputs written array by array; the plan per list of value references is
         made once (a master writes the same list every step)."""
+        self._stale = self._initializing
         key = tuple(vrs)
         plan = self._plans.get(key)
         if plan is None:
@@ -174,6 +193,15 @@ class GuardedSlave(Fmi2Slave):
         values = np.asarray(values, dtype=float)
         for array, index, positions in plan:
             array[index] = values[positions]
+
+    def get_integer(self, vrs):
+        if self._stale:
+            self._evaluate_initial()
+        return super().get_integer(vrs)
+
+    def set_integer(self, vrs, values):
+        self._stale = self._initializing
+        super().set_integer(vrs, values)
 
     def _plan(self, vrs):
         """[(array, element indices, positions in vrs)] or False if some vr is not a
@@ -187,6 +215,27 @@ class GuardedSlave(Fmi2Slave):
             groups[id(array)][1].append(index)
             groups[id(array)][2].append(position)
         return [(a, np.array(i), np.array(p)) for a, i, p in groups.values()]
+
+    def to_xml(self, model_options=None):
+        """pythonfmu's modelDescription with ModelStructure/InitialUnknowns: every output.
+
+        FMI 2.0 (2.2.7, 2.2.8): an output with initial="exact" is initialized to its start
+        value, and only outputs with initial="approx" or "calculated" are unknowns of
+        initialization mode, to be read from the FMU after the parameters and inputs are
+        set. Ours are computed then (base pose from the start pointing, forces from the
+        inputs), so they are "calculated", without a start value (FMI forbids one), and
+        listed here with no dependencies attribute (each may depend on every parameter and
+        input). pythonfmu 0.7.0 writes no InitialUnknowns, which is why fmpy's validation
+        rejects its default (calculated) outputs."""
+        root = super().to_xml(model_options or {})
+        structure = root.find("ModelStructure")
+        outputs = structure.find("Outputs")
+        if outputs is not None:
+            unknowns = ElementTree.Element("InitialUnknowns")
+            for unknown in outputs:
+                ElementTree.SubElement(unknowns, "Unknown", index=unknown.get("index"))
+            structure.insert(list(structure).index(outputs) + 1, unknowns)
+        return root
 
     def parameters(self, rows):
         """Real parameters (name, unit, default, description, valid range) backed by a
@@ -249,7 +298,24 @@ class GuardedSlave(Fmi2Slave):
         self.failure = f"{type(exc).__name__} {when}: {exc}"
         self.log(self.failure, Fmi2Status.error, "logStatusError")
 
+    def enter_initialization_mode(self):
+        self._initializing = self._stale = True
+
+    def _evaluate_initial(self):
+        """The outputs from the parameters and inputs set so far (see the module doc);
+        on a bad start value or a failing initialize(), the outputs as they were."""
+        self._stale = False
+        for root, saved in self._step_saves:
+            np.copyto(saved, root)
+        try:
+            self.check_start()
+            self.initialize()
+        except Exception:   # noqa: BLE001 - reported by exit_initialization_mode, see module doc
+            for root, saved in self._step_saves:
+                np.copyto(root, saved)
+
     def exit_initialization_mode(self):
+        self._initializing = self._stale = False
         try:
             self.check_start()
             self.initialize()

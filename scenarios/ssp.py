@@ -4,7 +4,7 @@ that file with fmpy's SSP master: an independent master to check ours against.
 ``export_ssp`` writes a zip holding SystemStructure.ssd (SSP 1.0, the version
 fmpy.ssp reads) and the FMUs under resources/: those the scenario chose per instance
 (native by default: then the SSP needs no Python in the importing tool; libcosim runs
-it, tests/test_native_libcosim.py). The SSD has
+it, tests/test_libcosim.py; the pythonfmu FMUs too, with Python in the tool). The SSD has
 
 - one Component per FMU instance (source resources/<file>.fmu), listed in our
   initialization order (master.step_order), so a tool that initialises in document order

@@ -100,9 +100,10 @@ class HostFmu:
         return self.vars[name].valueReference
 
     def run(self, steps=10, h=1e-3, real=None, integer=None, real_init=None, real_at=None, out=(),
-            state=None, keep_going=False, dlclose=True, env=None, timeout=120, timed=False):
+            state=None, keep_going=False, dlclose=True, env=None, timeout=120, timed=False, init_out=False):
         """Run the host once on this FMU. ``real``/``integer``/``real_init``: {name: value};
-        ``real_at``: {(step, name): value}; ``out``: names printed every step."""
+        ``real_at``: {(step, name): value}; ``out``: names printed every step (and, with
+        ``init_out``, in initialization mode: the "init" line)."""
         args = [str(compile_host()), str(self.folder), self.md.coSimulation.modelIdentifier, self.md.guid,
                 "--steps", str(steps), "--h", repr(h)]
         for option, values in (("--real", real), ("--int", integer), ("--real-init", real_init)):
@@ -120,6 +121,8 @@ class HostFmu:
             args.append("--no-dlclose")
         if timed:
             args.append("--time")
+        if init_out:
+            args.append("--init-out")
         p = subprocess.run(args, capture_output=True, text=True, timeout=timeout,
                            env=pythonfmu_env() if env is None else env)
         sig = signal.Signals(-p.returncode).name if p.returncode < 0 else None

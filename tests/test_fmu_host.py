@@ -11,6 +11,7 @@ from fmu_src.builder import SCRIPTS
 from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
 from tests.c_host import HostFmu, compile_host
 from tests.test_fmu_errors import BAD_INIT
+from tests.test_fmus import INIT_PARAMETERS, output_starts
 
 STATIC = inverse_dynamics(StewartParams.paper(), HOME_POSE, np.zeros(6), np.zeros(6))
 
@@ -118,3 +119,42 @@ def test_a_missing_pythonfmu_wrapper_is_named_by_the_shim(fmus, tmp_path):
     assert (run.returncode, run.signal) == (12, None), run.stderr
     assert f"[Fatal] host logStatusFatal: pythonfmu shim: dlopen {wrapper}: " in run.stderr
     assert "No such file" in run.stderr
+
+
+def _init_case(fmu, path):
+    """Outputs, their values before initialization and the in-initialization input settings (every Real
+    input moved from its start, as tests/test_fmus.py does) of one FMU."""
+    variables = fmu.md.modelVariables
+    outputs = [v.name for v in variables if v.causality == "output"]
+    start = output_starts(path)
+    inputs = [v for v in variables if v.causality == "input" and v.type == "Real"]
+    return outputs, start, {v.name: float(v.start) + 1e-3 * (1 + k % 5) for k, v in enumerate(inputs)}
+
+
+@pytest.mark.parametrize("script", SCRIPTS)
+def test_outputs_read_in_initialization_mode_in_a_c_host(fmus, hosted, script):
+    """In a host that is not Python, outputs read after setting the inputs in
+    initialization mode are those initialization ends with (the "out" line right after
+    fmi2ExitInitializationMode), not the start values; the process exits 0."""
+    fmu = hosted[script]
+    outputs, start, inputs = _init_case(fmu, fmus[script])
+    run = fmu.run(steps=1, real=INIT_PARAMETERS.get(script, {}), real_init=inputs, out=outputs, init_out=True)
+    assert (run.returncode, run.signal, run.statuses()) == (0, None, []), run.stderr[-2000:]
+    (init,), after_exit = run.lines("init"), run.lines("out")[0]
+    assert init == after_exit
+    assert init[1:] != start
+
+
+@pytest.mark.parametrize("script", SCRIPTS)
+def test_a_bad_input_read_in_initialization_mode_still_ends_in_fmi2_error(fmus, hosted, script):
+    """A NaN input (the telescope has none: a parameter) set in initialization mode and
+    the outputs read then: the read answers OK with the outputs as they were before
+    initialization (no log line), and fmi2ExitInitializationMode reports the bad value
+    with fmi2Error as it does without the read; the process exits normally."""
+    fmu = hosted[script]
+    outputs, start, _ = _init_case(fmu, fmus[script])
+    name, text = BAD_INIT[script][:2]
+    run = fmu.run(steps=3, real_init={name: math.nan}, out=outputs, init_out=True)
+    _assert_refused_with_error(run, text.format(math.nan))
+    (init,) = run.lines("init")
+    assert init[1:] == start

@@ -1,5 +1,7 @@
 """The FMUs under fmpy: validation, agreement with the plant called directly, state
-save/restore, several instances in one process, and failure through FMI status."""
+save/restore, several instances in one process, outputs in initialization mode, and
+failure through FMI status."""
+import math
 import re
 
 import numpy as np
@@ -10,9 +12,13 @@ from fmpy.validation import validate_fmu
 from plant import telescope
 from plant.hexapod_ode import HexapodODE
 from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
-from scenarios.fmi import FmuError, RealPort
+from scenarios.fmi import FmuError, Instance, RealPort
+from fmu_src import builder
+from fmu_src.builder import SCRIPTS
+from fmu_src.slave import OUTPUT
 from fmu_src.hexapod_plant_fmu import STROKE_RANGE
-from tests.fmu_helpers import open_fmu
+from tests.fmu_helpers import OPENED, open_fmu
+from tests.test_native_fmus import native  # noqa: F401 - the session fixture
 
 PARAMS = StewartParams.paper()
 STATIC = inverse_dynamics(PARAMS, HOME_POSE, np.zeros(6), np.zeros(6))
@@ -152,3 +158,65 @@ def test_plant_fmu_integrators_agree_to_their_order(fmus):
     rk4_vs_radau = np.abs(poses["rk4"] - poses["radau"]).max()
     euler_vs_radau = np.abs(poses["euler"] - poses["radau"]).max()
     assert rk4_vs_radau < 1e-9 and euler_vs_radau > 1e3 * rk4_vs_radau, (rk4_vs_radau, euler_vs_radau)
+
+
+# Parameters away from their defaults, so that an output that ignored them would show it
+# (the telescope has no inputs: its initial pointing comes from its parameters alone).
+INIT_PARAMETERS = {"telescope_fmu": {"start_azimuth": math.radians(10.0), "start_elevation": math.radians(40.0)},
+                   "hexapod_plant_fmu": {"initial_pose[3]": -2.67, "initial_pose[4]": 0.01},
+                   "mechanism3t_fmu": {"initial_rate[1]": 0.002}, "slider_controller_fmu": {"amplitude": 0.02}}
+
+
+def output_starts(path):
+    """The outputs' values before initialization, exactly: those of a fresh instance of
+    the FMU's slave class (the XML has none: the outputs are initial="calculated")."""
+    slave = builder.slave_instance(path)
+    return [slave.get_real([v.value_reference])[0] for v in slave.vars.values() if v.causality == OUTPUT]
+
+
+def _in_initialization_mode(path, parameters, shift):
+    """(outputs read in initialization mode after setting ``parameters`` and every Real
+    input to its start value + shift * (1 + k % 5) (k its position), the same outputs
+    read again after setting every input to start + 2 shift, the outputs right after
+    fmi2ExitInitializationMode)."""
+    inst = Instance(path, "init")
+    OPENED.append(inst)
+    inputs = [v for v in inst.md.modelVariables if v.causality == "input" and v.type == "Real"]
+    outputs = [v for v in inst.md.modelVariables if v.causality == "output"]
+    assert all(v.initial == "calculated" and v.start is None for v in outputs)   # fmu_src/slave.py to_xml
+    outputs = [v.name for v in outputs]
+    read = lambda: np.array([inst.get_real(n) for n in outputs])
+    inst.call("setupExperiment", startTime=0.0)
+    inst.call("enterInitializationMode")
+    for name, value in parameters.items():
+        inst.set(name, value)
+    for k, v in enumerate(inputs):
+        inst.set(v.name, float(v.start) + shift * (1 + k % 5))
+    first = read()
+    for v in inputs:
+        inst.set(v.name, float(v.start) + 2 * shift)
+    second = read()
+    inst.call("exitInitializationMode")
+    return first, second, read()
+
+
+@pytest.mark.parametrize("script", SCRIPTS)
+def test_outputs_read_in_initialization_mode_are_computed_as_the_native_fmus_compute_them(fmus, native, script):
+    """An importer that propagates values during initialization (libcosim) reads the
+    outputs between fmi2EnterInitializationMode and fmi2ExitInitializationMode: the
+    pythonfmu FMU answers what the native FMU answers there (its own C layer,
+    fmu_src/native/fmi2_layer.c), follows inputs set after a read, and ends
+    initialization on the same outputs it gave."""
+    parameters = INIT_PARAMETERS.get(script, {})
+    python = _in_initialization_mode(fmus[script], parameters, 1e-3)
+    theirs = _in_initialization_mode(native[script], parameters, 1e-3)
+    for ours, native_values in zip(python, theirs):
+        np.testing.assert_allclose(ours, native_values, rtol=1e-13, atol=1e-13)
+    first, second, after_exit = python
+    start = np.array(output_starts(fmus[script]))
+    assert np.array_equal(second, after_exit)      # the last inputs set are the ones initialization used
+    moved = first != start
+    assert moved.any()   # computed, not the values before initialization
+    worst = np.max(np.abs(python[0] - theirs[0]) / np.maximum(np.abs(theirs[0]), 1e-300))
+    print(f"{script}: {len(first)} outputs in initialization mode, {np.sum(moved)} away from their "
+          f"start values; python vs native: largest relative difference {worst:.3g}")

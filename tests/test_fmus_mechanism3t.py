@@ -158,7 +158,7 @@ def test_plant_state_save_restore_replays_bit_identically(fmus):
 
 def default_gains(path):
     """The controller's default gains, as its model description ships them."""
-    start = {v.name: float(v.start) for v in read_model_description(path).modelVariables}
+    start = {v.name: float(v.start) for v in read_model_description(path).modelVariables if v.start is not None}
     return PIDGains(*(start[k] for k in ("kp", "ki", "kd", "force_limit")))
 
 

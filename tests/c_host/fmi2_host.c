@@ -13,6 +13,8 @@
  *   --real-init VR=X   set a Real in initialization mode
  *   --real-at K:VR=X   set a Real before doStep number K (0-based)
  *   --out VR[,VR...]   Reals printed after initialization and after every doStep
+ *   --init-out         also print them in initialization mode, after the --real-init sets
+ *                      ("init T V..."), as an importer that propagates initial values reads
  *   --state K          after doStep K: fmi2GetFMUstate, run to the end, fmi2SetFMUstate,
  *                      rerun the same steps ("replay" lines), fmi2FreeFMUstate
  *   --keep-going       go on stepping after a Discard (default: stop stepping)
@@ -117,7 +119,7 @@ int main(int argc, char **argv) {
         return 10;
     }
     const char *dir = argv[1], *id = argv[2], *guid = argv[3];
-    int steps = 10, state_step = -1, keep_going = 0, do_dlclose = 1, timed = 0;
+    int steps = 10, state_step = -1, keep_going = 0, do_dlclose = 1, timed = 0, init_out = 0;
     double h = 1e-3, start = 0.0;
     Setting before[MAX_SETS], in_init[MAX_SETS], at_step[MAX_SETS];
     size_t n_before = 0, n_init = 0, n_at = 0, n_out = 0;
@@ -130,6 +132,7 @@ int main(int argc, char **argv) {
         if (!strcmp(a, "--no-dlclose")) { do_dlclose = 0; continue; }
         if (!strcmp(a, "--quiet")) { quiet = 1; continue; }
         if (!strcmp(a, "--time")) { timed = 1; continue; }
+        if (!strcmp(a, "--init-out")) { init_out = 1; continue; }
         if (!v) { fprintf(stderr, "fmi2_host: %s needs a value\n", a); return 10; }
         i++;
         if (!strcmp(a, "--steps")) steps = atoi(v);
@@ -181,6 +184,7 @@ int main(int argc, char **argv) {
     if (alive && check("fmi2EnterInitializationMode", enterInit(c)) > fmi2Discard) alive = 0;
     for (size_t i = 0; i < n_init && alive; i++)
         if (apply(setReal, setInteger, c, &in_init[i]) > fmi2Discard) alive = 0;
+    if (alive && init_out) print_outputs(getReal, c, "init", start, out, n_out);
     if (alive && check("fmi2ExitInitializationMode", exitInit(c)) > fmi2Discard) alive = 0;
     if (alive) print_outputs(getReal, c, "out", start, out, n_out);
 
