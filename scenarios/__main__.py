@@ -1,6 +1,7 @@
 """Command line: run scenario files (or shipped scenario names) and write their reports.
 
     python -m scenarios [SCENARIO ...] [--out DIR] [--ci] [--quiet] [--jobs N] [--dask tcp://HOST:PORT]
+                        [--implementation native|python]
     python -m scenarios SCENARIO --ssp FILE.ssp      (export for other FMI tools instead)
 
 Without a scenario it runs the main job: the telescope slew (FMUs built first) and the
@@ -11,7 +12,7 @@ import sys
 
 from .paper_forces import main as paper_charts
 from .runner import SHIPPED, prepare, resolve, run_scenario
-from .spec import ScenarioError, sweep_value
+from .spec import IMPLEMENTATIONS, ScenarioError, sweep_value
 from .ssp import export_ssp
 
 
@@ -33,6 +34,8 @@ def main(argv=None):
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--jobs", type=int, help="run the sweep values on N local worker processes")
     parser.add_argument("--dask", metavar="ADDR", help="run the sweep values on the Dask cluster at ADDR")
+    parser.add_argument("--implementation", choices=IMPLEMENTATIONS,
+                        help="run every FMU as this implementation, whatever the file chooses")
     parser.add_argument("--ssp", metavar="FILE", help="export the (one) scenario as an SSP file, first sweep value")
     args = parser.parse_args(argv)
     names = args.scenarios or ["telescope_slew"]
@@ -42,7 +45,8 @@ def main(argv=None):
                  f"shipped: {shipped}")
     if args.ssp:
         try:
-            scenario, paths, descriptions, values = prepare(resolve(names[0]), ci=args.ci)
+            scenario, paths, descriptions, values = prepare(resolve(names[0]), ci=args.ci,
+                                                             implementation=args.implementation)
         except ScenarioError as exc:
             sys.exit(f"scenario error: {exc}")
         if scenario.sweep:
@@ -54,7 +58,8 @@ def main(argv=None):
     for name in names:
         try:
             scenario, runs, report = run_scenario(name, args.out, ci=args.ci, progress=not args.quiet,
-                                                  jobs=args.jobs, dask=args.dask)
+                                                  jobs=args.jobs, dask=args.dask,
+                                                  implementation=args.implementation)
         except ScenarioError as exc:
             errors.append(f"scenario error: {exc}")
             continue

@@ -9,6 +9,7 @@ exchange added (scenarios.ssp._initial_exchange) fmpy's loop reproduces our mast
 """
 import csv
 import dataclasses
+import io
 import multiprocessing
 import zipfile
 
@@ -236,10 +237,19 @@ def test_export_refuses_what_it_cannot_write(case):
         ssp.export_ssp(scenario, paths, bad, folder / "bad.ssp")
 
 
-def test_command_line_exports_a_scenario(tmp_path, capsys):
+@pytest.mark.parametrize("implementation", [None, "native", "python"])
+def test_command_line_exports_a_scenario(implementation, tmp_path, capsys):
+    """The SSP carries the implementation asked for (the file's choice, native, by default):
+    a pythonfmu FMU holds pythonfmu's wrapper behind our shim, a native one its C sources."""
     from scenarios.__main__ import main
-    main(["telescope_slew", "--ci", "--ssp", str(tmp_path / "slew.ssp")])
+    main(["telescope_slew", "--ci", "--ssp", str(tmp_path / "slew.ssp")]
+         + (["--implementation", implementation] if implementation else []))
     assert "SSP written to" in capsys.readouterr().out
     with zipfile.ZipFile(tmp_path / "slew.ssp") as z:
         names = z.namelist()
-    assert "SystemStructure.ssd" in names and sum(n.endswith(".fmu") for n in names) == 3
+        fmus = [n for n in names if n.endswith(".fmu")]
+        inner = [zipfile.ZipFile(io.BytesIO(z.read(n))).namelist() for n in fmus]
+    assert "SystemStructure.ssd" in names and len(fmus) == 3
+    python = [any(f.endswith(".pythonfmu.so") for f in files) for files in inner]
+    native = [any(f.startswith("sources/") and f.endswith(".c") for f in files) for files in inner]
+    assert python == [implementation == "python"] * 3 and native == [implementation != "python"] * 3
