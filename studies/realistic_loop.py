@@ -152,12 +152,13 @@ def _connect(data, source, target):
     data["connections"].append({"from": source, "to": target})
 
 
-def variant(scene, effects=(), source="exact", modes=MODES, overrides=None, window=False):
+def variant(scene, effects=(), source="exact", modes=MODES, overrides=None, window=False, gains=None):
     """The scenario dict of ``scene`` (a shipped name) with ``effects`` (EFFECTS names) on
     and the feedforward's base motion from ``source``, swept over ``modes``.
     ``overrides``: {effect or "base_sensor": {parameter: value}} replacing the realistic
     values (the tests change one setting); ``window``: the study's time window
-    (WINDOWS) instead of the shipped one."""
+    (WINDOWS) instead of the shipped one; ``gains``: (tag, {"kp", "ki", "kd": value}) the
+    controller's PID gains instead of its shipped ones, the tag in the scenario's name."""
     unknown = set(effects) - set(EFFECTS)
     if unknown or source not in SOURCES:
         raise ValueError(f"unknown effect {sorted(unknown)} or source {source!r}; effects: {EFFECTS}, "
@@ -166,11 +167,13 @@ def variant(scene, effects=(), source="exact", modes=MODES, overrides=None, wind
     settings = lambda name, values: {**values, **over.get(name, {})}
     data = tomllib.loads(runner.resolve(scene).read_text())
     tag = "-".join([*sorted(effects), source]) if effects or source != "exact" else "ideal"
-    data["name"] = f"{scene}-{tag}"
+    data["name"] = f"{scene}-{tag}" + (f"-gains_{gains[0]}" if gains else "")
     data["description"] = (f"{data['name']}: {scene} with " + (", ".join(EFFECT_NAMES[e] for e in sorted(effects))
                            or "the ideal loop") + f"; feedforward base motion {SOURCE_NAMES[source]}.")
     data["sweep"] = {"parameter": "controller.feedforward", "values": list(modes)}
     fmus = data["fmus"]
+    if gains:
+        fmus["controller"].setdefault("parameters", {}).update(gains[1])
     if window and scene in WINDOWS:
         data["stop_time"] = WINDOWS[scene]["stop_time"]
         fmus["base"]["parameters"]["utc_start"] += WINDOWS[scene]["utc_shift"]
