@@ -274,47 +274,48 @@ def design_pid(params, crossover_hz, phase_margin_deg, comm_step, integral_ratio
 
 
 def stiffest_pid(params, comm_step, loop=REALISTIC, phase_margin_deg=45.0, gain_margin_db=6.0,
-                 integral_ratio=DEFAULT_INTEGRAL_RATIO, force_limit=DEFAULT_FORCE_LIMIT, pose=HOME_POSE,
-                 targets=(45.0, 50.0, 55.0, 60.0, 65.0, 70.0), resolution_hz=0.02):
-    """The design_pid (ki = kp w_c / integral_ratio) with the largest integral gain ki whose
-    every mode keeps phase margin >= ``phase_margin_deg`` and upper and lower gain margins
-    >= ``gain_margin_db``.
+                 integral_ratios=(2.0, 2.5, 3.5, DEFAULT_INTEGRAL_RATIO), force_limit=DEFAULT_FORCE_LIMIT,
+                 pose=HOME_POSE, targets=(45.0, 50.0, 55.0), resolution_hz=0.05):
+    """The design_pid with the largest integral gain ki whose every mode keeps phase margin
+    >= ``phase_margin_deg`` and upper and lower gain margins >= ``gain_margin_db``.
 
     Stiffness is ki: a slow force (wind gusts, well below crossover) meets the loop's
     |C(jw)| ~ ki / w; the crossover alone is no measure (a high heavy-mode phase target
     reaches a high crossover with kp -> 0, a loop of pure damping). The search: for each
-    heavy-mode phase-margin target in ``targets`` the crossover is bisected to
-    ``resolution_hz`` between 0.5 Hz and Nyquist / 10 (feasibility taken to fall once
-    with the crossover; ki grows with it), and the target whose boundary design has the
-    largest ki wins. Raises ValueError if no crossover meets the bounds."""
+    integral ratio w_c / (ki / kp) in ``integral_ratios`` and heavy-mode phase-margin
+    target in ``targets``, the crossover is bisected to ``resolution_hz`` between 0.5 Hz
+    and Nyquist / 25 (feasibility taken to fall once with the crossover; ki grows with
+    it); the boundary design with the largest ki wins. Raises ValueError if no crossover
+    meets the bounds."""
     masses = modal_masses(params, loop, pose)
 
-    def feasible(crossover_hz, target):
-        kp, ki, kd = _solve_gains(masses[-1], crossover_hz, target, comm_step, integral_ratio, loop)
+    def feasible(crossover_hz, target, ratio):
+        kp, ki, kd = _solve_gains(masses[-1], crossover_hz, target, comm_step, ratio, loop)
         if kp <= 0 or kd <= 0:
             return None
         design = _modal_design(PIDGains(float(kp), float(ki), float(kd), force_limit), comm_step, masses, loop,
-                               points=1500)
+                               points=1000)
         ok = design is not None and design.modal_phase_margin_deg >= phase_margin_deg and min(
             design.modal_gain_margin_db, -design.modal_lower_gain_margin_db) >= gain_margin_db
         return design if ok else None
 
     best = None
-    for target in targets:
-        low, high = 0.5, 0.05 / comm_step
-        found = feasible(low, target)
-        if found is None:
-            continue
-        while high - low > resolution_hz:
-            mid = 0.5 * (low + high)
-            design = feasible(mid, target)
-            low, high, found = (mid, high, design) if design else (low, mid, found)
-        if best is None or found.gains.ki > best[2]:
-            best = (low, target, found.gains.ki)
+    for ratio in integral_ratios:
+        for target in targets:
+            low, high = 0.5, 0.02 / comm_step
+            found = feasible(low, target, ratio)
+            if found is None:
+                continue
+            while high - low > resolution_hz:
+                mid = 0.5 * (low + high)
+                design = feasible(mid, target, ratio)
+                low, high, found = (mid, high, design) if design else (low, mid, found)
+            if best is None or found.gains.ki > best[3]:
+                best = (low, target, ratio, found.gains.ki)
     if best is None:
         raise ValueError(f"no crossover gives phase margin >= {phase_margin_deg} deg and gain margins >= "
                          f"{gain_margin_db} dB on every mode in {loop}")
-    return design_pid(params, best[0], best[1], comm_step, integral_ratio, force_limit, pose, loop)
+    return design_pid(params, best[0], best[1], comm_step, best[2], force_limit, pose, loop)
 
 
 def default_gains(params, comm_step=1e-3):

@@ -252,7 +252,8 @@ def _scaled(gains, factor):
 def test_stiffest_realistic_design_meets_the_bounds_on_every_mode(stiffest):
     """PM >= 45 deg on every mode, read off a denser grid than the design's; GM >= 6 dB
     both ways as closed-loop poles: every mode stays stable with the gains doubled and
-    halved. The bound binds: 3 % more crossover at the same heavy-mode target breaks it."""
+    halved. The bound binds: 3 % more crossover at the same heavy-mode target and
+    integral ratio breaks it."""
     assert stiffest.loop == REALISTIC
     assert stiffest.modal_masses[0] == pytest.approx(np.linalg.eigvalsh(leg_mass_matrix(PARAMS))[0] + 758.0)
     omega = np.geomspace(1.0, 0.999 * np.pi / STEP, 200000)
@@ -266,8 +267,11 @@ def test_stiffest_realistic_design_meets_the_bounds_on_every_mode(stiffest):
             loop = mode_loop(mass, _scaled(stiffest.gains, factor), STEP, REALISTIC)
             assert np.abs(control.feedback(loop).poles()).max() < 1
     assert min(stiffest.modal_gain_margin_db, -stiffest.modal_lower_gain_margin_db) >= 6
-    harder = design_pid(PARAMS, 1.03 * stiffest.crossover_hz, stiffest.phase_margin_deg, STEP, loop=REALISTIC)
-    assert harder.modal_phase_margin_deg < 45 or harder.modal_gain_margin_db < 6
+    ratio = stiffest.gains.kp * 2 * np.pi * stiffest.crossover_hz / stiffest.gains.ki
+    harder = design_pid(PARAMS, 1.03 * stiffest.crossover_hz, stiffest.phase_margin_deg, STEP, ratio, loop=REALISTIC)
+    assert harder.gains.ki > stiffest.gains.ki
+    assert (harder.modal_phase_margin_deg < 45 - 0.05 or harder.modal_gain_margin_db < 6
+            or -harder.modal_lower_gain_margin_db < 6)
 
 
 def test_shipped_gains_on_the_realistic_plant_are_recomputed_not_assumed(design):
@@ -305,7 +309,8 @@ def _cosim(tmp_path, gains, seconds=3.0):
 
 def test_realistic_gain_margin_predicts_the_cosimulation(stiffest, tmp_path):
     """The co-simulation of the realistic loop with the gains at 0.8x the predicted gain
-    margin settles (leg error of the noise's order), at 1.25x it oscillates into the
+    margin stays still (leg error under 1 µm: the 20 nm sensor noise, amplified near the
+    limit), at 1.25x it oscillates into the
     force limits, at the frequency where python-control puts the lightest mode's phase
     crossover (within 3 %)."""
     lightest = mode_loop(stiffest.modal_masses[0], stiffest.gains, STEP, REALISTIC)
@@ -317,8 +322,8 @@ def test_realistic_gain_margin_predicts_the_cosimulation(stiffest, tmp_path):
     limit = 10 ** (stiffest.modal_gain_margin_db / 20)
     calm, _ = _cosim(tmp_path / "below", _scaled(stiffest.gains, 0.8 * limit))
     wild, lengths = _cosim(tmp_path / "above", _scaled(stiffest.gains, 1.25 * limit))
-    assert calm < 0.1          # µm: 20 nm sensor noise through a stable loop
-    assert wild > 1e3 * calm
+    assert calm < 1.0          # µm: 20 nm sensor noise through a stable loop near its limit
+    assert wild > 100 * calm
     swing = lengths - lengths.mean(axis=0)
     power = (np.abs(np.fft.rfft(swing, axis=0)) ** 2).sum(axis=1)
     frequency = np.fft.rfftfreq(len(swing), STEP)[np.argmax(power)]
