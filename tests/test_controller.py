@@ -310,9 +310,8 @@ def _cosim(tmp_path, gains, seconds=3.0):
 def test_realistic_gain_margin_predicts_the_cosimulation(stiffest, tmp_path):
     """The co-simulation of the realistic loop with the gains at 0.8x the predicted gain
     margin stays still (leg error under 1 µm: the 20 nm sensor noise, amplified near the
-    limit), at 1.25x it oscillates into the
-    force limits, at the frequency where python-control puts the lightest mode's phase
-    crossover (within 3 %)."""
+    limit), at 1.25x it oscillates into the force limits, at the frequency where
+    python-control puts the lightest mode's phase crossover (within 3 %)."""
     lightest = mode_loop(stiffest.modal_masses[0], stiffest.gains, STEP, REALISTIC)
     omega = np.geomspace(1.0, 0.999 * np.pi / STEP, 4000)
     gm, _, _, wpc, _, _ = control.stability_margins(control.FRD(lightest, omega), returnall=True)
