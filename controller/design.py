@@ -16,6 +16,14 @@ the heaviest mode (largest eigenvalue; the diagonal, 1.85 t at home, is an avera
 hides the spread 0.59-3.42 t) and checks the margins of every mode: lighter modes cross
 over higher, where the PID has more phase lead but the delay eats more, and they set
 the gain margin.
+
+The realistic loop (LoopModel, REALISTIC; mode_loop): reflected motor and screw mass
+(M_leg + m_r I: same mode shapes, each mode m_r heavier), the actuator's force lag and
+viscous friction in the plant, the leg encoders' filtered-difference rate with their
+latency and computation delay, and the master's linear extrapolation, each as the FMUs
+and the master implement it. margins() gives any gains' margins on it, design_pid the
+shipped method on it, stiffest_pid the largest integral gain within phase and gain
+margin bounds on every mode.
 """
 from dataclasses import dataclass
 

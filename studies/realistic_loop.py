@@ -7,6 +7,8 @@ command_base_*), (c) the axis encoders (BaseSensor source 0), (d) an IMU (source
     python -m studies.realistic_loop [--ci] [--jobs N] [--dask ADDR] [--out DIR]   # run (resumable)
     python -m studies.realistic_loop --docs          # the same, then docs/realistic_loop.md,
                                                      # the charts and the README section
+    python -m studies.realistic_loop --docs --part gains   # only the redesigned-gains runs, merged into
+                                                           # docs/realistic_loop.json
     python -m studies.realistic_loop --from-store    # rewrite the docs, charts and README section from
                                                      # docs/realistic_loop.json (no runs)
 
@@ -20,7 +22,10 @@ ideal loop is the shipped scenario, number for number.
 
 Runs per scene: the table (feedforward none / fixed-base / moving-base with each source,
 in the ideal and the realistic loop) and the error budget (the ideal loop with one effect
-on at a time, for the fixed-base and the moving-base feedforward). The paper's manoeuvre
+on at a time, for the fixed-base and the moving-base feedforward). In the slew also the
+gains (controller.design on the realistic plant: the shipped method re-done and the
+stiffest design within 45 deg / 6 dB on every mode) in the realistic loop, calm and
+10 m/s, and a wind-speed sweep with the shipped and the stiffest gains. The paper's manoeuvre
 is left out: its base motion is not an antenna's axis motion, so neither the axis servo
 nor the encoder/IMU signals (built on the axis angles) apply to it.
 """

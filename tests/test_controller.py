@@ -285,6 +285,17 @@ def test_shipped_gains_on_the_realistic_plant_are_recomputed_not_assumed(design)
     assert 180 - abs(np.degrees(np.angle(at))) == pytest.approx(real.phase_margin_deg, abs=0.05)
 
 
+def test_loop_model_and_stiffest_search_reject_bad_input_naming_it():
+    with pytest.raises(ValueError, match="reflected_mass must be finite and >= 0"):
+        dataclasses.replace(REALISTIC, reflected_mass=-1.0)
+    with pytest.raises(ValueError, match="delay_steps must be an integer"):
+        dataclasses.replace(REALISTIC, delay_steps=1.5)
+    with pytest.raises(ValueError, match="belong to the leg sensor"):
+        dataclasses.replace(IDEAL, delay_steps=1)
+    with pytest.raises(ValueError, match="no crossover gives phase margin >= 89"):
+        stiffest_pid(PARAMS, STEP, phase_margin_deg=89.0, integral_ratios=(5.0,), targets=(60.0,))
+
+
 def _cosim(tmp_path, gains, seconds=3.0):
     """The realistic slew's loop (leg encoders with noise, no quantisation; computation
     delay; actuator with its lag, reflected mass and viscous friction, Coulomb off: the
