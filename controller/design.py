@@ -16,6 +16,14 @@ the heaviest mode (largest eigenvalue; the diagonal, 1.85 t at home, is an avera
 hides the spread 0.59-3.42 t) and checks the margins of every mode: lighter modes cross
 over higher, where the PID has more phase lead but the delay eats more, and they set
 the gain margin.
+
+The realistic loop (LoopModel, REALISTIC; mode_loop): reflected motor and screw mass
+(M_leg + m_r I: same mode shapes, each mode m_r heavier), the actuator's force lag and
+viscous friction in the plant, the leg encoders' filtered-difference rate with their
+latency and computation delay, and the master's linear extrapolation, each as the FMUs
+and the master implement it. margins() gives any gains' margins on it, design_pid the
+shipped method on it, stiffest_pid the largest integral gain within phase and gain
+margin bounds on every mode.
 """
 from dataclasses import dataclass
 
@@ -43,7 +51,8 @@ class Design:
     [Hz], phase margin [deg], gain margin [dB] (gain increase to instability) and lower gain
     margin [dB] (gain decrease to instability: PID on a double integrator is conditionally
     stable). ``modal_*``: the worst phase and (upper) gain margin over all leg-space modes
-    ``modal_masses`` [kg]."""
+    ``modal_masses`` [kg], and the least lower gain margin over them [dB, negative]; ``loop``:
+    the LoopModel the margins hold for."""
 
     gains: PIDGains
     comm_step: float
@@ -55,6 +64,8 @@ class Design:
     modal_masses: np.ndarray
     modal_phase_margin_deg: float
     modal_gain_margin_db: float
+    loop: "LoopModel" = None
+    modal_lower_gain_margin_db: float = float("nan")
 
 
 def linearised_plant(params, pose=HOME_POSE, step=1e-6):
@@ -122,40 +133,197 @@ def _db(ratio):
         return 20 * np.log10(ratio)
 
 
-def design_pid(params, crossover_hz, phase_margin_deg, comm_step, integral_ratio=DEFAULT_INTEGRAL_RATIO,
-               force_limit=DEFAULT_FORCE_LIMIT, pose=HOME_POSE):
-    """PID gains that give the heaviest leg-space mode crossover ``crossover_hz`` with phase
-    margin ``phase_margin_deg`` in the sampled loop (leg_loop), ki = kp w_c / integral_ratio.
+# ----------------------------------------------------------------- the realistic loop
+@dataclass(frozen=True)
+class LoopModel:
+    """What lies between the controller and a leg-space mode besides the mode's mass, as
+    the realistic loop's FMUs and master implement it (defaults: IDEAL, the loop leg_loop
+    models). Per leg: ``reflected_mass`` [kg] (motor rotor and screw through the pitch; it
+    adds m_r I to M_leg, so the modes keep their shapes and gain m_r each),
+    ``actuator_bandwidth`` [Hz] (the force follows the held command through
+    dF/dt = 2 pi f (F_cmd - F), plant/c/hexapod.c; 0: at once), ``viscous_friction``
+    [N s/m]; ``leg_sensor``: the controller reads the LegSensor FMU (sensors.c: the length
+    sampled at t_k, the rate a backward difference low-passed by a = 1 - exp(-2 pi
+    ``rate_cutoff`` h), read out ``delay_steps`` samples late and one communication step
+    later under Jacobi) instead of the plant's exact length and rate; ``extrapolate``: the
+    master's linear input extrapolation (scenarios/master.py, Jacobi: every input
+    u_k + (u_k - u_k-1) / 2, a lead of about half a step that doubles the gain at Nyquist).
+    Coulomb friction is left out (nonlinear: below its smoothing velocity it is a stiff
+    damper, above it a constant force, a disturbance), and so are quantisation and noise."""
 
-    L(w_c) = kp a + kd c is linear in (kp, kd) once ki/kp is fixed, so |L| = 1 and
-    arg L = PM - 180 deg at w_c are solved exactly. Raises ValueError if the crossover is
-    not below Nyquist, if that needs a negative gain (crossover too high or margin too
-    large for the step), or if the gains destabilise a lighter mode."""
+    reflected_mass: float = 0.0
+    actuator_bandwidth: float = 0.0
+    viscous_friction: float = 0.0
+    leg_sensor: bool = False
+    rate_cutoff: float = 0.0
+    delay_steps: int = 0
+    extrapolate: bool = False
+
+    def __post_init__(self):
+        for name in ("reflected_mass", "actuator_bandwidth", "viscous_friction", "rate_cutoff"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"loop model {name} must be finite and >= 0, got {value}")
+        if self.delay_steps < 0 or int(self.delay_steps) != self.delay_steps:
+            raise ValueError(f"loop model delay_steps must be an integer >= 0, got {self.delay_steps}")
+        if not self.leg_sensor and (self.rate_cutoff or self.delay_steps):
+            raise ValueError("rate_cutoff and delay_steps belong to the leg sensor: set leg_sensor=True")
+
+
+IDEAL = LoopModel()
+# The loop of scenarios/files/telescope_slew_realistic.toml and studies/realistic_loop.py
+# (values and sources there; the tests check the two agree): 758 kg reflected, 50 Hz force
+# loop, 2000 N s/m viscous; encoders with a 100 Hz rate filter and one sample of
+# computation delay; Jacobi with linear extrapolation.
+REALISTIC = LoopModel(reflected_mass=758.0, actuator_bandwidth=50.0, viscous_friction=2000.0, leg_sensor=True,
+                      rate_cutoff=100.0, delay_steps=1, extrapolate=True)
+
+
+def modal_masses(params, loop=IDEAL, pose=HOME_POSE):
+    """Masses [kg] of the decoupled leg-space modes, lightest first: the eigenvalues of
+    M_leg + m_r I."""
+    return np.linalg.eigvalsh(leg_mass_matrix(params, pose)) + loop.reflected_mass
+
+
+def mode_loop(mass, gains, comm_step, loop=IDEAL):
+    """Discrete SISO loop transfer of one leg-space mode of ``mass`` [kg] (its reflected
+    mass included, see modal_masses) in the loop ``loop``: force command held over the
+    step (ZOH) -> actuator lag -> mass with viscous friction -> (leg sensor) -> PID of
+    controller.pid -> one step of controller delay; the master's extrapolation on every
+    connection of the loop. With IDEAL it is leg_loop."""
+    h = comm_step
+    w_a = 2 * np.pi * loop.actuator_bandwidth
+    if w_a > 0:   # states (F, l, dl/dt), input F_cmd
+        A = [[-w_a, 0, 0], [0, 0, 1], [1 / mass, 0, -loop.viscous_friction / mass]]
+        B, C = [[w_a], [0], [0]], [[0, 1, 0], [0, 0, 1]]
+    else:
+        A, B, C = [[0, 1], [0, -loop.viscous_friction / mass]], [[0], [1 / mass]], np.eye(2)
+    plant = control.c2d(control.ss(A, B, C, 0), h, "zoh")   # outputs: length, exact rate
+    pid = control.ss([[1.0]], [[h, 0.0]], [[gains.ki]], [[gains.kp + gains.ki * h, gains.kd]], h)
+    z = control.tf([1, 0], [1], h)
+    if loop.leg_sensor:   # length only into the sensor; out: measured length and rate
+        a = 1 - np.exp(-2 * np.pi * loop.rate_cutoff * h) if loop.rate_cutoff > 0 else 1.0
+        late = z ** -(1 + loop.delay_steps)
+        rate = late * a * (z - 1) / (h * (z - (1 - a)))
+        split = control.ss([], [], [], [[1.0], [1.0]], h)
+        sensor = control.append(control.ss(late), control.ss(rate)) * split
+        feedback, connections = sensor * plant[0, 0], 3   # plant -> sensor -> controller -> plant
+    else:
+        feedback, connections = plant, 2
+    outer = 1 / z * ((1.5 * z - 0.5) / z) ** connections if loop.extrapolate else 1 / z
+    return control.ss(outer) * pid * feedback
+
+
+def _distinct(masses):
+    """The sorted masses without repeats (the hexapod's symmetry gives pairs, equal to
+    rounding): each distinct mode's loop is evaluated once."""
+    return masses[np.r_[True, np.diff(masses) > 1e-9 * masses[1:]]]
+
+
+def _modal_design(gains, comm_step, masses, loop, points=4000):
+    """The Design of ``gains`` on the modes ``masses`` (heaviest last) in ``loop``; None
+    if a mode's closed loop is unstable."""
+    loops = [mode_loop(m, gains, comm_step, loop) for m in _distinct(masses)]
+    if any(np.abs(control.feedback(one).poles()).max() >= 1 for one in loops):
+        return None
+    modal = np.array([loop_margins(one, points) for one in loops])
+    w_gc, pm, gm, lower = modal[-1]
+    return Design(gains, comm_step, float(masses[-1]), float(w_gc / (2 * np.pi)), float(pm), float(_db(gm)),
+                  float(_db(lower)), masses, float(modal[:, 1].min()), float(_db(modal[:, 2].min())), loop,
+                  float(_db(modal[:, 3].max())))
+
+
+def margins(params, gains, comm_step, loop=IDEAL, pose=HOME_POSE):
+    """The Design record (margins per mode) of given ``gains`` in ``loop``: e.g. the
+    shipped gains on the realistic plant. Raises ValueError if a mode is unstable."""
+    masses = modal_masses(params, loop, pose)
+    design = _modal_design(gains, comm_step, masses, loop)
+    if design is None:
+        raise ValueError(f"gains {gains} destabilise a leg-space mode in {loop}")
+    return design
+
+
+def _solve_gains(mass, crossover_hz, phase_margin_deg, comm_step, integral_ratio, loop):
+    """(kp, ki, kd) putting |L| = 1 and arg L = PM - 180 deg at the crossover of the mode
+    ``mass``: L(w_c) = kp a + kd c is linear in (kp, kd) once ki/kp is fixed."""
+    w_c = 2 * np.pi * crossover_hz
+    z = np.exp(1j * w_c * comm_step)
+    a = mode_loop(mass, PIDGains(1.0, w_c / integral_ratio, 0.0), comm_step, loop)(z)
+    c = mode_loop(mass, PIDGains(0.0, 0.0, 1.0), comm_step, loop)(z)
+    target = np.exp(1j * np.radians(phase_margin_deg - 180))
+    kp, kd = np.linalg.solve([[a.real, c.real], [a.imag, c.imag]], [target.real, target.imag])
+    return kp, kp * w_c / integral_ratio, kd
+
+
+def design_pid(params, crossover_hz, phase_margin_deg, comm_step, integral_ratio=DEFAULT_INTEGRAL_RATIO,
+               force_limit=DEFAULT_FORCE_LIMIT, pose=HOME_POSE, loop=IDEAL):
+    """PID gains that give the heaviest leg-space mode crossover ``crossover_hz`` with phase
+    margin ``phase_margin_deg`` in the sampled loop (mode_loop in ``loop``; IDEAL: the
+    shipped method's leg_loop), ki = kp w_c / integral_ratio.
+
+    |L| = 1 and arg L = PM - 180 deg at w_c are solved exactly. Raises ValueError if the
+    crossover is not below Nyquist, if that needs a negative gain (crossover too high or
+    margin too large for the loop), or if the gains destabilise a mode."""
     if not 0 < crossover_hz < 0.5 / comm_step:
         raise ValueError(f"crossover {crossover_hz} Hz must lie between 0 and the Nyquist frequency "
                          f"{0.5 / comm_step} Hz of comm step {comm_step} s")
-    masses = np.linalg.eigvalsh(leg_mass_matrix(params, pose))
-    mass = masses[-1]
-    w_c = 2 * np.pi * crossover_hz
-    z = np.exp(1j * w_c * comm_step)
-    a = leg_loop(mass, PIDGains(1.0, w_c / integral_ratio, 0.0), comm_step)(z)
-    c = leg_loop(mass, PIDGains(0.0, 0.0, 1.0), comm_step)(z)
-    target = np.exp(1j * np.radians(phase_margin_deg - 180))
-    kp, kd = np.linalg.solve([[a.real, c.real], [a.imag, c.imag]], [target.real, target.imag])
+    masses = modal_masses(params, loop, pose)
+    kp, ki, kd = _solve_gains(masses[-1], crossover_hz, phase_margin_deg, comm_step, integral_ratio, loop)
     if kp <= 0 or kd <= 0:
         raise ValueError(f"crossover {crossover_hz} Hz with phase margin {phase_margin_deg} deg is "
                          f"out of reach at comm step {comm_step} s (kp {kp:.3g}, kd {kd:.3g})")
-    gains = PIDGains(float(kp), float(kp * w_c / integral_ratio), float(kd), force_limit)
-    loops = [leg_loop(m, gains, comm_step) for m in masses]
-    unstable = [f"{m:.0f}" for m, loop in zip(masses, loops)
-                if np.abs(control.feedback(loop).poles()).max() >= 1]
+    gains = PIDGains(float(kp), float(ki), float(kd), force_limit)
+    unstable = [f"{m:.0f}" for m in _distinct(masses)
+                if np.abs(control.feedback(mode_loop(m, gains, comm_step, loop)).poles()).max() >= 1]
     if unstable:
         raise ValueError(f"crossover {crossover_hz} Hz with phase margin {phase_margin_deg} deg at comm "
                          f"step {comm_step} s destabilises the leg-space modes of {', '.join(unstable)} kg")
-    w_gc, pm, gm, lower = loop_margins(loops[-1])
-    modal = np.array([loop_margins(loop) for loop in loops])
-    return Design(gains, comm_step, float(mass), float(w_gc / (2 * np.pi)), float(pm), float(_db(gm)),
-                  float(_db(lower)), masses, float(modal[:, 1].min()), float(_db(modal[:, 2].min())))
+    return _modal_design(gains, comm_step, masses, loop)
+
+
+def stiffest_pid(params, comm_step, loop=REALISTIC, phase_margin_deg=45.0, gain_margin_db=6.0,
+                 integral_ratios=(2.0, 2.5, 3.5, DEFAULT_INTEGRAL_RATIO), force_limit=DEFAULT_FORCE_LIMIT,
+                 pose=HOME_POSE, targets=(45.0, 50.0, 55.0), resolution_hz=0.05):
+    """The design_pid with the largest integral gain ki whose every mode keeps phase margin
+    >= ``phase_margin_deg`` and upper and lower gain margins >= ``gain_margin_db``.
+
+    Stiffness is ki: a slow force (wind gusts, well below crossover) meets the loop's
+    |C(jw)| ~ ki / w; the crossover alone is no measure (a high heavy-mode phase target
+    reaches a high crossover with kp -> 0, a loop of pure damping). The search: for each
+    integral ratio w_c / (ki / kp) in ``integral_ratios`` and heavy-mode phase-margin
+    target in ``targets``, the crossover is bisected to ``resolution_hz`` between 0.5 Hz
+    and Nyquist / 25 (feasibility taken to fall once with the crossover; ki grows with
+    it); the boundary design with the largest ki wins. Raises ValueError if no crossover
+    meets the bounds."""
+    masses = modal_masses(params, loop, pose)
+
+    def feasible(crossover_hz, target, ratio):
+        kp, ki, kd = _solve_gains(masses[-1], crossover_hz, target, comm_step, ratio, loop)
+        if kp <= 0 or kd <= 0:
+            return None
+        design = _modal_design(PIDGains(float(kp), float(ki), float(kd), force_limit), comm_step, masses, loop,
+                               points=1000)
+        ok = design is not None and design.modal_phase_margin_deg >= phase_margin_deg and min(
+            design.modal_gain_margin_db, -design.modal_lower_gain_margin_db) >= gain_margin_db
+        return design if ok else None
+
+    best = None
+    for ratio in integral_ratios:
+        for target in targets:
+            low, high = 0.5, 0.02 / comm_step
+            found = feasible(low, target, ratio)
+            if found is None:
+                continue
+            while high - low > resolution_hz:
+                mid = 0.5 * (low + high)
+                design = feasible(mid, target, ratio)
+                low, high, found = (mid, high, design) if design else (low, mid, found)
+            if best is None or found.gains.ki > best[3]:
+                best = (low, target, ratio, found.gains.ki)
+    if best is None:
+        raise ValueError(f"no crossover gives phase margin >= {phase_margin_deg} deg and gain margins >= "
+                         f"{gain_margin_db} dB on every mode in {loop}")
+    return design_pid(params, best[0], best[1], comm_step, best[2], force_limit, pose, loop)
 
 
 def default_gains(params, comm_step=1e-3):

@@ -7,6 +7,8 @@ command_base_*), (c) the axis encoders (BaseSensor source 0), (d) an IMU (source
     python -m studies.realistic_loop [--ci] [--jobs N] [--dask ADDR] [--out DIR]   # run (resumable)
     python -m studies.realistic_loop --docs          # the same, then docs/realistic_loop.md,
                                                      # the charts and the README section
+    python -m studies.realistic_loop --docs --part gains   # only the redesigned-gains runs, merged into
+                                                           # docs/realistic_loop.json
     python -m studies.realistic_loop --from-store    # rewrite the docs, charts and README section from
                                                      # docs/realistic_loop.json (no runs)
 
@@ -20,7 +22,10 @@ ideal loop is the shipped scenario, number for number.
 
 Runs per scene: the table (feedforward none / fixed-base / moving-base with each source,
 in the ideal and the realistic loop) and the error budget (the ideal loop with one effect
-on at a time, for the fixed-base and the moving-base feedforward). The paper's manoeuvre
+on at a time, for the fixed-base and the moving-base feedforward). In the slew also the
+gains (controller.design on the realistic plant: the shipped method re-done and the
+stiffest design within 45 deg / 6 dB on every mode) in the realistic loop, calm and
+10 m/s, and a wind-speed sweep with the shipped and the stiffest gains. The paper's manoeuvre
 is left out: its base motion is not an antenna's axis motion, so neither the axis servo
 nor the encoder/IMU signals (built on the axis angles) apply to it.
 """
@@ -69,6 +74,18 @@ LOOP_NAMES = {"ideal": "ideal loop", "calm": "realistic loop, calm air", "realis
 # the [ci] runs keep the shipped file's timing (its golden metrics).
 WINDOWS = {"keyhole_tracking": {"stop_time": "30 s", "utc_shift": 109.0}}
 METRIC = "pose error"
+# The redesigned gains (controller.design on the realistic plant, REALISTIC): "method" is
+# the shipped method re-done (8 Hz crossover, 60 deg on the heaviest mode), "stiffest" the
+# largest integral gain with PM >= 45 deg and GM >= 6 dB on every mode; "shipped" is the
+# controller FMU's default (designed for the ideal plant). Run in the slew only, calm and
+# 10 m/s wind, and the wind-speed sweep (0 and 10 m/s are the calm and realistic loops).
+GAINS = ("shipped", "method", "stiffest")
+GAIN_NAMES = {"shipped": "shipped (ideal-plant design)", "method": "8 Hz / 60 deg on the realistic plant",
+              "stiffest": "stiffest with PM >= 45 deg, GM >= 6 dB"}
+GAIN_SCENE = "telescope_slew"
+GAIN_SOURCES = ("exact", "imu")
+WIND_SPEEDS = (0.0, 5.0, 10.0, 15.0)   # m/s
+SWEEP_GAINS = ("shipped", "stiffest")
 
 # The realistic loop's values. None has a public source for this telescope: each is
 # assumed, from the comparable instrument named beside it; the leg and actuator values are
@@ -152,12 +169,13 @@ def _connect(data, source, target):
     data["connections"].append({"from": source, "to": target})
 
 
-def variant(scene, effects=(), source="exact", modes=MODES, overrides=None, window=False):
+def variant(scene, effects=(), source="exact", modes=MODES, overrides=None, window=False, gains=None):
     """The scenario dict of ``scene`` (a shipped name) with ``effects`` (EFFECTS names) on
     and the feedforward's base motion from ``source``, swept over ``modes``.
     ``overrides``: {effect or "base_sensor": {parameter: value}} replacing the realistic
     values (the tests change one setting); ``window``: the study's time window
-    (WINDOWS) instead of the shipped one."""
+    (WINDOWS) instead of the shipped one; ``gains``: (tag, {"kp", "ki", "kd": value}) the
+    controller's PID gains instead of its shipped ones, the tag in the scenario's name."""
     unknown = set(effects) - set(EFFECTS)
     if unknown or source not in SOURCES:
         raise ValueError(f"unknown effect {sorted(unknown)} or source {source!r}; effects: {EFFECTS}, "
@@ -166,11 +184,15 @@ def variant(scene, effects=(), source="exact", modes=MODES, overrides=None, wind
     settings = lambda name, values: {**values, **over.get(name, {})}
     data = tomllib.loads(runner.resolve(scene).read_text())
     tag = "-".join([*sorted(effects), source]) if effects or source != "exact" else "ideal"
-    data["name"] = f"{scene}-{tag}"
+    data["name"] = f"{scene}-{tag}" + (f"-gains_{gains[0]}" if gains else "") + (
+        f"-wind_{over['wind']['mean_speed'].replace(' ', '').replace('/', '_')}" if "wind" in effects and "mean_speed" in over.get("wind", {})
+        else "")
     data["description"] = (f"{data['name']}: {scene} with " + (", ".join(EFFECT_NAMES[e] for e in sorted(effects))
                            or "the ideal loop") + f"; feedforward base motion {SOURCE_NAMES[source]}.")
     data["sweep"] = {"parameter": "controller.feedforward", "values": list(modes)}
     fmus = data["fmus"]
+    if gains:
+        fmus["controller"].setdefault("parameters", {}).update(gains[1])
     if window and scene in WINDOWS:
         data["stop_time"] = WINDOWS[scene]["stop_time"]
         fmus["base"]["parameters"]["utc_start"] += WINDOWS[scene]["utc_shift"]
@@ -221,6 +243,57 @@ def cases(scenes=SCENES):
     return out
 
 
+def designs():
+    """{name: Design} of the redesigned gains on the realistic plant, and the shipped
+    gains' margins on it (controller.design; ~20 s for the search)."""
+    from controller import design
+    from plant.stewart import StewartParams
+    params = StewartParams.paper()
+    shipped = design.default_gains(params)
+    return {"shipped": design.margins(params, shipped, 1e-3, design.REALISTIC),
+            "method": design.design_pid(params, design.DEFAULT_CROSSOVER_HZ, design.DEFAULT_PHASE_MARGIN_DEG, 1e-3,
+                                        loop=design.REALISTIC),
+            "stiffest": design.stiffest_pid(params, 1e-3)}
+
+
+def design_summary(found):
+    """What the docs say of each design: gains, heavy-mode crossover and margins, the worst
+    margins over the modes (dB, deg, N/m, N/(m s), N s/m)."""
+    return {name: {"kp": d.gains.kp, "ki": d.gains.ki, "kd": d.gains.kd, "crossover_hz": d.crossover_hz,
+                   "phase_margin_deg": d.phase_margin_deg, "modal_phase_margin_deg": d.modal_phase_margin_deg,
+                   "modal_gain_margin_db": d.modal_gain_margin_db,
+                   "modal_lower_gain_margin_db": d.modal_lower_gain_margin_db}
+            for name, d in found.items()}
+
+
+def _wind_key(speed, gains):
+    """The results' loop key of the slew at wind ``speed`` with ``gains``: 0 and 10 m/s with
+    the shipped gains are the calm and realistic loops of the table."""
+    base = {0.0: "calm", 10.0: "realistic"}.get(speed, f"wind {speed:g} m/s")
+    return base if gains == "shipped" else f"{base} | {gains}"
+
+
+def gain_cases(summaries):
+    """The redesigned-gains cases: (scene, loop key, source, effects, modes, overrides,
+    (tag, gains)) for each design in ``summaries`` (design_summary) but the shipped one,
+    calm and 10 m/s, and the wind sweep's other speeds for SWEEP_GAINS."""
+    out = []
+    pid = lambda name: (name, {k: summaries[name][k] for k in ("kp", "ki", "kd")}) if name != "shipped" else None
+    for name in GAINS[1:]:
+        for loop in ("calm", "realistic"):
+            out.append((GAIN_SCENE, f"{loop} | {name}", "exact", LOOPS[loop], MODES, None, pid(name)))
+            out += [(GAIN_SCENE, f"{loop} | {name}", src, LOOPS[loop], ("moving_base",), None, pid(name))
+                    for src in GAIN_SOURCES[1:]]
+    for name in SWEEP_GAINS:
+        for speed in WIND_SPEEDS:
+            if speed in (0.0, 10.0):
+                continue
+            wind = {"wind": {"mean_speed": f"{speed:g} m/s"}}
+            out.append((GAIN_SCENE, _wind_key(speed, name), "exact", EFFECTS, ("fixed_base",), wind, pid(name)))
+            out.append((GAIN_SCENE, _wind_key(speed, name), "imu", EFFECTS, ("moving_base",), wind, pid(name)))
+    return out
+
+
 # ------------------------------------------------------------------------ running
 def run(out="out", ci=False, jobs=None, address=None, progress=True, scenes=SCENES, selected=None):
     """Run every variant (or the ``selected`` cases) not on disk yet; returns the results
@@ -231,8 +304,9 @@ def run(out="out", ci=False, jobs=None, address=None, progress=True, scenes=SCEN
     texts.mkdir(parents=True, exist_ok=True)
     store = engine.Store(folder / "runs")
     everything, files, index = [], {}, []
-    for scene, loop, source, effects, modes in (selected or cases(scenes)):
-        data = variant(scene, effects, source, modes, window=not ci)
+    for scene, loop, source, effects, modes, *more in (selected or cases(scenes)):
+        overrides, gains = (list(more) + [None, None])[:2]
+        data = variant(scene, effects, source, modes, overrides, window=not ci, gains=gains)
         path = texts / f"{data['name']}.toml"
         path.write_text(toml_text(data))
         scenario, paths, descriptions, values = runner.prepare(path, ci)
@@ -272,6 +346,11 @@ def summary(results):
 
 
 # ------------------------------------------------------------------------ what the docs say
+def _scenes(s):
+    """The scenes in the stored results (the store also holds the designs)."""
+    return [scene for scene in s if scene in SCENES]
+
+
 def _get(s, scene, loop, source, mode):
     entry = s.get(scene, {}).get(loop, {}).get(source, {}).get(mode)
     if entry is None and mode != "moving_base":   # none / fixed-base ran once, with the exact source
@@ -294,7 +373,7 @@ def table(s):
     """The headline table extended: one row per scene, feedforward and source."""
     lines = ["| scene | feedforward | base motion | " + " | ".join(f"{LOOP_NAMES[l]}: RMS / peak [µm]" for l in LOOPS)
              + " | realistic peaks against the marks (calm / wind) |", "|---|---|---|" + "---|" * (len(LOOPS) + 1)]
-    for scene in s:
+    for scene in _scenes(s):
         first = True
         for mode in MODES:
             for source in (SOURCES if mode == "moving_base" else ("exact",)):
@@ -332,7 +411,7 @@ def statements(s):
     signal it is enough (enough: its peak under the 10 µm mark and within 2x of the exact
     signal's). Errors as peak / RMS pose error."""
     out = []
-    for scene in s:
+    for scene in _scenes(s):
         ideal_f, ideal_m = _get(s, scene, "ideal", "exact", "fixed_base"), _get(s, scene, "ideal", "exact", "moving_base")
         parts = [f"- **`{scene}`** (peak / RMS pose error). Ideal loop: fixed-base {_pp(ideal_f)}, moving-base "
                  f"{_pp(ideal_m)} ({fmt(_ratio(ideal_f['peak'], ideal_m['peak']))}x in peak)."]
@@ -428,12 +507,129 @@ def budget_chart(s, scene, path):
     plt.close(fig)
 
 
+def _gain_entry(s, gains, loop, source, mode):
+    key = loop if gains == "shipped" else f"{loop} | {gains}"
+    return _get(s, GAIN_SCENE, key, source, mode)
+
+
+def design_table(s):
+    """The designs on the realistic plant (controller.design.REALISTIC): gains, the heaviest
+    mode's crossover and phase margin, the worst margins over the six modes."""
+    lines = ["| gains | kp [N/m] | ki [N/(m s)] | kd [N s/m] | heaviest mode: crossover [Hz] / PM [deg] | "
+             "worst mode: PM [deg] / GM up, down [dB] |", "|---|---|---|---|---|---|"]
+    for name, d in s["designs"].items():
+        lines.append(f"| {GAIN_NAMES[name]} | {d['kp']:.3g} | {d['ki']:.3g} | {d['kd']:.3g} | "
+                     f"{d['crossover_hz']:.2f} / {d['phase_margin_deg']:.1f} | {d['modal_phase_margin_deg']:.1f} / "
+                     f"{d['modal_gain_margin_db']:.1f}, {-d['modal_lower_gain_margin_db']:.1f} |")
+    return "\n".join(lines)
+
+
+def gains_table(s):
+    """Peak / RMS pose error of the slew per gains and feedforward, calm and 10 m/s."""
+    lines = ["| gains | feedforward | base motion | " + " | ".join(f"{LOOP_NAMES[l]}: RMS / peak [µm]"
+                                                             for l in ("calm", "realistic")) + " |",
+             "|---|---|---|---|---|"]
+    for name in GAINS:
+        for mode, source in (("none", "exact"), ("fixed_base", "exact"), ("moving_base", "exact"),
+                             ("moving_base", "imu")):
+            cells = [_gain_entry(s, name, loop, source, mode) for loop in ("calm", "realistic")]
+            label = SOURCE_NAMES[source] if mode == "moving_base" else "not used"
+            lines.append(f"| {GAIN_NAMES[name]} | {MODE_NAMES[mode]} | {label} | "
+                         + " | ".join(f"{_pair(e, 'rms')} / {_pair(e, 'peak')}" for e in cells) + " |")
+    return "\n".join(lines)
+
+
+def sweep_lines(s):
+    """{(gains, mode): [peak or None per WIND_SPEEDS]} of the wind sweep: fixed-base, and
+    moving-base fed by the IMU."""
+    out = {}
+    for name in SWEEP_GAINS:
+        for mode, source in (("fixed_base", "exact"), ("moving_base", "imu")):
+            entries = [_get(s, GAIN_SCENE, _wind_key(u, name), source, mode) for u in WIND_SPEEDS]
+            out[name, mode] = [e["peak"] if e else None for e in entries]
+    return out
+
+
+def sweep_chart(s, path):
+    """Peak pose error of the slew against mean wind speed, one line per gains x
+    feedforward, the 10 µm mark drawn; log y (the calm peaks sit far below the windy ones)."""
+    fig, ax = plt.subplots(figsize=(7.5, 5.4))
+    styles = {"shipped": "-", "stiffest": "--"}
+    colours = {"fixed_base": "#7f7f7f", "moving_base": "#1f77b4"}
+    for (name, mode), peaks in sweep_lines(s).items():
+        points = [(u, p) for u, p in zip(WIND_SPEEDS, peaks) if p is not None]
+        ax.plot(*zip(*points), styles[name], marker="o", color=colours[mode],
+                label=f"{GAIN_NAMES[name]}, {MODE_NAMES[mode]}" + (" (IMU)" if mode == "moving_base" else ""))
+    ax.axhline(MARKS[0], color="#d62728", lw=1, ls=":")
+    ax.text(WIND_SPEEDS[-1], MARKS[0] / 1.08, "focus 10 µm", color="#d62728", fontsize=8, va="top", ha="right")
+    ax.set_yscale("log")
+    ax.set_xticks(WIND_SPEEDS)
+    ax.set_xlabel("mean wind speed [m/s] (Kaimal gusts, 15 % turbulence)")
+    ax.set_ylabel("peak pose error after settling [µm] (log)")
+    ax.set_title(f"{GAIN_SCENE}, realistic loop: peak pose error against wind speed", fontsize=10)
+    ax.grid(which="both", alpha=0.3)
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, frameon=False)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+
+
+def gain_statements(s):
+    """One paragraph: what the designs are on the realistic plant, and what the redesigned
+    gains do in calm air and wind to the fixed-base and the moving-base (IMU) feedforward."""
+    d = s["designs"]
+    ship, method, stiff = d["shipped"], d["method"], d["stiffest"]
+    parts = [f"- **Gains for the realistic plant** (`{GAIN_SCENE}`; controller.design with the 758 kg reflected "
+             f"mass, the 50 Hz force loop, the encoders' rate filter and delays and the master's extrapolation). The "
+             f"shipped gains (designed for the ideal plant) keep {ship['modal_phase_margin_deg']:.0f} deg and "
+             f"{ship['modal_gain_margin_db']:.1f} dB on the worst mode of the realistic plant, the heaviest mode "
+             f"crossing at {ship['crossover_hz']:.1f} Hz. The shipped method re-done (8 Hz, 60 deg on the heaviest "
+             f"mode) is reachable but leaves the lightest mode {method['modal_phase_margin_deg']:.0f} deg and "
+             f"{method['modal_gain_margin_db']:.1f} dB. The stiffest design with PM >= 45 deg and GM >= 6 dB on every "
+             f"mode crosses at {stiff['crossover_hz']:.2f} Hz with ki {fmt(stiff['ki'] / ship['ki'])}x and kp "
+             f"{fmt(stiff['kp'] / ship['kp'])}x the shipped gains': within those margins the loop "
+             f"{'cannot be ' if stiff['ki'] < ship['ki'] else 'is '}"
+             f"{'as stiff as the shipped one, which trades margin for stiffness' if stiff['ki'] < ship['ki'] else 'stiffer than the shipped one'}."]
+    for loop in ("calm", "realistic"):
+        peaks = {name: {ff: _gain_entry(s, name, loop, src, mode) for ff, (mode, src) in
+                        (("fixed", ("fixed_base", "exact")), ("imu", ("moving_base", "imu")))} for name in GAINS}
+        if any(e is None for row in peaks.values() for e in row.values()):
+            parts.append(f"{LOOP_NAMES[loop].capitalize()}: some runs failed.")
+            continue
+        parts.append(f"{LOOP_NAMES[loop].capitalize()}, peak pose error fixed-base / moving-base (IMU): " + "; ".join(
+            f"{GAIN_NAMES[name]} {fmt(row['fixed']['peak'])} / {fmt(row['imu']['peak'])} µm "
+            f"({fmt(_ratio(row['fixed']['peak'], row['imu']['peak']))}x)" for name, row in peaks.items()) + ".")
+    lines = sweep_lines(s)
+    if all(p is not None for peaks in lines.values() for p in peaks):
+        ratios = {name: [_ratio(f, m) for f, m in zip(lines[name, "fixed_base"], lines[name, "moving_base"])]
+                  for name in SWEEP_GAINS}
+        stiffer = {mode: [_ratio(b, a) for a, b in zip(lines["shipped", mode], lines["stiffest", mode])]
+                   for mode in ("fixed_base", "moving_base")}
+        windy = [i for i, u in enumerate(WIND_SPEEDS) if u > 0]
+        parts.append(
+            f"Wind sweep ({', '.join(f'{u:g}' for u in WIND_SPEEDS)} m/s, docs/figures/realistic_wind_sweep.png), peak "
+            f"of the stiffest design over the shipped gains' per speed: fixed-base "
+            + ", ".join(fmt(r) for r in stiffer["fixed_base"]) + ", moving-base (IMU) "
+            + ", ".join(fmt(r) for r in stiffer["moving_base"])
+            + f"; fixed-base / moving-base (IMU) peak per speed, shipped " + ", ".join(fmt(r) for r in ratios["shipped"])
+            + ", stiffest " + ", ".join(fmt(r) for r in ratios["stiffest"]) + ". "
+            + (f"So the shipped loop's extra stiffness (ki {fmt(ship['ki'] / stiff['ki'])}x) buys "
+               f"{fmt(min(stiffer['fixed_base'][i] for i in windy))}-{fmt(max(stiffer['fixed_base'][i] for i in windy))}x "
+               f"lower fixed-base peaks in wind, paid for with {ship['modal_phase_margin_deg']:.0f} deg of phase margin"
+               if min(stiffer["fixed_base"][i] for i in windy) > 1 else
+               "The extra stiffness of the shipped loop does not lower every windy peak")
+            + "; the moving-base model keeps a lead of 1.5x or more over the fixed-base one in wind at "
+            + (", ".join(f"{WIND_SPEEDS[i]:g} m/s with the {name} gains" for name in SWEEP_GAINS for i in windy
+                         if ratios[name][i] >= 1.5) or "no speed") + ".")
+    return " ".join(parts)
+
+
 def costs(s):
     """Mean wall time per macro step of the ideal and the realistic loop (exact source),
     over the scenes, µs."""
     out = {}
     for loop in ("ideal", "realistic"):
-        times = [e["us_per_step"] for scene in s for e in (s[scene].get(loop, {}).get("exact", {}) or {}).values()
+        times = [e["us_per_step"] for scene in _scenes(s) for e in (s[scene].get(loop, {}).get("exact", {}) or {}).values()
                  if e]
         out[loop] = sum(times) / len(times) if times else float("nan")
     return out
@@ -461,11 +657,23 @@ def report(s, charts=True):
              "FILE` repeats it). Settings:", "", "| effect | settings (assumed; see the README's assumptions) |", "|---|---|",
              settings_text(), "", "## The headline table, extended", "", table(s), "", "## What survives", "",
              statements(s), "", "## Error budget: each effect alone", ""]
-    for scene in s:
+    for scene in _scenes(s):
         name = f"realistic_budget_{scene}.png"
         if charts:
             budget_chart(s, scene, DOCS / "figures" / name)
         lines += [f"![{scene} error budget](figures/{name})", ""]
+    if "designs" in s:
+        name = "realistic_wind_sweep.png"
+        if charts:
+            sweep_chart(s, DOCS / "figures" / name)
+        lines += ["## Gains for the realistic plant", "",
+                  f"`controller.design` with the realistic loop's model (`REALISTIC`: per leg-space mode the mass plus "
+                  f"758 kg, the 50 Hz force lag, 2000 N s/m viscous friction; the encoders' 100 Hz filtered difference, "
+                  f"their one step of latency and one sample of computation delay; the controller's step; the Jacobi "
+                  f"master's linear extrapolation on the three connections; Coulomb friction, quantisation and noise "
+                  f"left out). Margins on that plant:", "", design_table(s), "",
+                  f"The `{GAIN_SCENE}` in the realistic loop with each set of gains:", "", gains_table(s), "",
+                  gain_statements(s), "", f"![wind sweep](figures/{name})", ""]
     c = costs(s)
     lines += ["## Cost", "", f"Wall time per 1 ms macro step, mean over the scenes' runs with the exact base motion "
               f"(the machine shared with other work): ideal loop (three FMUs) {c['ideal']:.0f} µs, realistic loop "
@@ -476,7 +684,8 @@ def report(s, charts=True):
 
 
 def readme_section(s):
-    return "\n".join([BEGIN, "", statements(s), "",
+    gains = [gain_statements(s), "", "![wind sweep](docs/figures/realistic_wind_sweep.png)", ""] if "designs" in s else []
+    return "\n".join([BEGIN, "", statements(s), "", *gains,
                       "The full table (every feedforward and base-motion signal, ideal and realistic loop), the "
                       "settings and an error-budget chart per scene: [docs/realistic_loop.md](docs/realistic_loop.md).",
                       "", f"![slew error budget](docs/figures/realistic_budget_{SCENES[0]}.png)", "", END])
@@ -497,6 +706,8 @@ def main(argv=None):
     parser.add_argument("--dask", metavar="ADDR", help="an existing Dask scheduler")
     parser.add_argument("--out", default="out")
     parser.add_argument("--docs", action="store_true", help="write docs/realistic_loop.* and the README section")
+    parser.add_argument("--part", choices=("all", "gains"), default="all",
+                        help="gains: only the redesigned-gains cases, merged into docs/realistic_loop.json with --docs")
     parser.add_argument("--from-store", action="store_true",
                         help="only rewrite the docs, charts and README section from docs/realistic_loop.json")
     args = parser.parse_args(argv)
@@ -505,12 +716,21 @@ def main(argv=None):
         report(stored)
         rewrite_readme(stored)
         return
-    s = summary(run(args.out, args.ci, args.jobs, args.dask))
+    if args.docs and args.ci:
+        sys.exit("--docs takes the full runs, not --ci")
+    found = design_summary(designs())
+    selected = gain_cases(found) if args.part == "gains" else cases() + gain_cases(found)
+    s = summary(run(args.out, args.ci, args.jobs, args.dask, selected=selected))
+    if args.part == "gains":   # on top of the stored table and budget runs
+        stored = json.loads(STORE.read_text())
+        for loop, sources in s[GAIN_SCENE].items():
+            stored[GAIN_SCENE][loop] = sources
+        s = stored
+    s["designs"] = found
     print(table(s))
     print(statements(s))
+    print(gain_statements(s))
     if args.docs:
-        if args.ci:
-            sys.exit("--docs takes the full runs, not --ci")
         STORE.write_text(json.dumps(s, indent=1) + "\n")
         report(s)
         rewrite_readme(s)

@@ -8,8 +8,8 @@ from scipy.integrate import solve_ivp
 from scipy.linalg import expm
 from scipy.optimize import brentq
 
-from controller.design import (Design, closed_loop_stable, default_gains, design_pid, leg_mass_matrix,
-                               linearised_plant, max_stable_step)
+from controller.design import (IDEAL, REALISTIC, Design, closed_loop_stable, default_gains, design_pid, leg_loop,
+                               leg_mass_matrix, linearised_plant, margins, max_stable_step, mode_loop, stiffest_pid)
 from controller.feedforward import (FEEDFORWARD_MODES, Feedforward, feedforward_and_legs, feedforward_forces,
                                    reference_legs)
 from controller.pid import PIDGains, pid_step
@@ -180,6 +180,164 @@ def test_design_rejects_unreachable_or_destabilising_targets():
         design_pid(PARAMS, 20.0, 80.0, 10e-3)
     with pytest.raises(ValueError, match="destabilises the leg-space modes of 594"):
         design_pid(PARAMS, 30.0, 60.0, 1e-3)
+
+
+# ------------------------------------------------------------------ the realistic loop
+@pytest.fixture(scope="module")
+def stiffest():
+    return stiffest_pid(PARAMS, STEP)
+
+
+def test_realistic_loop_model_is_the_scenarios_loop():
+    """REALISTIC carries the values the realistic scenario and study run with."""
+    import tomllib
+
+    from scenarios import runner
+    from scenarios.units import to_si
+    from studies import realistic_loop as study
+    shipped = tomllib.loads(runner.resolve("telescope_slew_realistic").read_text())
+    plant, sensor = shipped["fmus"]["plant"]["parameters"], shipped["fmus"]["sensor"]["parameters"]
+    for values in (plant, study.ACTUATOR):
+        assert to_si(values["reflected_mass"]) == REALISTIC.reflected_mass
+        assert to_si(values["actuator_bandwidth"]) == REALISTIC.actuator_bandwidth
+        assert to_si(values["viscous_friction"]) == REALISTIC.viscous_friction
+    for values in (sensor, study.LEG_SENSOR):
+        assert to_si(values["rate_cutoff"]) == REALISTIC.rate_cutoff
+    assert sensor["delay_steps"] == study.DELAY["delay_steps"] == REALISTIC.delay_steps
+    assert shipped["master"] == "jacobi" and (shipped["extrapolation"] == "linear") == REALISTIC.extrapolate
+
+
+def test_ideal_mode_loop_is_the_shipped_leg_loop(design):
+    omega = np.geomspace(1.0, 0.99 * np.pi / STEP, 50)
+    z = np.exp(1j * omega * STEP)
+    for mass in design.modal_masses:
+        assert np.allclose(mode_loop(mass, design.gains, STEP, IDEAL)(z), leg_loop(mass, design.gains, STEP)(z),
+                           rtol=1e-12)
+
+
+def _realistic_response(mass, gains, h, omega):
+    """Independent closed form of the realistic mode loop: ZOH of the actuator lag
+    w/(s+w) and 1/(m s^2 + c s) by partial fractions, the sensor's z^-2 delay and
+    filtered difference a (z-1) / (h (z - 1 + a)), backward-Euler PID, the controller's
+    z^-1 and the master's extrapolation (3 - 1/z) / 2 on three connections."""
+    w, c = 2 * np.pi * REALISTIC.actuator_bandwidth, REALISTIC.viscous_friction
+    b = c / mass
+    z = np.exp(1j * omega * h)
+    # G(s) = w / (m s (s + b) (s + w)); ZOH: (1 - 1/z) Z{G(s)/s}, residues of G(s)/s at 0 (double), -b, -w
+    k = w / mass
+    r_b = k / (b ** 2 * (w - b))
+    r_w = k / (w ** 2 * (b - w))
+    r0 = -(r_b + r_w)                     # the 1/s term (double pole at 0: sum of residues is 0)
+    r00 = k / (b * w)                     # the 1/s^2 term
+    step = r00 * h * z / (z - 1) ** 2 + r0 * z / (z - 1) + r_b * z / (z - np.exp(-b * h)) + r_w * z / (z - np.exp(-w * h))
+    length = (1 - 1 / z) * step
+    a = 1 - np.exp(-2 * np.pi * REALISTIC.rate_cutoff * h)
+    late = z ** -(1 + REALISTIC.delay_steps)
+    rate = a * (z - 1) / (h * (z - 1 + a))
+    pid = (gains.kp + gains.ki * h * z / (z - 1)) + gains.kd * rate
+    return ((3 - 1 / z) / 2) ** 3 / z * pid * late * length
+
+
+def test_realistic_mode_loop_matches_independent_closed_form(stiffest):
+    omega = np.geomspace(1.0, 0.99 * np.pi / STEP, 200)
+    for mass in stiffest.modal_masses:
+        got = mode_loop(mass, stiffest.gains, STEP, REALISTIC)(np.exp(1j * omega * STEP))
+        assert np.allclose(got, _realistic_response(mass, stiffest.gains, STEP, omega), rtol=1e-7)
+
+
+def _scaled(gains, factor):
+    return dataclasses.replace(gains, kp=gains.kp * factor, ki=gains.ki * factor, kd=gains.kd * factor)
+
+
+def test_stiffest_realistic_design_meets_the_bounds_on_every_mode(stiffest):
+    """PM >= 45 deg on every mode, read off a denser grid than the design's; GM >= 6 dB
+    both ways as closed-loop poles: every mode stays stable with the gains doubled and
+    halved. The bound binds: 3 % more crossover at the same heavy-mode target and
+    integral ratio breaks it."""
+    assert stiffest.loop == REALISTIC
+    assert stiffest.modal_masses[0] == pytest.approx(np.linalg.eigvalsh(leg_mass_matrix(PARAMS))[0] + 758.0)
+    omega = np.geomspace(1.0, 0.999 * np.pi / STEP, 200000)
+    for mass in stiffest.modal_masses:
+        response = _realistic_response(mass, stiffest.gains, STEP, omega)
+        crossings = np.flatnonzero(np.diff(np.sign(np.abs(response) - 1)))
+        assert crossings.size
+        phase_margins = 180 - np.abs(np.degrees(np.angle(response[crossings])))
+        assert phase_margins.min() >= 45 - 0.05
+        for factor in (2.0, 0.5):
+            loop = mode_loop(mass, _scaled(stiffest.gains, factor), STEP, REALISTIC)
+            assert np.abs(control.feedback(loop).poles()).max() < 1
+    assert min(stiffest.modal_gain_margin_db, -stiffest.modal_lower_gain_margin_db) >= 6
+    ratio = stiffest.gains.kp * 2 * np.pi * stiffest.crossover_hz / stiffest.gains.ki
+    harder = design_pid(PARAMS, 1.03 * stiffest.crossover_hz, stiffest.phase_margin_deg, STEP, ratio, loop=REALISTIC)
+    assert harder.gains.ki > stiffest.gains.ki
+    assert (harder.modal_phase_margin_deg < 45 - 0.05 or harder.modal_gain_margin_db < 6
+            or -harder.modal_lower_gain_margin_db < 6)
+
+
+def test_shipped_gains_on_the_realistic_plant_are_recomputed_not_assumed(design):
+    """The ideal-plant gains on the realistic plant: same gains, the margins of that loop
+    (heavy mode's crossover moved by the 758 kg and the lags), and stable."""
+    real = margins(PARAMS, design.gains, STEP, REALISTIC)
+    assert real.gains == design.gains
+    heavy = mode_loop(real.design_mass, design.gains, STEP, REALISTIC)
+    at = heavy(np.exp(2j * np.pi * real.crossover_hz * STEP))
+    assert abs(at) == pytest.approx(1.0, abs=1e-3)
+    assert 180 - abs(np.degrees(np.angle(at))) == pytest.approx(real.phase_margin_deg, abs=0.05)
+
+
+def test_loop_model_and_stiffest_search_reject_bad_input_naming_it():
+    with pytest.raises(ValueError, match="reflected_mass must be finite and >= 0"):
+        dataclasses.replace(REALISTIC, reflected_mass=-1.0)
+    with pytest.raises(ValueError, match="delay_steps must be an integer"):
+        dataclasses.replace(REALISTIC, delay_steps=1.5)
+    with pytest.raises(ValueError, match="belong to the leg sensor"):
+        dataclasses.replace(IDEAL, delay_steps=1)
+    with pytest.raises(ValueError, match="no crossover gives phase margin >= 89"):
+        stiffest_pid(PARAMS, STEP, phase_margin_deg=89.0, integral_ratios=(5.0,), targets=(60.0,))
+
+
+def _cosim(tmp_path, gains, seconds=3.0):
+    """The realistic slew's loop (leg encoders with noise, no quantisation; computation
+    delay; actuator with its lag, reflected mass and viscous friction, Coulomb off: the
+    linear part the design models) holding still under the fixed-base feedforward for
+    ``seconds``, the leg lengths recorded every step; the sensor noise excites it."""
+    from scenarios import runner
+    from studies import realistic_loop as study
+    data = study.variant("telescope_slew", ("leg_sensors", "delay", "actuator"), "exact", ("fixed_base",),
+                         {"leg_sensors": {"resolution": "0 um"}, "actuator": {"coulomb_friction": "0 N"}},
+                         gains=("test", {"kp": gains.kp, "ki": gains.ki, "kd": gains.kd}))
+    data["stop_time"], data["ci"] = f"{seconds} s", {"stop_time": f"{seconds} s"}
+    data["record"] = {"interval": "1 ms", "variables": ["plant.leg_length"]}
+    data["metrics"] = [m for m in data["metrics"] if m["kind"] == "leg_tracking"]
+    data["metrics"][0]["from"] = "1 s"
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    path = tmp_path / f"{data['name']}.toml"
+    path.write_text(study.toml_text(data))
+    [run] = runner.run_scenario(path, tmp_path / "out", ci=True, progress=False)[1]
+    rows = np.loadtxt(run.csv_path, delimiter=",", skiprows=1)
+    return run.metrics["leg error"]["rms"], rows[rows[:, 0] > 1.5, 1:]
+
+
+def test_realistic_gain_margin_predicts_the_cosimulation(stiffest, tmp_path):
+    """The co-simulation of the realistic loop with the gains at 0.8x the predicted gain
+    margin stays still (leg error under 1 µm: the 20 nm sensor noise, amplified near the
+    limit), at 1.25x it oscillates into the force limits, at the frequency where
+    python-control puts the lightest mode's phase crossover (within 3 %)."""
+    lightest = mode_loop(stiffest.modal_masses[0], stiffest.gains, STEP, REALISTIC)
+    omega = np.geomspace(1.0, 0.999 * np.pi / STEP, 4000)
+    gm, _, _, wpc, _, _ = control.stability_margins(control.FRD(lightest, omega), returnall=True)
+    upper = np.asarray(gm) > 1
+    assert 20 * np.log10(np.asarray(gm)[upper].min()) == pytest.approx(stiffest.modal_gain_margin_db, abs=0.05)
+    f180 = np.asarray(wpc)[upper][np.argmin(np.asarray(gm)[upper])] / (2 * np.pi)
+    limit = 10 ** (stiffest.modal_gain_margin_db / 20)
+    calm, _ = _cosim(tmp_path / "below", _scaled(stiffest.gains, 0.8 * limit))
+    wild, lengths = _cosim(tmp_path / "above", _scaled(stiffest.gains, 1.25 * limit))
+    assert calm < 1.0          # µm: 20 nm sensor noise through a stable loop near its limit
+    assert wild > 100 * calm
+    swing = lengths - lengths.mean(axis=0)
+    power = (np.abs(np.fft.rfft(swing, axis=0)) ** 2).sum(axis=1)
+    frequency = np.fft.rfftfreq(len(swing), STEP)[np.argmax(power)]
+    assert frequency == pytest.approx(f180, rel=0.03)
 
 
 # ------------------------------------------------------------------- closed-loop stability

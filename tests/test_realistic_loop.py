@@ -138,3 +138,26 @@ def test_readme_section_is_generated_from_the_stored_results():
     text = study.README.read_text()
     assert study.readme_section(stored) in text
     assert study.statements(stored) in study.REPORT.read_text()
+
+
+def test_gain_cases_are_distinct_scenarios_that_carry_their_gains_and_wind():
+    """Every redesigned-gains case is its own scenario (the engine keys runs by content,
+    the files by name: a collision would overwrite one run's file with another's), its
+    controller gets the stored design's gains (the shipped gains: no parameter at all) and
+    its wind FMU the sweep's speed."""
+    stored = json.loads(study.STORE.read_text())
+    names = {}
+    for scene, loop, source, effects, modes, overrides, gains in study.gain_cases(stored["designs"]):
+        data = study.variant(scene, effects, source, modes, overrides, window=True, gains=gains)
+        assert names.setdefault(data["name"], (loop, source)) == (loop, source), data["name"]
+        controller = data["fmus"]["controller"].get("parameters", {})
+        tag = loop.split(" | ")[1] if " | " in loop else "shipped"
+        expected = {k: stored["designs"][tag][k] for k in ("kp", "ki", "kd")} if tag != "shipped" else {}
+        assert controller == expected
+        if "wind" not in data["fmus"]:
+            assert loop.startswith("calm")
+            continue
+        speed = data["fmus"]["wind"]["parameters"]["mean_speed"]
+        assert speed == (overrides or {}).get("wind", {}).get("mean_speed", study.WIND["mean_speed"])
+        assert loop.startswith("realistic") if speed == "10 m/s" else loop.startswith(f"wind {speed.split()[0]} m/s")
+    assert len(names) == len(study.gain_cases(stored["designs"]))
