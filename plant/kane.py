@@ -29,6 +29,9 @@ OK, BAD_INPUT, DIVERGED, STROKE = (lib.MB_HEXAPOD_OK, lib.MB_HEXAPOD_BAD_INPUT, 
 NDATA = lib.MB_HEXAPOD_NDATA   # length of StewartParams.kernel_data
 ACTUATOR_NDATA = lib.MB_ACTUATOR_NDATA   # [bandwidth, reflected_mass, coulomb, viscous, friction_velocity, force_limit]
 _F64 = np.dtype(np.float64)   # numpy's float64 dtype is one object: compared by identity
+_DOUBLES = ffi.typeof("double[]")
+_from_buffer = ffi.from_buffer   # positional arguments, type object: the cheapest call
+_empty = np.empty
 
 
 def pointer(array, shape, name):
@@ -67,7 +70,7 @@ def readings(arrays, shape, names):
             break
     else:
         try:
-            return [ffi.from_buffer("double[]", a) for a in arrays]
+            return [_from_buffer(_DOUBLES, a) for a in arrays]
         except ValueError:   # a strided view among them
             pass
     return [reading(a, shape, name) for a, name in zip(arrays, names)]
@@ -147,21 +150,31 @@ class HexapodKernel:
 
     def run(self, pose, rate, arg, base_pose, base_rate, base_acc, base_mode, legs, twist_speeds, solve,
             batch=None):
-        """plant.kane.kane on n states given as (n, 6) arrays, its outputs allocated here
-        as views of one block (one pointer for seven arrays): (M, h, J, ldot, length,
-        out, det) with shapes batch + (6, 6), (6,), (6, 6), (6,), (6,), (6,), () where
-        ``batch`` (default (n,)) is any leading shape of n states."""
-        n = len(pose)
-        batch = (n,) if batch is None else batch
-        work = np.empty(97 * n)
-        w = ffi.from_buffer("double[]", work)
-        lib.mb_hexapod_kane(*self.params, n, *readings((pose, rate, arg, base_pose, base_rate, base_acc), (n, 6),
-                                                       STATE_NAMES), base_mode, bool(legs), bool(twist_speeds),
-                            solve, w, w + 36 * n, w + 42 * n, w + 78 * n, w + 84 * n, w + 90 * n, w + 96 * n)
+        """plant.kane.kane on n states given as (n, 6) arrays, or on one given as (6,)
+        arrays, after the kernel's own NaN/inf check (mb_hexapod_kane_checked). Returns
+        (bad, out, det, work): ``bad`` the check's bitmask (nonzero: nothing computed),
+        ``out`` shaped ``batch`` + (6,) (default: the states' shape), det J (a float for
+        one (6,) state and no ``batch``) and the block of all outputs, for ``terms``."""
+        shape = pose.shape
+        n = shape[0] if len(shape) == 2 else 1
+        work = _empty(97 * n)
+        bad = lib.mb_hexapod_kane_checked(*self.params, n, *readings((pose, rate, arg, base_pose, base_rate, base_acc),
+                                                                     shape, STATE_NAMES),
+                                          base_mode, bool(legs), bool(twist_speeds), solve,
+                                          _from_buffer(_DOUBLES, work))
+        if len(shape) == 1 and batch is None:
+            return bad, work[90:96], work.item(96), work
+        batch = shape[:-1] if batch is None else batch
+        return bad, work[90 * n:96 * n].reshape(batch + (6,)), work[96 * n:].reshape(batch), work
+
+    @staticmethod
+    def terms(work, batch):
+        """(M, h, J, ldot, length) of a ``run`` with states of leading shape ``batch``:
+        views of its block."""
+        n = len(work) // 97
         s6, s66 = batch + (6,), batch + (6, 6)
         return (work[:36 * n].reshape(s66), work[36 * n:42 * n].reshape(s6), work[42 * n:78 * n].reshape(s66),
-                work[78 * n:84 * n].reshape(s6), work[84 * n:90 * n].reshape(s6), work[90 * n:96 * n].reshape(s6),
-                work[96 * n:].reshape(batch))
+                work[78 * n:84 * n].reshape(s6), work[84 * n:90 * n].reshape(s6))
 
     def advance_fixed(self, rk4, substeps, x, inputs, t0, h, base_mode, legs, bounds, outputs):
         """plant.kane.advance_fixed on this hexapod; ``inputs``, ``bounds`` and

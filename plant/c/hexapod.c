@@ -287,6 +287,29 @@ void mb_hexapod_kane(const double *base_joints, const double *platform_joints, c
                         base_acc, base_mode, legs, twist_speeds, solve, 0.0, NULL, M, h, J, ldot, length, out, det);
 }
 
+int mb_hexapod_kane_checked(const double *base_joints, const double *platform_joints, const double *data,
+                            int n, const double *pose, const double *rate, const double *arg,
+                            const double *base_pose, const double *base_rate, const double *base_acc,
+                            int base_mode, int legs, int twist_speeds, int solve, double *work)
+{
+    const double *states[6] = {pose, rate, arg, base_pose, base_rate, base_acc};
+    const size_t m = (size_t)n;
+    int bad = 0;
+    for (int k = 0; k < 6; k++) {
+        if (!states[k]) continue;
+        for (size_t i = 0; i < 6 * m; i++)
+            if (!isfinite(states[k][i])) {
+                bad |= 1 << k;
+                break;
+            }
+    }
+    if (!bad)
+        mb_hexapod_kane(base_joints, platform_joints, data, n, pose, rate, arg, base_pose, base_rate, base_acc,
+                        base_mode, legs, twist_speeds, solve, work, work + 36 * m, work + 42 * m, work + 78 * m,
+                        work + 84 * m, work + 90 * m, work + 96 * m);
+    return bad;
+}
+
 /* Leg rates [m/s] of x = [pose, twist] (the formula of mb_hexapod_leg_kinematics). */
 static void leg_rates(const double *bj, const double *pj, const double *x, double *ld)
 {
