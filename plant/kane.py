@@ -19,7 +19,7 @@ The public, validated, batched API is plant.stewart; this module is its engine.
 import numpy as np
 
 from ._kernel import ffi, lib
-from .errors import InvalidInputError
+from .errors import InvalidInputError, SingularConfigurationError
 
 ID, FD, TERMS = lib.MB_HEXAPOD_ID, lib.MB_HEXAPOD_FD, lib.MB_HEXAPOD_TERMS  # what the kernel solves for
 BASE_NONE, BASE_GRAVITY, BASE_FULL = (lib.MB_HEXAPOD_BASE_NONE, lib.MB_HEXAPOD_BASE_GRAVITY,
@@ -32,6 +32,8 @@ _F64 = np.dtype(np.float64)   # numpy's float64 dtype is one object: compared by
 _DOUBLES = ffi.typeof("double[]")
 _from_buffer = ffi.from_buffer   # positional arguments, type object: the cheapest call
 _empty = np.empty
+_ndarray = np.ndarray
+_ONE = (6,)
 
 
 def pointer(array, shape, name):
@@ -244,3 +246,44 @@ class HexapodKernel:
         return lib.mb_hexapod_inverse_dynamics(
             *self.params, *readings((pose, pose_rate, pose_acc, base_pose, base_rate, base_acc), (6,), STATE_NAMES),
             base_mode, bool(legs), forces, length, ldot)
+
+
+class StateInverseDynamicsCall:
+    """mb_hexapod_inverse_dynamics of one state at a time into three buffers of 6 (leg
+    forces, lengths, rates), for a caller that calls it every step (plant.stewart's
+    StateInverseDynamics builds on it). The C pointer of an input is kept while the
+    caller passes the same array object again (held here: the object and its memory
+    live on, and its buffer export stops numpy from resizing it), so arrays a caller
+    keeps and refills cost no conversion; any other input is checked and converted as
+    ``reading``. A call returns the buffers, after ``singular(det)`` when |det J| <
+    ``det_min``."""
+
+    __slots__ = ("_params", "_mode", "_legs", "_out", "_buffers", "_det_min", "_held", "_ptrs")
+
+    def __init__(self, kernel, base_mode, legs, buffers, det_min):
+        self._params, self._mode, self._legs, self._det_min = kernel.params, base_mode, bool(legs), det_min
+        self._buffers = tuple(buffers)
+        self._out = [pointer(a, np.shape(a) if np.size(a) == 6 else (6,), name)   # any shape of 6 values
+                     for a, name in zip(self._buffers, ("forces", "leg_lengths", "leg_rates"))]
+        self._held, self._ptrs = [None] * 6, [None] * 6
+
+    def __call__(self, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc):
+        """The buffers (leg forces, lengths, rates) of the state: all (6,) float arrays."""
+        held, ptrs, k = self._held, self._ptrs, 0
+        for a in (pose, pose_rate, pose_acc, base_pose, base_rate, base_acc):
+            if a is not held[k]:   # a new object: its pointer, kept when it needs no conversion
+                try:
+                    if type(a) is not _ndarray or a.dtype is not _F64 or a.shape != _ONE:
+                        raise ValueError
+                    ptrs[k], held[k] = _from_buffer(_DOUBLES, a), a   # ValueError when strided
+                except ValueError:
+                    ptrs[k], held[k] = reading(a, _ONE, STATE_NAMES[k]), None
+            k += 1
+        det = lib.mb_hexapod_inverse_dynamics(*self._params, *ptrs, self._mode, self._legs, *self._out)
+        if abs(det) < self._det_min:
+            self.singular(det)
+        return self._buffers
+
+    def singular(self, det):
+        """Called with det J when |det J| < det_min: raises SingularConfigurationError."""
+        raise SingularConfigurationError(f"singular configuration: |det J| = {abs(det):.2e} < {self._det_min:.2e}")

@@ -338,29 +338,24 @@ def dynamics_terms(params, pose, pose_rate, base_pose=0, base_rate=0, base_acc=0
                 kane.TERMS, twist_speeds)[1]
 
 
-class StateInverseDynamics:
+class StateInverseDynamics(kane.StateInverseDynamicsCall):
     """Inverse dynamics of one state at a time into preallocated buffers, for a
     controller that calls it every step: no broadcasting and no per-argument checks (the
-    caller checks its inputs for NaN/inf once), ~5 µs against the batched API's ~30 µs.
-    Still raises SingularConfigurationError at a singular pose."""
+    caller checks its inputs for NaN/inf once), and the C pointers of input arrays the
+    caller passes again kept. Called with pose, pose_rate, pose_acc, base_pose,
+    base_rate, base_acc (float arrays (6,)), returns the forces, leg lengths and leg
+    rates, each (1, 6) (buffers, overwritten next call). Still raises
+    SingularConfigurationError at a singular pose."""
 
     def __init__(self, params, fidelity="full"):
         self.params = params
         self.base_mode, self.legs = fidelity_mode(fidelity)
         self.forces, self.leg_lengths, self.leg_rates = np.empty((1, 6)), np.empty((1, 6)), np.empty((1, 6))
-        self._kernel = params.kernel
-        self._out = [kane.pointer(x, (1, 6), name) for x, name in
-                     ((self.forces, "forces"), (self.leg_lengths, "leg_lengths"), (self.leg_rates, "leg_rates"))]
-        self._singular = SINGULAR_RATIO * params.home_det
+        super().__init__(params.kernel, self.base_mode, self.legs, (self.forces, self.leg_lengths, self.leg_rates),
+                         SINGULAR_RATIO * params.home_det)
 
-    def __call__(self, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc):
-        """Forces, leg lengths and leg rates, each (1, 6) (buffers, overwritten next call);
-        all arguments float arrays of shape (6,)."""
-        det = self._kernel.inverse_dynamics(pose, pose_rate, pose_acc, base_pose, base_rate, base_acc,
-                                            self.base_mode, self.legs, *self._out)
-        if abs(det) < self._singular:
-            _check_det_ratio(np.array([abs(det) / self.params.home_det]))
-        return self.forces, self.leg_lengths, self.leg_rates
+    def singular(self, det):
+        _check_det_ratio(np.array([abs(det) / self.params.home_det]))
 
 
 def twist_from_rates(pose, pose_rate):
