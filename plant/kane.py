@@ -258,13 +258,18 @@ class StateInverseDynamicsCall:
     ``reading``. A call returns the buffers, after ``singular(det)`` when |det J| <
     ``det_min``."""
 
-    __slots__ = ("_params", "_mode", "_legs", "_out", "_buffers", "_det_min", "_held", "_ptrs")
+    __slots__ = ("_keep", "_setup", "_solve", "_buffers", "_det_min", "_held", "_ptrs")
 
     def __init__(self, kernel, base_mode, legs, buffers, det_min):
-        self._params, self._mode, self._legs, self._det_min = kernel.params, base_mode, bool(legs), det_min
-        self._buffers = tuple(buffers)
-        self._out = [pointer(a, np.shape(a) if np.size(a) == 6 else (6,), name)   # any shape of 6 values
-                     for a, name in zip(self._buffers, ("forces", "leg_lengths", "leg_rates"))]
+        self._buffers, self._det_min = tuple(buffers), det_min
+        out = [pointer(a, np.shape(a) if np.size(a) == 6 else (6,), name)   # any shape of 6 values
+               for a, name in zip(self._buffers, ("forces", "leg_lengths", "leg_rates"))]
+        self._setup = setup = ffi.new("struct mb_hexapod_state_id *")
+        setup.base_joints, setup.platform_joints, setup.data = kernel.params
+        setup.base_mode, setup.legs = base_mode, bool(legs)
+        setup.forces, setup.length, setup.ldot = out
+        self._keep = (kernel, out)   # the struct's pointers do not keep their arrays alive: these do
+        self._solve = lib.mb_hexapod_state_inverse_dynamics
         self._held, self._ptrs = [None] * 6, [None] * 6
 
     def __call__(self, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc):
@@ -279,7 +284,7 @@ class StateInverseDynamicsCall:
                 except ValueError:
                     ptrs[k], held[k] = reading(a, _ONE, STATE_NAMES[k]), None
             k += 1
-        det = lib.mb_hexapod_inverse_dynamics(*self._params, *ptrs, self._mode, self._legs, *self._out)
+        det = self._solve(self._setup, *ptrs)
         if abs(det) < self._det_min:
             self.singular(det)
         return self._buffers

@@ -478,3 +478,13 @@ double mb_hexapod_inverse_dynamics(const double *base_joints, const double *plat
                     base_acc, base_mode, legs, 0, MB_HEXAPOD_ID, M, h, J, ldot, length, forces, &det);
     return det;
 }
+
+double mb_hexapod_state_inverse_dynamics(const struct mb_hexapod_state_id *s, const double *pose,
+                                         const double *pose_rate, const double *pose_acc,
+                                         const double *base_pose, const double *base_rate,
+                                         const double *base_acc)
+{
+    return mb_hexapod_inverse_dynamics(s->base_joints, s->platform_joints, s->data, pose, pose_rate, pose_acc,
+                                       base_pose, base_rate, base_acc, s->base_mode, s->legs, s->forces,
+                                       s->length, s->ldot);
+}

@@ -166,4 +166,19 @@ double mb_hexapod_inverse_dynamics(const double *base_joints, const double *plat
                                    const double *base_rate, const double *base_acc, int base_mode,
                                    int legs, double *forces, double *length, double *ldot);
 
+/* What a per-step caller of mb_hexapod_state_inverse_dynamics fixes once: the hexapod
+   (as for mb_hexapod_kane), the fidelity and three output buffers of 6 doubles. */
+struct mb_hexapod_state_id {
+    const double *base_joints, *platform_joints, *data;
+    int base_mode, legs;
+    double *forces, *length, *ldot;
+};
+
+/* mb_hexapod_inverse_dynamics with the fixed arguments in ``setup``: a call from Python
+   converts 7 arguments instead of 14. */
+double mb_hexapod_state_inverse_dynamics(const struct mb_hexapod_state_id *setup, const double *pose,
+                                         const double *pose_rate, const double *pose_acc,
+                                         const double *base_pose, const double *base_rate,
+                                         const double *base_acc);
+
 #endif
