@@ -246,13 +246,12 @@ void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joint
                 }
                 b[i] = acc;
             }
-            det[n] = mb_solve(6, A, b, x);
+            det[n] = mb_solve6(A, b, x);
             for (int k = 0; k < 6; k++) out_all[6 * n + k] = x[k];
             continue;
         }
         for (int i = 0; i < 36; i++) A[i] = J[i];
-        for (int i = 0; i < 6; i++) b[i] = 0.0;
-        det[n] = mb_solve(6, A, b, x);
+        det[n] = mb_det6(A);
         if (solve == MB_HEXAPOD_FD) {
             const double *arg = arg_all + 6 * n;
             double *out = out_all + 6 * n;
@@ -264,7 +263,7 @@ void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joint
                 }
                 b[i] = acc;
             }
-            mb_solve(6, A, b, x);
+            mb_solve6(A, b, x);
             if (twist_speeds) {
                 for (int k = 0; k < 6; k++) out[k] = x[k];
             } else {
