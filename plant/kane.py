@@ -259,6 +259,7 @@ class StateInverseDynamicsCall:
     ``reading``. A call returns the buffers, after ``singular(det)`` when |det J| <
     ``det_min``."""
 
+    NAMES = ("pose", "pose_rate", "pose_acc", "base_pose", "base_rate", "base_acc")
     __slots__ = ("_keep", "_setup", "_solve", "_buffers", "_det_min", "_held", "_ptrs")
 
     def __init__(self, kernel, base_mode, legs, buffers, det_min):
@@ -304,4 +305,4 @@ class StateInverseDynamicsCall:
                 raise ValueError
             self._ptrs[k], self._held[k] = _from_buffer(_DOUBLES, a), a   # ValueError when strided
         except ValueError:
-            self._ptrs[k], self._held[k] = reading(a, _ONE, STATE_NAMES[k]), _NOTHING
+            self._ptrs[k], self._held[k] = reading(a, _ONE, self.NAMES[k]), _NOTHING
