@@ -252,15 +252,15 @@ class HexapodKernel:
 class StateInverseDynamicsCall:
     """mb_hexapod_inverse_dynamics of one state at a time into three buffers of 6 (leg
     forces, lengths, rates), for a caller that calls it every step (plant.stewart's
-    StateInverseDynamics builds on it). The C pointer of an input is kept while the
-    caller passes the same array object again (held here: the object and its memory
-    live on, and its buffer export stops numpy from resizing it), so arrays a caller
-    keeps and refills cost no conversion; any other input is checked and converted as
-    ``reading``. A call returns the buffers, after ``singular(det)`` when |det J| <
-    ``det_min``."""
+    StateInverseDynamics builds on it). The inputs' C pointers live in the C setup
+    (mb_hexapod_state_inverse_dynamics) and are kept while the caller passes the same
+    array object again (held here: the object and its memory live on, and its buffer
+    export stops numpy from resizing it), so arrays a caller keeps and refills cost no
+    conversion; any other input is checked and converted as ``reading``. A call returns
+    the buffers, after ``singular(det)`` when |det J| < ``det_min``."""
 
     NAMES = ("pose", "pose_rate", "pose_acc", "base_pose", "base_rate", "base_acc")
-    __slots__ = ("_keep", "_setup", "_solve", "_buffers", "_det_min", "_held", "_ptrs")
+    __slots__ = ("_keep", "_setup", "_state", "_solve", "_buffers", "_det_min", "_held", "_ptrs")
 
     def __init__(self, kernel, base_mode, legs, buffers, det_min):
         self._buffers, self._det_min = tuple(buffers), det_min
@@ -270,9 +270,10 @@ class StateInverseDynamicsCall:
         setup.base_joints, setup.platform_joints, setup.data = kernel.params
         setup.base_mode, setup.legs = base_mode, bool(legs)
         setup.forces, setup.length, setup.ldot = out
+        self._state = setup.state   # the six input pointers, set by _take
         self._keep = (kernel, out)   # the struct's pointers do not keep their arrays alive: these do
         self._solve = lib.mb_hexapod_state_inverse_dynamics
-        self._held, self._ptrs = [_NOTHING] * 6, [None] * 6
+        self._held, self._ptrs = [_NOTHING] * 6, [None] * 6   # and these keep the inputs' buffers
 
     def __call__(self, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc):
         """The buffers (leg forces, lengths, rates) of the state: all (6,) float arrays."""
@@ -289,7 +290,7 @@ class StateInverseDynamicsCall:
             self._take(4, base_rate)
         if base_acc is not held[5]:
             self._take(5, base_acc)
-        det = self._solve(self._setup, *self._ptrs)
+        det = self._solve(self._setup)
         if abs(det) < self._det_min:
             self.singular(det)
         return self._buffers
@@ -303,6 +304,7 @@ class StateInverseDynamicsCall:
         try:
             if type(a) is not _ndarray or a.dtype is not _F64 or a.shape != _ONE:
                 raise ValueError
-            self._ptrs[k], self._held[k] = _from_buffer(_DOUBLES, a), a   # ValueError when strided
+            ptr, self._held[k] = _from_buffer(_DOUBLES, a), a   # ValueError when strided
         except ValueError:
-            self._ptrs[k], self._held[k] = reading(a, _ONE, self.NAMES[k]), _NOTHING
+            ptr, self._held[k] = reading(a, _ONE, self.NAMES[k]), _NOTHING
+        self._ptrs[k] = self._state[k] = ptr

@@ -491,12 +491,9 @@ double mb_hexapod_inverse_dynamics(const double *base_joints, const double *plat
     return det;
 }
 
-double mb_hexapod_state_inverse_dynamics(const struct mb_hexapod_state_id *s, const double *pose,
-                                         const double *pose_rate, const double *pose_acc,
-                                         const double *base_pose, const double *base_rate,
-                                         const double *base_acc)
+double mb_hexapod_state_inverse_dynamics(const struct mb_hexapod_state_id *s)
 {
-    return mb_hexapod_inverse_dynamics(s->base_joints, s->platform_joints, s->data, pose, pose_rate, pose_acc,
-                                       base_pose, base_rate, base_acc, s->base_mode, s->legs, s->forces,
-                                       s->length, s->ldot);
+    return mb_hexapod_inverse_dynamics(s->base_joints, s->platform_joints, s->data, s->state[0], s->state[1],
+                                       s->state[2], s->state[3], s->state[4], s->state[5], s->base_mode, s->legs,
+                                       s->forces, s->length, s->ldot);
 }

@@ -166,19 +166,19 @@ double mb_hexapod_inverse_dynamics(const double *base_joints, const double *plat
                                    const double *base_rate, const double *base_acc, int base_mode,
                                    int legs, double *forces, double *length, double *ldot);
 
-/* What a per-step caller of mb_hexapod_state_inverse_dynamics fixes once: the hexapod
-   (as for mb_hexapod_kane), the fidelity and three output buffers of 6 doubles. */
+/* One state's inverse dynamics as a per-step caller sets it up: the hexapod (as for
+   mb_hexapod_kane), the fidelity, three output buffers of 6 doubles, fixed once, and
+   the six inputs of 6 doubles (pose, pose_rate, pose_acc, base_pose, base_rate,
+   base_acc), repointed only when the caller's arrays change. */
 struct mb_hexapod_state_id {
     const double *base_joints, *platform_joints, *data;
     int base_mode, legs;
     double *forces, *length, *ldot;
+    const double *state[6];
 };
 
-/* mb_hexapod_inverse_dynamics with the fixed arguments in ``setup``: a call from Python
-   converts 7 arguments instead of 14. */
-double mb_hexapod_state_inverse_dynamics(const struct mb_hexapod_state_id *setup, const double *pose,
-                                         const double *pose_rate, const double *pose_acc,
-                                         const double *base_pose, const double *base_rate,
-                                         const double *base_acc);
+/* mb_hexapod_inverse_dynamics of the set-up state: det J, the outputs written. A call
+   from Python converts one argument instead of 14. */
+double mb_hexapod_state_inverse_dynamics(const struct mb_hexapod_state_id *setup);
 
 #endif
