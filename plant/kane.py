@@ -153,11 +153,27 @@ class HexapodKernel:
 
     def run(self, pose, rate, arg, base_pose, base_rate, base_acc, base_mode, legs, twist_speeds, solve,
             batch=None):
-        """plant.kane.kane on n states given as (n, 6) arrays, or on one given as (6,)
-        arrays, after the kernel's own NaN/inf check (mb_hexapod_kane_checked). Returns
-        (bad, out, det, work): ``bad`` the check's bitmask (nonzero: nothing computed),
-        ``out`` shaped ``batch`` + (6,) (default: the states' shape), det J (a float for
-        one (6,) state and no ``batch``) and the block of all outputs, for ``terms``."""
+        """plant.kane.kane on n states given as (n, 6) arrays, its outputs allocated here
+        as views of one block (one pointer for seven arrays): (M, h, J, ldot, length,
+        out, det) with shapes batch + (6, 6), (6,), (6, 6), (6,), (6,), (6,), () where
+        ``batch`` (default (n,)) is any leading shape of n states."""
+        n = len(pose)
+        batch = (n,) if batch is None else batch
+        work = np.empty(97 * n)
+        w = ffi.from_buffer("double[]", work)
+        lib.mb_hexapod_kane(*self.params, n, *readings((pose, rate, arg, base_pose, base_rate, base_acc), (n, 6),
+                                                       STATE_NAMES), base_mode, bool(legs), bool(twist_speeds),
+                            solve, w, w + 36 * n, w + 42 * n, w + 78 * n, w + 84 * n, w + 90 * n, w + 96 * n)
+        return (*self.terms(work, batch), work[90 * n:96 * n].reshape(batch + (6,)), work[96 * n:].reshape(batch))
+
+    def checked_run(self, pose, rate, arg, base_pose, base_rate, base_acc, base_mode, legs, twist_speeds, solve,
+                    batch=None):
+        """``run`` on n states given as (n, 6) arrays, or on one given as (6,) arrays,
+        after the kernel's own NaN/inf check (mb_hexapod_kane_checked): plant.stewart's
+        engine. Returns (bad, out, det, work): ``bad`` the check's bitmask (nonzero:
+        nothing computed), ``out`` shaped ``batch`` + (6,) (default: the states' shape),
+        det J (a float for one (6,) state and no ``batch``) and the block of all
+        outputs, for ``terms``."""
         shape = pose.shape
         n = shape[0] if len(shape) == 2 else 1
         work = _empty(97 * n)

@@ -286,7 +286,8 @@ def _run(params, pose, rate, arg, base, fidelity, solve, twist_speeds=False, arg
     full = [no_base] * 3
     for k, x in zip(given, arrays[3:]):
         full[k] = x
-    bad, out, det, work = params.kernel.run(*arrays[:3], *full, base_mode, legs, twist_speeds, solve, batch)
+    bad, out, det, work = params.kernel.checked_run(*arrays[:3], *full, base_mode, legs, twist_speeds, solve,
+                                                    batch)
     if bad:
         raise InvalidInputError(f"{', '.join(n for k, n in enumerate(names) if bad >> k & 1)} contains NaN or inf")
     if batch is None:   # one state: float arithmetic (the same IEEE operations), numpy's scalar type kept
