@@ -106,6 +106,13 @@ def cases(rng):
         sid = m.stewart.StateInverseDynamics(m.stewart.StewartParams.paper())
         return lambda: sid(pose[0], rate[0], acc[0], *b1)
 
+    def controller_rows(m):
+        """As the controller FMU calls it: the same six row views of its input block, refilled."""
+        sid = m.stewart.StateInverseDynamics(m.stewart.StewartParams.paper())
+        block = np.stack([pose[0], rate[0], acc[0], *b1])
+        rows = tuple(block)
+        return lambda: sid(*rows)
+
     def api(fn, *args):
         def make(m):
             p = m.stewart.StewartParams.paper()
@@ -118,7 +125,8 @@ def cases(rng):
         ("stewart.inverse_dynamics, batched 1e5 [states/s]", 1, n, api("inverse_dynamics", pose, rate, acc, *base)),
         ("stewart.inverse_dynamics, one state [us]", 3000, None, api("inverse_dynamics", pose[0], rate[0], acc[0], *b1)),
         ("stewart.forward_dynamics, one state [us]", 3000, None, api("forward_dynamics", pose[0], rate[0], z6, *b1)),
-        ("StateInverseDynamics (controller FMU), one ID [us]", 5000, None, controller),
+        ("StateInverseDynamics, new (6,) views each call [us]", 5000, None, controller),
+        ("StateInverseDynamics (controller FMU: kept rows) [us]", 5000, None, controller_rows),
         ("HexapodODE.advance (plant FMU), 1 ms RK4 [us]", 5000, None, plant_advance),
     ]
 

@@ -36,6 +36,7 @@ class LegController(GuardedSlave):
         home = StewartParams.paper()
         self.inputs = np.zeros((8, 6))   # all inputs in one array: one NaN/inf check per step
         self.inputs[0], self.inputs[3] = home.home_pose, home.home_lengths
+        self.input_rows = tuple(self.inputs)   # the same row views every step: the model keeps their C pointers
         for row, (name, desc, units) in enumerate((
             (INPUTS[0], pose_desc("platform reference, in {B},"), POSE_UNITS),
             ("reference_rate", pose_desc("d/dt reference"), rate_units(POSE_UNITS)),
@@ -72,7 +73,7 @@ class LegController(GuardedSlave):
         if not np.isfinite(self.inputs).all():
             bad = [n for n, row in zip(INPUTS, self.inputs) if not np.isfinite(row).all()]
             raise InvalidInputError(f"{', '.join(bad)} input contains NaN or inf")
-        ref, ref_rate, ref_acc, lengths, rates, *base = self.inputs
+        ref, ref_rate, ref_acc, lengths, rates, *base = self.input_rows
         ff, ref_lengths, ref_rates = self.feedforward_model(ref, ref_rate, ref_acc, *base)
         if h is None:   # initialization: the feedforward alone, integral untouched
             self.forces[:] = ff

@@ -19,7 +19,7 @@ The public, validated, batched API is plant.stewart; this module is its engine.
 import numpy as np
 
 from ._kernel import ffi, lib
-from .errors import InvalidInputError
+from .errors import InvalidInputError, SingularConfigurationError
 
 ID, FD, TERMS = lib.MB_HEXAPOD_ID, lib.MB_HEXAPOD_FD, lib.MB_HEXAPOD_TERMS  # what the kernel solves for
 BASE_NONE, BASE_GRAVITY, BASE_FULL = (lib.MB_HEXAPOD_BASE_NONE, lib.MB_HEXAPOD_BASE_GRAVITY,
@@ -29,6 +29,12 @@ OK, BAD_INPUT, DIVERGED, STROKE = (lib.MB_HEXAPOD_OK, lib.MB_HEXAPOD_BAD_INPUT, 
 NDATA = lib.MB_HEXAPOD_NDATA   # length of StewartParams.kernel_data
 ACTUATOR_NDATA = lib.MB_ACTUATOR_NDATA   # [bandwidth, reflected_mass, coulomb, viscous, friction_velocity, force_limit]
 _F64 = np.dtype(np.float64)   # numpy's float64 dtype is one object: compared by identity
+_DOUBLES = ffi.typeof("double[]")
+_from_buffer = ffi.from_buffer   # positional arguments, type object: the cheapest call
+_empty = np.empty
+_ndarray = np.ndarray
+_ONE = (6,)
+_NOTHING = object()   # what no caller passes: the held slot of an input never seen or converted
 
 
 def pointer(array, shape, name):
@@ -67,7 +73,7 @@ def readings(arrays, shape, names):
             break
     else:
         try:
-            return [ffi.from_buffer("double[]", a) for a in arrays]
+            return [_from_buffer(_DOUBLES, a) for a in arrays]
         except ValueError:   # a strided view among them
             pass
     return [reading(a, shape, name) for a, name in zip(arrays, names)]
@@ -158,10 +164,36 @@ class HexapodKernel:
         lib.mb_hexapod_kane(*self.params, n, *readings((pose, rate, arg, base_pose, base_rate, base_acc), (n, 6),
                                                        STATE_NAMES), base_mode, bool(legs), bool(twist_speeds),
                             solve, w, w + 36 * n, w + 42 * n, w + 78 * n, w + 84 * n, w + 90 * n, w + 96 * n)
+        return (*self.terms(work, batch), work[90 * n:96 * n].reshape(batch + (6,)), work[96 * n:].reshape(batch))
+
+    def checked_run(self, pose, rate, arg, base_pose, base_rate, base_acc, base_mode, legs, twist_speeds, solve,
+                    batch=None):
+        """``run`` on n states given as (n, 6) arrays, or on one given as (6,) arrays,
+        after the kernel's own NaN/inf check (mb_hexapod_kane_checked): plant.stewart's
+        engine. Returns (bad, out, det, work): ``bad`` the check's bitmask (nonzero:
+        nothing computed), ``out`` shaped ``batch`` + (6,) (default: the states' shape),
+        det J (a float for one (6,) state and no ``batch``) and the block of all
+        outputs, for ``terms``."""
+        shape = pose.shape
+        n = shape[0] if len(shape) == 2 else 1
+        work = _empty(97 * n)
+        bad = lib.mb_hexapod_kane_checked(*self.params, n, *readings((pose, rate, arg, base_pose, base_rate, base_acc),
+                                                                     shape, STATE_NAMES),
+                                          base_mode, bool(legs), bool(twist_speeds), solve,
+                                          _from_buffer(_DOUBLES, work))
+        if len(shape) == 1 and batch is None:
+            return bad, work[90:96], work.item(96), work
+        batch = shape[:-1] if batch is None else batch
+        return bad, work[90 * n:96 * n].reshape(batch + (6,)), work[96 * n:].reshape(batch), work
+
+    @staticmethod
+    def terms(work, batch):
+        """(M, h, J, ldot, length) of a ``run`` with states of leading shape ``batch``:
+        views of its block."""
+        n = len(work) // 97
         s6, s66 = batch + (6,), batch + (6, 6)
         return (work[:36 * n].reshape(s66), work[36 * n:42 * n].reshape(s6), work[42 * n:78 * n].reshape(s66),
-                work[78 * n:84 * n].reshape(s6), work[84 * n:90 * n].reshape(s6), work[90 * n:96 * n].reshape(s6),
-                work[96 * n:].reshape(batch))
+                work[78 * n:84 * n].reshape(s6), work[84 * n:90 * n].reshape(s6))
 
     def advance_fixed(self, rk4, substeps, x, inputs, t0, h, base_mode, legs, bounds, outputs):
         """plant.kane.advance_fixed on this hexapod; ``inputs``, ``bounds`` and
@@ -231,3 +263,64 @@ class HexapodKernel:
         return lib.mb_hexapod_inverse_dynamics(
             *self.params, *readings((pose, pose_rate, pose_acc, base_pose, base_rate, base_acc), (6,), STATE_NAMES),
             base_mode, bool(legs), forces, length, ldot)
+
+
+class StateInverseDynamicsCall:
+    """mb_hexapod_inverse_dynamics of one state at a time into three buffers of 6 (leg
+    forces, lengths, rates), for a caller that calls it every step (plant.stewart's
+    StateInverseDynamics builds on it). The inputs' C pointers live in the C setup
+    (mb_hexapod_state_inverse_dynamics) and are kept while the caller passes the same
+    array object again (held here: the object and its memory live on, and its buffer
+    export stops numpy from resizing it), so arrays a caller keeps and refills cost no
+    conversion; any other input is checked and converted as ``reading``. A call returns
+    the buffers, after ``singular(det)`` when |det J| < ``det_min``."""
+
+    NAMES = ("pose", "pose_rate", "pose_acc", "base_pose", "base_rate", "base_acc")
+    __slots__ = ("_keep", "_setup", "_state", "_solve", "_buffers", "_det_min", "_held", "_ptrs")
+
+    def __init__(self, kernel, base_mode, legs, buffers, det_min):
+        self._buffers, self._det_min = tuple(buffers), det_min
+        out = [pointer(a, np.shape(a) if np.size(a) == 6 else (6,), name)   # any shape of 6 values
+               for a, name in zip(self._buffers, ("forces", "leg_lengths", "leg_rates"))]
+        self._setup = setup = ffi.new("struct mb_hexapod_state_id *")
+        setup.base_joints, setup.platform_joints, setup.data = kernel.params
+        setup.base_mode, setup.legs = base_mode, bool(legs)
+        setup.forces, setup.length, setup.ldot = out
+        self._state = setup.state   # the six input pointers, set by _take
+        self._keep = (kernel, out)   # the struct's pointers do not keep their arrays alive: these do
+        self._solve = lib.mb_hexapod_state_inverse_dynamics
+        self._held, self._ptrs = [_NOTHING] * 6, [None] * 6   # and these keep the inputs' buffers
+
+    def __call__(self, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc):
+        """The buffers (leg forces, lengths, rates) of the state: all (6,) float arrays."""
+        held = self._held   # unrolled: a loop costs ~0.1 us more per call
+        if pose is not held[0]:
+            self._take(0, pose)
+        if pose_rate is not held[1]:
+            self._take(1, pose_rate)
+        if pose_acc is not held[2]:
+            self._take(2, pose_acc)
+        if base_pose is not held[3]:
+            self._take(3, base_pose)
+        if base_rate is not held[4]:
+            self._take(4, base_rate)
+        if base_acc is not held[5]:
+            self._take(5, base_acc)
+        det = self._solve(self._setup)
+        if abs(det) < self._det_min:
+            self.singular(det)
+        return self._buffers
+
+    def singular(self, det):
+        """Called with det J when |det J| < det_min: raises SingularConfigurationError."""
+        raise SingularConfigurationError(f"singular configuration: |det J| = {abs(det):.2e} < {self._det_min:.2e}")
+
+    def _take(self, k, a):
+        """Input k is a new object: its pointer, kept with it when it needs no conversion."""
+        try:
+            if type(a) is not _ndarray or a.dtype is not _F64 or a.shape != _ONE:
+                raise ValueError
+            ptr, self._held[k] = _from_buffer(_DOUBLES, a), a   # ValueError when strided
+        except ValueError:
+            ptr, self._held[k] = reading(a, _ONE, self.NAMES[k]), _NOTHING
+        self._ptrs[k] = self._state[k] = ptr

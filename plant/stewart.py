@@ -167,7 +167,7 @@ def check_singular(params, J, what="configuration"):
 
 
 def _check_det_ratio(ratio, what="configuration"):
-    if np.any(ratio < SINGULAR_RATIO):
+    if (ratio < SINGULAR_RATIO).any():   # an array's or a numpy scalar's .any(): no np.any overhead
         raise SingularConfigurationError(
             f"singular {what}: |det J| is {np.min(ratio):.2e} of its home value (< {SINGULAR_RATIO})")
 
@@ -229,19 +229,25 @@ def fidelity_mode(fidelity):
     return _FIDELITY_MODES[fidelity]
 
 
-def _run(params, pose, rate, arg, base, fidelity, solve, twist_speeds=False, arg_name="pose_acc"):
-    """Validate, broadcast and flatten the states, run the Kane kernel, reshape back.
+_ONE_STATE = (6,)
+_F64 = np.dtype(np.float64)
+_NO_BASE = np.zeros(6)   # a base argument left at 0, for a single state
+_NO_BASE.flags.writeable = False
 
-    Written for the single-state call too (a controller calls it every step): arrays of
-    one shape skip broadcasting, and NaN/inf is looked for once over all arguments (the
-    argument is named only when there is one)."""
-    base_mode, legs = fidelity_mode(fidelity)
-    names = ["pose", "twist" if twist_speeds else "pose_rate", arg_name, "base_pose", "base_rate", "base_acc"]
-    given = [k for k, x in enumerate(base) if not (np.ndim(x) == 0 and x == 0)]
-    if not given:
-        base_mode = kane.BASE_NONE
-    arrays = [np.asarray(x, dtype=float) for x in (pose, rate, arg, *(base[k] for k in given))]
-    labels = names[:3] + [names[3 + k] for k in given]
+
+def _omitted(x):
+    """Whether a base argument is left at 0: no base motion of that kind."""
+    if type(x) is int or type(x) is float:   # np.ndim of a Python number costs ~1 us
+        return x == 0
+    if type(x) is np.ndarray:
+        return x.ndim == 0 and x == 0
+    return np.ndim(x) == 0 and x == 0
+
+
+def _flat(arrays, labels):
+    """The states as float arrays, shape-checked, broadcast and flattened to (n, 6),
+    and the broadcast shape: the general (batched) call."""
+    arrays = [np.asarray(x, dtype=float) for x in arrays]
     for x, name in zip(arrays, labels):
         if x.ndim == 0 or x.shape[-1] != 6:
             raise InvalidInputError(f"{name} must have shape (..., 6), got {x.shape}")
@@ -253,19 +259,50 @@ def _run(params, pose, rate, arg, base, fidelity, solve, twist_speeds=False, arg
             raise InvalidInputError("arguments do not broadcast: " + ", ".join(
                 f"{n} {x.shape}" for n, x in zip(labels, arrays))) from None
         arrays = [np.broadcast_to(x, shape) for x in arrays]
-    flat = [np.ascontiguousarray(x).reshape(-1, 6) for x in arrays]
-    if not np.isfinite(np.concatenate(flat)).all():
-        bad = [n for n, x in zip(labels, flat) if not np.isfinite(x).all()]
-        raise InvalidInputError(f"{', '.join(bad)} contains NaN or inf")
-    n = flat[0].shape[0]
-    base = [np.zeros((n, 6))] * 3
-    for k, x in zip(given, flat[3:]):
-        base[k] = x
-    M, h, J, ldot, length, out, det = params.kernel.run(*flat[:3], *base, base_mode, legs, twist_speeds, solve,
-                                                        shape[:-1])
-    terms = DynamicsTerms(M, h, J, ldot, length, np.abs(det) / params.home_det)
-    _check_det_ratio(terms.det_ratio)
-    return out, terms
+    return [np.ascontiguousarray(x).reshape(-1, 6) for x in arrays], shape
+
+
+def _run(params, pose, rate, arg, base, fidelity, solve, twist_speeds=False, arg_name="pose_acc", terms=True):
+    """Validate, broadcast and flatten the states, run the Kane kernel, reshape back:
+    (out, DynamicsTerms), or out alone when not ``terms``.
+
+    Written for the single-state call too (a controller calls it every step): float64
+    (6,) arrays go to the kernel as they are, the kernel looks for NaN/inf in one pass
+    (the argument is named from its bitmask), the singular check is a scalar compare for
+    one state, and DynamicsTerms is built only when asked for."""
+    base_mode, legs = fidelity_mode(fidelity)
+    names = ("pose", "twist" if twist_speeds else "pose_rate", arg_name, "base_pose", "base_rate", "base_acc")
+    given = [k for k, x in enumerate(base) if not _omitted(x)]
+    if not given:
+        base_mode = kane.BASE_NONE
+    arrays = [pose, rate, arg, *(base[k] for k in given)]
+    batch = None   # one (6,) state: the kernel's det comes back a scalar
+    for x in arrays:
+        if type(x) is not np.ndarray or x.dtype is not _F64 or x.shape != _ONE_STATE:
+            arrays, shape = _flat(arrays, names[:3] + tuple(names[3 + k] for k in given))
+            batch = shape[:-1]
+            break
+    no_base = _NO_BASE if batch is None else np.zeros(arrays[0].shape)
+    full = [no_base] * 3
+    for k, x in zip(given, arrays[3:]):
+        full[k] = x
+    bad, out, det, work = params.kernel.checked_run(*arrays[:3], *full, base_mode, legs, twist_speeds, solve,
+                                                    batch)
+    if bad:
+        raise InvalidInputError(f"{', '.join(n for k, n in enumerate(names) if bad >> k & 1)} contains NaN or inf")
+    if batch is None:   # one state: float arithmetic (the same IEEE operations), numpy's scalar type kept
+        ratio = abs(det) / float(params.home_det)
+        if ratio < SINGULAR_RATIO:
+            _check_det_ratio(np.float64(ratio))
+        if not terms:
+            return out
+        ratio, batch = np.float64(ratio), ()
+    else:
+        ratio = np.abs(det) / params.home_det
+        _check_det_ratio(ratio)
+        if not terms:
+            return out
+    return out, DynamicsTerms(*kane.HexapodKernel.terms(work, batch), ratio)
 
 
 def inverse_dynamics(params, pose, pose_rate, pose_acc, base_pose=0, base_rate=0, base_acc=0,
@@ -275,7 +312,7 @@ def inverse_dynamics(params, pose, pose_rate, pose_acc, base_pose=0, base_rate=0
     ``pose`` [x, y, z, roll, pitch, yaw] of {P} in {B}, ``pose_rate``/``pose_acc`` its
     time derivatives; ``base_*`` the same for {B} in {W} (all 0 = fixed base). Batched
     over leading dimensions. Raises SingularConfigurationError at a singular pose."""
-    return inverse_dynamics_terms(params, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc, fidelity)[0]
+    return _run(params, pose, pose_rate, pose_acc, (base_pose, base_rate, base_acc), fidelity, kane.ID, terms=False)
 
 
 def inverse_dynamics_terms(params, pose, pose_rate, pose_acc, base_pose=0, base_rate=0, base_acc=0,
@@ -290,7 +327,7 @@ def forward_dynamics(params, pose, pose_rate, forces, base_pose=0, base_rate=0, 
     """Pose accelerations (..., 6) (second derivatives of [x, y, z, roll, pitch, yaw])
     under leg forces ``forces`` (..., 6). Arguments as in inverse_dynamics."""
     return _run(params, pose, pose_rate, forces, (base_pose, base_rate, base_acc), fidelity,
-                kane.FD, arg_name="forces")[0]
+                kane.FD, arg_name="forces", terms=False)
 
 
 def dynamics_terms(params, pose, pose_rate, base_pose=0, base_rate=0, base_acc=0, fidelity="full",
@@ -302,29 +339,24 @@ def dynamics_terms(params, pose, pose_rate, base_pose=0, base_rate=0, base_acc=0
                 kane.TERMS, twist_speeds)[1]
 
 
-class StateInverseDynamics:
+class StateInverseDynamics(kane.StateInverseDynamicsCall):
     """Inverse dynamics of one state at a time into preallocated buffers, for a
     controller that calls it every step: no broadcasting and no per-argument checks (the
-    caller checks its inputs for NaN/inf once), ~5 µs against the batched API's ~30 µs.
-    Still raises SingularConfigurationError at a singular pose."""
+    caller checks its inputs for NaN/inf once), and the C pointers of input arrays the
+    caller passes again kept. Called with pose, pose_rate, pose_acc, base_pose,
+    base_rate, base_acc (float arrays (6,)), returns the forces, leg lengths and leg
+    rates, each (1, 6) (buffers, overwritten next call). Still raises
+    SingularConfigurationError at a singular pose."""
 
     def __init__(self, params, fidelity="full"):
         self.params = params
         self.base_mode, self.legs = fidelity_mode(fidelity)
         self.forces, self.leg_lengths, self.leg_rates = np.empty((1, 6)), np.empty((1, 6)), np.empty((1, 6))
-        self._kernel = params.kernel
-        self._out = [kane.pointer(x, (1, 6), name) for x, name in
-                     ((self.forces, "forces"), (self.leg_lengths, "leg_lengths"), (self.leg_rates, "leg_rates"))]
-        self._singular = SINGULAR_RATIO * params.home_det
+        super().__init__(params.kernel, self.base_mode, self.legs, (self.forces, self.leg_lengths, self.leg_rates),
+                         SINGULAR_RATIO * params.home_det)
 
-    def __call__(self, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc):
-        """Forces, leg lengths and leg rates, each (1, 6) (buffers, overwritten next call);
-        all arguments float arrays of shape (6,)."""
-        det = self._kernel.inverse_dynamics(pose, pose_rate, pose_acc, base_pose, base_rate, base_acc,
-                                            self.base_mode, self.legs, *self._out)
-        if abs(det) < self._singular:
-            _check_det_ratio(np.array([abs(det) / self.params.home_det]))
-        return self.forces, self.leg_lengths, self.leg_rates
+    def singular(self, det):
+        _check_det_ratio(np.array([abs(det) / self.params.home_det]))
 
 
 def twist_from_rates(pose, pose_rate):

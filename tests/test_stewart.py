@@ -181,6 +181,142 @@ def test_batching_matches_single_calls():
         np.testing.assert_allclose(batched[k, 0], single, rtol=1e-13)
 
 
+def _same(a, b):
+    """Equal bit for bit, of the same type and shape (tuples compared field by field)."""
+    if isinstance(a, tuple):
+        assert type(a) is type(b) and len(a) == len(b)
+        for x, y in zip(a, b):
+            _same(x, y)
+        return
+    assert type(a) is type(b) and np.shape(a) == np.shape(b)
+    np.testing.assert_array_equal(a, b)
+
+
+def _lists(*args):
+    """The arguments as nested lists: the general path (conversion, shape checks) is taken."""
+    return [a.tolist() if isinstance(a, np.ndarray) else a for a in args]
+
+
+BASE_KINDS = ("moving", "tilted only", "rate only", "fixed")
+
+
+def _base(kind, b, k):
+    """One state's base arguments of a kind: arrays, or 0 where the base motion is left out."""
+    pose, rate, acc = (x[k] for x in b)
+    return {"moving": (pose, rate, acc), "tilted only": (pose, 0, 0), "rate only": (0, rate, 0.0),
+            "fixed": (0, 0, 0)}[kind]
+
+
+@pytest.mark.parametrize("fidelity", stewart.FIDELITIES)
+@pytest.mark.parametrize("kind", BASE_KINDS)
+def test_single_state_calls_equal_the_batched_path_bit_for_bit(fidelity, kind):
+    """A (6,) float64 call (the fast path) returns what the same state gives as a row of
+    a batch and as lists (the general path), bit for bit and of the same types."""
+    n = 5
+    pose, rate, acc = random_states(n)
+    base = random_base(n)
+    forces = RNG.uniform(-8e3, 8e3, (n, 6))
+    batch_base = [b if isinstance(one, np.ndarray) else 0 for b, one in zip(base, _base(kind, base, 0))]
+    batched_id = stewart.inverse_dynamics_terms(PARAMS, pose, rate, acc, *batch_base, fidelity=fidelity)
+    batched_fd = stewart.forward_dynamics(PARAMS, pose, rate, forces, *batch_base, fidelity=fidelity)
+    for k in range(n):
+        b = _base(kind, base, k)
+        one = (pose[k], rate[k], acc[k], *b)
+        forces_one = stewart.inverse_dynamics_terms(PARAMS, *one, fidelity=fidelity)
+        _same(forces_one, stewart.inverse_dynamics_terms(PARAMS, *_lists(*one), fidelity=fidelity))
+        assert isinstance(forces_one[1].det_ratio, np.float64)
+        np.testing.assert_array_equal(forces_one[0], batched_id[0][k])
+        for field, whole in zip(forces_one[1], batched_id[1]):
+            np.testing.assert_array_equal(field, whole[k])
+        _same(stewart.inverse_dynamics(PARAMS, *one, fidelity=fidelity), forces_one[0])
+        fd = stewart.forward_dynamics(PARAMS, pose[k], rate[k], forces[k], *b, fidelity=fidelity)
+        _same(fd, stewart.forward_dynamics(PARAMS, *_lists(pose[k], rate[k], forces[k], *b), fidelity=fidelity))
+        np.testing.assert_array_equal(fd, batched_fd[k])
+        for twist in (False, True):
+            terms = stewart.dynamics_terms(PARAMS, pose[k], rate[k], *b, fidelity=fidelity, twist_speeds=twist)
+            _same(terms, stewart.dynamics_terms(PARAMS, *_lists(pose[k], rate[k], *b), fidelity=fidelity,
+                                                twist_speeds=twist))
+
+
+def _outcome(call):
+    try:
+        return call()
+    except (InvalidInputError, SingularConfigurationError) as err:
+        return type(err), str(err)
+
+
+@pytest.mark.parametrize("bad", [(0,), (1,), (2,), (3,), (4,), (5,), (1, 5), (0, 2, 3)])
+def test_single_state_nan_and_inf_are_named_as_on_the_general_path(bad):
+    """NaN or inf in any one argument, or several, names exactly those arguments, on the
+    fast path as on the general one, for every public call."""
+    pose, rate, acc = (x[0] for x in random_states(1))
+    base = [x[0] for x in random_base(1)]
+    args = [pose, rate, acc, *base]
+    for i, k in enumerate(bad):
+        args[k] = args[k].copy()
+        args[k][(2 * i + k) % 6] = (np.nan, np.inf, -np.inf)[(i + k) % 3]
+    for call, names in (
+            (stewart.inverse_dynamics, ("pose", "pose_rate", "pose_acc")),
+            (stewart.forward_dynamics, ("pose", "pose_rate", "forces")),
+            (stewart.inverse_dynamics_terms, ("pose", "pose_rate", "pose_acc"))):
+        expected = ", ".join((*names, "base_pose", "base_rate", "base_acc")[k] for k in sorted(bad))
+        fast = _outcome(lambda: call(PARAMS, *args))
+        assert fast == (InvalidInputError, f"{expected} contains NaN or inf")
+        assert _outcome(lambda: call(PARAMS, *_lists(*args))) == fast
+    if not set(bad) & {2}:   # dynamics_terms takes no third argument
+        drop = [a for k, a in enumerate(args) if k != 2]
+        names = ("pose", "twist", "base_pose", "base_rate", "base_acc")
+        expected = ", ".join(names[k - (k > 2)] for k in sorted(bad))
+        fast = _outcome(lambda: stewart.dynamics_terms(PARAMS, *drop, twist_speeds=True))
+        assert fast == (InvalidInputError, f"{expected} contains NaN or inf")
+        assert _outcome(lambda: stewart.dynamics_terms(PARAMS, *_lists(*drop), twist_speeds=True)) == fast
+
+
+def test_single_state_shape_and_singular_errors_equal_the_general_path():
+    """A wrong shape, arrays that do not broadcast and a singular pose: the same errors
+    and messages from (6,) float64 arrays as from lists and from a batch."""
+    z = np.zeros(6)
+    cases = [(SINGULAR_POSE, z, z), (HOME_POSE, np.zeros(5), z), (HOME_POSE, z, np.zeros((2, 6)), np.zeros((3, 6))),
+             (np.stack([HOME_POSE, SINGULAR_POSE]), z, z)]
+    for args in cases:
+        for call in (stewart.inverse_dynamics, stewart.forward_dynamics, stewart.inverse_dynamics_terms):
+            fast = _outcome(lambda: call(PARAMS, *args))
+            assert isinstance(fast, tuple) and fast[0] in (InvalidInputError, SingularConfigurationError)
+            assert _outcome(lambda: call(PARAMS, *_lists(*args))) == fast
+    assert _outcome(lambda: stewart.inverse_dynamics(PARAMS, SINGULAR_POSE, z, z)) == _outcome(
+        lambda: stewart.inverse_dynamics(PARAMS, SINGULAR_POSE[None], z, z))
+
+
+def test_state_inverse_dynamics_equals_the_public_call_and_follows_refilled_arrays():
+    """The controller's entry point keeps the pointers of arrays passed again: refilled
+    in place they give the new state's results; strided views and lists give the same;
+    all bit for bit equal to inverse_dynamics_terms."""
+    n = 6
+    pose, rate, acc = random_states(n)
+    base = random_base(n)
+    for fidelity in stewart.FIDELITIES:
+        sid = stewart.StateInverseDynamics(PARAMS, fidelity)
+        held = [np.empty(6) for _ in range(6)]
+        strided = np.empty((6, 12))
+        expected = [stewart.inverse_dynamics_terms(PARAMS, pose[k], rate[k], acc[k], *(b[k] for b in base),
+                                                   fidelity=fidelity) for k in range(n)]
+        for variant in ("held", "views", "strided", "lists"):
+            for k, (forces, terms) in enumerate(expected):
+                state = (pose[k], rate[k], acc[k], *(b[k] for b in base))
+                for a, x in zip(held, state):   # the same six arrays every step, refilled
+                    a[:] = x
+                strided[:, ::2] = np.stack(state)
+                args = {"held": held, "views": state, "strided": list(strided[:, ::2]), "lists": _lists(*state)}
+                out = sid(*args[variant])
+                np.testing.assert_array_equal(out[0][0], forces)
+                np.testing.assert_array_equal(out[1][0], terms.leg_lengths)
+                np.testing.assert_array_equal(out[2][0], terms.leg_rates)
+    with pytest.raises(SingularConfigurationError, match="singular configuration"):
+        sid(SINGULAR_POSE, *held[1:])
+    with pytest.raises(InvalidInputError, match="pose_rate must have shape"):
+        sid(HOME_POSE, np.zeros(5), *held[2:])
+
+
 # ---------------------------------------------------------------------------- bad input
 SINGULAR_POSE = np.r_[HOME_POSE[:5], np.pi / 2]   # platform turned 90 deg: legs coplanar pairs
 

@@ -37,12 +37,20 @@ static inline v3 lin(double ca, v3 a, double cb, v3 b)
 
 static inline v3 add(v3 a, v3 b) { return vec(a.e[0] + b.e[0], a.e[1] + b.e[1], a.e[2] + b.e[2]); }
 
-/* R = Rz(yaw) Ry(pitch) Rx(roll), row-major 3x3. */
-static inline void rotation(const double *rpy, double *R)
+/* cos and sin of RPY angles, taken once per angle set: the rotation, the angular
+   velocity and acceleration and the RPY rates of one pose all read them. */
+typedef struct { double cr, sr, cp, sp, cy, sy; } trig;
+
+static inline trig angles(const double *rpy)
 {
-    double cr = cos(rpy[0]), sr = sin(rpy[0]);
-    double cp = cos(rpy[1]), sp = sin(rpy[1]);
-    double cy = cos(rpy[2]), sy = sin(rpy[2]);
+    trig t = {cos(rpy[0]), sin(rpy[0]), cos(rpy[1]), sin(rpy[1]), cos(rpy[2]), sin(rpy[2])};
+    return t;
+}
+
+/* R = Rz(yaw) Ry(pitch) Rx(roll), row-major 3x3. */
+static inline void rotation(const trig *t, double *R)
+{
+    double cr = t->cr, sr = t->sr, cp = t->cp, sp = t->sp, cy = t->cy, sy = t->sy;
     R[0] = cy * cp; R[1] = cy * sp * sr - sy * cr; R[2] = cy * sp * cr + sy * sr;
     R[3] = sy * cp; R[4] = sy * sp * sr + cy * cr; R[5] = sy * sp * cr - cy * sr;
     R[6] = -sp;     R[7] = cp * sr;                R[8] = cp * cr;
@@ -63,16 +71,16 @@ static inline v3 mul_t(const double *R, v3 x)
 }
 
 /* Angular velocity (parent frame) from RPY angles and rates. */
-static inline v3 omega(const double *rpy, const double *rate)
+static inline v3 omega(const trig *t, const double *rate)
 {
-    double cp = cos(rpy[1]), sp = sin(rpy[1]), cy = cos(rpy[2]), sy = sin(rpy[2]);
+    double cp = t->cp, sp = t->sp, cy = t->cy, sy = t->sy;
     return vec(cy * cp * rate[0] - sy * rate[1], sy * cp * rate[0] + cy * rate[1], rate[2] - sp * rate[0]);
 }
 
 /* Angular acceleration: E acc + dE/dt rate. */
-static inline v3 omega_dot(const double *rpy, const double *rate, const double *acc)
+static inline v3 omega_dot(const trig *t, const double *rate, const double *acc)
 {
-    double cp = cos(rpy[1]), sp = sin(rpy[1]), cy = cos(rpy[2]), sy = sin(rpy[2]);
+    double cp = t->cp, sp = t->sp, cy = t->cy, sy = t->sy;
     double dr = rate[0], dp = rate[1], dy = rate[2];
     return vec((-sy * dy * cp - cy * sp * dp) * dr + cy * cp * acc[0] - cy * dy * dp - sy * acc[1],
                (cy * dy * cp - sy * sp * dp) * dr + sy * cp * acc[0] - sy * dy * dp + cy * acc[1],
@@ -80,9 +88,9 @@ static inline v3 omega_dot(const double *rpy, const double *rate, const double *
 }
 
 /* RPY rates from angular velocity: E^-1 w (singular at pitch = +-90 deg). */
-static inline v3 rpy_rate(const double *rpy, v3 w)
+static inline v3 rpy_rate(const trig *t, v3 w)
 {
-    double cp = cos(rpy[1]), sp = sin(rpy[1]), cy = cos(rpy[2]), sy = sin(rpy[2]);
+    double cp = t->cp, sp = t->sp, cy = t->cy, sy = t->sy;
     double dr = (cy * w.e[0] + sy * w.e[1]) / cp;
     return vec(dr, -sy * w.e[0] + cy * w.e[1], w.e[2] + sp * dr);
 }
@@ -110,21 +118,23 @@ void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joint
     for (int n = 0; n < n_states; n++) {
         const double *pose = pose_all + 6 * n, *rate = rate_all + 6 * n;
         double M[36], h[6], J[36];   /* built here, copied out at the end: no aliasing */
-        rotation(pose + 3, R);
+        const trig tp = angles(pose + 3);
+        rotation(&tp, R);
         v3 p = load(pose), v = load(rate);
-        v3 w = twist_speeds ? load(rate + 3) : omega(pose + 3, rate + 3);
+        v3 w = twist_speeds ? load(rate + 3) : omega(&tp, rate + 3);
 
         /* base motion in {B} */
         v3 g = vec(0.0, 0.0, -g0), aB = zero, wB = zero, eB = zero;
         if (base_mode != MB_HEXAPOD_BASE_NONE) {
             const double *bp = base_pose + 6 * n;
-            rotation(bp + 3, Rb);
+            const trig tb = angles(bp + 3);
+            rotation(&tb, Rb);
             g = vec(-g0 * Rb[6], -g0 * Rb[7], -g0 * Rb[8]);
             if (base_mode == MB_HEXAPOD_BASE_FULL) {
                 const double *br = base_rate + 6 * n, *ba = base_acc + 6 * n;
                 aB = mul_t(Rb, load(ba));
-                wB = mul_t(Rb, omega(bp + 3, br + 3));
-                eB = mul_t(Rb, omega_dot(bp + 3, br + 3, ba + 3));
+                wB = mul_t(Rb, omega(&tb, br + 3));
+                eB = mul_t(Rb, omega_dot(&tb, br + 3, ba + 3));
             }
         }
 
@@ -234,7 +244,7 @@ void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joint
             if (twist_speeds) {
                 for (int k = 0; k < 6; k++) du[k] = arg[k];
             } else {
-                v3 wd = omega_dot(pose + 3, rate + 3, arg + 3);
+                v3 wd = omega_dot(&tp, rate + 3, arg + 3);
                 du[0] = arg[0]; du[1] = arg[1]; du[2] = arg[2];
                 du[3] = wd.e[0]; du[4] = wd.e[1]; du[5] = wd.e[2];
             }
@@ -246,13 +256,12 @@ void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joint
                 }
                 b[i] = acc;
             }
-            det[n] = mb_solve(6, A, b, x);
+            det[n] = mb_solve6(A, b, x);
             for (int k = 0; k < 6; k++) out_all[6 * n + k] = x[k];
             continue;
         }
         for (int i = 0; i < 36; i++) A[i] = J[i];
-        for (int i = 0; i < 6; i++) b[i] = 0.0;
-        det[n] = mb_solve(6, A, b, x);
+        det[n] = mb_det6(A);
         if (solve == MB_HEXAPOD_FD) {
             const double *arg = arg_all + 6 * n;
             double *out = out_all + 6 * n;
@@ -264,12 +273,12 @@ void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joint
                 }
                 b[i] = acc;
             }
-            mb_solve(6, A, b, x);
+            mb_solve6(A, b, x);
             if (twist_speeds) {
                 for (int k = 0; k < 6; k++) out[k] = x[k];
             } else {
-                v3 wd0 = omega_dot(pose + 3, rate + 3, zero3);
-                v3 rpy_acc = rpy_rate(pose + 3, vec(x[3] - wd0.e[0], x[4] - wd0.e[1], x[5] - wd0.e[2]));
+                v3 wd0 = omega_dot(&tp, rate + 3, zero3);
+                v3 rpy_acc = rpy_rate(&tp, vec(x[3] - wd0.e[0], x[4] - wd0.e[1], x[5] - wd0.e[2]));
                 out[0] = x[0]; out[1] = x[1]; out[2] = x[2];
                 out[3] = rpy_acc.e[0]; out[4] = rpy_acc.e[1]; out[5] = rpy_acc.e[2];
             }
@@ -287,11 +296,35 @@ void mb_hexapod_kane(const double *base_joints, const double *platform_joints, c
                         base_acc, base_mode, legs, twist_speeds, solve, 0.0, NULL, M, h, J, ldot, length, out, det);
 }
 
+int mb_hexapod_kane_checked(const double *base_joints, const double *platform_joints, const double *data,
+                            int n, const double *pose, const double *rate, const double *arg,
+                            const double *base_pose, const double *base_rate, const double *base_acc,
+                            int base_mode, int legs, int twist_speeds, int solve, double *work)
+{
+    const double *states[6] = {pose, rate, arg, base_pose, base_rate, base_acc};
+    const size_t m = (size_t)n;
+    int bad = 0;
+    for (int k = 0; k < 6; k++) {
+        if (!states[k]) continue;
+        for (size_t i = 0; i < 6 * m; i++)
+            if (!isfinite(states[k][i])) {
+                bad |= 1 << k;
+                break;
+            }
+    }
+    if (!bad)
+        mb_hexapod_kane(base_joints, platform_joints, data, n, pose, rate, arg, base_pose, base_rate, base_acc,
+                        base_mode, legs, twist_speeds, solve, work, work + 36 * m, work + 42 * m, work + 78 * m,
+                        work + 84 * m, work + 90 * m, work + 96 * m);
+    return bad;
+}
+
 /* Leg rates [m/s] of x = [pose, twist] (the formula of mb_hexapod_leg_kinematics). */
 static void leg_rates(const double *bj, const double *pj, const double *x, double *ld)
 {
     double R[9];
-    rotation(x + 3, R);
+    const trig t = angles(x + 3);
+    rotation(&t, R);
     v3 v = load(x + 6), w = load(x + 9);
     for (int j = 0; j < 6; j++) {
         v3 rho = mul(R, load(pj + 3 * j));
@@ -345,7 +378,8 @@ double mb_hexapod_rhs_actuated(const double *bj, const double *pj, const double 
     mb_hexapod_kane_ext(bj, pj, data, 1, x, x + 6, forces, base, base + 6, base + 12, base_mode, legs, 1,
                         MB_HEXAPOD_FD, act ? act[MB_ACT_REFLECTED_MASS] : 0.0, wrench, M, h, J, ldot, length, out,
                         &det);
-    v3 rr = rpy_rate(x + 3, load(x + 9));
+    const trig tx = angles(x + 3);
+    v3 rr = rpy_rate(&tx, load(x + 9));
     for (int k = 0; k < 3; k++) {
         dx[k] = x[6 + k];
         dx[3 + k] = rr.e[k];
@@ -364,7 +398,8 @@ double mb_hexapod_rhs(const double *bj, const double *pj, const double *data, co
 void mb_hexapod_leg_kinematics(const double *bj, const double *pj, const double *x, double *outputs)
 {
     double R[9];
-    rotation(x + 3, R);
+    const trig t = angles(x + 3);
+    rotation(&t, R);
     v3 v = load(x + 6), w = load(x + 9);
     for (int j = 0; j < 6; j++) {
         v3 rho = mul(R, load(pj + 3 * j));
@@ -373,7 +408,7 @@ void mb_hexapod_leg_kinematics(const double *bj, const double *pj, const double 
         outputs[j] = l;
         outputs[6 + j] = dot(L, add(v, cross(w, rho))) / l;
     }
-    v3 rr = rpy_rate(x + 3, w);
+    v3 rr = rpy_rate(&t, w);
     for (int k = 0; k < 3; k++) {
         outputs[12 + k] = v.e[k];
         outputs[15 + k] = rr.e[k];
@@ -454,4 +489,11 @@ double mb_hexapod_inverse_dynamics(const double *base_joints, const double *plat
     mb_hexapod_kane(base_joints, platform_joints, data, 1, pose, pose_rate, pose_acc, base_pose, base_rate,
                     base_acc, base_mode, legs, 0, MB_HEXAPOD_ID, M, h, J, ldot, length, forces, &det);
     return det;
+}
+
+double mb_hexapod_state_inverse_dynamics(const struct mb_hexapod_state_id *s)
+{
+    return mb_hexapod_inverse_dynamics(s->base_joints, s->platform_joints, s->data, s->state[0], s->state[1],
+                                       s->state[2], s->state[3], s->state[4], s->state[5], s->base_mode, s->legs,
+                                       s->forces, s->length, s->ldot);
 }

@@ -68,6 +68,16 @@ void mb_hexapod_kane(const double *base_joints, const double *platform_joints, c
                      double *M, double *h, double *J, double *ldot, double *length,
                      double *out, double *det);
 
+/* mb_hexapod_kane after looking for NaN or inf in the six state arrays (each n x 6; a
+   NULL one is skipped), its outputs in one block: work (97 n) holds M, h, J, ldot, length,
+   out and det one after the other. Returns 0 when all inputs are finite, else a bitmask
+   (bit k set for array k of pose, rate, arg, base_pose, base_rate, base_acc), and then
+   writes nothing. The Python API's call: one check in one pass, one output pointer. */
+int mb_hexapod_kane_checked(const double *base_joints, const double *platform_joints, const double *data,
+                            int n, const double *pose, const double *rate, const double *arg,
+                            const double *base_pose, const double *base_rate, const double *base_acc,
+                            int base_mode, int legs, int twist_speeds, int solve, double *work);
+
 /* mb_hexapod_kane with two more terms (both off when 0 / NULL, then bit for bit the same):
    reflected_mass m_r [kg]: motor rotor and screw inertia reflected along every leg
      (J_rotor (2 pi / pitch)^2), kinetic energy m_r ld_j^2 / 2 per leg: M += m_r J^T J and
@@ -155,5 +165,20 @@ double mb_hexapod_inverse_dynamics(const double *base_joints, const double *plat
                                    const double *pose_acc, const double *base_pose,
                                    const double *base_rate, const double *base_acc, int base_mode,
                                    int legs, double *forces, double *length, double *ldot);
+
+/* One state's inverse dynamics as a per-step caller sets it up: the hexapod (as for
+   mb_hexapod_kane), the fidelity, three output buffers of 6 doubles, fixed once, and
+   the six inputs of 6 doubles (pose, pose_rate, pose_acc, base_pose, base_rate,
+   base_acc), repointed only when the caller's arrays change. */
+struct mb_hexapod_state_id {
+    const double *base_joints, *platform_joints, *data;
+    int base_mode, legs;
+    double *forces, *length, *ldot;
+    const double *state[6];
+};
+
+/* mb_hexapod_inverse_dynamics of the set-up state: det J, the outputs written. A call
+   from Python converts one argument instead of 14. */
+double mb_hexapod_state_inverse_dynamics(const struct mb_hexapod_state_id *setup);
 
 #endif
