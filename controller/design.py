@@ -101,16 +101,6 @@ def leg_mass_matrix(params, pose=HOME_POSE):
     return inverse.T @ terms.mass @ inverse
 
 
-def leg_loop(mass, gains, comm_step):
-    """Discrete SISO loop transfer of one leg mode 1/(mass s^2): ZOH plant with sampled
-    length and rate, the PID of controller.pid, one step of delay."""
-    plant = control.c2d(control.ss([[0, 1], [0, 0]], [[0], [1 / mass]], np.eye(2), 0), comm_step, "zoh")
-    pid = control.ss([[1.0]], [[comm_step, 0.0]], [[gains.ki]],
-                     [[gains.kp + gains.ki * comm_step, gains.kd]], comm_step)
-    delay = control.ss([[0.0]], [[1.0]], [[1.0]], [[0.0]], comm_step)
-    return delay * pid * plant
-
-
 def loop_margins(loop, points=4000):
     """(gain crossover [rad/s], phase margin [deg], upper and lower gain margin [ratio]) of a
     discrete SISO loop, from its frequency response up to Nyquist.
@@ -137,9 +127,9 @@ def _db(ratio):
 @dataclass(frozen=True)
 class LoopModel:
     """What lies between the controller and a leg-space mode besides the mode's mass, as
-    the realistic loop's FMUs and master implement it (defaults: IDEAL, the loop leg_loop
-    models). Per leg: ``reflected_mass`` [kg] (motor rotor and screw through the pitch; it
-    adds m_r I to M_leg, so the modes keep their shapes and gain m_r each),
+    the realistic loop's FMUs and master implement it (defaults: IDEAL, sampled length and
+    rate, the PID, one step of delay). Per leg: ``reflected_mass`` [kg] (motor rotor and
+    screw through the pitch; it adds m_r I to M_leg, so the modes keep their shapes and gain m_r each),
     ``actuator_bandwidth`` [Hz] (the force follows the held command through
     dF/dt = 2 pi f (F_cmd - F), plant/c/hexapod.c; 0: at once), ``viscous_friction``
     [N s/m]; ``leg_sensor``: the controller reads the LegSensor FMU (sensors.c: the length
@@ -190,7 +180,8 @@ def mode_loop(mass, gains, comm_step, loop=IDEAL):
     mass included, see modal_masses) in the loop ``loop``: force command held over the
     step (ZOH) -> actuator lag -> mass with viscous friction -> (leg sensor) -> PID of
     controller.pid -> one step of controller delay; the master's extrapolation on every
-    connection of the loop. With IDEAL it is leg_loop."""
+    connection of the loop. With IDEAL: ZOH plant 1/(mass s^2) with sampled length
+    and rate, the PID of controller.pid, one step of delay."""
     h = comm_step
     w_a = 2 * np.pi * loop.actuator_bandwidth
     if w_a > 0:   # states (F, l, dl/dt), input F_cmd
@@ -259,7 +250,7 @@ def design_pid(params, crossover_hz, phase_margin_deg, comm_step, integral_ratio
                force_limit=DEFAULT_FORCE_LIMIT, pose=HOME_POSE, loop=IDEAL):
     """PID gains that give the heaviest leg-space mode crossover ``crossover_hz`` with phase
     margin ``phase_margin_deg`` in the sampled loop (mode_loop in ``loop``; IDEAL: the
-    shipped method's leg_loop), ki = kp w_c / integral_ratio.
+    shipped method's loop), ki = kp w_c / integral_ratio.
 
     |L| = 1 and arg L = PM - 180 deg at w_c are solved exactly. Raises ValueError if the
     crossover is not below Nyquist, if that needs a negative gain (crossover too high or

@@ -10,7 +10,7 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
-from controller.design import _closed_loop_matrix, leg_loop, loop_margins
+from controller.design import _closed_loop_matrix, loop_margins, mode_loop
 from controller.pid import PIDGains
 from plant import mechanism3t as m3t
 from plant.errors import InvalidInputError
@@ -167,7 +167,7 @@ def test_default_gains_are_well_damped(fmus):
     damping of every pole of the linearised MIMO loop (gravity, coupling, ZOH, one step delay)."""
     gains = default_gains(fmus[CONTROLLER])
     for mass in np.linalg.eigvalsh(m3t.mass_matrix(P, RHO_REF)):
-        _, phase_margin, gain_margin, _ = loop_margins(leg_loop(mass, gains, 1e-3))
+        _, phase_margin, gain_margin, _ = loop_margins(mode_loop(mass, gains, 1e-3))
         assert phase_margin >= 59 and 20 * np.log10(gain_margin) >= 20
     plant = linearised()
     for h, zeta_min in ((1e-3, 0.75), (2e-3, 0.75), (5e-3, 0.65)):
