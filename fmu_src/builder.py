@@ -179,7 +179,8 @@ def build(script, out):
         for name, make in files.items():
             project_files.append(pathlib.Path(tmp) / name)
             project_files[-1].write_text(make())
-        fmu = FmuBuilder.build_FMU(path, dest=out, project_files=project_files, canGetAndSetFMUstate=True)
+        fmu = FmuBuilder.build_FMU(path, dest=out, project_files=project_files, canGetAndSetFMUstate=True,
+                                   canSerializeFMUstate=True)
         _rewrite(fmu, *_recorded(fmu), compile_shim(tmp))
     problems = validate_fmu(str(fmu))
     if problems:

@@ -87,6 +87,7 @@ class HexapodPlant(GuardedSlave):
                             a["friction_velocity"], a["actuator_force_limit"])
         self.ode = HexapodODE(params, FIDELITIES[self.fidelity], bool(self.moving_base),
                               INTEGRATORS[self.integrator], self.max_step, self.inputs, self.outputs, actuator)
+        self.x[12:] = 0.0   # motor forces of an earlier evaluation in initialization mode: gone, as native
         self.state = self.x[:12 + actuator.states]   # the ODE's state: a view of x
         self.state[:] = self.ode.initial_state(self.initial_pose)
         self.ode.advance(self.state, 0.0)

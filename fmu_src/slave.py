@@ -36,9 +36,17 @@ them or in arrays they are views of) are put back as they were before the step,
 so a host reading outputs after fmi2Discard sees the last accepted state, at the time
 fmi2GetRealStatus(fmi2LastSuccessfulTime) answers (the shim's: the end of the last accepted step).
 
+Serialized FMU state: pythonfmu writes its state dict as JSON, which takes no numpy
+arrays or bytes (the integrator and sensor states), so its serialization answered fmi2Fatal
+and the FMUs declared canSerializeFMUstate="false". Here the dict is JSON with those tagged
+(arrays as their raw bytes, dtype and shape; floats JSON writes exactly, NaN and inf
+included): a blob restores the same bits in any instance of the FMU, as the native ones do.
+
 The FMU scripts import this module from the installed `movingbase` package (not from
 the FMU's resources): one copy in the process, sharing the C kernel built at install.
 """
+import base64
+import json
 import math
 from xml.etree import ElementTree
 
@@ -108,6 +116,27 @@ def range_text(valid, unit):
 def inside(value, valid):
     low, high = valid
     return (low is None or value >= low) and (high is None or value <= high)   # False for NaN
+
+
+def _encode(value):
+    """JSON for what a slave's state holds beyond JSON's own types (tuples JSON writes as lists)."""
+    if isinstance(value, np.ndarray):
+        return {"__ndarray__": base64.b64encode(np.ascontiguousarray(value).tobytes()).decode("ascii"),
+                "dtype": value.dtype.str, "shape": list(value.shape)}
+    if isinstance(value, bytes):
+        return {"__bytes__": base64.b64encode(value).decode("ascii")}
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"FMU state cannot hold a {type(value).__name__}")
+
+
+def _decode(entry):
+    if "__ndarray__" in entry:
+        raw = base64.b64decode(entry["__ndarray__"])
+        return np.frombuffer(raw, dtype=np.dtype(entry["dtype"])).reshape(entry["shape"]).copy()
+    if "__bytes__" in entry:
+        return base64.b64decode(entry["__bytes__"])
+    return entry
 
 
 class GuardedSlave(Fmi2Slave):
@@ -366,6 +395,14 @@ class GuardedSlave(Fmi2Slave):
         self.set_extra_state(state.pop("__extra__"))
         self.failure = state.pop("__failure__")
         super()._set_fmu_state(state)
+
+    @staticmethod
+    def _fmu_state_to_bytes(state):
+        return json.dumps(state, default=_encode).encode("utf-8")
+
+    @staticmethod
+    def _fmu_state_from_bytes(blob):
+        return json.loads(blob.decode("utf-8"), object_hook=_decode)
 
     def extra_state(self):
         """Internal state beyond the registered variables (integrator state)."""
