@@ -128,7 +128,8 @@ def compile_shim(folder):
     library = pathlib.Path(folder) / "pythonfmu_shim.so"
     headers = pathlib.Path(fmpy.__file__).resolve().parent / "c-code"
     cc = os.environ.get("CC", "cc")
-    command = [cc, "-shared", "-fPIC", "-O2", "-Wall", "-Wextra", "-Werror", "-I", str(headers), str(SHIM),
+    command = [cc, "-shared", "-fPIC", "-O2", "-Wall", "-Wextra", "-Werror", "-I", str(headers), "-I", str(SHIM.parent),
+               str(SHIM),
                "-o", str(library), "-ldl", "-lpthread"]
     try:
         p = subprocess.run(command, capture_output=True, text=True)
@@ -195,7 +196,7 @@ def available():
 
 def _sources():
     return [p for folder in ("fmu_src", "controller") for p in (ROOT / folder).glob("*.py")] + \
-        [p for p in (PYPROJECT, SHIM) if p.exists()]
+        [p for p in (PYPROJECT, SHIM, SHIM.parent / "native" / "crc32.h") if p.exists()]
 
 
 def ensure_built(scripts, out=OUT):

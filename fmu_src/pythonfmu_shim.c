@@ -25,6 +25,9 @@
  *   the status, after the slave's line has said what is wrong. A fatal without the
  *   slave's error (an exception our slave did not catch) stays fmi2Fatal, its
  *   messages delivered as they came.
+ * - fmi2DeSerializeFMUstate: bytes that are not a state this FMU serialized (header
+ *   line and checksum, GuardedSlave._fmu_state_to_bytes) are refused with fmi2Error and
+ *   a log line before the wrapper sees them.
  *   fmi2SetupExperiment and fmi2EnterInitializationMode are forwarded unchanged:
  *   GuardedSlave's methods there only record values (the start time, that
  *   initialization mode began), so a fatal there is one no slave code guarded, and
@@ -51,6 +54,7 @@
 #include <string.h>
 
 #include "fmi2Functions.h"
+#include "native/crc32.h"
 
 /* X(name, parameters, arguments): every function forwarded as is; INNER is the
  * wrapper's component inside ours. */
@@ -80,8 +84,6 @@
     X(fmi2SerializedFMUstateSize, (fmi2Component c, fmi2FMUstate state, size_t *size), (INNER, state, size)) \
     X(fmi2SerializeFMUstate, (fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size), \
       (INNER, state, bytes, size)) \
-    X(fmi2DeSerializeFMUstate, (fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate *state), \
-      (INNER, bytes, size, state)) \
     X(fmi2GetDirectionalDerivative, (fmi2Component c, const fmi2ValueReference unknown[], size_t n_unknown, \
                                      const fmi2ValueReference known[], size_t n_known, const fmi2Real dv_known[], \
                                      fmi2Real dv_unknown[]), \
@@ -98,7 +100,7 @@
 
 /* The functions this file defines itself (they do more than forward). */
 #define OWN(Y) Y(fmi2GetTypesPlatform) Y(fmi2GetVersion) Y(fmi2Instantiate) Y(fmi2FreeInstance) \
-    Y(fmi2ExitInitializationMode) Y(fmi2Terminate) Y(fmi2DoStep) Y(fmi2GetRealStatus)
+    Y(fmi2ExitInitializationMode) Y(fmi2DeSerializeFMUstate) Y(fmi2Terminate) Y(fmi2DoStep) Y(fmi2GetRealStatus)
 
 /* The wrapper's functions, found by dlsym at the first fmi2Instantiate. */
 #define MEMBER(name, ...) name##TYPE *name;
@@ -130,6 +132,7 @@ typedef struct {
 
 static pthread_once_t load_once = PTHREAD_ONCE_INIT;
 static char load_error[4200];   /* empty once the wrapper is loaded */
+static char model_id[256];   /* <id> of binaries/linux64/<id>.so: the slave's class name */
 
 /* dlopen the wrapper <this library's name without .so>.pythonfmu.so beside this one. */
 static void load(void) {
@@ -145,6 +148,9 @@ static void load(void) {
         return;
     }
     snprintf(path, sizeof path, "%.*s.pythonfmu.so", (int)(n - 3), self.dli_fname);
+    const char *base = strrchr(self.dli_fname, '/');
+    base = base ? base + 1 : self.dli_fname;
+    snprintf(model_id, sizeof model_id, "%.*s", (int)(strlen(base) - 3), base);
     dlopen(self.dli_fname, RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);   /* see the header: never unloaded */
     void *lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     if (!lib) {
@@ -305,6 +311,42 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     int as_error = status == fmi2Fatal && s->slave_error;
     release(s, as_error);
     return as_error ? fmi2Error : status;
+}
+
+/* Why bytes are not a state this FMU serialized (GuardedSlave._fmu_state_to_bytes: the
+   line "movingbase-state <id> <crc32 of the rest, 8 hex digits>" and the JSON), or NULL. */
+static const char *foreign(const fmi2Byte *bytes, size_t size) {
+    static const char magic[] = "movingbase-state ";
+    size_t m = sizeof magic - 1, id = strlen(model_id);
+    if (!bytes || size < m + id + 10 || memcmp(bytes, magic, m) != 0) return "no movingbase state header";
+    if (memcmp(bytes + m, model_id, id) != 0 || bytes[m + id] != ' ') return "a state of another FMU";
+    const char *hex = bytes + m + id + 1;
+    char digits[9];
+    memcpy(digits, hex, 8);
+    digits[8] = '\0';
+    char *end;
+    unsigned long crc = strtoul(digits, &end, 16);
+    if (end != digits + 8 || hex[8] != '\n') return "a damaged header";
+    size_t head = m + id + 10;
+    if (mb_crc32(bytes + head, size - head) != crc) return "its checksum does not match";
+    return NULL;
+}
+
+/* Bytes that are not a state of this FMU are refused here, with fmi2Error and a log line:
+   given to the wrapper, GuardedSlave could only raise, which the wrapper answers with
+   fmi2Fatal after dropping references to the instance, its class and its log queue (a
+   crash later, as after a failed initialization). */
+fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate *state) {
+    Shim *s = c;
+    const char *why = foreign(bytes, size);
+    if (why) {
+        char text[256];
+        snprintf(text, sizeof text, "fmi2DeSerializeFMUstate: the %zu bytes are not a serialized state of %s (%s)",
+                 size, model_id, why);
+        deliver(s, fmi2Error, "logStatusError", text);
+        return fmi2Error;
+    }
+    return wrapper.fmi2DeSerializeFMUstate(s->inner, bytes, size, state);
 }
 
 fmi2Status fmi2Terminate(fmi2Component c) {

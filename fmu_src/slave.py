@@ -41,6 +41,9 @@ arrays or bytes (the integrator and sensor states), so its serialization answere
 and the FMUs declared canSerializeFMUstate="false". Here the dict is JSON with those tagged
 (arrays as their raw bytes, dtype and shape; floats JSON writes exactly, NaN and inf
 included): a blob restores the same bits in any instance of the FMU, as the native ones do.
+A header line (model identifier, CRC-32) lets the shim refuse foreign bytes with fmi2Error
+before the wrapper sees them: an exception there would be its fmi2Fatal, after which it
+has dropped references the instance still needs.
 
 The FMU scripts import this module from the installed `movingbase` package (not from
 the FMU's resources): one copy in the process, sharing the C kernel built at install.
@@ -48,6 +51,7 @@ the FMU's resources): one copy in the process, sharing the C kernel built at ins
 import base64
 import json
 import math
+import zlib
 from xml.etree import ElementTree
 
 import numpy as np
@@ -84,6 +88,7 @@ def _flat_slot(values, i, flat_views):
     return flat, (offset + i * values.strides[0]) // values.itemsize
 
 
+STATE_MAGIC = b"movingbase-state"   # first word of a serialized state (fmu_src/pythonfmu_shim.c checks it)
 _SURVIVORS = []   # (instance, class, log queue) of instances whose initialization failed
 
 
@@ -386,6 +391,7 @@ class GuardedSlave(Fmi2Slave):
         state["__arrays__"] = {k: v.copy() for k, v in self.arrays.items()}
         state["__extra__"] = self.extra_state()
         state["__failure__"] = self.failure
+        state["__slave__"] = type(self).__name__   # the FMU's model identifier, for the blob's header
         return state
 
     def _set_fmu_state(self, state):
@@ -394,15 +400,25 @@ class GuardedSlave(Fmi2Slave):
             self.arrays[k][:] = v
         self.set_extra_state(state.pop("__extra__"))
         self.failure = state.pop("__failure__")
+        state.pop("__slave__")
         super()._set_fmu_state(state)
 
     @staticmethod
     def _fmu_state_to_bytes(state):
-        return json.dumps(state, default=_encode).encode("utf-8")
+        """A header line the shim checks before the wrapper sees a blob (``movingbase-state
+        <class> <crc32 of the rest>``), then the state as JSON."""
+        payload = json.dumps(state, default=_encode).encode("utf-8")
+        return b"%s %s %08x\n" % (STATE_MAGIC, state["__slave__"].encode(), zlib.crc32(payload)) + payload
 
     @staticmethod
-    def _fmu_state_from_bytes(blob):
-        return json.loads(blob.decode("utf-8"), object_hook=_decode)
+    def _fmu_state_from_bytes(blob):   # pythonfmu calls it on the class, after the shim's check
+        blob = bytes(blob)
+        head, _, payload = blob.partition(b"\n")
+        magic, _, rest = head.partition(b" ")
+        crc = rest.rpartition(b" ")[2]
+        if magic != STATE_MAGIC or crc != b"%08x" % zlib.crc32(payload):   # a host without the shim (win64)
+            raise ValueError(f"the {len(blob)} bytes are not a serialized state of this FMU")
+        return json.loads(payload.decode("utf-8"), object_hook=_decode)
 
     def extra_state(self):
         """Internal state beyond the registered variables (integrator state)."""

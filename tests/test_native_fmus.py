@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.build import build_platform_binary
+from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import fmi2LastSuccessfulTime, fmi2Real
 
 from fmu_src import builder, native_build
@@ -417,3 +418,29 @@ def test_misuse_answers_error_with_a_log_line(native):
         other.fmu.deSerializeFMUstate(blob)
     assert "not a serialised LegController state" in other.log[-1]
     assert step(inst, 0.0, 1e-3) == OK   # the instance still works
+
+
+@pytest.mark.parametrize("implementation", ["native", "python"])
+def test_bytes_that_are_no_state_are_an_error_and_harm_nothing(fmus, native, implementation):
+    """fmi2DeSerializeFMUstate of bytes this FMU did not serialize (not a state, another
+    FMU's state, a state with one byte changed) answers fmi2Error with a log line, and the
+    instance then steps as an untouched one does (pythonfmu's wrapper answered a failing
+    deserialization with fmi2Fatal after dropping references the instance needs: the
+    shim refuses such bytes before it sees them)."""
+    paths = native if implementation == "native" else fmus
+    telescope, _ = opened(paths["telescope_fmu"], profile=2)
+    other = bytes(telescope.fmu.serializeFMUstate(telescope.fmu.getFMUstate()))
+    plant, _ = opened(paths["hexapod_plant_fmu"], moving_base=0)
+    good = bytearray(plant.fmu.serializeFMUstate(plant.fmu.getFMUstate()))
+    good[len(good) // 2] ^= 0x01
+    runs = []
+    for garbage in (b"\0" * 24, b'{"not": "a state"}', other, bytes(good), None):
+        inst, status = opened(paths["hexapod_plant_fmu"], **{"moving_base": 0, "leg_force[1]": 5.3e3})
+        assert status == OK
+        if garbage:
+            with pytest.raises(FMICallException) as raised:
+                inst.fmu.deSerializeFMUstate(garbage)
+            assert raised.value.status == ERROR, garbage[:40]
+            assert any(line.startswith("[ERROR]") for line in inst.log), inst.log
+        runs.append([(step(inst, k * 1e-3, 1e-3), *reals(inst, ["pose[3]"])) for k in range(5)])
+    assert all(run == runs[-1] for run in runs)

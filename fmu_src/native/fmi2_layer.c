@@ -17,6 +17,7 @@
 
 #include "fmi2Functions.h"
 #include "model.h"
+#include "crc32.h"
 
 enum phase { INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED };
 enum { CAT_WARNING, CAT_DISCARD, CAT_ERROR, CAT_FATAL, CAT_ALL, NCAT };
@@ -50,7 +51,7 @@ typedef struct {
     unsigned char data[];
 } saved_state;
 
-static const char MAGIC[8] = {'M', 'B', 'F', 'M', 'U', 'S', '2', '\0'};
+static const char MAGIC[8] = {'M', 'B', 'F', 'M', 'U', 'S', '3', '\0'};   /* 3: with the checksum */
 
 #define LAYER(inst) ((layer_state *)(inst)->block)
 #define REALS(inst) ((double *)((inst)->block + (inst)->r_off))
@@ -696,8 +697,8 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
 }
 
 /* Serialised: MAGIC, the block size as 8 bytes, the model identifier (ID_BYTES, zero
-   padded), the block (this platform's doubles). */
-enum { ID_BYTES = 64, HEADER = sizeof MAGIC + 8 + ID_BYTES };
+   padded), the CRC-32 of the block as 8 bytes, the block (this platform's doubles). */
+enum { ID_BYTES = 64, CRC_AT = sizeof MAGIC + 8 + ID_BYTES, HEADER = CRC_AT + 8 };
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
 {
     if (!usable(c)) return fmi2Error;
@@ -720,6 +721,8 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byt
     memcpy(serializedState + sizeof MAGIC, &n, 8);
     memset(serializedState + sizeof MAGIC + 8, 0, ID_BYTES);
     strncpy((char *)serializedState + sizeof MAGIC + 8, MB_MODEL.identifier, ID_BYTES - 1);
+    unsigned long long crc = mb_crc32(st->data, st->size);
+    memcpy(serializedState + CRC_AT, &crc, 8);
     memcpy(serializedState + HEADER, st->data, st->size);
     return fmi2OK;
 }
@@ -729,12 +732,16 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
 {
     if (!usable(c) || !FMUstate) return fmi2Error;
     mb_instance *inst = c;
-    unsigned long long n = 0;
-    if (size >= sizeof MAGIC + 8) memcpy(&n, serializedState + sizeof MAGIC, 8);
+    unsigned long long n = 0, crc = 0;
+    if (size >= HEADER) {
+        memcpy(&n, serializedState + sizeof MAGIC, 8);
+        memcpy(&crc, serializedState + CRC_AT, 8);
+    }
     if (size != HEADER + inst->size || memcmp(serializedState, MAGIC, sizeof MAGIC) != 0 || n != inst->size ||
-        strncmp((const char *)serializedState + sizeof MAGIC + 8, MB_MODEL.identifier, ID_BYTES) != 0) {
-        logf_(inst, fmi2Error, CAT_ERROR, "fmi2DeSerializeFMUstate: the bytes are not a serialised %s state (%zu bytes)",
-              MB_MODEL.identifier, size);
+        strncmp((const char *)serializedState + sizeof MAGIC + 8, MB_MODEL.identifier, ID_BYTES) != 0 ||
+        crc != mb_crc32(serializedState + HEADER, inst->size)) {
+        logf_(inst, fmi2Error, CAT_ERROR, "fmi2DeSerializeFMUstate: the bytes are not a serialised %s state (%zu bytes%s)",
+              MB_MODEL.identifier, size, size == HEADER + inst->size ? ", or damaged: header or checksum" : "");
         return fmi2Error;
     }
     saved_state *st = *FMUstate;
