@@ -39,12 +39,20 @@ from scenarios.fmi import Instance, RealPort
 STEPS, H = 2000, 1e-3
 
 
-def plant_step_us(path, steps=STEPS):
-    """µs per doStep of a HexapodPlant holding the platform at rest."""
+def rest_forces():
+    """Leg forces holding the platform at rest at home (fixed base)."""
+    return inverse_dynamics(StewartParams.paper(), HOME_POSE, np.zeros(6), np.zeros(6))
+
+
+def plant_step_us(path, parameters=None, steps=STEPS):
+    """µs per doStep under fmpy of a HexapodPlant (``parameters`` on top of a fixed base)
+    holding the platform at rest; the forces are there at initialization too, so an
+    actuator with a bandwidth starts without a transient."""
     inst = Instance(path, "plant")
     try:
-        inst.initialize(0.0, {"moving_base": 0})
-        forces = inverse_dynamics(StewartParams.paper(), HOME_POSE, np.zeros(6), np.zeros(6))
+        forces = rest_forces()
+        inst.initialize(0.0, {"moving_base": 0, **(parameters or {}),
+                              **{f"leg_force[{i + 1}]": forces[i] for i in range(6)}})
         RealPort(inst, [f"leg_force[{i}]" for i in range(1, 7)]).write(forces)
         start = time.perf_counter()
         for k in range(steps):
@@ -56,8 +64,7 @@ def plant_step_us(path, steps=STEPS):
 
 def c_host_step_us(path, folder, steps):
     """µs per doStep of a HexapodPlant holding the platform at rest, timed by the C host."""
-    forces = inverse_dynamics(StewartParams.paper(), HOME_POSE, np.zeros(6), np.zeros(6))
-    run = HostFmu(path, folder).run(steps=steps, real={f"leg_force[{i + 1}]": f for i, f in enumerate(forces)},
+    run = HostFmu(path, folder).run(steps=steps, real={f"leg_force[{i + 1}]": f for i, f in enumerate(rest_forces())},
                                     integer={"moving_base": 0}, timed=True)
     if run.returncode != 0:
         raise RuntimeError(f"C host failed on {path}: exit {run.returncode}\n{run.stderr[-2000:]}")

@@ -15,16 +15,12 @@ Repeats interleave the cases (median), so machine load hits all alike.
 import argparse
 import statistics
 import tempfile
-import time
 
-import numpy as np
-
+from bench_native import plant_step_us   # this folder: the scripts run from it
 from fmu_src import builder, native_build
-from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
 from scenarios import runner
-from scenarios.fmi import Instance, RealPort
 
-STEPS, H = 3000, 1e-3
+STEPS = 3000
 CASES = {   # label: plant parameters
     "actuator off (ideal)": {},
     "force loop 50 Hz": {"actuator_bandwidth": 50.0},
@@ -35,21 +31,6 @@ CASES = {   # label: plant parameters
                                  "viscous_friction": 2000.0, "actuator_force_limit": 25e3, "max_step": 1e-4},
     "ideal at max_step 0.1 ms": {"max_step": 1e-4},
 }
-
-
-def plant_step_us(path, parameters, steps=STEPS):
-    """µs per doStep of a HexapodPlant holding the platform at rest."""
-    inst = Instance(path, "plant")
-    try:
-        forces = inverse_dynamics(StewartParams.paper(), HOME_POSE, np.zeros(6), np.zeros(6))
-        inst.initialize(0.0, {"moving_base": 0, **parameters, **{f"leg_force[{i + 1}]": forces[i] for i in range(6)}})
-        RealPort(inst, [f"leg_force[{i}]" for i in range(1, 7)]).write(forces)
-        start = time.perf_counter()
-        for k in range(steps):
-            inst.do_step(k * H, H)
-        return (time.perf_counter() - start) / steps * 1e6
-    finally:
-        inst.terminate()
 
 
 def macro_step_us(name, out):
@@ -69,7 +50,7 @@ def main(argv=None):
     for _ in range(args.repeats):
         for label, parameters in CASES.items():
             for impl, path in (("native", native), ("python", python)):
-                times[label, impl].append(plant_step_us(path, parameters))
+                times[label, impl].append(plant_step_us(path, parameters, STEPS))
     med = {key: statistics.median(v) for key, v in times.items()}
     base = {impl: med["actuator off (ideal)", impl] for impl in ("native", "python")}
     print(f"HexapodPlant doStep, RK4, h = 1 ms, fixed base, median of {args.repeats}")

@@ -27,9 +27,9 @@ during initialization (libcosim) then starts every FMU from its neighbours' init
 outputs. Such an evaluation checks the start values first (the native layer does not:
 with bad values the outputs mean nothing either way, and the kernels never see them here)
 and, if they are bad or initialize() fails, leaves the outputs as they were, silently:
-fmi2ExitInitializationMode, which runs the check and initialize() once more, reports it. initialize() computes from
-parameters and inputs only, so the outputs after exit are the same bits with or without
-these evaluations.
+fmi2ExitInitializationMode, which runs the check and initialize() once more, reports it.
+initialize() computes from parameters and inputs only, so the outputs after exit are the
+same bits with or without these evaluations.
 
 Discarded steps: the output arrays (whole: the integrator state of every FMU lives in
 them or in arrays they are views of) are put back as they were before the step,
@@ -339,14 +339,12 @@ class GuardedSlave(Fmi2Slave):
         """The outputs from the parameters and inputs set so far (see the module doc);
         on a bad start value or a failing initialize(), the outputs as they were."""
         self._stale = False
-        for root, saved in self._step_saves:
-            np.copyto(saved, root)
+        self._keep_outputs()
         try:
             self.check_start()
             self.initialize()
         except Exception:   # noqa: BLE001 - reported by exit_initialization_mode, see module doc
-            for root, saved in self._step_saves:
-                np.copyto(root, saved)
+            self._restore_outputs()
 
     def exit_initialization_mode(self):
         self._initializing = self._stale = False
@@ -368,16 +366,22 @@ class GuardedSlave(Fmi2Slave):
             self.log(f"refusing doStep at t={current_time:.6g} s after: {self.failure}",
                      Fmi2Status.error, "logStatusError")
             return False
-        for root, saved in self._step_saves:
-            np.copyto(saved, root)
+        self._keep_outputs()
         try:
             self.step(current_time, step_size)
             return True
         except Exception as exc:   # noqa: BLE001 - reported through FMI status, see module doc
-            for root, saved in self._step_saves:   # back to the outputs of the last accepted state
-                np.copyto(root, saved)
+            self._restore_outputs()   # back to the outputs of the last accepted state
             self.fail(exc, f"at t={current_time:.6g} s")
             return False
+
+    def _keep_outputs(self):
+        for root, saved in self._step_saves:
+            np.copyto(saved, root)
+
+    def _restore_outputs(self):
+        for root, saved in self._step_saves:
+            np.copyto(root, saved)
 
     def initialize(self):
         """Compute the outputs at the start time (after parameters are set)."""

@@ -153,18 +153,16 @@ class HexapodKernel:
 
     def run(self, pose, rate, arg, base_pose, base_rate, base_acc, base_mode, legs, twist_speeds, solve,
             batch=None):
-        """plant.kane.kane on n states given as (n, 6) arrays, its outputs allocated here
-        as views of one block (one pointer for seven arrays): (M, h, J, ldot, length,
-        out, det) with shapes batch + (6, 6), (6,), (6, 6), (6,), (6,), (6,), () where
-        ``batch`` (default (n,)) is any leading shape of n states."""
-        n = len(pose)
-        batch = (n,) if batch is None else batch
-        work = np.empty(97 * n)
-        w = ffi.from_buffer("double[]", work)
-        lib.mb_hexapod_kane(*self.params, n, *readings((pose, rate, arg, base_pose, base_rate, base_acc), (n, 6),
-                                                       STATE_NAMES), base_mode, bool(legs), bool(twist_speeds),
-                            solve, w, w + 36 * n, w + 42 * n, w + 78 * n, w + 84 * n, w + 90 * n, w + 96 * n)
-        return (*self.terms(work, batch), work[90 * n:96 * n].reshape(batch + (6,)), work[96 * n:].reshape(batch))
+        """plant.kane.kane on n states given as (n, 6) arrays, its outputs views of one
+        block: (M, h, J, ldot, length, out, det) with shapes batch + (6, 6), (6,), (6, 6),
+        (6,), (6,), (6,), () where ``batch`` (default (n,)) is any leading shape of n states."""
+        batch = (len(pose),) if batch is None else batch
+        bad, out, det, work = self.checked_run(pose, rate, arg, base_pose, base_rate, base_acc, base_mode, legs,
+                                               twist_speeds, solve, batch)
+        if bad:
+            raise InvalidInputError(f"{', '.join(n for k, n in enumerate(STATE_NAMES) if bad >> k & 1)} "
+                                    "contains NaN or inf")
+        return (*self.terms(work, batch), out, det)
 
     def checked_run(self, pose, rate, arg, base_pose, base_rate, base_acc, base_mode, legs, twist_speeds, solve,
                     batch=None):
@@ -255,14 +253,6 @@ class HexapodKernel:
         """outputs (3, 6) = leg lengths, leg rates and pose rates of x = [pose, twist]."""
         lib.mb_hexapod_leg_kinematics(self.params[0], self.params[1], reading(x, (12,), "x"),
                                       pointer(outputs, (3, 6), "outputs"))
-
-    def inverse_dynamics(self, pose, pose_rate, pose_acc, base_pose, base_rate, base_acc, base_mode, legs,
-                         forces, length, ldot):
-        """det J of one state; leg forces, lengths and rates written into the last three
-        (pointers from ``pointer``, (6,) each). The state arguments are float64 (6,) arrays."""
-        return lib.mb_hexapod_inverse_dynamics(
-            *self.params, *readings((pose, pose_rate, pose_acc, base_pose, base_rate, base_acc), (6,), STATE_NAMES),
-            base_mode, bool(legs), forces, length, ldot)
 
 
 class StateInverseDynamicsCall:

@@ -319,18 +319,12 @@ int mb_hexapod_kane_checked(const double *base_joints, const double *platform_jo
     return bad;
 }
 
-/* Leg rates [m/s] of x = [pose, twist] (the formula of mb_hexapod_leg_kinematics). */
+/* Leg rates [m/s] of x = [pose, twist]: mb_hexapod_leg_kinematics' (defined below). */
 static void leg_rates(const double *bj, const double *pj, const double *x, double *ld)
 {
-    double R[9];
-    const trig t = angles(x + 3);
-    rotation(&t, R);
-    v3 v = load(x + 6), w = load(x + 9);
-    for (int j = 0; j < 6; j++) {
-        v3 rho = mul(R, load(pj + 3 * j));
-        v3 L = vec(x[0] + rho.e[0] - bj[3 * j], x[1] + rho.e[1] - bj[3 * j + 1], x[2] + rho.e[2] - bj[3 * j + 2]);
-        ld[j] = dot(L, add(v, cross(w, rho))) / sqrt(dot(L, L));
-    }
+    double outputs[18];
+    mb_hexapod_leg_kinematics(bj, pj, x, outputs);
+    for (int j = 0; j < 6; j++) ld[j] = outputs[6 + j];
 }
 
 static inline double clamp(double f, double limit)
