@@ -2,7 +2,7 @@
 
     python build.py [--out DIR] [script names]
 """
-from fmu_src.builder import main
+from movingbase.fmu_src.builder import main
 
 if __name__ == "__main__":
     main()

@@ -15,10 +15,10 @@ import time
 
 import numpy as np
 
-from fmu_src.builder import ensure_built
-from scenarios import engine, master, metrics, spec
-from scenarios.fmi import unpack
-from scenarios.runner import SHIPPED
+from movingbase.fmu_src.builder import ensure_built
+from movingbase.scenarios import engine, master, metrics, spec
+from movingbase.scenarios.fmi import unpack
+from movingbase.scenarios.runner import SHIPPED
 
 
 def _jobs(n, stop, offset=0.0):

@@ -12,10 +12,10 @@ import time
 import numpy as np
 from pythonfmu.builder import FmuBuilder
 
-from fmu_src import builder
-from plant import mechanism3t as m3t
-from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
-from scenarios.fmi import Instance, RealPort
+from movingbase.fmu_src import builder
+from movingbase.plant import mechanism3t as m3t
+from movingbase.plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
+from movingbase.scenarios.fmi import Instance, RealPort
 
 HERE = pathlib.Path(__file__).resolve().parent
 STEPS, H = 2000, 1e-3

@@ -31,10 +31,10 @@ import numpy as np
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))   # the checkout: tests.c_host
 from tests.c_host import HostFmu  # noqa: E402
 
-from fmu_src import builder, native_build
-from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
-from scenarios import master, metrics, runner, spec
-from scenarios.fmi import Instance, RealPort
+from movingbase.fmu_src import builder, native_build
+from movingbase.plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
+from movingbase.scenarios import master, metrics, runner, spec
+from movingbase.scenarios.fmi import Instance, RealPort
 
 STEPS, H = 2000, 1e-3
 

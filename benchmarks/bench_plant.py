@@ -13,7 +13,7 @@ from pathlib import Path
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 import numpy as np
 
-from plant import hexapod_ode, kane, stewart
+from movingbase.plant import hexapod_ode, kane, stewart
 
 ROOT = Path(__file__).resolve().parents[1]
 REVISION = "73017ff"

@@ -17,8 +17,8 @@ import statistics
 import tempfile
 
 from bench_native import plant_step_us   # this folder: the scripts run from it
-from fmu_src import builder, native_build
-from scenarios import runner
+from movingbase.fmu_src import builder, native_build
+from movingbase.scenarios import runner
 
 STEPS = 3000
 CASES = {   # label: plant parameters

@@ -10,7 +10,7 @@ import pathlib
 import tempfile
 import time
 
-from scenarios import master, runner
+from movingbase.scenarios import master, runner
 
 
 def scenario_table(ci):

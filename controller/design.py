@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from plant.stewart import HOME_POSE, dynamics_terms, forward_dynamics, inverse_dynamics, pose_jacobian
+from movingbase.plant.stewart import HOME_POSE, dynamics_terms, forward_dynamics, inverse_dynamics, pose_jacobian
 
 from .pid import DEFAULT_FORCE_LIMIT, PIDGains
 

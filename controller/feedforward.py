@@ -11,7 +11,7 @@ The mode says how much of the base motion the controller knows about:
 """
 import numpy as np
 
-from plant.stewart import (StateInverseDynamics, inverse_dynamics, inverse_dynamics_terms, inverse_kinematics,
+from movingbase.plant.stewart import (StateInverseDynamics, inverse_dynamics, inverse_dynamics_terms, inverse_kinematics,
                            pose_jacobian)
 
 FEEDFORWARD_MODES = ("none", "fixed_base", "moving_base")

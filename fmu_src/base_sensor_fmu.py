@@ -11,10 +11,10 @@ FMU compiles. Default values are assumed, from comparable instruments (README).
 """
 import numpy as np
 
-from fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
-from plant import telescope
-from plant._kernel import ffi, lib
-from plant.errors import InvalidInputError
+from movingbase.fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
+from movingbase.plant import telescope
+from movingbase.plant._kernel import ffi, lib
+from movingbase.plant.errors import InvalidInputError
 
 SOURCES = ("encoders", "imu")   # enum mb_bs_source
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")

@@ -31,7 +31,8 @@ import fmpy
 from fmpy.validation import validate_fmu
 from pythonfmu.builder import FmuBuilder
 
-from fmu_src import native_build
+from movingbase import __version__
+from movingbase.fmu_src import native_build
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent   # the checkout, or site-packages
 PYPROJECT = ROOT / "pyproject.toml"
@@ -59,7 +60,7 @@ def requirements():
     """Runtime requirements of the FMUs: the pinned dependencies plus this kit."""
     if PYPROJECT.exists():
         project = tomllib.loads(PYPROJECT.read_text())["project"]
-        name, version, dependencies = project["name"], project["version"], project["dependencies"]
+        name, version, dependencies = project["name"], __version__, project["dependencies"]
     else:   # an installed copy: the same list from its metadata
         name, version = "movingbase", metadata.version("movingbase")
         dependencies = [r for r in metadata.requires(name) if "extra ==" not in r]
@@ -158,8 +159,8 @@ def _rewrite(fmu, units, ranges, shim):
 
 def controller_defaults():
     """Default PID gains, designed with python-control at a 1 ms communication step."""
-    from controller.design import design_pid, DEFAULT_CROSSOVER_HZ, DEFAULT_PHASE_MARGIN_DEG
-    from plant.stewart import StewartParams
+    from movingbase.controller.design import design_pid, DEFAULT_CROSSOVER_HZ, DEFAULT_PHASE_MARGIN_DEG
+    from movingbase.plant.stewart import StewartParams
     d = design_pid(StewartParams.paper(), DEFAULT_CROSSOVER_HZ, DEFAULT_PHASE_MARGIN_DEG, 1e-3)
     text = (f"h = 1 ms: crossover {d.crossover_hz:.1f} Hz, phase margin {d.modal_phase_margin_deg:.0f} deg, "
             f"gain margin {d.modal_gain_margin_db:.1f} dB")

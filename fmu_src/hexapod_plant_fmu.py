@@ -14,11 +14,11 @@ state; they start at the commanded force at initialization (no start transient).
 """
 import numpy as np
 
-from fmu_src.slave import (INPUT, OUTPUT, PARAMETER, POSE_UNITS, POSITIVE_TIME, GuardedSlave, acc_units,
+from movingbase.fmu_src.slave import (INPUT, OUTPUT, PARAMETER, POSE_UNITS, POSITIVE_TIME, GuardedSlave, acc_units,
                            rate_units)
-from plant.hexapod_ode import Actuator, HexapodODE
-from plant.integrators import INTEGRATORS
-from plant.stewart import FIDELITIES, HOME_POSE, StewartParams
+from movingbase.plant.hexapod_ode import Actuator, HexapodODE
+from movingbase.plant.integrators import INTEGRATORS
+from movingbase.plant.stewart import FIDELITIES, HOME_POSE, StewartParams
 
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 # half stroke: from 1 mm (less stops a run at the first mm of motion; no actuator has

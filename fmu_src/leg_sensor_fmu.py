@@ -14,9 +14,9 @@ saved state repeats the same noise.
 """
 import numpy as np
 
-from fmu_src.slave import INPUT, OUTPUT, GuardedSlave
-from plant._kernel import ffi, lib
-from plant.stewart import StewartParams
+from movingbase.fmu_src.slave import INPUT, OUTPUT, GuardedSlave
+from movingbase.plant._kernel import ffi, lib
+from movingbase.plant.stewart import StewartParams
 
 SEED_RANGE = (0, 2 ** 31 - 1)
 

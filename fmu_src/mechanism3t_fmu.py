@@ -27,11 +27,11 @@ import math
 
 import numpy as np
 
-from fmu_src.slave import INPUT, OUTPUT, PARAMETER, POSITIVE_TIME, GuardedSlave
-from plant import mechanism3t_kernel as kernel
-from plant.errors import ConvergenceError, InvalidInputError
-from plant.integrators import INTEGRATORS, advance
-from plant.mechanism3t import MM, PAPER_REFERENCE_RHO_MM, Mechanism1Params, _check_mode
+from movingbase.fmu_src.slave import INPUT, OUTPUT, PARAMETER, POSITIVE_TIME, GuardedSlave
+from movingbase.plant import mechanism3t_kernel as kernel
+from movingbase.plant.errors import ConvergenceError, InvalidInputError
+from movingbase.plant.integrators import INTEGRATORS, advance
+from movingbase.plant.mechanism3t import MM, PAPER_REFERENCE_RHO_MM, Mechanism1Params, _check_mode
 
 SLIDERS = ("x_A2", "y_A1", "y_A3")
 AXES = ("x", "y", "z")

@@ -53,7 +53,7 @@ def _array(name, values):
 
 
 def _stewart_constants():
-    from plant.stewart import FIDELITIES, SINGULAR_RATIO, StewartParams, fidelity_mode
+    from movingbase.plant.stewart import FIDELITIES, SINGULAR_RATIO, StewartParams, fidelity_mode
     p = StewartParams.paper()
     modes = [fidelity_mode(f) for f in FIDELITIES]
     return [_array("BASE_JOINTS", p.base_joints), _array("PLATFORM_JOINTS", p.platform_joints),
@@ -72,7 +72,7 @@ def _strings(name, values):
 
 
 def _integrators():
-    from plant.integrators import INTEGRATORS
+    from movingbase.plant.integrators import INTEGRATORS
     return [_strings("INTEGRATOR_NAMES", INTEGRATORS),
             f"enum {{ INTEGRATOR_RK4 = {INTEGRATORS.index('rk4')}, INTEGRATOR_EULER = {INTEGRATORS.index('euler')}, "
             f"INTEGRATOR_RADAU = {INTEGRATORS.index('radau')} }};"]
@@ -83,8 +83,8 @@ def _hexapod_plant():
 
 
 def _leg_controller():
-    from controller.feedforward import FEEDFORWARD_MODES, model_fidelity
-    from plant.stewart import FIDELITIES
+    from movingbase.controller.feedforward import FEEDFORWARD_MODES, model_fidelity
+    from movingbase.plant.stewart import FIDELITIES
     fid = [FIDELITIES.index(model_fidelity(m)) for m in FEEDFORWARD_MODES]
     return _stewart_constants() + [
         _strings("FEEDFORWARD_NAMES", FEEDFORWARD_MODES),
@@ -93,9 +93,9 @@ def _leg_controller():
 
 
 def _telescope_base():
-    from fmu_src.telescope_fmu import BLOCK, PROFILES
-    from plant.stewart import HOME_POSE, S_BAND_POSE
-    from plant.telescope import TelescopeParams
+    from movingbase.fmu_src.telescope_fmu import BLOCK, PROFILES
+    from movingbase.plant.stewart import HOME_POSE, S_BAND_POSE
+    from movingbase.plant.telescope import TelescopeParams
     t = TelescopeParams.tianma()
     fields = ("b_y", "c_y", "b_z", "c_z")
     return [_strings("PROFILE_NAMES", PROFILES), f"#define BLOCK {BLOCK}",
@@ -106,8 +106,8 @@ def _telescope_base():
 
 
 def _mechanism3t():
-    from plant import mechanism3t_kernel as kernel
-    from plant.mechanism3t import Mechanism1Params
+    from movingbase.plant import mechanism3t_kernel as kernel
+    from movingbase.plant.mechanism3t import Mechanism1Params
     return [_array("PACKED", kernel.pack(Mechanism1Params.paper()))] + _integrators()
 
 
@@ -203,7 +203,7 @@ def build_native(python_fmu, out, empty=False):
     """The native FMU of the pythonfmu FMU ``python_fmu`` in ``out`` (same file name);
     ``empty``: the same interface with doStep and initialization doing nothing (the
     exchange floor of benchmarks/bench_native.py)."""
-    from fmu_src import builder
+    from movingbase.fmu_src import builder
     python_fmu = pathlib.Path(python_fmu)
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -249,7 +249,7 @@ def _inputs():
 def ensure_native(scripts, out=None):
     """Paths of the native FMUs of ``scripts`` (fmu_src/<script>.py names), rebuilt when
     missing or older than their pythonfmu FMU or any file they are made from."""
-    from fmu_src import builder
+    from movingbase.fmu_src import builder
     out = pathlib.Path(out) if out is not None else builder.OUT / "native"
     python = builder.ensure_built(scripts)
     out.mkdir(parents=True, exist_ok=True)
@@ -263,6 +263,6 @@ def ensure_native(scripts, out=None):
     return paths
 
 
-if __name__ == "__main__":   # python -m fmu_src.native_build [scripts]: build into build/fmu/native
-    for path in ensure_native(sys.argv[1:] or __import__("fmu_src.builder").builder.available()).values():
+if __name__ == "__main__":   # python -m movingbase.fmu_src.native_build [scripts]: build into build/fmu/native
+    for path in ensure_native(sys.argv[1:] or __import__("movingbase.fmu_src.builder").fmu_src.builder.available()).values():
         print(f"built {path}")

@@ -59,7 +59,7 @@ from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability
 from pythonfmu.enums import Fmi2Status
 from pythonfmu.variables import Integer, Real
 
-from plant.errors import InvalidInputError
+from movingbase.plant.errors import InvalidInputError
 
 PARAMETER, INPUT, OUTPUT = Fmi2Causality.parameter, Fmi2Causality.input, Fmi2Causality.output
 # FMI min/max are inclusive: the smallest values standing for "> 0"

@@ -35,11 +35,11 @@ about 6x the largest force of the paper example (173.5 N on x_A2 in this model).
 """
 import numpy as np
 
-from controller.pid import PIDGains, pid_update
-from fmu_src.slave import INPUT, OUTPUT, PARAMETER, GuardedSlave
-from plant import mechanism3t_kernel as kernel
-from plant.errors import InvalidInputError
-from plant.mechanism3t import MM, PAPER_REFERENCE_RHO_MM, Mechanism1Params, paper_motion
+from movingbase.controller.pid import PIDGains, pid_update
+from movingbase.fmu_src.slave import INPUT, OUTPUT, PARAMETER, GuardedSlave
+from movingbase.plant import mechanism3t_kernel as kernel
+from movingbase.plant.errors import InvalidInputError
+from movingbase.plant.mechanism3t import MM, PAPER_REFERENCE_RHO_MM, Mechanism1Params, paper_motion
 
 SLIDERS = ("x_A2", "y_A1", "y_A3")
 DEFAULT_GAINS = {"kp": 8.6e3, "ki": 1.6e4, "kd": 890.0, "force_limit": 1e3}

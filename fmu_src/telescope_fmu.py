@@ -20,10 +20,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from fmu_src.slave import (OUTPUT, POSE_UNITS, POSITIVE_RATE, POSITIVE_TIME, GuardedSlave, acc_units,
+from movingbase.fmu_src.slave import (OUTPUT, POSE_UNITS, POSITIVE_RATE, POSITIVE_TIME, GuardedSlave, acc_units,
                            rate_units)
-from plant import telescope
-from plant.stewart import HOME_POSE, S_BAND_POSE
+from movingbase.plant import telescope
+from movingbase.plant.stewart import HOME_POSE, S_BAND_POSE
 
 PROFILES = telescope.PROFILE_KINDS   # slew, sidereal, paper (the base and platform motion of Yao et al.)
 BLOCK = 1000

@@ -1,8 +1,8 @@
 """Command line: run scenario files (or shipped scenario names) and write their reports.
 
-    python -m scenarios [SCENARIO ...] [--out DIR] [--ci] [--quiet] [--jobs N] [--dask tcp://HOST:PORT]
+    movingbase run [SCENARIO ...] [--out DIR] [--ci] [--quiet] [--jobs N] [--dask tcp://HOST:PORT]
                         [--implementation native|python]
-    python -m scenarios SCENARIO --ssp FILE.ssp      (export for other FMI tools instead)
+    movingbase run SCENARIO --ssp FILE.ssp      (export for other FMI tools instead)
 
 Without a scenario it runs the main job: the telescope slew (FMUs built first) and the
 paper's leg-force charts.
@@ -21,9 +21,9 @@ def shipped_names():
     return sorted(p.stem for p in SHIPPED.glob("*.toml"))
 
 
-def main(argv=None):
+def main(argv=None, prog="movingbase run"):
     shipped = ", ".join(shipped_names())
-    parser = argparse.ArgumentParser(prog="python -m scenarios", description=__doc__.splitlines()[0],
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0],
                                      epilog=f"shipped scenarios (scenarios/files/): {shipped}. Wall time and "
                                             "real-time factor count the co-simulation stepping loop only (FMU "
                                             "loading and initialisation excluded).")

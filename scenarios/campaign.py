@@ -1,7 +1,7 @@
 """Campaign files: many runs of one base scenario over a grid or a list of cases, run
 through scenarios.engine (local worker processes or a Dask cluster), resumable.
 
-    python -m scenarios.campaign FILE [--ci] [--jobs N] [--dask tcp://HOST:PORT] [--out DIR]
+    movingbase campaign FILE [--ci] [--jobs N] [--dask tcp://HOST:PORT] [--out DIR]
 
 A campaign is TOML:
 
@@ -39,7 +39,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
-from fmu_src.builder import ensure_built
+from movingbase.fmu_src.builder import ensure_built
 from . import engine, spec
 from .fmi import unpack
 from .runner import resolve
@@ -334,7 +334,7 @@ def run_campaign(path, out="out", ci=False, jobs_=None, address=None, progress=T
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m scenarios.campaign", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="movingbase campaign", description=__doc__.splitlines()[0])
     parser.add_argument("campaign", help="campaign file (TOML)")
     parser.add_argument("--ci", action="store_true", help="apply the file's [ci] replacements (a small campaign)")
     parser.add_argument("--jobs", type=int, help="local worker processes (default: all cores)")

@@ -13,7 +13,7 @@ at ~8.3 µs; ties go to the level that models less), so the choice is determinis
 """
 import numpy as np
 
-from plant.stewart import FIDELITIES, StewartParams, inverse_dynamics
+from movingbase.plant.stewart import FIDELITIES, StewartParams, inverse_dynamics
 from .fmi import Instance, RealPort
 
 COST_ORDER = ("massless_legs", "no_base", "base_gravity", "full")

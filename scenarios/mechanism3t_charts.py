@@ -7,7 +7,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from plant import mechanism3t as m3t  # noqa: E402
+from movingbase.plant import mechanism3t as m3t  # noqa: E402
 
 PAPER_PEAK_FORCE_N = 142.2
 

@@ -21,9 +21,9 @@ import math
 
 import numpy as np
 
-from plant.errors import PlantError
-from plant.rotations import rpy_matrix
-from plant.stewart import StewartParams, inverse_dynamics, inverse_kinematics
+from movingbase.plant.errors import PlantError
+from movingbase.plant.rotations import rpy_matrix
+from movingbase.plant.stewart import StewartParams, inverse_dynamics, inverse_kinematics
 
 MAX_POINTS = 4000
 BLOCK = 256   # rows buffered per metric, then evaluated at once by the batched plant calls

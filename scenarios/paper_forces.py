@@ -22,8 +22,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from plant.stewart import HOME_POSE, S_BAND_POSE, StewartParams, inverse_dynamics
-from plant.trajectory import quintic
+from movingbase.plant.stewart import HOME_POSE, S_BAND_POSE, StewartParams, inverse_dynamics
+from movingbase.plant.trajectory import quintic
 
 DURATION = 6.0
 BASE_END = np.array([0.0, 0.0, 0.0, np.radians(45.0), 0.0, np.radians(30.0)])

@@ -7,9 +7,9 @@ import sys
 
 from tqdm import tqdm
 
-from fmu_src.builder import ensure_built
-from fmu_src.native_build import ensure_native
-from plant.stewart import FIDELITIES
+from movingbase.fmu_src.builder import ensure_built
+from movingbase.fmu_src.native_build import ensure_native
+from movingbase.plant.stewart import FIDELITIES
 from . import engine, fidelity, master, metrics, report, spec
 from .fmi import unpack
 

@@ -29,8 +29,8 @@ except ModuleNotFoundError:  # Python 3.10
 
 import numpy as np
 
-from plant.errors import InvalidInputError
-from plant import telescope
+from movingbase.plant.errors import InvalidInputError
+from movingbase.plant import telescope
 from .units import UNITS, UnitError, split, to_si
 
 FMU_SCRIPTS = {"hexapod_plant": "hexapod_plant_fmu", "telescope": "telescope_fmu",

@@ -18,9 +18,9 @@ import time
 
 import numpy as np
 
-from plant.stewart import FIDELITIES, HOME_POSE, StewartParams, inverse_dynamics
-from scenarios import fidelity, master, runner
-from scenarios.fmi import Instance, RealPort
+from movingbase.plant.stewart import FIDELITIES, HOME_POSE, StewartParams, inverse_dynamics
+from movingbase.scenarios import fidelity, master, runner
+from movingbase.scenarios.fmi import Instance, RealPort
 
 SCENES = ("paper_manoeuvre", "telescope_slew", "keyhole_tracking")
 OUT = pathlib.Path(__file__).resolve().parent.parent / "docs" / "fidelity.md"

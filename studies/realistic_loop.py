@@ -46,8 +46,8 @@ matplotlib.use("Agg")
 import matplotlib.patches
 import matplotlib.pyplot as plt
 
-from scenarios import engine, runner, spec
-from scenarios.report import FLOOR, fmt
+from movingbase.scenarios import engine, runner, spec
+from movingbase.scenarios.report import FLOOR, fmt
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
@@ -246,8 +246,8 @@ def cases(scenes=SCENES):
 def designs():
     """{name: Design} of the redesigned gains on the realistic plant, and the shipped
     gains' margins on it (controller.design; ~20 s for the search)."""
-    from controller import design
-    from plant.stewart import StewartParams
+    from movingbase.controller import design
+    from movingbase.plant.stewart import StewartParams
     params = StewartParams.paper()
     shipped = design.default_gains(params)
     return {"shipped": design.margins(params, shipped, 1e-3, design.REALISTIC),
@@ -653,7 +653,7 @@ def report(s, charts=True):
              "is 30 s with the transit at 16 s (the shipped run is 250 s, most of it the quiet approach). The ideal "
              "loop is today's: exact leg lengths and rates, the force in the leg at once, the antenna on its "
              "command, no wind. The realistic loop switches every effect on, in calm air or in a 10 m/s wind; the "
-             "scenario file of every run is written to `out/realistic_loop/full/scenarios/` (`python -m scenarios "
+             "scenario file of every run is written to `out/realistic_loop/full/scenarios/` (`movingbase run "
              "FILE` repeats it). Settings:", "", "| effect | settings (assumed; see the README's assumptions) |", "|---|---|",
              settings_text(), "", "## The headline table, extended", "", table(s), "", "## What survives", "",
              statements(s), "", "## Error budget: each effect alone", ""]

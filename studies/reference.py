@@ -48,12 +48,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from controller.feedforward import FEEDFORWARD_MODES, feedforward_and_legs
-from plant import kane, telescope
-from plant.rotations import rpy_matrix
-from plant.stewart import FIDELITIES, HOME_POSE, S_BAND_POSE, StewartParams, fidelity_mode
-from plant.trajectory import quintic
-from scenarios.spec import Link
+from movingbase.controller.feedforward import FEEDFORWARD_MODES, feedforward_and_legs
+from movingbase.plant import kane, telescope
+from movingbase.plant.rotations import rpy_matrix
+from movingbase.plant.stewart import FIDELITIES, HOME_POSE, S_BAND_POSE, StewartParams, fidelity_mode
+from movingbase.plant.trajectory import quintic
+from movingbase.scenarios.spec import Link
 
 PROFILES = ("slew", "sidereal", "paper")          # the telescope FMU's enumeration
 SIGNALS = ("base_pose", "base_rate", "base_acc", "reference_pose", "reference_rate", "reference_acc")

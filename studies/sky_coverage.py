@@ -28,11 +28,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.colors import LogNorm
 
-from plant import telescope
-from scenarios import campaign as campaigns
-from scenarios import engine
-from scenarios.report import FLOOR
-from scenarios.units import to_si
+from movingbase.plant import telescope
+from movingbase.scenarios import campaign as campaigns
+from movingbase.scenarios import engine
+from movingbase.scenarios.report import FLOOR
+from movingbase.scenarios.units import to_si
 
 CAMPAIGNS = ("sky_slews", "slew_sizes", "keyhole_tracks")
 MODES = ("fixed_base", "moving_base")

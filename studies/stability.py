@@ -59,14 +59,14 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from controller.design import closed_loop_stable, default_gains, linearised_plant, max_stable_step
-from plant import integrators
-from plant.errors import ConvergenceError, PlantError
-from plant.hexapod_ode import HexapodODE
-from plant.stewart import (HOME_POSE, StewartParams, dynamics_terms, inverse_dynamics, inverse_kinematics,
+from movingbase.controller.design import closed_loop_stable, default_gains, linearised_plant, max_stable_step
+from movingbase.plant import integrators
+from movingbase.plant.errors import ConvergenceError, PlantError
+from movingbase.plant.hexapod_ode import HexapodODE
+from movingbase.plant.stewart import (HOME_POSE, StewartParams, dynamics_terms, inverse_dynamics, inverse_kinematics,
                            rates_from_twist)
-from scenarios import master, spec
-from scenarios.fmi import FmuError, unpack
+from movingbase.scenarios import master, spec
+from movingbase.scenarios.fmi import FmuError, unpack
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 FIGURES = ROOT / "docs" / "figures"
@@ -238,7 +238,7 @@ class CoSim:
     def __init__(self, paths=None, fmu_dir=None):
         self._folders = []
         if paths is None:
-            from fmu_src.builder import ensure_built
+            from movingbase.fmu_src.builder import ensure_built
             if fmu_dir is None:
                 self._folders.append(tempfile.TemporaryDirectory(prefix="stability_fmu_"))
                 fmu_dir = self._folders[-1].name
@@ -844,7 +844,7 @@ def main(argv=None):
 
 def _routh_gain_limit(gains=GAINS):
     """Continuous-time lower gain limit of the heaviest leg-space mode: k > m ki / (kd kp)."""
-    from controller.design import leg_mass_matrix
+    from movingbase.controller.design import leg_mass_matrix
     mass = np.linalg.eigvalsh(leg_mass_matrix(PARAMS))[-1]
     return mass * gains.ki / (gains.kd * gains.kp)
 

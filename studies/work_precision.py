@@ -57,10 +57,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from plant.integrators import INTEGRATORS
-from plant.stewart import FIDELITIES
-from scenarios import master, runner, spec
-from scenarios.fmi import FmuError
+from movingbase.plant.integrators import INTEGRATORS
+from movingbase.plant.stewart import FIDELITIES
+from movingbase.scenarios import master, runner, spec
+from movingbase.scenarios.fmi import FmuError
 
 from . import reference
 

@@ -1,7 +1,7 @@
 """Shared fixtures: the FMUs are built once per test session into a temporary folder."""
 import pytest
 
-from fmu_src import builder
+from movingbase.fmu_src import builder
 from tests.fmu_helpers import free_all
 
 

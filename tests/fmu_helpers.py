@@ -1,6 +1,6 @@
 """Opening FMU instances in tests; conftest frees every one after each test (an unfreed
 pythonfmu instance can corrupt the heap when the process exits)."""
-from scenarios.fmi import Instance
+from movingbase.scenarios.fmi import Instance
 
 OPENED = []
 

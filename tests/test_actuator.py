@@ -20,11 +20,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from fmu_src import native_build
-from plant import kane
-from plant.errors import InvalidInputError
-from plant.hexapod_ode import Actuator, HexapodODE
-from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics, inverse_kinematics
+from movingbase.fmu_src import native_build
+from movingbase.plant import kane
+from movingbase.plant.errors import InvalidInputError
+from movingbase.plant.hexapod_ode import Actuator, HexapodODE
+from movingbase.plant.stewart import HOME_POSE, StewartParams, inverse_dynamics, inverse_kinematics
 from tests.fmu_helpers import open_fmu
 
 PARAMS = StewartParams.paper()

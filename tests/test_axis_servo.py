@@ -6,8 +6,8 @@ import control
 import numpy as np
 import pytest
 
-from fmu_src import native_build, telescope_fmu
-from plant import telescope
+from movingbase.fmu_src import native_build, telescope_fmu
+from movingbase.plant import telescope
 from tests.test_native_fmus import opened, outputs, reals, step
 
 BANDWIDTH, DAMPING = 0.8, 0.7       # Hz, 1

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy import signal, stats
 
-from fmu_src import base_sensor_fmu, native_build
-from plant import telescope
+from movingbase.fmu_src import base_sensor_fmu, native_build
+from movingbase.plant import telescope
 from tests.test_native_fmus import opened, outputs, reals, step
 
 H = 1e-3

@@ -6,8 +6,8 @@ import csv
 
 import pytest
 
-from scenarios import campaign, master, metrics, runner, spec
-from scenarios.units import to_si
+from movingbase.scenarios import campaign, master, metrics, runner, spec
+from movingbase.scenarios.units import to_si
 
 HEAD = 'name = "t"\nscenario = "telescope_slew"\n'
 

@@ -5,9 +5,9 @@ import pathlib
 import numpy as np
 import pytest
 
-from plant import mechanism3t as m3t
-from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
-from scenarios import mechanism3t_charts, paper_forces
+from movingbase.plant import mechanism3t as m3t
+from movingbase.plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
+from movingbase.scenarios import mechanism3t_charts, paper_forces
 
 
 def test_paper_leg_force_chart(tmp_path):

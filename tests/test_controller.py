@@ -8,14 +8,14 @@ from scipy.integrate import solve_ivp
 from scipy.linalg import expm
 from scipy.optimize import brentq
 
-from controller.design import (IDEAL, REALISTIC, Design, closed_loop_stable, default_gains, design_pid,
+from movingbase.controller.design import (IDEAL, REALISTIC, Design, closed_loop_stable, default_gains, design_pid,
                                leg_mass_matrix, linearised_plant, margins, max_stable_step, mode_loop, stiffest_pid)
-from controller.feedforward import (FEEDFORWARD_MODES, Feedforward, feedforward_and_legs, feedforward_forces,
+from movingbase.controller.feedforward import (FEEDFORWARD_MODES, Feedforward, feedforward_and_legs, feedforward_forces,
                                    reference_legs)
-from controller.pid import PIDGains, pid_step
-from plant.stewart import (HOME_POSE, StewartParams, forward_dynamics, inverse_dynamics, inverse_kinematics,
+from movingbase.controller.pid import PIDGains, pid_step
+from movingbase.plant.stewart import (HOME_POSE, StewartParams, forward_dynamics, inverse_dynamics, inverse_kinematics,
                            pose_jacobian)
-from plant.trajectory import quintic
+from movingbase.plant.trajectory import quintic
 
 PARAMS = StewartParams.paper()
 STEP = 1e-3
@@ -194,8 +194,8 @@ def test_realistic_loop_model_is_the_scenarios_loop():
     """REALISTIC carries the values the realistic scenario and study run with."""
     import tomllib
 
-    from scenarios import runner
-    from scenarios.units import to_si
+    from movingbase.scenarios import runner
+    from movingbase.scenarios.units import to_si
     from studies import realistic_loop as study
     shipped = tomllib.loads(runner.resolve("telescope_slew_realistic").read_text())
     plant, sensor = shipped["fmus"]["plant"]["parameters"], shipped["fmus"]["sensor"]["parameters"]
@@ -314,7 +314,7 @@ def _cosim(tmp_path, gains, seconds=3.0):
     delay; actuator with its lag, reflected mass and viscous friction, Coulomb off: the
     linear part the design models) holding still under the fixed-base feedforward for
     ``seconds``, the leg lengths recorded every step; the sensor noise excites it."""
-    from scenarios import runner
+    from movingbase.scenarios import runner
     from studies import realistic_loop as study
     data = study.variant("telescope_slew", ("leg_sensors", "delay", "actuator"), "exact", ("fixed_base",),
                          {"leg_sensors": {"resolution": "0 um"}, "actuator": {"coulomb_friction": "0 N"}},

@@ -10,9 +10,9 @@ import signal
 import numpy as np
 import pytest
 
-from scenarios import engine, master, metrics, spec
-from scenarios.fmi import unpack
-from scenarios.runner import SHIPPED
+from movingbase.scenarios import engine, master, metrics, spec
+from movingbase.scenarios.fmi import unpack
+from movingbase.scenarios.runner import SHIPPED
 
 ELEVATIONS = (20.0, 50.0, 80.0)
 
@@ -27,7 +27,7 @@ def _bound(fmus):
 @pytest.fixture(scope="module")
 def campaign(fmus, tmp_path_factory):
     """Six slews (3 start elevations x 2 feedforward modes) and their sequential results,
-    from scenarios.master.run in this process."""
+    from movingbase.scenarios.master.run in this process."""
     scenario, paths, values = _bound(fmus)
     cases = [(f"el {el:g}, {mode}", {"base": {"start_elevation": np.radians(el), "target_elevation": np.radians(el + 5)},
                                       "controller": {"feedforward": index}})
@@ -137,8 +137,8 @@ def test_existing_cluster_by_address(campaign, tmp_path):
 
 
 def test_sweep_on_workers_writes_what_the_sequential_runner_writes(tmp_path):
-    """python -m scenarios FILE --jobs 2: the same metrics.json numbers and byte-identical CSVs."""
-    from scenarios import runner
+    """movingbase run FILE --jobs 2: the same metrics.json numbers and byte-identical CSVs."""
+    from movingbase.scenarios import runner
     text = (SHIPPED / "telescope_slew.toml").read_text().replace('stop_time = "8 s"', 'stop_time = "5.2 s"')
     path = tmp_path / "slew.toml"
     path.write_text(text)

@@ -12,9 +12,9 @@ from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import fmi2DoStepStatus, fmi2LastSuccessfulTime, fmi2Status
 
-from fmu_src.builder import SCRIPTS
-from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
-from scenarios.fmi import FmuError, Instance, RealPort
+from movingbase.fmu_src.builder import SCRIPTS
+from movingbase.plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
+from movingbase.scenarios.fmi import FmuError, Instance, RealPort
 from tests.fmu_helpers import OPENED, open_fmu
 
 STATIC = inverse_dynamics(StewartParams.paper(), HOME_POSE, np.zeros(6), np.zeros(6))
@@ -121,7 +121,7 @@ def test_non_finite_input_at_initialization_fails_there(fmus, script, name, valu
 
 
 def test_a_failed_initialization_leaves_an_instance_that_refuses_steps(fmus):
-    from scenarios.fmi import Instance
+    from movingbase.scenarios.fmi import Instance
     from tests.fmu_helpers import OPENED
     instance = Instance(fmus["hexapod_plant_fmu"], "failed")
     OPENED.append(instance)

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from fmu_src.builder import SCRIPTS
-from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
+from movingbase.fmu_src.builder import SCRIPTS
+from movingbase.plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
 from tests.c_host import HostFmu, compile_host
 from tests.test_fmu_errors import BAD_INIT
 from tests.test_fmus import INIT_PARAMETERS, output_starts

@@ -9,14 +9,14 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
-from plant import telescope
-from plant.hexapod_ode import HexapodODE
-from plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
-from scenarios.fmi import FmuError, Instance, RealPort
-from fmu_src import builder
-from fmu_src.builder import SCRIPTS
-from fmu_src.slave import OUTPUT
-from fmu_src.hexapod_plant_fmu import STROKE_RANGE
+from movingbase.plant import telescope
+from movingbase.plant.hexapod_ode import HexapodODE
+from movingbase.plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
+from movingbase.scenarios.fmi import FmuError, Instance, RealPort
+from movingbase.fmu_src import builder
+from movingbase.fmu_src.builder import SCRIPTS
+from movingbase.fmu_src.slave import OUTPUT
+from movingbase.fmu_src.hexapod_plant_fmu import STROKE_RANGE
 from tests.fmu_helpers import OPENED, open_fmu
 from tests.test_native_fmus import native  # noqa: F401 - the session fixture
 

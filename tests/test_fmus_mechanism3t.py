@@ -10,12 +10,12 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
-from controller.design import _closed_loop_matrix, loop_margins, mode_loop
-from controller.pid import PIDGains
-from plant import mechanism3t as m3t
-from plant.errors import InvalidInputError
-from plant.integrators import advance
-from scenarios.fmi import FmuError, RealPort
+from movingbase.controller.design import _closed_loop_matrix, loop_margins, mode_loop
+from movingbase.controller.pid import PIDGains
+from movingbase.plant import mechanism3t as m3t
+from movingbase.plant.errors import InvalidInputError
+from movingbase.plant.integrators import advance
+from movingbase.scenarios.fmi import FmuError, RealPort
 from tests.fmu_helpers import open_fmu
 
 P = m3t.Mechanism1Params.paper()
@@ -106,7 +106,7 @@ def test_plant_fmu_equals_direct_integration(fmus, integrator, method):
 def test_compiled_advance_equals_plant_integrators():
     """The plant FMU's compiled RK4 / Euler (plant.mechanism3t_kernel.advance_fixed) against
     plant.integrators.advance on the same compiled right-hand side, and on the numpy model."""
-    from plant import mechanism3t_kernel as kernel
+    from movingbase.plant import mechanism3t_kernel as kernel
     packed, forces = kernel.pack(P), STATIC + np.array([40.0, -30.0, 20.0])
     rhs = lambda t, x: kernel.rhs_kernel(packed, x, forces, 1)[1]
     numpy_rhs = lambda t, x: np.r_[x[3:], m3t.forward_dynamics(P, x[:3], x[3:], forces)]

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plant import kane
-from plant.stewart import HOME_POSE, StewartParams
+from movingbase.plant import kane
+from movingbase.plant.stewart import HOME_POSE, StewartParams
 
 REVISION = "73017ff"
 ROOT = Path(__file__).resolve().parents[1]

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from fmu_src import native_build
-from plant._kernel import ffi, lib
-from plant.stewart import StewartParams
+from movingbase.fmu_src import native_build
+from movingbase.plant._kernel import ffi, lib
+from movingbase.plant.stewart import StewartParams
 from tests.fmu_helpers import open_fmu
 
 H = 1e-3

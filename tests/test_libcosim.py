@@ -23,7 +23,7 @@ from libcosimpy import CosimExecution as libcosim
 from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
 from libcosimpy.CosimObserver import CosimObserver
 
-from scenarios import master, ssp
+from movingbase.scenarios import master, ssp
 from tests.test_native_fmus import _scales, native  # noqa: F401 - native: the session fixture
 from tests.test_ssp import RECORD, columns, configure, read_csv
 

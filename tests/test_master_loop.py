@@ -11,9 +11,9 @@ import time
 import numpy as np
 import pytest
 
-from scenarios import master, metrics, runner, spec
-from scenarios.fmi import FmuError, Instance, RealPort
-from scenarios.spec import Link, expand
+from movingbase.scenarios import master, metrics, runner, spec
+from movingbase.scenarios.fmi import FmuError, Instance, RealPort
+from movingbase.scenarios.spec import Link, expand
 
 MASTERS = [("jacobi", "none"), ("jacobi", "linear"), ("gauss-seidel", "none"), ("gauss-seidel", "linear")]
 SHIPPED = sorted(p.stem for p in runner.SHIPPED.glob("*.toml"))

@@ -4,8 +4,8 @@ complex-step velocities, 8th-order finite differences of the mass matrix)."""
 import numpy as np
 import pytest
 
-from plant import mechanism3t as m3t
-from plant.mechanism3t import MM, Mechanism1Params
+from movingbase.plant import mechanism3t as m3t
+from movingbase.plant.mechanism3t import MM, Mechanism1Params
 
 P = Mechanism1Params.paper()
 RHO_REF = np.array(m3t.PAPER_REFERENCE_RHO_MM) * MM
@@ -312,7 +312,7 @@ def test_compiled_kernel_equals_the_numpy_model():
     """plant.mechanism3t_kernel (one state, compiled) against the batched numpy reference:
     O', M, bias, slider_forces and forward_dynamics to 1e-12 relative on random reachable
     states of both assembly modes, and the same error (type and message) elsewhere."""
-    from plant import mechanism3t_kernel as kernel
+    from movingbase.plant import mechanism3t_kernel as kernel
     rng = np.random.default_rng(11)
     compared = {1: 0, -1: 0}
     inverse = []   # every eq. 12 branch of random O' (both assembly modes)
@@ -360,7 +360,7 @@ def test_compiled_kernel_equals_the_numpy_model():
 
 
 def test_compiled_kernel_raises_the_named_errors():
-    from plant import mechanism3t_kernel as kernel
+    from movingbase.plant import mechanism3t_kernel as kernel
     cases = [np.array(rho) for rho in ([0.0, 0.0, 0.4], [0.5, 0.0, 0.152], [-0.3, -0.152, 0.0], [0.05, 0.6, 0.752],
                                        [0.1, -P.d, -P.l6])]
     # next to sin theta = 0 (theta -> 0 at x_A2 = e - a + l6 - l4 = 0 with y_A3 = y_A1 + d)

@@ -9,9 +9,9 @@ import sys
 import numpy as np
 import pytest
 
-from plant import mechanism3t as m3t
-from plant import mechanism3t_kernel as kernel
-from plant.errors import ConvergenceError
+from movingbase.plant import mechanism3t as m3t
+from movingbase.plant import mechanism3t_kernel as kernel
+from movingbase.plant.errors import ConvergenceError
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 NUMBA_REVISION = "73017ff"
@@ -30,8 +30,8 @@ def load_numba_kernel(directory, revision=NUMBA_REVISION):
     for file in ("mechanism3t_kernel.py", "linalg.py"):
         source = subprocess.run(["git", "-C", str(ROOT), "show", f"{revision}:plant/{file}"],
                                 check=True, capture_output=True, text=True).stdout
-        source = source.replace("from .errors import", "from plant.errors import")
-        source = source.replace("from .mechanism3t import", "from plant.mechanism3t import")
+        source = source.replace("from .errors import", "from movingbase.plant.errors import")
+        source = source.replace("from .mechanism3t import", "from movingbase.plant.mechanism3t import")
         (package / file).write_text(source)
     sys.path.insert(0, str(directory))
     try:

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from plant.errors import InvalidInputError
-from plant.rotations import rpy_matrix
-from plant.stewart import StateInverseDynamics, StewartParams, inverse_kinematics
-from scenarios import metrics, spec
+from movingbase.plant.errors import InvalidInputError
+from movingbase.plant.rotations import rpy_matrix
+from movingbase.plant.stewart import StateInverseDynamics, StewartParams, inverse_kinematics
+from movingbase.scenarios import metrics, spec
 from tests import newton_euler as ne
 
 HOME = np.array([0.0, 0.0, -2.6815, 0.0, 0.0, 0.0])

@@ -16,9 +16,9 @@ from fmpy.build import build_platform_binary
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import fmi2LastSuccessfulTime, fmi2Real
 
-from fmu_src import builder, native_build
-from scenarios import runner
-from scenarios.fmi import Instance
+from movingbase.fmu_src import builder, native_build
+from movingbase.scenarios import runner
+from movingbase.scenarios.fmi import Instance
 from tests.fmu_helpers import OPENED
 
 OK, DISCARD, ERROR = 0, 2, 3

@@ -8,7 +8,7 @@ import os
 import numpy as np
 import pytest
 
-from scenarios.fmi import Instance
+from movingbase.scenarios.fmi import Instance
 from tests.c_host import HostFmu
 from tests.fmu_helpers import OPENED
 from tests.test_native_fmus import native  # noqa: F401 - the session fixture

@@ -3,7 +3,7 @@ splitmix64, its published first output, and the distributions it should draw fro
 import numpy as np
 from scipy import stats
 
-from plant._kernel import ffi, lib
+from movingbase.plant._kernel import ffi, lib
 
 MASK = (1 << 64) - 1
 

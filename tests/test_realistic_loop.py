@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from scenarios import runner
+from movingbase.scenarios import runner
 from studies import realistic_loop as study
 
 GOLDEN = runner.SHIPPED.parent.parent / "tests" / "golden"

@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from scenarios import headline, report, spec
-from scenarios.master import Run
-from scenarios.runner import SHIPPED
+from movingbase.scenarios import headline, report, spec
+from movingbase.scenarios.master import Run
+from movingbase.scenarios.runner import SHIPPED
 
 T0, T1, CUT = 0.0, 8.0, 5.0
 
@@ -190,7 +190,7 @@ def test_readme_headline_is_generated_from_the_stored_metrics():
 
 
 def test_cli_help_and_unknown_scenario_list_the_shipped_ones(capsys):
-    from scenarios.__main__ import main
+    from movingbase.scenarios.__main__ import main
     shipped = sorted(p.stem for p in SHIPPED.glob("*.toml"))
     with pytest.raises(SystemExit) as done:
         main(["--help"])

@@ -14,8 +14,8 @@ import sys
 import numpy as np
 import pytest
 
-from scenarios import master, metrics, report, runner, spec
-from scenarios.fmi import unpack
+from movingbase.scenarios import master, metrics, report, runner, spec
+from movingbase.scenarios.fmi import unpack
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 SLEW = runner.resolve("telescope_slew").read_text()
@@ -45,8 +45,8 @@ def refused(text, key, *parts, descriptions=None, overrides=None):
 
 
 def cli(tmp_path, *args):
-    """python -m scenarios in a fresh process: (exit status, stdout, stderr)."""
-    done = subprocess.run([sys.executable, "-m", "scenarios", *map(str, args), "--quiet", "--out", tmp_path / "out"],
+    """python -m movingbase.scenarios in a fresh process: (exit status, stdout, stderr)."""
+    done = subprocess.run([sys.executable, "-m", "movingbase", "run", *map(str, args), "--quiet", "--out", tmp_path / "out"],
                           capture_output=True, text=True, cwd=ROOT, timeout=600)
     assert "Traceback" not in done.stderr, done.stderr
     return done.returncode, done.stdout, done.stderr

@@ -7,8 +7,8 @@ import pathlib
 import numpy as np
 import pytest
 
-from scenarios import fidelity, master, metrics, runner, spec
-from scenarios.fmi import FmuError, unpack
+from movingbase.scenarios import fidelity, master, metrics, runner, spec
+from movingbase.scenarios.fmi import FmuError, unpack
 
 GOLDEN = pathlib.Path(__file__).parent / "golden"
 SHIPPED = sorted(p.stem for p in runner.SHIPPED.glob("*.toml"))

@@ -19,8 +19,8 @@ from fmpy.fmi1 import FMICallException
 from fmpy.ssp.ssd import read_ssd, validate_tree
 from lxml import etree
 
-from scenarios import master, runner, spec, ssp
-from scenarios.fmi import FmuError, Instance, unpack
+from movingbase.scenarios import master, runner, spec, ssp
+from movingbase.scenarios.fmi import FmuError, Instance, unpack
 
 NS = {"ssd": ssp.SSD, "ssc": ssp.SSC, "ssv": ssp.SSV}
 RECORD = ["plant.pose", "plant.leg_length", "controller.leg_force", "base.base_pose", "base.reference_pose"]
@@ -241,7 +241,7 @@ def test_export_refuses_what_it_cannot_write(case):
 def test_command_line_exports_a_scenario(implementation, tmp_path, capsys):
     """The SSP carries the implementation asked for (the file's choice, native, by default):
     a pythonfmu FMU holds pythonfmu's wrapper behind our shim, a native one its C sources."""
-    from scenarios.__main__ import main
+    from movingbase.scenarios.__main__ import main
     main(["telescope_slew", "--ci", "--ssp", str(tmp_path / "slew.ssp")]
          + (["--implementation", implementation] if implementation else []))
     assert "SSP written to" in capsys.readouterr().out

@@ -6,11 +6,11 @@ import math
 import numpy as np
 import pytest
 
-from controller.design import closed_loop_stable, max_stable_step
-from plant import integrators
-from plant.errors import ConvergenceError, SingularConfigurationError
-from plant.hexapod_ode import HexapodODE
-from plant.stewart import HOME_POSE, StewartParams, forward_dynamics, inverse_dynamics
+from movingbase.controller.design import closed_loop_stable, max_stable_step
+from movingbase.plant import integrators
+from movingbase.plant.errors import ConvergenceError, SingularConfigurationError
+from movingbase.plant.hexapod_ode import HexapodODE
+from movingbase.plant.stewart import HOME_POSE, StewartParams, forward_dynamics, inverse_dynamics
 from studies.stability import (FAILED, GAINS, OFFSET, PARAMS, SMALL_SCALES, SMALL_STEPS, STABLE, UNSTABLE,
                                ClosedLoopODE, CoSim, classify, closed_loop_matrix, cosim_convergence,
                                observed_integrator_limit, orders, plant_convergence, predicted,

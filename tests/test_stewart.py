@@ -4,11 +4,11 @@ of base motions). The Newton-Euler cross-check lives in test_stewart_truth.py.""
 import numpy as np
 import pytest
 
-from plant import stewart
-from plant.errors import InvalidInputError, SingularConfigurationError, UnreachablePoseError
-from plant.rotations import rpy_matrix
-from plant.stewart import HOME_POSE, S_BAND_POSE, StewartParams
-from plant.trajectory import quintic
+from movingbase.plant import stewart
+from movingbase.plant.errors import InvalidInputError, SingularConfigurationError, UnreachablePoseError
+from movingbase.plant.rotations import rpy_matrix
+from movingbase.plant.stewart import HOME_POSE, S_BAND_POSE, StewartParams
+from movingbase.plant.trajectory import quintic
 
 PARAMS = StewartParams.paper()
 RNG = np.random.default_rng(2)

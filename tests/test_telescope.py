@@ -13,7 +13,7 @@ import astropy.units as u                                                  # noq
 from astropy.coordinates import TETE, AltAz, EarthLocation, SkyCoord       # noqa: E402
 from astropy.time import Time                                              # noqa: E402
 
-from plant.telescope import (EARTH_RATE, AxisMotion, TelescopeParams, base_motion,  # noqa: E402
+from movingbase.plant.telescope import (EARTH_RATE, AxisMotion, TelescopeParams, base_motion,  # noqa: E402
                              base_twist, local_sidereal_time, near_zenith_source,
                              paper_manoeuvre, reference_pose, sidereal_track, slew,
                              slew_duration)

@@ -17,11 +17,11 @@ from datetime import datetime, timedelta, timezone
 import numpy as np
 import pytest
 
-from fmu_src import telescope_fmu
-from plant import telescope
-from plant.errors import InvalidInputError
-from plant.stewart import HOME_POSE, S_BAND_POSE
-from plant.trajectory import quintic
+from movingbase.fmu_src import telescope_fmu
+from movingbase.plant import telescope
+from movingbase.plant.errors import InvalidInputError
+from movingbase.plant.stewart import HOME_POSE, S_BAND_POSE
+from movingbase.plant.trajectory import quintic
 
 REVISION = "73017ff"
 RTOL = 1e-14      # of each column's largest magnitude

@@ -4,9 +4,9 @@ through a shipped scenario as a user would write it."""
 import pytest
 from scipy import constants
 
-from scenarios import runner, spec, units
-from scenarios.fmi import unpack
-from scenarios.units import UnitError, to_si
+from movingbase.scenarios import runner, spec, units
+from movingbase.scenarios.fmi import unpack
+from movingbase.scenarios.units import UnitError, to_si
 
 # unit -> (SI value of one unit, SI dimension), from the definitions
 DEFINITIONS = {

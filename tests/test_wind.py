@@ -8,10 +8,10 @@ import pytest
 from fmpy import simulate_fmu
 from scipy import integrate, signal
 
-from fmu_src import native_build
-from fmu_src.wind_fmu import DEFAULTS, gust_model, gusts
-from plant._kernel import ffi, lib
-from plant.rotations import rpy_matrix
+from movingbase.fmu_src import native_build
+from movingbase.fmu_src.wind_fmu import DEFAULTS, gust_model, gusts
+from movingbase.plant._kernel import ffi, lib
+from movingbase.plant.rotations import rpy_matrix
 
 U, TI = DEFAULTS["mean_speed"], DEFAULTS["turbulence_intensity"]
 BAND = (1 / 600, 50.0)   # Hz, the band the generator covers (plant/c/wind.h)

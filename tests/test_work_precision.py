@@ -6,7 +6,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from scenarios import master
+from movingbase.scenarios import master
 from studies import reference
 from studies import work_precision as W
 

@@ -14,7 +14,7 @@ import pathlib
 import sys
 import tempfile
 
-from scenarios import runner
+from movingbase.scenarios import runner
 
 GOLDEN = pathlib.Path(__file__).parent / "golden"
 FLOOR = 1e-8
