@@ -1,7 +1,7 @@
 """The realistic-loop study (studies/realistic_loop.py) in its [ci] size: every variant
 runs; the ideal loop is today's (the golden metrics, and bit for bit the shipped
 scenario); each realistic effect moves the error the way its physics says; random
-effects repeat byte for byte from their seed; the README's section is generated from the
+effects repeat byte for byte from their seed; docs/realistic_loop.md is generated from the
 stored results."""
 import json
 
