@@ -54,7 +54,7 @@ def _flags(run: master.Run) -> list:
     return [Flag("cut_short", run.failure)] if run.failure else []
 
 
-def _pandas():
+def _pandas() -> Any:
     try:
         import pandas
     except ModuleNotFoundError:
@@ -163,7 +163,10 @@ class RunResult:
 
     def to_numpy(self) -> np.ndarray:
         """A structured array with a "time" field and one field per variable (FMPy's shape)."""
-        return np.rec.fromarrays([self.time] + list(self.values.T), names=["time"] + self.names)
+        table = np.empty(len(self.time), dtype=[(name, float) for name in ["time"] + self.names])
+        for name, column in zip(table.dtype.names or (), [self.time] + list(self.values.T)):
+            table[name] = column
+        return table
 
     def to_csv(self, path: str | os.PathLike[str]) -> pathlib.Path:
         """Export the records as CSV (header with units, each float exactly)."""
@@ -237,7 +240,7 @@ class Result:
         for run in self._runs:
             kept = self.runs[run.label].records
             target = folder / f"{run.label}.npz"
-            if run.record_path is None or pathlib.Path(run.record_path).resolve() != target.resolve():
+            if run.record_path is None or pathlib.Path(str(run.record_path)).resolve() != target.resolve():
                 run = dataclasses.replace(run, record_path=kept.save(target))
             runs.append(run)
         return runner.write_results(self.scenario, runs, folder)

@@ -10,8 +10,13 @@ Each column is one array in the file, keyed by the CSV's header cell, "time [s]"
 then "inst.var [unit]" in recording order: the CSV export (``to_csv``) is the same table
 with the same header and each float as its shortest repr (exact).
 """
+from __future__ import annotations
+
+import os
 import pathlib
 import re
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -23,45 +28,45 @@ class Records:
     """A run's recorded rows, preallocated for the record grid: ``time``, ``names``
     ("inst.var"), ``units`` and ``values`` (rows x columns), rows filled so far only."""
 
-    def __init__(self, names, units, rows):
+    def __init__(self, names: Sequence[str], units: Sequence[str], rows: int):
         self.names, self.units = list(names), list(units)
         self._data = np.empty((rows, 1 + len(self.names)))
         self.count = 0
 
     @classmethod
-    def of(cls, time, names, units, values):
+    def of(cls, time: np.ndarray, names: Sequence[str], units: Sequence[str], values: np.ndarray) -> Records:
         """Records holding arrays already made (``values``: rows x columns)."""
         records = cls(names, units, 0)
         records._data = np.column_stack([time, values]) if len(names) else np.asarray(time, float)[:, None]
         records.count = len(records._data)
         return records
 
-    def append(self, t, row):
+    def append(self, t: float, row: np.ndarray) -> None:
         """Add one row (a full grid's worth of rows was preallocated)."""
         self._data[self.count, 0] = t
         self._data[self.count, 1:] = row
         self.count += 1
 
     @property
-    def time(self):
+    def time(self) -> np.ndarray:
         return self._data[:self.count, 0]
 
     @property
-    def values(self):
+    def values(self) -> np.ndarray:
         return self._data[:self.count, 1:]
 
     @property
-    def header(self):
+    def header(self) -> list[str]:
         """The column titles, as in the CSV: "time [s]", "inst.var [unit]", ..."""
         return [TIME] + [f"{n} [{u}]" for n, u in zip(self.names, self.units)]
 
     @property
-    def columns(self):
+    def columns(self) -> dict[str, np.ndarray]:
         """{header cell: column}, the table as the file and the CSV hold it."""
         data = self._data[:self.count]
         return {title: data[:, j] for j, title in enumerate(self.header)}
 
-    def __getitem__(self, name):
+    def __getitem__(self, name: str) -> np.ndarray:
         """One column by "inst.var" (or "time")."""
         if name == "time":
             return self.time
@@ -69,13 +74,14 @@ class Records:
             raise KeyError(f"no recorded variable {name!r}; recorded: {', '.join(self.names)}")
         return self._data[:self.count, 1 + self.names.index(name)]
 
-    def save(self, path):
+    def save(self, path: str | os.PathLike[str]) -> pathlib.Path:
         """Write the npz file (one array per column, keyed by its header cell)."""
         path = pathlib.Path(path)
-        np.savez(path, **self.columns)
+        columns: dict[str, Any] = self.columns
+        np.savez(path, **columns)
         return path
 
-    def to_csv(self, path):
+    def to_csv(self, path: str | os.PathLike[str]) -> pathlib.Path:
         """Export as CSV: the header with units, each float as its shortest repr."""
         path = pathlib.Path(path)
         with open(path, "w", newline="") as f:
@@ -84,23 +90,25 @@ class Records:
         return path
 
 
-def read_records(path):
+def read_records(path: str | os.PathLike[str]) -> Records:
     """The one reader of a recorded run's file (what Records.save wrote)."""
     path = pathlib.Path(path)
     try:
         with np.load(path, allow_pickle=False) as data:
             titles = list(data.files)
-            if not titles or titles[0] != TIME:
-                raise ValueError(f"{path}: not a run's records (no {TIME!r} column first)")
             columns = [data[t] for t in titles]
     except (OSError, ValueError) as exc:
         raise ValueError(f"{path}: cannot read recorded data: {exc}") from None
-    parts = [_HEADER.fullmatch(t).groups() for t in titles[1:]]
+    matched = [_HEADER.fullmatch(t) for t in titles[1:]]
+    if not titles or titles[0] != TIME or not all(matched):
+        raise ValueError(f"{path}: not a run's records (expected {TIME!r}, then 'inst.var [unit]' columns; "
+                         f"found {', '.join(titles[:3]) or 'none'})")
+    parts = [m.groups() for m in matched if m]
     return Records.of(columns[0], [n for n, _ in parts], [u for _, u in parts],
                       np.column_stack(columns[1:]) if parts else np.empty((len(columns[0]), 0)))
 
 
-def run_records(run):
+def run_records(run: Any) -> Records | None:
     """A run's records: in memory if it ran in this process, else read from its file;
     None if it stopped before its first row."""
     if run.records is not None:
