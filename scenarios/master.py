@@ -42,7 +42,7 @@ class Run:
     metrics: dict = field(default_factory=dict)
     series: dict = field(default_factory=dict)
     failure: str = ""       # why the run stopped early ("" if it reached stop_time)
-    records: object = None  # scenarios.records.Records (None: the run stopped before its first row)
+    records: object = None  # scenarios.records.Records (None: the run failed before recording began)
 
     @property
     def real_time_factor(self):

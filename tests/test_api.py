@@ -163,3 +163,25 @@ def test_plot_gives_the_report_s_charts_and_report_writes_them(result, tmp_path)
     path = result.report(tmp_path / "rep")
     assert path.read_text().startswith(f"# {NAME}")
     assert read_records(tmp_path / "rep" / "none.npz").values.tobytes() == result["none"].values.tobytes()
+
+
+def test_a_campaign_s_table_holds_the_numbers_of_its_runs_run_one_by_one(tmp_path):
+    """Each row of movingbase.campaign's table has the metrics movingbase.run gives for
+    the same case; a campaign that keeps no records writes none (and says so)."""
+    pytest.importorskip("pandas")
+    path = tmp_path / "lever.toml"
+    path.write_text(f'name = "lever"\nscenario = "{NAME}"\nset = {{ stop_time = "2.5 s" }}\n'
+                    '[[grid]]\n"base.lever_arm" = ["5 m"]\n')
+    ran = movingbase.campaign(path, out=tmp_path / "out", jobs=1, progress=False)
+    table = ran.table()
+    assert len(ran) == len(table) == 3 and list(table["status"]) == ["ok"] * 3
+    alone = movingbase.run(NAME, progress=False, set={"stop_time": "2.5 s", "base.lever_arm": "5 m"})
+    for row in table.to_dict("records"):
+        run = alone[row["controller.feedforward"]]   # the scenario's sweep, crossed in by the campaign
+        assert row["leg error rms"] == run.metrics["leg error"]["rms"], row
+        assert row["pose error rotation_peak"] == run.metrics["pose error"]["rotation_peak"], row
+    assert not list((tmp_path / "out" / "lever" / "runs").glob("*.records.npz"))
+    with pytest.raises(FileNotFoundError, match="no records kept"):
+        ran.records(ran.labels[0])
+    t, _ = ran.series(ran.labels[0])["leg error"]
+    assert t[0] >= 2.0
