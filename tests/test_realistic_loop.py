@@ -8,6 +8,7 @@ import json
 import pytest
 
 from movingbase.scenarios import runner
+from movingbase.scenarios.records import run_records
 from studies import realistic_loop as study
 
 GOLDEN = runner.SHIPPED.parent.parent / "tests" / "golden"
@@ -121,12 +122,12 @@ def test_wind_error_grows_with_speed_and_calm_air_changes_nothing(tmp_path):
 
 
 def test_random_effects_repeat_byte_for_byte_from_their_seed(tmp_path):
-    """Leg sensor noise and wind: the same scenario and seeds give identical CSV bytes,
-    another seed another record."""
+    """Leg sensor noise and wind: the same scenario and seeds give identical records, bit
+    for bit, another seed another record."""
     def record(folder, seed):
         runs = _single(folder, "telescope_slew", ("leg_sensors", "wind"),
                        {"leg_sensors": {"seed": seed}, "wind": {"seed": seed}})
-        return runs[0].csv_path.read_bytes()
+        return run_records(runs[0]).values.tobytes()
     first, again, other = record(tmp_path / "a", 3), record(tmp_path / "b", 3), record(tmp_path / "c", 4)
     assert first == again and first != other
 
