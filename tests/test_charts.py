@@ -15,16 +15,21 @@ def test_paper_leg_force_chart(tmp_path):
     assert path.exists() and path.stat().st_size > 10_000
     t, fixed, moving = paper_forces.paper_leg_forces(n=61)
     _, _, printed = paper_forces.paper_leg_forces(n=61, reading="eq43")
-    axes = paper_forces.plot_paper_forces(t, {"model": (fixed, moving), "eq43": (fixed, printed)}, tmp_path / "f.png")
-    assert len({ax.get_ylim() for ax in axes.flat}) == 1          # one force scale for every panel
+    top, axes = paper_forces.plot_paper_forces(t, fixed, {"model": moving, "eq43": printed}, tmp_path / "f.png")
+    np.testing.assert_allclose(np.array([line.get_ydata() for line in top.get_lines()[:6]]).T, -fixed / 1e3)
+    low, high = top.get_ylim()        # the fixed-base panel on its own scale: its 0.3 kN spread fills it
+    assert low > 4.5 and high < 5.5 and np.ptp(-fixed / 1e3) > 0.5 * (high - low)
+    assert len({ax.get_ylim() for ax in axes.flat}) == 1          # one force scale for the other panels
     for col, forces in enumerate((moving, printed)):
-        for ax, data in zip(axes[:, col], (fixed, forces, forces - fixed)):
+        for ax, data in zip(axes[:, col], (forces, forces - fixed)):
             lines = ax.get_lines()[:6]
             np.testing.assert_allclose(np.array([line.get_ydata() for line in lines]).T, -data / 1e3)
-    styles = [(line.get_color(), line.get_linestyle()) for line in axes[0, 0].get_lines()[:6]]
+    styles = [(line.get_color(), line.get_linestyle(), line.get_linewidth()) for line in top.get_lines()[:6]]
     assert len(set(styles)) == 6                                   # every leg told apart, pairs included
-    figure = axes[0, 0].figure
-    assert len(figure.legends) == 1 and all(ax.get_legend() is None for ax in axes.flat)
+    for first, second in ((0, 1), (2, 5), (3, 4)):                 # a pair: the thin line drawn over the wide one
+        assert styles[first][0] == styles[second][0] and styles[first][2] > 2 * styles[second][2]
+    figure = top.figure
+    assert len(figure.legends) == 1 and all(ax.get_legend() is None for ax in [top, *axes.flat])
     t, fixed, moving = paper_forces.paper_leg_forces(n=61)
     static = inverse_dynamics(StewartParams.paper(), HOME_POSE, np.zeros(6), np.zeros(6))
     np.testing.assert_allclose(fixed[0], static, rtol=1e-12)   # starts at rest at home
