@@ -1,5 +1,7 @@
 """The charts the main job and the 3T study write: files appear, and the figures they
 report agree with the models they are drawn from."""
+import json
+import re
 import pathlib
 
 import numpy as np
@@ -7,7 +9,7 @@ import pytest
 
 from movingbase.plant import mechanism3t as m3t
 from movingbase.plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
-from movingbase.scenarios import mechanism3t_charts, paper_forces
+from movingbase.scenarios import mechanism3t_charts, paper_forces, style
 
 
 def test_paper_leg_force_chart(tmp_path):
@@ -69,3 +71,45 @@ def test_eq43_as_printed_counts_gravity_twice():
     assert np.all(np.maximum(ours["rise"], -ours["fall"])[[3, 4]] < 1.0)
     with pytest.raises(ValueError, match="unknown reading"):
         paper_forces.paper_leg_forces(reading="eq 43")
+
+
+def _stored_realistic_loop():
+    from studies import realistic_loop
+    return realistic_loop, json.loads(realistic_loop.STORE.read_text())
+
+
+def test_budget_chart_values_clear_of_the_marks_and_floored(tmp_path):
+    """Every bar ends at its stored value; the value labels stand right of the axes (never
+    on a mark line); values under 1 nm are written '< 1 nm'; rows without a fixed-base run
+    say so; the ideal loop's value is drawn in each model's colour."""
+    rl, s = _stored_realistic_loop()
+    for scene in rl.SCENES:
+        axes = rl.budget_chart(s, scene, tmp_path / f"{scene}.png")
+        rows = rl.budget_rows(s, scene)
+        for ax, key in zip(axes, ("peak", "rms")):
+            expected = [row[m][key] for _, row in rows for m in ("fixed_base", "moving_base")
+                        if m in row and row[m] and row[m][key] >= style.FLOOR]
+            np.testing.assert_allclose([b.get_x() + b.get_width() for b in ax.patches], expected)
+            labels = [t for t in ax.texts if t.get_transform() != ax.transData and t.get_position()[0] == 1.01]
+            under = [row[m][key] for _, row in rows for m in row if row[m] and row[m][key] < style.FLOOR]
+            assert sum(t.get_text() == "< 1 nm" for t in labels) == len(under)
+            assert not any(re.search(r"\de-\d", t.get_text()) for t in ax.texts)   # no round-off exponents
+            only = sum("fixed_base" not in row for _, row in rows)
+            assert sum("moving-base model only" in t.get_text() for t in ax.texts) == only > 0
+            ideal = {line.get_color() for line in ax.get_lines() if line.get_linestyle() != "-"
+                     and list(line.get_xdata())[0] not in style.MARKS_UM.values()}
+            assert {style.RUN_COLOURS["fixed_base"], style.RUN_COLOURS["moving_base"]} <= ideal
+
+
+def test_wind_sweep_readable_log_axis_and_legend(tmp_path):
+    rl, s = _stored_realistic_loop()
+    ax = rl.sweep_chart(s, tmp_path / "sweep.png")
+    ax.figure.canvas.draw()
+    low, high = ax.get_ylim()
+    labelled = [t for t in ax.get_yticks() if low <= t <= high]
+    assert len(labelled) >= 4                                     # not only 10 and 100
+    handles = ax.figure.legends[0].legend_handles
+    looks = {(h.get_color(), h.get_marker(), str(h.get_linestyle()), h.get_markerfacecolor()) for h in handles}
+    assert len(looks) == len(handles) == 4
+    gains = {(h.get_marker(), h.get_markerfacecolor() == "white") for h in handles}
+    assert len(gains) == 2                                        # the gains differ by marker and fill too
