@@ -113,3 +113,30 @@ def test_wind_sweep_readable_log_axis_and_legend(tmp_path):
     assert len(looks) == len(handles) == 4
     gains = {(h.get_marker(), h.get_markerfacecolor() == "white") for h in handles}
     assert len(gains) == 2                                        # the gains differ by marker and fill too
+
+
+def test_work_precision_chart_floor_front_labels_and_ratios(tmp_path):
+    """Synthetic results with known costs and errors: the position axis stops at 1 nm and
+    a run under it is drawn there as a triangle; only the front's points carry a step
+    label; ratios are written as 'Nx' with 3 digits; no legend sits on the data."""
+    from studies import work_precision as wp
+    configs = [wp.Config(h, max_step=h) for h in (0.5e-3, 2e-3, 4e-3)] + [wp.DEFAULT]
+    configs += [wp.Config(1e-3, integrator="euler", max_step=1e-3), wp.Config(1e-3, fidelity="massless_legs")]
+    costs = [8.0, 2.0, 1.0, 4.0, 3.0, 0.5]
+    pose = [2e-4, 0.05, 0.3, 7.0, 0.2, 40.0]            # the default far off the front, one run under 1 nm
+    results = [{"config": c, "failure": None, "unstable": None, "wall_time": w, "times": [w],
+                "error": {"pose_rms_um": e, "force_rms_N": 10 * e + 1}} for c, w, e in zip(configs, costs, pose)]
+    axes = wp.chart("synthetic", results, tmp_path / "wp.png")
+    position = axes[0]
+    assert position.get_ylim()[0] == style.FLOOR
+    offsets = np.concatenate([c.get_offsets() for c in position.collections])
+    assert [costs[0], style.FLOOR] in offsets.tolist() and pose[0] not in offsets[:, 1]
+    front = wp.pareto_front(*wp.measures(results, "pose_rms_um"))
+    labels = sorted(t.get_text() for t in position.texts)
+    assert labels == sorted(f"{results[i]['config'].step * 1e3:g} ms" + ("" if results[i]["config"].fidelity == "full"
+                                                               else f", {results[i]['config'].fidelity}")
+                            for i in np.flatnonzero(front))
+    v = wp.verdict(results)
+    assert f"cost {style.ratio(v['cost_ratio'], 1)}" in position.get_title()
+    assert not re.search(r"x\d+\.\d\d\b", position.get_title())          # no 'x5955.92'
+    assert all(ax.get_legend() is None for ax in axes) and len(position.figure.legends) == 1
