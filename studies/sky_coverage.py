@@ -136,8 +136,9 @@ def map_chart(rows_, path):
                 plt.Line2D([], [], color="k", lw=1.2, ls="--", label="0.1 mm")]
     fig.legend(handles=contours, loc="outside lower center", ncol=2, fontsize=8, title="contours",
                title_fontsize=8, frameon=False)
-    fig.colorbar(mesh, ax=axes, label="platform position error [µm] (log scale, floored at 1 nm; numbers in the cells)",
-                 shrink=0.8)
+    bar = fig.colorbar(mesh, ax=axes, label="platform position error [µm] (log scale, floored at 1 nm; numbers in the "
+                       "cells)", shrink=0.8)
+    plain_log_axis(bar.ax.yaxis, subs=(1.0,))
     fig.suptitle("Slews of +10 deg in azimuth and +5 deg in elevation from each start pointing "
                  "(rate/acc limited, 25 m lever arm)")
     save(fig, path)
@@ -208,14 +209,14 @@ def keyhole_chart(rows_, store, path):
     draw_marks(ax)
     ax.set_xscale("log")
     ax.set_yscale("log")
-    plain_log_axis(ax.xaxis, subs=(1.0,))
+    plain_log_axis(ax.xaxis)
     plain_log_axis(ax.yaxis, subs=(1.0,))
     ax.set_ylim(FLOOR, None)
     ax.set_xlabel("zenith distance at transit [deg]")
     ax.set_ylabel("platform position error [µm] (log, floored at 1 nm)")
     ax.set_title("Sidereal tracks near the keyhole")
     ax.grid(True, which="major", alpha=0.3)
-    ax.legend(handles=keys, fontsize=7.5, ncol=2, loc="lower left")
+    ax.legend(handles=keys, fontsize=7.5, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.13))   # off the data
 
     sky = fig.add_subplot(1, 2, 2, projection="polar")
     sky.set_theta_zero_location("N")
@@ -235,7 +236,8 @@ def keyhole_chart(rows_, store, path):
     sky.set_title(f"the tracks within {SKY_RADIUS:g} deg of the zenith (compass view, radius = zenith\n"
                   f"distance [deg]), coloured by the fixed-base pose error", fontsize=10)
     if fixed:
-        fig.colorbar(points, ax=sky, label="fixed-base platform position error [µm] (floored at 1 nm)", shrink=0.8)
+        bar = fig.colorbar(points, ax=sky, label="fixed-base platform position error [µm] (floored at 1 nm)", shrink=0.8)
+        plain_log_axis(bar.ax.yaxis, subs=(1.0,))
     save(fig, path)
     return path
 

@@ -678,7 +678,7 @@ def plot_integrators(limits, path, cosim_limits=None, gains=GAINS):
     predicted limit for comparison."""
     plt = _plt()
     from movingbase.scenarios.style import save
-    fig, (left, right) = plt.subplots(1, 2, figsize=(13, 5.5))
+    fig, (left, zoom, right) = plt.subplots(1, 3, figsize=(16, 5.6), width_ratios=(1, 0.9, 1.2))
     x, y = np.meshgrid(np.linspace(-3.5, 1.0, 500), np.linspace(-3.2, 3.2, 500))
     colors = {"euler": "tab:blue", "rk4": "tab:red"}
     MARKS = {"euler": "s", "rk4": "o"}
@@ -687,8 +687,7 @@ def plot_integrators(limits, path, cosim_limits=None, gains=GAINS):
         left.plot([], [], color=color, label=f"|R(z)| = 1, {'explicit Euler' if method == 'euler' else 'RK4'}")
     eigenvalues = np.linalg.eigvals(closed_loop_matrix(gains))
     # most eigenvalues sit within |h lambda| < 0.3, where the whole plane's markers pile
-    # up: an inset zooms on them
-    zoom = left.inset_axes([0.05, 0.62, 0.36, 0.34], xlim=(-0.4, 0.05), ylim=(-0.22, 0.22))
+    # up: the middle panel zooms on them
     for ax in (left, zoom):
         for method, color in colors.items():
             row = [r for r in limits if r[0] == method and r[1] == 1.0]
@@ -701,9 +700,10 @@ def plot_integrators(limits, path, cosim_limits=None, gains=GAINS):
         ax.axvline(0, color="0.6", lw=0.5)
     for method, color in colors.items():
         zoom.contour(x, y, np.abs(stability_function(method, x + 1j * y)), levels=[1.0], colors=color)
-    zoom.tick_params(labelsize=7)
-    zoom.set_title("near the origin", fontsize=7.5)
-    left.indicate_inset_zoom(zoom, edgecolor="0.4")
+    zoom.set(xlim=(-0.4, 0.05), ylim=(-0.22, 0.22), aspect="equal", xlabel="Re(h lambda)",
+             title="the same, near the origin")
+    zoom.set_xticks([-0.4, -0.3, -0.2, -0.1, 0.0])
+    left.indicate_inset((-0.4, -0.22, 0.45, 0.44), inset_ax=zoom, edgecolor="0.4")
     left.set_aspect("equal")
     left.set_xlabel("Re(h lambda)")
     left.set_ylabel("Im(h lambda)")
@@ -761,7 +761,7 @@ def plot_convergence(curves, path):
     ax.set_ylabel("error against the curve's reference [m] (log)")
     ax.set_title("Convergence inside the stable region")
     ax.grid(True, which="major", alpha=0.3)
-    ax.legend(fontsize=8, loc="outside lower center")
+    fig.legend(*ax.get_legend_handles_labels(), fontsize=8, loc="outside lower center")
     path.parent.mkdir(parents=True, exist_ok=True)
     save(fig, path)
     return ax

@@ -140,3 +140,42 @@ def test_work_precision_chart_floor_front_labels_and_ratios(tmp_path):
     assert f"cost {style.ratio(v['cost_ratio'], 1)}" in position.get_title()
     assert not re.search(r"x\d+\.\d\d\b", position.get_title())          # no 'x5955.92'
     assert all(ax.get_legend() is None for ax in axes) and len(position.figure.legends) == 1
+
+
+def _sky_rows(azimuths, elevations, peak):
+    return [{"mode": mode, "peak": peak(a, e, mode), "rms": peak(a, e, mode) / 5, "values": {
+        "base.start_azimuth": f"{a} deg", "base.target_azimuth": f"{a + 10} deg",
+        "base.start_elevation": f"{e} deg", "base.target_elevation": f"{e + 5} deg"}}
+        for a in azimuths for e in elevations for mode in ("fixed_base", "moving_base")]
+
+
+def test_sky_map_ticks_every_cell_and_keeps_its_legend_off_the_cells(tmp_path, monkeypatch):
+    from studies import sky_coverage as sc
+    azimuths, elevations = (0, 60, 120, 180, 240, 300), (10, 30, 50, 70)
+    rows = _sky_rows(azimuths, elevations, lambda a, e, mode: (50 + a / 10 if mode == "fixed_base" else 5e-4))
+    axes = []
+    monkeypatch.setattr(sc, "save", lambda fig, path: axes.extend(fig.axes[:4]))
+    sc.map_chart(rows, tmp_path / "map.png")
+    for ax in axes:
+        np.testing.assert_allclose(ax.get_xticks(), azimuths)
+        np.testing.assert_allclose(ax.get_yticks(), elevations)
+        assert ax.get_legend() is None
+        cells = [t.get_text() for t in ax.texts]
+        assert len(cells) == len(azimuths) * len(elevations)
+        assert not any(re.search(r"\de-\d", c) for c in cells)
+    assert [t.get_text() for t in axes[2].get_xticklabels()] == [f"{a:g}" for a in azimuths]
+    assert "<1 nm" in [t.get_text() for t in axes[1].texts]           # moving-base peaks under the floor
+    assert len(axes[0].figure.legends) == 1
+
+
+def test_slew_size_chart_ticks_at_the_sizes_run(tmp_path, monkeypatch):
+    from studies import sky_coverage as sc
+    sizes = (0.5, 1, 2, 5, 10, 20)
+    rows = [{"mode": mode, "peak": 3.0 * d, "rms": 0.5 * d, "values": {
+        "base.start_azimuth": "0 deg", "base.target_azimuth": f"{d} deg"}} for d in sizes
+        for mode in ("fixed_base", "moving_base")]
+    axes = []
+    monkeypatch.setattr(sc, "save", lambda fig, path: axes.append(fig.axes[0]))
+    sc.size_chart(rows, tmp_path / "sizes.png")
+    np.testing.assert_allclose(axes[0].get_xticks(), sizes)
+    assert [t.get_text() for t in axes[0].get_xticklabels()] == [f"{d:g}" for d in sizes]
