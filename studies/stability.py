@@ -749,14 +749,15 @@ def _log_axes(ax, xticks, yticks):
 
 def plot_convergence(curves, path):
     """Error against step (log-log) with the observed orders in the legend; ``curves``:
-    (label, steps, errors, what the error is). Returns the axes (the figure is closed)."""
+    (label, steps, errors, what the error is)."""
     plt = _plt()
-    from movingbase.scenarios.style import save
+    from movingbase.scenarios.style import plain_log_axis, save
     fig, ax = plt.subplots(figsize=(8.5, 5.6), layout="constrained")
     for label, steps, errors, what in curves:
         p = orders(steps, errors)
         ax.loglog(np.array(steps) * 1e3, errors, "o-", label=f"{label}: order {', '.join(f'{v:.2f}' for v in p)}\n"
                   f"  error: {what}")
+    plain_log_axis(ax.xaxis, subs=(1.0,))
     ax.set_xlabel("step [ms] (plant: max_step; co-simulation: communication step)")
     ax.set_ylabel("error against the curve's reference [m] (log)")
     ax.set_title("Convergence inside the stable region")
@@ -764,7 +765,7 @@ def plot_convergence(curves, path):
     fig.legend(*ax.get_legend_handles_labels(), fontsize=8, loc="outside lower center")
     path.parent.mkdir(parents=True, exist_ok=True)
     save(fig, path)
-    return ax
+    return path
 
 
 # -------------------------------------------------------------------------------- main
