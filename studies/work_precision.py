@@ -461,7 +461,7 @@ def chart(name, results, path, note=""):
     the Pareto front (log-log interpolated), the shipped default as a star. Four encodings only:
     colour = master, marker = plant integrator, hollow = substeps, grey = reduced-fidelity
     plant; only the front's points carry their step, beside them; position errors under
-    1 nm are drawn on the floor. Returns the two axes (the figure is closed)."""
+    1 nm are drawn on the floor. Returns the path."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -508,8 +508,9 @@ def chart(name, results, path, note=""):
         ax.set_xscale("log")
         ax.set_yscale("log")
         plain_log_axis(ax.xaxis)
-        if floor:
-            ax.set_ylim(floor, None)
+        plain_log_axis(ax.yaxis)
+        if floor:                             # never below 1 nm, no lower than the data needs
+            ax.set_ylim(max(floor, 0.5 * np.nanmin(shown)), None)
         ax.set_xlabel("wall time of the run [s] (median of repeats)")
         ax.set_ylabel(label + (" (floored at 1 nm)" if floor else ""), fontsize=9)
         ax.grid(True, which="major", alpha=0.3)
@@ -529,7 +530,7 @@ def chart(name, results, path, note=""):
                  f"continuous PID){extra}\n{note}", fontsize=9)
     path.parent.mkdir(parents=True, exist_ok=True)
     save(fig, path)
-    return axes
+    return path
 
 
 def summary(results):

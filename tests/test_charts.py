@@ -115,7 +115,7 @@ def test_wind_sweep_readable_log_axis_and_legend(tmp_path):
     assert len(gains) == 2                                        # the gains differ by marker and fill too
 
 
-def test_work_precision_chart_floor_front_labels_and_ratios(tmp_path):
+def test_work_precision_chart_floor_front_labels_and_ratios(tmp_path, monkeypatch):
     """Synthetic results with known costs and errors: the position axis stops at 1 nm and
     a run under it is drawn there as a triangle; only the front's points carry a step
     label; ratios are written as 'Nx' with 3 digits; no legend sits on the data."""
@@ -126,7 +126,9 @@ def test_work_precision_chart_floor_front_labels_and_ratios(tmp_path):
     pose = [2e-4, 0.05, 0.3, 7.0, 0.2, 40.0]            # the default far off the front, one run under 1 nm
     results = [{"config": c, "failure": None, "unstable": None, "wall_time": w, "times": [w],
                 "error": {"pose_rms_um": e, "force_rms_N": 10 * e + 1}} for c, w, e in zip(configs, costs, pose)]
-    axes = wp.chart("synthetic", results, tmp_path / "wp.png")
+    axes = []
+    monkeypatch.setattr(style, "save", lambda fig, path: axes.extend(fig.axes))
+    assert wp.chart("synthetic", results, tmp_path / "wp.png") == tmp_path / "wp.png"
     position = axes[0]
     assert position.get_ylim()[0] == style.FLOOR
     offsets = np.concatenate([c.get_offsets() for c in position.collections])
