@@ -9,6 +9,8 @@ import numpy as np  # noqa: E402
 
 from movingbase.plant import mechanism3t as m3t  # noqa: E402
 
+from .style import save  # noqa: E402
+
 PAPER_PEAK_FORCE_N = 142.2
 
 
@@ -31,8 +33,7 @@ def slider_force_chart(history, path):
     ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path)
     return ax
 
 
@@ -54,8 +55,7 @@ def write_charts(outdir, step=0.005):
            title=f"Workspace, all limbs closing: {full.volume:.4f} m$^3$\n(every 7th point of a {step * 1e3:g} mm grid, "
                  "colour = z)")
     paths["workspace_3d"] = outdir / "workspace_3d.png"
-    fig.savefig(paths["workspace_3d"], dpi=120)
-    plt.close(fig)
+    save(fig, paths["workspace_3d"])
 
     z_cut, y_cut = 0.35, 0.05
     fig, (ax_xy, ax_xz) = plt.subplots(1, 2, figsize=(12, 6.5), width_ratios=(1, 1.6))
@@ -70,8 +70,7 @@ def write_charts(outdir, step=0.005):
     fig.suptitle("3T mechanism workspace: the paper's criterion against all limbs closing")
     fig.tight_layout(rect=(0, 0.1, 1, 1))
     paths["workspace_sections"] = outdir / "workspace_sections.png"
-    fig.savefig(paths["workspace_sections"], dpi=120)
-    plt.close(fig)
+    save(fig, paths["workspace_sections"])
 
     paths["slider_forces"] = outdir / "slider_forces.png"
     slider_force_chart(history, paths["slider_forces"])

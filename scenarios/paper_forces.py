@@ -25,12 +25,17 @@ import numpy as np
 from movingbase.plant.stewart import HOME_POSE, S_BAND_POSE, StewartParams, inverse_dynamics
 from movingbase.plant.trajectory import quintic
 
+from .style import save
+
 DURATION = 6.0
 BASE_END = np.array([0.0, 0.0, 0.0, np.radians(45.0), 0.0, np.radians(30.0)])
 READINGS = {"model": "our model (eqs. 39-40: gravity once, base inertia kept)",
             "eq43": "the paper's eq. 43 as printed (gravity twice, no base inertia)"}
-# legs that the layout makes nearly equal come in pairs: same colour family, solid / dashed
-LEG_STYLES = [("C0", "-"), ("C0", "--"), ("C3", "-"), ("C2", "-"), ("C2", "--"), ("C3", "--")]
+# Legs that the layout makes nearly equal come in pairs, one colour a pair: the first a
+# wide pale line, the second a thin dashed one on top, so a pair that coincides shows both.
+LEG_STYLES = [{"color": "C0", "lw": 4.0, "alpha": 0.4}, {"color": "C0", "lw": 1.3, "ls": (0, (4, 2))},
+              {"color": "C3", "lw": 4.0, "alpha": 0.4}, {"color": "C2", "lw": 4.0, "alpha": 0.4},
+              {"color": "C2", "lw": 1.3, "ls": (0, (4, 2))}, {"color": "C3", "lw": 1.3, "ls": (0, (4, 2))}]
 
 
 def paper_leg_forces(n=601, params=None, reading="model"):
@@ -60,46 +65,56 @@ def change_summary(fixed, moving):
             "start": -moving[0] / 1e3}
 
 
-def plot_paper_forces(t, cases, path):
-    """Fig. 4-6 of the paper, one column per reading: base fixed, base moving, moving -
-    fixed; tension (-F) positive, kN, one force scale for all panels, one legend.
-    ``cases``: {reading: (fixed, moving)}. Returns the axes array (the figure is closed)."""
-    fig, axes = plt.subplots(3, len(cases), figsize=(5.5 * len(cases) + 1, 9), sharex=True, sharey=True,
-                             squeeze=False, layout="constrained")
-    for col, (reading, (fixed, moving)) in enumerate(cases.items()):
-        titles = ("base fixed (eq. 37)", "base moving: roll 0->45 deg, yaw 0->30 deg", "moving - fixed")
-        for row, (forces, title) in enumerate(zip((fixed, moving, moving - fixed), titles)):
-            ax = axes[row, col]
-            for leg in range(6):
-                color, ls = LEG_STYLES[leg]
-                ax.plot(t, -forces[:, leg] / 1e3, color=color, ls=ls, lw=1.4, label=f"leg {leg + 1}")
+def _legs(ax, t, forces):
+    for leg in range(6):
+        ax.plot(t, -forces[:, leg] / 1e3, label=f"leg {leg + 1}", **LEG_STYLES[leg])
+    ax.grid(True, alpha=0.3)
+
+
+def plot_paper_forces(t, fixed, moving, path):
+    """Fig. 4-6 of the paper: the base-fixed forces once, on their own scale (they stay
+    within 0.3 kN of the 5.2 kN static load and are the same in every reading), then one
+    column per reading (``moving``: {reading: forces}) with the base moving and moving -
+    fixed on one shared scale; tension (-F) positive, kN, one legend. Returns the fixed
+    panel and the (2, readings) array of the others (the figure is closed)."""
+    fig = plt.figure(figsize=(5.2 * len(moving) + 0.8, 8.6), layout="constrained")
+    grid = fig.add_gridspec(3, len(moving), height_ratios=(0.8, 1, 1))
+    top = fig.add_subplot(grid[0, :])
+    _legs(top, t, fixed)
+    top.set_title("base fixed (eq. 37): the same in both readings; own scale, zoomed on the 5.2 kN static load",
+                  fontsize=9.5)
+    top.set_ylabel("tension + [kN]")
+    axes = np.empty((2, len(moving)), dtype=object)
+    for col, (reading, forces) in enumerate(moving.items()):
+        for row, (data, title) in enumerate(((forces, "base moving: roll 0->45 deg, yaw 0->30 deg"),
+                                             (forces - fixed, "moving - fixed"))):
+            ax = axes[row, col] = fig.add_subplot(grid[row + 1, col], sharex=top,
+                                                  sharey=axes[0, 0] if axes[0, 0] is not None else None)
+            _legs(ax, t, data)
             ax.axhline(0.0, color="0.4", lw=0.6)
-            ax.set_title(title if col == 0 and row else (f"{READINGS[reading]}\n{title}" if row == 0 else title),
-                         fontsize=9.5)
-            ax.grid(True, alpha=0.3)
-        for row in range(3):
-            axes[row, 0].set_ylabel("leg force, tension + [kN]")
-        axes[-1, col].set_xlabel("time [s]")
-    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside lower center", ncol=6,
-               title="legs (pairs the layout makes nearly equal: one colour, solid / dashed)", fontsize=9)
-    fig.suptitle("Paper scenarios (Yao et al. 2018, Fig. 4-6): leg forces, one force scale for every panel")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return axes
+            ax.set_title(f"{READINGS[reading]}\n{title}" if row == 0 else title, fontsize=9.5)
+        axes[1, col].set_xlabel("time [s]")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("leg force, tension + [kN]")
+    fig.legend(*top.get_legend_handles_labels(), loc="outside lower center", ncol=6, fontsize=9,
+               title="legs (pairs the layout makes nearly equal: one colour, wide pale / thin dashed)")
+    fig.suptitle("Paper scenarios (Yao et al. 2018, Fig. 4-6): leg forces; base moving and the difference on one "
+                 "force scale", fontsize=11)
+    save(fig, path)
+    return top, axes
 
 
 def main(outdir="out/paper"):
     outdir = pathlib.Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
-    cases = {}
+    moving = {}
     for reading in READINGS:
-        t, fixed, moving = paper_leg_forces(reading=reading)
-        cases[reading] = (fixed, moving)
+        t, fixed, moving[reading] = paper_leg_forces(reading=reading)
     path = outdir / "leg_forces.png"
-    plot_paper_forces(t, cases, path)
+    plot_paper_forces(t, fixed, moving, path)
     print(f"paper scenarios: chart {path}")
-    for reading, (fixed, moving) in cases.items():
-        s = change_summary(fixed, moving)
+    for reading, forces in moving.items():
+        s = change_summary(fixed, forces)
         print(f"  {READINGS[reading]}: moving - fixed per leg, tension + [kN]")
         print("    largest rise: " + ", ".join(f"{v:.2f}" for v in s["rise"]))
         print("    largest fall: " + ", ".join(f"{v:.2f}" for v in s["fall"]))

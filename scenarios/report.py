@@ -13,29 +13,17 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from .records import run_records
+from .style import FLOOR, FLOOR_NOTE, MARKS_UM, draw_marks, fmt, length, ratio, run_colour, save  # noqa: F401
 
-MARKS_UM = {"0.1 mm": 100.0, "10 µm": 10.0}
 TRACKING = ("leg_tracking", "pose_tracking", "tracking")
-# Log axes stop at 1 nm (1 nrad): finer detail than a rigid-body model without joint play,
-# compliance or sensor noise resolves, and far below any metrology; without a floor the
-# axis ran down to round-off (1e-10 µm) and its dips looked like signal.
-FLOOR = 1e-3
-FLOOR_TEXT = ("log axis floored at 1e-3 µm (1 nm) / 1e-3 µrad: finer than this rigid-body model resolves "
-              "(no joint play, compliance or sensor noise)")
 COINCIDE = 0.02      # two curves closer than this fraction of their peak are said to coincide
+# runs told apart by line style as well as colour: a wide pale line under a dashed one
+# shows two coinciding runs
 RUN_STYLES = ({"ls": "-", "lw": 3.0, "alpha": 0.45}, {"ls": (0, (5, 2)), "lw": 1.4},
               {"ls": "-", "lw": 1.0}, {"ls": "-.", "lw": 1.0}, {"ls": ":", "lw": 1.4})
 RUN_MEANING = {"none": "PID alone, no feedforward",
                "fixed_base": "PID + feedforward from the fixed-base model (the base motion ignored)",
                "moving_base": "PID + feedforward from the moving-base model"}
-
-
-def fmt(value):
-    """A number as the report and README print it: 3 significant digits ('n/a' for a metric
-    that counted nothing)."""
-    if isinstance(value, float):
-        return "n/a" if value != value else f"{value:.3g}"
-    return str(value)
 
 
 def compare(metrics_by_run, metric, unit="µm"):
@@ -57,23 +45,18 @@ def compare(metrics_by_run, metric, unit="µm"):
     return text + "."
 
 
-def ratio(a, b):
-    """a / b as 'Nx', 3 significant digits, no exponent (the same text wherever a ratio is printed)."""
-    x = float(f"{a / max(b, 1e-300):.3g}")
-    return f"{x:.0f}x" if x >= 100 else f"{x:g}x"
-
-
 def _series(run, name, scale):
     t, values = run.series[name]
     return np.asarray(t), np.asarray(values) * scale
 
 
 def _error_panel(ax, runs, name, scale, unit, marks):
-    """One log panel of an error for every run; returns notes on coinciding curves and
-    curves under the floor (they would otherwise be invisible)."""
+    """One log panel of an error for every run, in its run kind's colour; returns notes on
+    coinciding curves and curves under the floor (they would otherwise be invisible).
+    ``marks``: draw the 10 µm and 0.1 mm pose marks (platform position only)."""
     data = [(run.label, *_series(run, name, scale)) for run in runs]
     for k, (label, t, v) in enumerate(data):
-        ax.plot(t, v, label=label, color=f"C{k}", **RUN_STYLES[k % len(RUN_STYLES)])
+        ax.plot(t, v, label=label, color=run_colour(label, k), **RUN_STYLES[k % len(RUN_STYLES)])
     notes = []
     for i in range(len(data)):
         for j in range(i + 1, len(data)):
@@ -82,18 +65,14 @@ def _error_panel(ax, runs, name, scale, unit, marks):
                 peak = max(va.max(), vb.max())
                 diff = float(np.abs(va - vb).max())
                 if peak > FLOOR and diff <= COINCIDE * peak:
-                    notes.append(f"{a} and {b} coincide: largest difference {diff:.2g} {unit} "
+                    notes.append(f"{a} and {b} coincide: largest difference {length(diff, unit)} "
                                  f"({100 * diff / peak:.2g} % of the peak)")
     for label, t, v in data:
         if len(v) and v.max() < FLOOR:
-            notes.append(f"{label}: under the floor throughout (peak {v.max():.2g} {unit})")
+            notes.append(f"{label}: under the floor throughout (peak {length(v.max(), unit)})")
     top = max([v.max() for _, _, v in data if len(v)] + [FLOOR * 10])
-    for text, level in (marks or {}).items():
-        if level < 3 * top:
-            ax.axhline(level, color="grey", ls="--", lw=0.8)
-            ax.text(1.0, level, text + " ", transform=ax.get_yaxis_transform(), ha="right", va="bottom",
-                    fontsize=8, color="grey")
-            top = max(top, level)
+    if marks:
+        top = max([top] + [MARKS_UM[m] for m in draw_marks(ax, top)])
     ax.set_yscale("log")
     ax.set_ylim(FLOOR, top * 2.5)
     ax.grid(True, which="major", alpha=0.3)
@@ -145,14 +124,14 @@ def _motion_panels(ax_rate, ax_acc, motion, interval):
 
 
 def _error_chart(scenario, runs, metric, path):
-    """Error against time, one line style per run (coinciding runs noted), log axis
-    floored at FLOOR, the settling cut-off marked; a pose metric gets a position and a
-    rotation panel; the telescope's axis rates and accelerations underneath on the same
+    """Error against time, one colour and line style per run (coinciding runs noted), log
+    axis floored at 1 nm, the settling cut-off marked; a pose metric gets a position panel
+    with the 10 µm and 0.1 mm marks and a rotation panel; the telescope's axis rates and accelerations underneath on the same
     time axis. Returns the figure's data panels {title: axes} (the figure is closed)."""
     motion = base_motion(scenario, next((r for r in runs if r.records is not None or r.record_path), runs[0]))
-    rows = [("position", 1e0, "µm", MARKS_UM)]
+    rows = [("position", 1.0, "µm", False)]      # the pose marks are no leg-length requirement
     if metric.kind == "pose_tracking":
-        rows = [("position", 1.0, "µm", MARKS_UM), ("rotation", 1e6, "µrad", None)]
+        rows = [("position", 1.0, "µm", True), ("rotation", 1e6, "µrad", False)]
     n = len(rows) + (2 if motion else 0)
     fig, axes = plt.subplots(n, 1, figsize=(10, 1.6 + 2.1 * n), sharex=True, layout="constrained",
                              gridspec_kw={"height_ratios": [3] * len(rows) + [1.6] * (n - len(rows))}, squeeze=False)
@@ -189,10 +168,9 @@ def _error_chart(scenario, runs, metric, path):
         fig.legend(*axes[-1].get_legend_handles_labels(), title="base motion: telescope axes", fontsize=8.5,
                    title_fontsize=8.5, loc="outside lower right", ncol=2)
     axes[-1].set_xlabel("time [s]")
-    fig.suptitle(f"{scenario.name}: {metric.name} against time (measured from {metric.start:g} s)\n{FLOOR_TEXT}",
+    fig.suptitle(f"{scenario.name}: {metric.name} against time (measured from {metric.start:g} s)\n{FLOOR_NOTE}",
                  fontsize=10)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path)
     return panels
 
 
@@ -211,46 +189,48 @@ def _summary_quantities(tracked):
 
 
 def _summary_chart(scenario, runs, tracked, path):
-    """RMS and peak per run on a linear scale from zero (bar length is the value), each
-    bar labelled with its value, the 10 µm and 0.1 mm marks drawn where they fit (else
-    said). Returns {panel title: axes} (the figure is closed)."""
+    """RMS (pale, hatched) and peak per run in the run kind's colour, on a log scale
+    floored at 1 nm (a run 100x better than another still shows), each bar labelled with
+    its value ("< 1 nm" under the floor); the 10 µm and 0.1 mm marks on the platform
+    position panel, where they fit (else said). Returns {panel title: axes} (the figure is
+    closed)."""
+    from matplotlib.patches import Patch
     quantities = _summary_quantities(tracked)
-    fig, axes = plt.subplots(1, len(quantities), figsize=(4.6 * len(quantities), 4.8), squeeze=False,
+    fig, axes = plt.subplots(1, len(quantities), figsize=(3.8 * len(quantities), 4.4), squeeze=False,
                              layout="constrained")
     labels = [r.label for r in runs]
+    colours = [run_colour(label, k) for k, label in enumerate(labels)]
     x = np.arange(len(runs))
     panels = {}
     for ax, (title, name, rms_key, peak_key, unit) in zip(axes[0], quantities):
         rms = [r.metrics[name][rms_key] for r in runs]
         peak = [r.metrics[name][peak_key] for r in runs]
-        top = max([v for v in peak + rms if np.isfinite(v)] + [1e-30])   # a failed run's NaN: no bar
-        for offset, values, label in ((-0.2, rms, "RMS"), (0.2, peak, "peak")):
-            bars = ax.bar(x + offset, values, 0.4, label=label)
-            ax.bar_label(bars, [fmt(v) for v in values], fontsize=7.5, padding=2)
+        top = max([v for v in peak + rms if np.isfinite(v)] + [10 * FLOOR])   # a failed run's NaN: no bar
+        for offset, values, style in ((-0.2, rms, {"alpha": 0.45, "hatch": "//"}), (0.2, peak, {})):
+            heights = [max(v - FLOOR, 0.0) if np.isfinite(v) else np.nan for v in values]
+            bars = ax.bar(x + offset, heights, 0.4, bottom=FLOOR, color=colours, edgecolor=colours, **style)
+            ax.bar_label(bars, [length(v, unit).removesuffix(f" {unit}") for v in values], fontsize=7.5, padding=2)
         off_scale = []
-        if unit == "µm":
-            for text, level in MARKS_UM.items():
-                if level <= 2.5 * top:
-                    ax.axhline(level, color="grey", ls="--", lw=0.8)
-                    ax.text(1.0, level, text + " ", transform=ax.get_yaxis_transform(), ha="right",
-                            va="bottom", fontsize=8, color="grey")
-                    top = max(top, level)
-                else:
-                    off_scale.append(text)
+        if unit == "µm" and "position" in title:
+            drawn = draw_marks(ax, top)
+            top = max([top] + [MARKS_UM[m] for m in drawn])
+            off_scale = [m for m in MARKS_UM if m not in drawn]
         if off_scale:
             ax.text(0.02, 0.97, f"{' and '.join(off_scale)} marks: off the scale, above it", transform=ax.transAxes,
                     fontsize=7.5, va="top", color="0.3")
-        ax.set_ylim(0, top * 1.15)
+        ax.set_yscale("log")
+        ax.set_ylim(FLOOR, top * 4)
         ax.set_xticks(x, labels)
-        ax.set_ylabel(f"error [{unit}] (linear scale)")
+        ax.set_ylabel(f"error [{unit}] (log scale, floored at 1 n{unit[1:]})")
+        ax.grid(True, axis="y", which="major", alpha=0.3)
         ax.set_title(title, fontsize=10)
         panels[title] = ax
     start = max(m.start for m in tracked)
     fig.suptitle(f"{scenario.name}: tracking error after the {start:g} s settling, by "
-                 f"{scenario.sweep[0] if scenario.sweep else 'run'}")
-    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside lower center", ncol=2, fontsize=8.5)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+                 f"{scenario.sweep[0] if scenario.sweep else 'run'}", fontsize=10)
+    fig.legend(handles=[Patch(facecolor="0.5", alpha=0.45, hatch="//", edgecolor="0.5", label="RMS"),
+                        Patch(facecolor="0.5", label="peak")], loc="outside lower center", ncol=2, fontsize=8.5)
+    save(fig, path)
     return panels
 
 

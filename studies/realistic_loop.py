@@ -43,11 +43,14 @@ except ModuleNotFoundError:  # Python 3.10
 import matplotlib
 
 matplotlib.use("Agg")
+import matplotlib.lines
 import matplotlib.patches
 import matplotlib.pyplot as plt
 
 from movingbase.scenarios import engine, runner, spec
-from movingbase.scenarios.report import FLOOR, fmt
+from movingbase.scenarios.report import fmt
+from movingbase.scenarios.style import (FLOOR, FLOOR_NOTE, RUN_COLOURS, draw_marks, length,
+                                         plain_log_axis, save)
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
@@ -456,52 +459,55 @@ def budget_rows(s, scene):
 
 
 def budget_chart(s, scene, path):
-    """Horizontal bars, peak and RMS pose error per row on one shared log axis, the two
-    marks drawn, each bar labelled in µm."""
+    """Horizontal bars, peak and RMS pose error per row on one shared log axis floored at
+    1 nm, each model in its colour, the two marks drawn, the values in a column at the
+    right of each panel (clear of the marks); rows that vary only the moving-base model's
+    base-motion signal say so in the fixed-base slot. Returns the two axes (the figure is
+    closed)."""
     rows = budget_rows(s, scene)
-    fig, axes = plt.subplots(1, 2, figsize=(13, 0.48 * len(rows) + 1.6), sharey=True)
-    colours = {"fixed_base": "#b0b0b0", "moving_base": "#1f77b4"}
+    fig, axes = plt.subplots(1, 2, figsize=(13, 0.44 * len(rows) + 1.8), sharey=True, layout="constrained")
     values = [e[k] for _, row in rows for e in row.values() if e for k in ("rms", "peak")]
-    low, high = FLOOR, max(max(values) * 4, 2000.0)   # floored at the 1 nm the model resolves
+    low, high = FLOOR, max(max(values) * 3, 300.0)
     for ax, key, title in zip(axes, ("peak", "rms"), ("peak pose error", "RMS pose error")):
         for i, (label, row) in enumerate(rows):
             for j, mode in enumerate(("fixed_base", "moving_base")):
+                y = i + (j - 0.5) * 0.38
                 if mode not in row:
+                    ax.text(low * 1.5, y, "moving-base model only (a base-motion signal)",
+                            va="center", fontsize=7.5, color="0.45", style="italic")
                     continue
                 entry = row[mode]
-                y = i + (j - 0.5) * 0.38
                 if entry is None:
-                    ax.text(low * 1.2, y, "failed", va="center", fontsize=8, color="red")
-                    continue
-                if entry[key] < low:   # under the floor: a triangle on it, the value written
-                    ax.plot(low, y, marker="<", color=colours[mode], ms=7, clip_on=False)
-                    ax.text(low * 1.6, y, f"{fmt(entry[key])} µm (under 1 nm)", va="center", fontsize=7.5)
-                    continue
-                ax.barh(y, entry[key] - low, left=low, height=0.36, color=colours[mode])
-                ax.text(entry[key] * 1.1, y, f"{fmt(entry[key])} µm", va="center", fontsize=7.5)
-        for mark, text, side in zip(MARKS, ("focus 10 µm", "0.1 mm metrology"), ("right", "left")):
-            ax.axvline(mark, color="#d62728", lw=1, ls="--")
-            ax.text(mark / 1.1 if side == "right" else mark * 1.1, -0.75, text, color="#d62728", fontsize=8,
-                    ha=side, va="center")
-        for mode, entry in rows[0][1].items():   # the ideal loop's value, down the chart
+                    text, colour = "failed", "red"
+                else:
+                    text, colour = length(entry[key]), RUN_COLOURS[mode]
+                    if entry[key] < low:   # under the floor: a triangle on it
+                        ax.plot(low, y, marker="<", color=colour, ms=7, clip_on=False)
+                    else:
+                        ax.barh(y, entry[key] - low, left=low, height=0.36, color=colour)
+                ax.text(1.01, y, text, transform=ax.get_yaxis_transform(), va="center", fontsize=7.5, color=colour)
+        draw_marks(ax, vertical=True)
+        for mode, entry in rows[0][1].items():   # the ideal loop's value, down the chart, in the model's colour
             if entry:
-                ax.axvline(entry[key], color=colours[mode], lw=1, ls=":", zorder=0)
+                ax.axvline(max(entry[key], low), color=RUN_COLOURS[mode], lw=1.2, ls=(0, (1, 2)), zorder=0)
         for edge in (0.5, len(EFFECTS) + len(SOURCES[2:]) + 0.5, len(EFFECTS) + len(SOURCES[2:]) + len(SOURCES) + 0.5):
             ax.axhline(edge, color="black", lw=0.6)
         ax.set_xscale("log")
+        plain_log_axis(ax.xaxis, subs=(1.0,))
         ax.set_xlim(low, high)
-        ax.set_xlabel(f"{title} [µm], after settling (log scale, floored at 1 nm)")
+        ax.set_xlabel(f"{title} [µm], after settling (log scale)")
         ax.grid(axis="x", which="major", alpha=0.3)
-        ax.set_title(title)
+        ax.set_title(title, pad=14)
     axes[0].set_yticks(range(len(rows)), [label for label, _ in rows], fontsize=8.5)
-    axes[0].set_ylim(len(rows) - 0.4, -1.2)
-    handles = [matplotlib.patches.Patch(color=colours[m], label=MODE_NAMES[m]) for m in ("fixed_base", "moving_base")]
-    fig.legend(handles=handles, loc="upper right", ncol=2, fontsize=8.5, frameon=False)
-    fig.suptitle(f"{scene}: pose error with each effect alone on top of the ideal loop (dotted: the ideal loop), "
-                 f"and with everything on", fontsize=10, x=0.01, ha="left")
-    fig.tight_layout(rect=(0, 0, 1, 0.97))
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    axes[0].set_ylim(len(rows) - 0.5, -0.6)
+    handles = [matplotlib.patches.Patch(color=RUN_COLOURS[m], label=MODE_NAMES[m]) for m in ("fixed_base", "moving_base")]
+    handles.append(matplotlib.lines.Line2D([], [], color="0.3", lw=1.2, ls=(0, (1, 2)),
+                                           label="the ideal loop's value (each model in its colour)"))
+    fig.legend(handles=handles, loc="outside lower center", ncol=3, fontsize=8.5, frameon=False)
+    fig.suptitle(f"{scene}: pose error with each effect alone on top of the ideal loop, and with everything on\n"
+                 f"{FLOOR_NOTE}; values under it written '< 1 nm'", fontsize=10)
+    save(fig, path)
+    return axes
 
 
 def _gain_entry(s, gains, loop, source, mode):
@@ -549,26 +555,28 @@ def sweep_lines(s):
 
 def sweep_chart(s, path):
     """Peak pose error of the slew against mean wind speed, one line per gains x
-    feedforward, the 10 µm mark drawn; log y (the calm peaks sit far below the windy ones)."""
-    fig, ax = plt.subplots(figsize=(7.5, 5.4))
-    styles = {"shipped": "-", "stiffest": "--"}
-    colours = {"fixed_base": "#7f7f7f", "moving_base": "#1f77b4"}
+    feedforward (colour: the model; line, marker and fill: the gains), the 10 µm mark
+    drawn; log y labelled at 1, 2, 5 per decade (the calm peaks sit far below the windy
+    ones). Returns the axes (the figure is closed)."""
+    fig, ax = plt.subplots(figsize=(9, 5.8), layout="constrained")
+    styles = {"shipped": {"ls": "-", "marker": "o", "ms": 7},
+              "stiffest": {"ls": (0, (6, 3)), "marker": "s", "ms": 6, "mfc": "white", "mew": 1.5}}
     for (name, mode), peaks in sweep_lines(s).items():
         points = [(u, p) for u, p in zip(WIND_SPEEDS, peaks) if p is not None]
-        ax.plot(*zip(*points), styles[name], marker="o", color=colours[mode],
+        ax.plot(*zip(*points), color=RUN_COLOURS[mode], lw=1.6, **styles[name],
                 label=f"{GAIN_NAMES[name]}, {MODE_NAMES[mode]}" + (" (IMU)" if mode == "moving_base" else ""))
-    ax.axhline(MARKS[0], color="#d62728", lw=1, ls=":")
-    ax.text(WIND_SPEEDS[-1], MARKS[0] / 1.08, "focus 10 µm", color="#d62728", fontsize=8, va="top", ha="right")
+    draw_marks(ax, top=max(p for peaks in sweep_lines(s).values() for p in peaks if p is not None))
     ax.set_yscale("log")
+    plain_log_axis(ax.yaxis)
     ax.set_xticks(WIND_SPEEDS)
     ax.set_xlabel("mean wind speed [m/s] (Kaimal gusts, 15 % turbulence)")
     ax.set_ylabel("peak pose error after settling [µm] (log)")
     ax.set_title(f"{GAIN_SCENE}, realistic loop: peak pose error against wind speed", fontsize=10)
-    ax.grid(which="both", alpha=0.3)
-    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, frameon=False)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110, bbox_inches="tight")
-    plt.close(fig)
+    ax.grid(which="major", alpha=0.3)
+    fig.legend(*ax.get_legend_handles_labels(), fontsize=8, loc="outside lower center", ncol=2, frameon=False,
+               handlelength=4)
+    save(fig, path)
+    return ax
 
 
 def gain_statements(s):

@@ -31,7 +31,7 @@ from matplotlib.colors import LogNorm
 from movingbase.plant import telescope
 from movingbase.scenarios import campaign as campaigns
 from movingbase.scenarios import engine
-from movingbase.scenarios.report import FLOOR
+from movingbase.scenarios.style import FLOOR, RUN_COLOURS, RUN_NAMES, draw_marks, length, plain_log_axis, save
 from movingbase.scenarios.units import to_si
 
 CAMPAIGNS = ("sky_slews", "slew_sizes", "keyhole_tracks")
@@ -88,9 +88,9 @@ def _short(name, case):
     return case.label.split(";")[0]
 
 
-def _marks_legend(ax):
-    ax.plot([], [], color="k", lw=1.2, label="10 µm")
-    ax.plot([], [], color="k", lw=1.2, ls="--", label="0.1 mm")
+def _cell(value):
+    """A map cell's number: 3 digits, '<1 nm' under the floor."""
+    return length(value).removesuffix(" µm").replace("< 1 nm", "<1 nm")
 
 
 def map_chart(rows_, path):
@@ -103,7 +103,7 @@ def map_chart(rows_, path):
         for q in ("peak", "rms"):
             grids[(q, r["mode"])][i, j] = r[q]
     values = np.concatenate([g[np.isfinite(g)] for g in grids.values()])
-    norm = LogNorm(max(values.min(), 1e-3), values.max())
+    norm = LogNorm(max(values.min(), FLOOR), values.max())
 
     def edges(centres):
         c = np.asarray(centres, float)
@@ -112,54 +112,64 @@ def map_chart(rows_, path):
         mid = (c[1:] + c[:-1]) / 2
         return np.concatenate([[c[0] - (mid[0] - c[0])], mid, [c[-1] + (c[-1] - mid[-1])]])
 
-    fig, axes = plt.subplots(2, 2, figsize=(12, 8.5), sharex=True, sharey=True, constrained_layout=True)
+    fig, axes = plt.subplots(2, 2, figsize=(12, 8.5), sharex=True, sharey=True, layout="constrained")
     for (row, q), (col, mode) in ((a, b) for a in enumerate(("peak", "rms")) for b in enumerate(MODES)):
         ax, grid = axes[row, col], grids[(q, mode)]
         mesh = ax.pcolormesh(edges(az), np.clip(edges(el), 0, 90), grid, norm=norm, cmap="viridis", shading="flat")
         for i, e in enumerate(el):
             for j, a in enumerate(az):
                 if np.isfinite(grid[i, j]):
-                    ax.text(a, e, f"{grid[i, j]:.3g}", ha="center", va="center", fontsize=7,
+                    ax.text(a, e, _cell(grid[i, j]), ha="center", va="center", fontsize=7,
                             color="white" if grid[i, j] < np.sqrt(norm.vmin * norm.vmax) else "black")
         if len(az) > 1 and len(el) > 1:
             ax.contour(az, el, grid, levels=list(MARKS), colors="k", linestyles=["-", "--"], linewidths=1.2)
         above = [f"{(grid > m).sum()} of {np.isfinite(grid).sum()} above {t}"
                  for m, t in zip(MARKS, ("10 µm", "0.1 mm"))]
         ax.set_title(f"{q} pose error, {mode.replace('_', '-')} feedforward\n{'; '.join(above)}", fontsize=10)
+        ax.set_xticks(az, [f"{a:g}" for a in az])         # a tick at every grid column and row
+        ax.set_yticks(el, [f"{e:g}" for e in el])
         if row == 1:
             ax.set_xlabel("start azimuth [deg] (astronomical, north through east)")
         if col == 0:
             ax.set_ylabel("start elevation [deg]")
-    _marks_legend(axes[0, 0])
-    axes[0, 0].legend(loc="upper right", fontsize=8, title="contours", title_fontsize=8)
-    fig.colorbar(mesh, ax=axes, label="platform position error [µm] (log scale; numbers in the cells)", shrink=0.8)
+    contours = [plt.Line2D([], [], color="k", lw=1.2, label="10 µm"),
+                plt.Line2D([], [], color="k", lw=1.2, ls="--", label="0.1 mm")]
+    fig.legend(handles=contours, loc="outside lower center", ncol=2, fontsize=8, title="contours",
+               title_fontsize=8, frameon=False)
+    bar = fig.colorbar(mesh, ax=axes, label="platform position error [µm] (log scale, floored at 1 nm; numbers in the "
+                       "cells)", shrink=0.8)
+    plain_log_axis(bar.ax.yaxis, subs=(1.0,))
     fig.suptitle("Slews of +10 deg in azimuth and +5 deg in elevation from each start pointing "
                  "(rate/acc limited, 25 m lever arm)")
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save(fig, path)
     return path
 
 
 def size_chart(rows_, path):
-    """Pose error against the size of a diagonal slew."""
-    fig, ax = plt.subplots(figsize=(8, 5), constrained_layout=True)
-    for mode, colour in zip(MODES, ("tab:red", "tab:blue")):
+    """Pose error against the size of a diagonal slew, a tick at every size run; values
+    under 1 nm drawn on the floor."""
+    fig, ax = plt.subplots(figsize=(8, 5), layout="constrained")
+    sizes = set()
+    for mode in MODES:
         mine = sorted((r for r in rows_ if r["mode"] == mode), key=lambda r: _deg(r["values"]["base.target_azimuth"]))
         size = [_deg(r["values"]["base.target_azimuth"]) - _deg(r["values"]["base.start_azimuth"]) for r in mine]
-        ax.plot(size, [r["peak"] for r in mine], "o-", color=colour, label=f"{mode.replace('_', '-')}: peak")
-        ax.plot(size, [r["rms"] for r in mine], "s--", color=colour, label=f"{mode.replace('_', '-')}: RMS")
-    for mark, text in zip(MARKS, ("10 µm", "0.1 mm")):
-        ax.axhline(mark, color="grey", lw=0.8, ls=":")
-        ax.text(1.0, mark, text + " ", transform=ax.get_yaxis_transform(), ha="right", va="bottom", fontsize=8)
+        sizes.update(size)
+        for key, style in (("peak", {"marker": "o", "ls": "-"}), ("rms", {"marker": "s", "ls": "--", "mfc": "white"})):
+            ax.plot(size, [max(r[key], FLOOR) for r in mine], color=RUN_COLOURS[mode], **style,
+                    label=f"{RUN_NAMES[mode]}: {'peak' if key == 'peak' else 'RMS'}")
+    draw_marks(ax)
     ax.set_xscale("log")
     ax.set_yscale("log")
+    ax.set_xticks(sorted(sizes), [f"{v:g}" for v in sorted(sizes)])
+    ax.xaxis.set_minor_locator(plt.NullLocator())
+    plain_log_axis(ax.yaxis, subs=(1.0,))
+    ax.set_ylim(FLOOR, None)
     ax.set_xlabel("slew size [deg] (the same in azimuth and in elevation, from az 0, el 40 deg)")
-    ax.set_ylabel("platform position error [µm]")
+    ax.set_ylabel("platform position error [µm] (log, floored at 1 nm)")
     ax.set_title("Pose error against slew size")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    ax.grid(True, which="major", alpha=0.3)
+    ax.legend(fontsize=8, handlelength=3)
+    save(fig, path)
     return path
 
 
@@ -172,36 +182,41 @@ def keyhole_chart(rows_, store, path):
     """Error against the miss distance, and the tracks on a compass sky chart coloured
     by the fixed-base error along them."""
     params = telescope.TelescopeParams.tianma()
-    fig = plt.figure(figsize=(13, 5.5), constrained_layout=True)
+    fig = plt.figure(figsize=(13, 5.5), layout="constrained")
     ax = fig.add_subplot(1, 2, 1)
-    lowest = np.inf
-    for mode, colour in zip(MODES, ("tab:red", "tab:blue")):
-        for side, marker, sign in (("south", "o", -1), ("north", "^", 1)):
+    under_any = False
+    sides = {"south": ("o", -1), "north": ("^", 1)}
+    for mode in MODES:
+        for side, (marker, sign) in sides.items():
             mine = sorted((r for r in rows_ if r["mode"] == mode and np.sign(_miss(r, params.latitude)) == sign),
                           key=lambda r: abs(_miss(r, params.latitude)))
-            x = [abs(_miss(r, params.latitude)) for r in mine]
-            for key, style, alpha in (("peak", "-", 1.0), ("rms", ":", 0.6)):
+            x = np.array([abs(_miss(r, params.latitude)) for r in mine])
+            for key, ls, alpha in (("peak", "-", 1.0), ("rms", ":", 0.6)):
                 values = np.array([r[key] for r in mine])
                 under = values < FLOOR        # drawn on the floor, as downward triangles
-                label = f"{mode.replace('_', '-')}, {side}: {'peak' if key == 'peak' else 'RMS'}"
-                ax.plot(x, np.maximum(values, FLOOR), style, color=colour, alpha=alpha, label=label,
-                        marker=marker, markevery=list(np.flatnonzero(~under)))
-                ax.plot(np.array(x)[under], np.full(under.sum(), FLOOR), "v", color=colour, alpha=alpha)
-                lowest = min(lowest, values.min(initial=np.inf))
-    if lowest < FLOOR:
-        ax.text(0.02, 0.02, f"v: under the {FLOOR * 1e3:g} nm this rigid-body model resolves, drawn on the floor "
-                f"(lowest {lowest:.1g} µm)", transform=ax.transAxes, fontsize=7.5, color="0.3")
-    for mark, text in zip(MARKS, ("10 µm", "0.1 mm")):
-        ax.axhline(mark, color="grey", lw=0.8, ls=":")
-        ax.text(1.0, mark, text + " ", transform=ax.get_yaxis_transform(), ha="right", va="bottom", fontsize=8)
+                under_any |= bool(under.any())
+                ax.plot(x, np.maximum(values, FLOOR), ls, color=RUN_COLOURS[mode], alpha=alpha)
+                ax.plot(x[~under], values[~under], marker, color=RUN_COLOURS[mode], alpha=alpha, ls="none")
+                ax.plot(x[under], np.full(under.sum(), FLOOR), "v", color=RUN_COLOURS[mode], alpha=alpha, ls="none",
+                        clip_on=False)
+    # the legend names each encoding once, with the markers as plotted
+    keys = [plt.Line2D([], [], color=RUN_COLOURS[m], lw=2, label=RUN_NAMES[m]) for m in MODES]
+    keys += [plt.Line2D([], [], color="0.3", ls="-", label="peak"), plt.Line2D([], [], color="0.3", ls=":", label="RMS")]
+    keys += [plt.Line2D([], [], color="0.3", marker=m, ls="none", label=f"transits {side} of the zenith")
+             for side, (m, _) in sides.items()]
+    if under_any:
+        keys.append(plt.Line2D([], [], color="0.3", marker="v", ls="none", label="< 1 nm (drawn on the floor)"))
+    draw_marks(ax)
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_ylim(FLOOR / 2, None)
+    plain_log_axis(ax.xaxis)
+    plain_log_axis(ax.yaxis, subs=(1.0,))
+    ax.set_ylim(FLOOR, None)
     ax.set_xlabel("zenith distance at transit [deg]")
-    ax.set_ylabel("platform position error [µm]")
+    ax.set_ylabel("platform position error [µm] (log, floored at 1 nm)")
     ax.set_title("Sidereal tracks near the keyhole")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
+    ax.grid(True, which="major", alpha=0.3)
+    ax.legend(handles=keys, fontsize=7.5, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.13))   # off the data
 
     sky = fig.add_subplot(1, 2, 2, projection="polar")
     sky.set_theta_zero_location("N")
@@ -221,9 +236,9 @@ def keyhole_chart(rows_, store, path):
     sky.set_title(f"the tracks within {SKY_RADIUS:g} deg of the zenith (compass view, radius = zenith\n"
                   f"distance [deg]), coloured by the fixed-base pose error", fontsize=10)
     if fixed:
-        fig.colorbar(points, ax=sky, label="fixed-base platform position error [µm]", shrink=0.8)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+        bar = fig.colorbar(points, ax=sky, label="fixed-base platform position error [µm] (floored at 1 nm)", shrink=0.8)
+        plain_log_axis(bar.ax.yaxis, subs=(1.0,))
+    save(fig, path)
     return path
 
 

@@ -553,6 +553,10 @@ def orders(steps, errors):
     return np.log(errors[:-1] / errors[1:]) / np.log(steps[:-1] / steps[1:])
 
 
+PLANT_ERROR = "pose after 0.4 s against max_step / 16, largest of x, y, z [m] and the angles [rad]"
+COSIM_ERROR = "leg lengths against the monolithic loop (RK4, 0.1 ms), largest over legs and 0.2 s [m]"
+
+
 def plant_convergence(method="rk4", max_steps=(0.1, 0.05, 0.025, 0.0125), duration=0.4,
                       push=(400.0, -300.0, 200.0, 0.0, 300.0, -500.0)):
     """Pose error after one advance of ``duration`` s of the plant (HexapodODE, fixed
@@ -617,6 +621,7 @@ def plot_boundary(panels, path, gains=GAINS, resolution=48):
     force limit plays no part in it) and observed verdicts (markers) in the (h, k) plane;
     one panel per (title, BoundaryStudy) in ``panels``."""
     plt = _plt()
+    from movingbase.scenarios.style import save
     first = panels[0][1]
     hs = np.geomspace(first.steps.min() / 1.3, first.steps.max() * 1.3, resolution)
     ks = np.geomspace(first.scales.min() / 1.3, first.scales.max() * 1.3, resolution)
@@ -662,8 +667,7 @@ def plot_boundary(panels, path, gains=GAINS, resolution=48):
     fig.legend(list(labels.values()), list(labels.keys()), loc="center right", fontsize=8, framealpha=0.9)
     fig.tight_layout(rect=(0, 0, 1 - 3.4 / fig.get_figwidth(), 1))
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path)
     return path
 
 
@@ -673,26 +677,38 @@ def plot_integrators(limits, path, cosim_limits=None, gains=GAINS):
     limits against k, predicted (lines) and observed (markers); the co-simulation's
     predicted limit for comparison."""
     plt = _plt()
-    fig, (left, right) = plt.subplots(1, 2, figsize=(13, 5.5))
+    from movingbase.scenarios.style import save
+    fig, (left, zoom, right) = plt.subplots(1, 3, figsize=(16, 5.6), width_ratios=(1, 0.9, 1.2))
     x, y = np.meshgrid(np.linspace(-3.5, 1.0, 500), np.linspace(-3.2, 3.2, 500))
     colors = {"euler": "tab:blue", "rk4": "tab:red"}
+    MARKS = {"euler": "s", "rk4": "o"}
     for method, color in colors.items():
         left.contour(x, y, np.abs(stability_function(method, x + 1j * y)), levels=[1.0], colors=color)
         left.plot([], [], color=color, label=f"|R(z)| = 1, {'explicit Euler' if method == 'euler' else 'RK4'}")
     eigenvalues = np.linalg.eigvals(closed_loop_matrix(gains))
+    # most eigenvalues sit within |h lambda| < 0.3, where the whole plane's markers pile
+    # up: the middle panel zooms on them
+    for ax in (left, zoom):
+        for method, color in colors.items():
+            row = [r for r in limits if r[0] == method and r[1] == 1.0]
+            if row:
+                h = row[0][3]
+                ax.plot((h * eigenvalues).real, (h * eigenvalues).imag, MARKS[method], color=color, mfc="none",
+                        ms=6 if ax is left else 5, label=f"h lambda at the observed {method} limit h = {h * 1e3:.2f} "
+                        "ms (k = 1)")
+        ax.axhline(0, color="0.6", lw=0.5)
+        ax.axvline(0, color="0.6", lw=0.5)
     for method, color in colors.items():
-        row = [r for r in limits if r[0] == method and r[1] == 1.0]
-        if row:
-            h = row[0][3]
-            left.plot((h * eigenvalues).real, (h * eigenvalues).imag, "o", color=color, mfc="none",
-                      label=f"h lambda at the observed {method} limit h = {h * 1e3:.2f} ms (k = 1)")
-    left.axhline(0, color="0.6", lw=0.5)
-    left.axvline(0, color="0.6", lw=0.5)
+        zoom.contour(x, y, np.abs(stability_function(method, x + 1j * y)), levels=[1.0], colors=color)
+    zoom.set(xlim=(-0.4, 0.05), ylim=(-0.22, 0.22), aspect="equal", xlabel="Re(h lambda)",
+             title="the same, near the origin")
+    zoom.set_xticks([-0.4, -0.3, -0.2, -0.1, 0.0])
+    left.indicate_inset((-0.4, -0.22, 0.45, 0.44), inset_ax=zoom, edgecolor="0.4")
     left.set_aspect("equal")
     left.set_xlabel("Re(h lambda)")
     left.set_ylabel("Im(h lambda)")
     left.set_title("Stability regions and the closed loop's eigenvalues")
-    left.legend(fontsize=7, loc="lower left")
+    left.legend(fontsize=7, loc="lower left", framealpha=0.95)
     ks = np.geomspace(0.22, 4.5, 60)
     for method, color in colors.items():
         pred = [predicted_integrator_limit(method, k, gains)[0] for k in ks]
@@ -714,8 +730,7 @@ def plot_integrators(limits, path, cosim_limits=None, gains=GAINS):
     right.legend(fontsize=8)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path)
     return path
 
 
@@ -733,21 +748,23 @@ def _log_axes(ax, xticks, yticks):
 
 
 def plot_convergence(curves, path):
-    """Error against step (log-log) with the observed orders in the legend."""
+    """Error against step (log-log) with the observed orders in the legend; ``curves``:
+    (label, steps, errors, what the error is)."""
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(7, 5))
-    for label, steps, errors in curves:
+    from movingbase.scenarios.style import plain_log_axis, save
+    fig, ax = plt.subplots(figsize=(8.5, 5.6), layout="constrained")
+    for label, steps, errors, what in curves:
         p = orders(steps, errors)
-        ax.loglog(np.array(steps) * 1e3, errors, "o-", label=f"{label}: order {np.round(p, 2).tolist()}")
+        ax.loglog(np.array(steps) * 1e3, errors, "o-", label=f"{label}: order {', '.join(f'{v:.2f}' for v in p)}\n"
+                  f"  error: {what}")
+    plain_log_axis(ax.xaxis, subs=(1.0,))
     ax.set_xlabel("step [ms] (plant: max_step; co-simulation: communication step)")
-    ax.set_ylabel("error against the reference [m]")
+    ax.set_ylabel("error against the curve's reference [m] (log)")
     ax.set_title("Convergence inside the stable region")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
+    ax.grid(True, which="major", alpha=0.3)
+    fig.legend(*ax.get_legend_handles_labels(), fontsize=8, loc="outside lower center")
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path)
     return path
 
 
@@ -831,10 +848,10 @@ def main(argv=None):
     for method in ("rk4", "euler"):
         max_steps = (0.1, 0.05, 0.025, 0.0125) if method == "rk4" else (0.02, 0.01, 0.005, 0.0025)
         s, e = plant_convergence(method, max_steps)
-        curves.append((f"plant {method} (max_step)", s, e))
+        curves.append((f"plant {method} (max_step)", s, e, PLANT_ERROR))
     s, e = cosim_convergence(cosim)
-    curves.append(("co-simulation, Jacobi ZOH (comm step)", s, e))
-    for label, s, e in curves:
+    curves.append(("co-simulation, Jacobi ZOH (comm step)", s, e, COSIM_ERROR))
+    for label, s, e, _ in curves:
         print(f"   {label:40s} steps [ms] {np.round(s * 1e3, 4).tolist()}  errors {[f'{v:.3g}' for v in e]}  "
               f"orders {np.round(orders(s, e), 2).tolist()}")
     print(f"   ({time.perf_counter() - t0:.1f} s)")

@@ -451,74 +451,83 @@ def table(results):
 # -------------------------------------------------------------------------------- chart
 COLOURS = {"Jacobi": "tab:blue", "Gauss-Seidel": "tab:orange", "Jacobi+lin": "tab:green"}
 MARKERS = {"rk4": "o", "euler": "s", "radau": "D"}
-FIDELITY_MARKERS = {"massless_legs": "^", "base_gravity": "v", "no_base": "P"}
+REDUCED = "0.55"     # every reduced-fidelity plant: one grey, its points named in the table
 
 
 def chart(name, results, path, note=""):
     """Error against wall time, log-log: position RMS (left) and leg-force RMS (right),
-    the Pareto front as a staircase, the shipped default as a star."""
+    the Pareto front (log-log interpolated), the shipped default as a star. Four encodings only:
+    colour = master, marker = plant integrator, hollow = substeps, grey = reduced-fidelity
+    plant; only the front's points carry their step, beside them; position errors under
+    1 nm are drawn on the floor. Returns the path."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib import ticker
     from matplotlib.lines import Line2D
 
-    fig, axes = plt.subplots(1, 2, figsize=(13, 5.8))
+    from movingbase.scenarios.style import FLOOR, plain_log_axis, ratio, save
+
+    fig, axes = plt.subplots(1, 2, figsize=(13, 6.2), layout="constrained")
     for ax, key, label in ((axes[0], "pose_rms_um", "platform position error against the reference, RMS [µm]"),
                            (axes[1], "force_rms_N", "leg-force error against the reference, RMS [N]")):
         costs, errors = measures(results, key)
+        floor = FLOOR if key == "pose_rms_um" else 0.0
+        shown = np.maximum(errors, floor)
         front = pareto_front(costs, errors)
         for i, r in enumerate(results):
             if r["failure"]:
                 continue
             c = r["config"]
-            x, y = r["wall_time"], r["error"][key]
+            x, y = r["wall_time"], max(r["error"][key], floor)
             if r["unstable"]:
                 ax.scatter(x, y, s=40, marker="x", color="0.5", zorder=3)
-            else:
-                filled = c.substeps == 1 or c.integrator == "radau"
-                ax.scatter(x, y, s=36, marker=FIDELITY_MARKERS.get(c.fidelity, MARKERS[c.integrator]), zorder=3,
-                           facecolors=COLOURS[c.master_label] if filled else "none",
-                           edgecolors=COLOURS[c.master_label], linewidths=1.1)
-            ax.annotate(f"{c.step * 1e3:g}", (x, y), textcoords="offset points", xytext=(4, 3), fontsize=6,
-                        color="0.35")
+                continue
+            colour = COLOURS[c.master_label] if c.fidelity == "full" else REDUCED
+            filled = c.substeps == 1 or c.integrator == "radau"
+            ax.scatter(x, y, s=40, marker="v" if r["error"][key] < floor else MARKERS[c.integrator], zorder=3,
+                       facecolors=colour if filled else "none", edgecolors=colour, linewidths=1.2, clip_on=False)
         idx = np.flatnonzero(front)
         idx = idx[np.argsort(costs[idx])]
-        ax.plot(costs[idx], errors[idx], color="k", lw=1.2, zorder=2, label="Pareto front (log-log interpolated)")
-        ax.scatter(costs[idx], errors[idx], s=110, facecolors="none", edgecolors="k", lw=0.8, zorder=2)
+        ax.plot(costs[idx], shown[idx], color="k", lw=1.2, zorder=2)
+        for n, i in enumerate(idx):           # the front's steps, alternately above and below
+            c = results[i]["config"]
+            ax.annotate(f"{c.step * 1e3:g} ms" + ("" if c.fidelity == "full" else f", {c.fidelity}"), (costs[i], shown[i]),
+                        textcoords="offset points",
+                        xytext=(6, 6 if n % 2 else -11), fontsize=7, color="0.25")
+        title = ""
         v = verdict(results, key)
         if v:
             d = next(i for i, r in enumerate(results) if r["config"] == DEFAULT)
-            status = "on the front" if v["on_front"] else ("within 10 %" if v["near"] else "not within 10 %")
-            ax.scatter(costs[d], errors[d], s=300, marker="*", facecolors="gold", edgecolors="k", zorder=4,
-                       label=f"shipped default ({DEFAULT.label}): {status}\n"
-                             f"cost x{v['cost_ratio']:.2f} of the front at equal error, "
-                             f"error x{v['error_ratio']:.2f} at equal cost")
+            status = "on the front" if v["on_front"] else ("within 10 % of it" if v["near"] else "not within 10 % of it")
+            ax.scatter(costs[d], shown[d], s=260, marker="*", facecolors="gold", edgecolors="k", zorder=4)
+            title = (f"shipped default ({DEFAULT.label}): {status};\ncost {ratio(v['cost_ratio'], 1)} the front's at "
+                     f"equal error, error {ratio(v['error_ratio'], 1)} at equal cost")
+        ax.set_title(title, fontsize=9)
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.xaxis.set_major_locator(ticker.LogLocator(subs=(1.0, 2.0, 5.0)))
-        ax.xaxis.set_major_formatter(ticker.FuncFormatter(lambda value, _: f"{value:g}"))
-        ax.xaxis.set_minor_formatter(ticker.NullFormatter())
+        plain_log_axis(ax.xaxis)
+        plain_log_axis(ax.yaxis)
+        if floor:                             # never below 1 nm, no lower than the data needs
+            ax.set_ylim(max(floor, 0.5 * np.nanmin(shown)), None)
         ax.set_xlabel("wall time of the run [s] (median of repeats)")
-        ax.set_ylabel(label, fontsize=9)
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7, loc="upper right")
-    keys = [Line2D([], [], ls="", marker="o", color=c, label=m) for m, c in COLOURS.items()]
-    keys += [Line2D([], [], ls="", marker=m, color="0.3", label=k) for k, m in MARKERS.items()]
-    keys += [Line2D([], [], ls="", marker="o", markerfacecolor="none", color="0.3", label="hollow: >1 substep")]
-    keys += [Line2D([], [], ls="", marker=m, color="0.3", label=f"{k} plant") for k, m in FIDELITY_MARKERS.items()]
-    keys += [Line2D([], [], ls="", marker="x", color="0.5", label="unstable (forces at the limit)")]
-    fig.legend(handles=keys, loc="lower center", ncol=len(keys), fontsize=7, frameon=False)
+        ax.set_ylabel(label + (" (floored at 1 nm)" if floor else ""), fontsize=9)
+        ax.grid(True, which="major", alpha=0.3)
+    keys = [Line2D([], [], ls="", marker="o", color=c, label=f"master {m}") for m, c in COLOURS.items()]
+    keys += [Line2D([], [], ls="", marker=m, color="0.3", label=f"plant {k}") for k, m in MARKERS.items()]
+    keys += [Line2D([], [], ls="", marker="o", markerfacecolor="none", color="0.3", label="hollow: > 1 substep"),
+             Line2D([], [], ls="", marker="o", color=REDUCED, label="reduced-fidelity plant (see the table)"),
+             Line2D([], [], ls="", marker="x", color="0.5", label="unstable (forces at the limit)"),
+             Line2D([], [], color="k", lw=1.2, label="Pareto front (labels: step)"),
+             Line2D([], [], ls="", marker="*", ms=12, markerfacecolor="gold", color="k", label="shipped default")]
+    fig.legend(handles=keys, loc="outside lower center", ncol=6, fontsize=8, frameon=False)
     failed = [r["config"] for r in results if r["failure"]]
     extra = ""
     if failed:
         extra = f"; failed, not shown: {', '.join(sorted({f'{c.integrator} plant' for c in failed}))}"
-    fig.suptitle(f"Work-precision, {name}: error against wall time (labels: communication step [ms]; reference: "
-                 f"coupled model, Radau rtol 1e-10, continuous PID){extra}\n{note}", fontsize=9)
-    fig.tight_layout(rect=(0, 0.05, 1, 0.95))
+    fig.suptitle(f"Work-precision, {name}: error against wall time (reference: coupled model, Radau rtol 1e-10, "
+                 f"continuous PID){extra}\n{note}", fontsize=9)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    save(fig, path)
     return path
 
 

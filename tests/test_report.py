@@ -80,7 +80,7 @@ def test_pose_chart_holds_position_rotation_and_base_motion(tmp_path):
     assert (none.get_linestyle(), none.get_linewidth()) != (fixed.get_linestyle(), fixed.get_linewidth())
     assert "none and fixed_base coincide" in _texts(panels["position"])
     largest = np.abs(runs[0].series["pose error"][1] - runs[1].series["pose error"][1]).max()
-    assert f"{largest:.2g} µm" in _texts(panels["position"])
+    assert report.length(largest) in _texts(panels["position"])
     for name, ax in panels.items():
         assert ax.get_xlim() == (T0, T1)                            # trimmed to the scene
         assert any(list(line.get_xdata()) == [CUT, CUT] for line in ax.get_lines())   # cut-off marked
@@ -92,6 +92,8 @@ def test_base_motion_panel_is_rate_and_its_derivative(tmp_path):
     panels = report._error_chart(scenario, runs, _metric(scenario, "leg error"), tmp_path / "leg.png")
     assert set(panels) == {"position", "axis rate", "axis acceleration"}
     assert "leg length error" in panels["position"].get_ylabel()
+    marks = [line for line in panels["position"].get_lines() if list(line.get_ydata()) in ([10.0] * 2, [100.0] * 2)]
+    assert not marks                                     # the pose marks are no leg-length requirement
     t = _line(panels["axis rate"], "azimuth").get_xdata()
     for k, axis in enumerate(("azimuth", "elevation")):
         np.testing.assert_allclose(_line(panels["axis rate"], axis).get_ydata(), np.degrees(_rate(t)[:, k]))
@@ -125,7 +127,7 @@ def test_chart_without_a_telescope_has_no_base_panel(tmp_path):
     np.testing.assert_array_equal(_line(panels["position"], "run").get_ydata(), 1.0 + t)
 
 
-def test_summary_bars_are_the_metrics_on_a_linear_scale(tmp_path):
+def test_summary_bars_are_the_metrics_on_a_log_scale(tmp_path):
     scenario, runs = _scenario(), _runs(tmp_path)
     tracked = [m for m in scenario.metrics if m.kind in report.TRACKING]
     path = tmp_path / "summary.png"
@@ -135,14 +137,17 @@ def test_summary_bars_are_the_metrics_on_a_linear_scale(tmp_path):
     for title, ax in panels.items():
         name = "leg error" if title.startswith("leg") else "pose error"
         keys = ("rotation_rms", "rotation_peak") if "rotation" in title else ("rms", "peak")
-        heights = [p.get_height() for p in ax.patches]
+        tops = [p.get_y() + p.get_height() for p in ax.patches]
         expected = [r.metrics[name][keys[0]] for r in runs] + [r.metrics[name][keys[1]] for r in runs]
-        np.testing.assert_allclose(heights, expected)
-        assert ax.get_yscale() == "linear" and ax.get_ylim()[0] == 0.0
+        np.testing.assert_allclose(tops, expected)
+        assert ax.get_yscale() == "log" and ax.get_ylim()[0] == report.FLOOR
         assert ("µrad" if "rotation" in title else "µm") in ax.get_ylabel()
+        colours = [p.get_facecolor()[:3] for p in ax.patches[:3]]
+        assert colours[1] != colours[2]                  # fixed- and moving-base runs in their colours
     position = panels["pose error: platform position"]
     levels = {line.get_ydata()[0] for line in position.get_lines()}
     assert {10.0, 100.0} <= levels                       # both marks drawn, the peak is 125 µm
+    assert not panels["leg error: leg length (6 legs)"].get_lines()   # pose marks: no leg-length requirement
     assert scenario.name in position.figure.get_suptitle()
 
 
@@ -151,7 +156,9 @@ def test_summary_says_when_marks_are_off_scale(tmp_path):
     runs = _runs(tmp_path, scales=(1e-3, 1e-3, 1e-5))     # peaks ~0.1 µm
     tracked = [m for m in scenario.metrics if m.kind in report.TRACKING]
     panels = report._summary_chart(scenario, runs, tracked, tmp_path / "s.png")
-    assert "0.1 mm and 10 µm marks: off the scale" in _texts(panels["pose error: platform position"])
+    assert "10 µm and 0.1 mm marks: off the scale" in _texts(panels["pose error: platform position"])
+    under = panels["pose error: platform rotation"]    # rotation peaks ~1e-4 µrad and 5e-6 µrad
+    assert "< 1 nrad" in [t.get_text() for t in under.texts]
 
 
 def test_report_names_runs_states_settings_and_gives_base_effect_once(tmp_path):

@@ -1,0 +1,86 @@
+"""One look for every chart and number the kit prints: the floor, the number format, the
+marks, a colour per run kind and the resolution charts are saved at.
+
+Used by scenarios.report, scenarios.paper_forces, scenarios.mechanism3t_charts and the
+studies, so that "1 nm", "5.44 µm" and "moving-base blue" mean the same on every page."""
+import matplotlib
+
+matplotlib.use("Agg")
+from matplotlib import ticker  # noqa: E402
+
+# Errors below 1 nm (1 nrad) are finer than a rigid-body model without joint play,
+# compliance or sensor noise resolves, and far below any metrology: log axes stop there
+# and such numbers are written "< 1 nm", not as round-off ("5.71e-07 µm").
+FLOOR = 1e-3                                  # in µm (and µrad)
+FLOOR_NOTE = "log axes floored at 1 nm: finer than this rigid-body model resolves (no joint play, compliance or noise)"
+MARKS_UM = {"10 µm": 10.0, "0.1 mm": 100.0}   # pose requirements: focus, hexapod metrology
+MARK_COLOUR = "#d62728"
+MARK_STYLES = {"10 µm": ":", "0.1 mm": "--"}
+# one colour per run kind wherever a run kind is drawn
+RUN_COLOURS = {"none": "#7f7f7f", "fixed_base": "#ff7f0e", "moving_base": "#1f77b4"}
+RUN_NAMES = {"none": "no feedforward", "fixed_base": "fixed-base model", "moving_base": "moving-base model"}
+OTHER_COLOURS = ("#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22")
+# A chart is read on a screen about 1000-1300 px wide; 100 dpi on figures of 10-13 in
+# gives that, and savefig (most of a chart's time) costs less than at 110-130 dpi.
+DPI = 100
+
+
+def run_colour(kind, k=0):
+    """The colour of a run kind (fixed_base, moving_base, none); the k-th other colour else."""
+    return RUN_COLOURS.get(kind, OTHER_COLOURS[k % len(OTHER_COLOURS)])
+
+
+def fmt(value):
+    """A number as every report prints it: 3 significant digits ('n/a' for NaN)."""
+    if isinstance(value, float):
+        return "n/a" if value != value else f"{value:.3g}"
+    return str(value)
+
+
+def length(value_um, unit="µm"):
+    """An error in µm (or µrad) as text: '5.44 µm', '< 1 nm' under the floor, 'n/a' for NaN."""
+    if value_um != value_um:
+        return "n/a"
+    if value_um < FLOOR:
+        return "< 1 nm" if unit == "µm" else "< 1 nrad"
+    return f"{fmt(float(value_um))} {unit}"
+
+
+def ratio(a, b):
+    """a / b as 'Nx', 3 significant digits, no exponent (the same text wherever a ratio is printed)."""
+    x = float(f"{a / max(b, 1e-300):.3g}")
+    return f"{x:.0f}x" if x >= 100 else f"{x:g}x"
+
+
+def plain_log_axis(axis, subs=(1.0, 2.0, 5.0)):
+    """Label a log axis at 1, 2, 5 per decade in plain numbers (0.01, 2, 500), not 10^n."""
+    axis.set_major_locator(ticker.LogLocator(subs=subs))
+    axis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+    axis.set_minor_formatter(ticker.NullFormatter())
+
+
+def draw_marks(ax, top=None, vertical=False):
+    """The 10 µm and 0.1 mm marks as red lines, each named at its end; on a µm axis of
+    pose (platform position) error only. With ``top``, a mark above 3x top is left out.
+    Returns the marks drawn."""
+    drawn = []
+    for text, level in MARKS_UM.items():
+        if top is not None and level > 3 * top:
+            continue
+        if vertical:
+            ax.axvline(level, color=MARK_COLOUR, lw=1, ls=MARK_STYLES[text], zorder=1)
+            ax.text(level, 1.0, f" {text}", transform=ax.get_xaxis_transform(), ha="left", va="bottom",
+                    fontsize=8, color=MARK_COLOUR)
+        else:
+            ax.axhline(level, color=MARK_COLOUR, lw=1, ls=MARK_STYLES[text], zorder=1)
+            ax.text(1.0, level, f" {text}", transform=ax.get_yaxis_transform(), ha="left", va="center",
+                    fontsize=8, color=MARK_COLOUR)
+        drawn.append(text)
+    return drawn
+
+
+def save(fig, path, **kwargs):
+    """Save at the kit's resolution and close the figure."""
+    import matplotlib.pyplot as plt
+    fig.savefig(path, dpi=DPI, **kwargs)
+    plt.close(fig)
