@@ -57,7 +57,8 @@ def outputs(md):
 
 
 def failure_lines(inst):
-    return [line for line in inst.log if line.startswith("[ERROR]")]
+    """Log lines that explain a failure: Error (initialization, misuse) or Discard (a step)."""
+    return [line for line in inst.log if line.startswith(("[ERROR]", "[DISCARD]"))]
 
 
 # ------------------------------------------------------------------- description
@@ -175,7 +176,7 @@ def _stepping_failure(fmus, native, script, values, inputs, steps=1, h=1e-3):
             assert inst.raw("fmi2GetRealStatus")(inst.fmu.component, fmi2LastSuccessfulTime, last) == OK
             assert last.value == t
             assert step(inst, t, h) == DISCARD
-            assert failure_lines(inst)[-1].startswith(f"[ERROR] refusing doStep at t={t:.6g} s after: ")
+            assert failure_lines(inst)[-1].startswith(f"[DISCARD] refusing doStep at t={t:.6g} s after: ")
     assert texts[0] == texts[1]
     return texts[1]
 
@@ -276,7 +277,7 @@ def test_slider_controller_nan_measurement_discards(fmus, native):
     inst, status = opened(native["slider_controller_fmu"])
     inst.set("slider_rate[1]", math.nan)
     assert step(inst, 0.0, 1e-3) == DISCARD
-    assert failure_lines(inst)[-1].startswith("[ERROR] InvalidInputError at t=0 s: measured slider position/rate "
+    assert failure_lines(inst)[-1].startswith("[DISCARD] InvalidInputError at t=0 s: measured slider position/rate "
                                               "input contains NaN or inf")
 
 

@@ -50,6 +50,15 @@ extern const mb_model_info MB_MODEL;
    it at error level. */
 void mb_error(mb_instance *inst, const char *kind, const char *fmt, ...);
 
+/* The work bound of one doStep: a model integrating on substeps takes at most this many
+   (the plant's RK4 substep costs ~1-3 us, so a doStep stays within seconds). A longer
+   step is refused with fmi2Discard and a line saying how many substeps it would need:
+   a 1e6 s step at max_step 1e-3 s would otherwise run 1e9 substeps for hours, and
+   their count overflows an int, so the plant would integrate nothing and answer OK. */
+#define MB_MAX_SUBSTEPS 1000000
+/* substeps = ceil(h / max_step) (at least 1), computed in double: 0, or 1 after mb_error
+   (WorkBoundError) when it passes MB_MAX_SUBSTEPS. Every model with substeps uses it. */
+int mb_substeps(mb_instance *inst, double h, double max_step, int *substeps);
 /* A warning log line (category logStatusWarning). */
 void mb_warning(mb_instance *inst, const char *fmt, ...);
 
