@@ -358,6 +358,13 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
         log_text(functions, name, fmi2Fatal, "logStatusFatal", load_error[0] ? load_error : "pythonfmu shim: not loaded");
         return NULL;
     }
+    if (!resources || strncmp(resources, "file:", 5) != 0) {   /* the wrapper would crash finding no slave */
+        char text[400];
+        snprintf(text, sizeof text, "fmi2Instantiate: fmuResourceLocation '%.200s' is not a file: URI of the FMU's "
+                 "resources folder, where the Python slave lives", resources ? resources : "(null)");
+        log_text(functions, name, fmi2Error, "logStatusError", text);
+        return NULL;
+    }
     Shim *s = calloc(1, sizeof *s);
     if (!s || !(s->name = strdup(name ? name : ""))) {
         free(s);

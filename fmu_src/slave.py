@@ -394,14 +394,14 @@ class GuardedSlave(Fmi2Slave):
         if all(np.isfinite(root).all() for root, _ in self._step_saves) and \
                 all(math.isfinite(v.getter()) for v in self._scalar_outputs()):
             return
-        bad = [(v.name, v.getter()) for v in self.vars.values()
+        bad = [(v.name, float(v.getter())) for v in self.vars.values()
                if v.causality == OUTPUT and isinstance(v, Real) and not math.isfinite(v.getter())]
         if not bad:
             return   # a non-finite state element that no output shows
         worst = None
         for v in self.vars.values():
             if v.causality in (INPUT, PARAMETER) and isinstance(v, Real):
-                value = v.getter()
+                value = float(v.getter())
                 if worst is None or (not math.isnan(worst[1]) and not abs(value) <= abs(worst[1])):
                     worst = (v.name, value)
         listed = ", ".join(f"{name} = {value!r}" for name, value in bad[:4]) + (", ..." if len(bad) > 4 else "")

@@ -272,12 +272,43 @@ def test_saved_states_hold_no_uninitialised_bytes(native, model):
 
 
 # ------------------------------------------------------------------ pythonfmu FMUs
-@pytest.mark.parametrize("model", MODELS)
+# Through the shim in front of pythonfmu's wrapper (fmu_src/pythonfmu_shim.c): the same
+# call sequence, the same doStep time and step rules. Each run starts a Python, so the
+# whole table runs on LegSensor by default and on every FMU with the slow tests.
+PYTHON_MODELS = [m if m == "LegSensor" else pytest.param(m, marks=pytest.mark.slow) for m in MODELS]
+
+
+@pytest.mark.parametrize("model", PYTHON_MODELS)
 def test_pythonfmu_host_strings_with_conversions_are_printed_not_read(python_fmus, model):
-    """The pythonfmu wrapper passes every message as the format; the shim in front of it
-    (fmu_src/pythonfmu_shim.c) doubles the '%'."""
+    """The pythonfmu wrapper passes every message as the format; the shim doubles the '%'.
+    pythonfmu checks no GUID: a wrong one is accepted. A missing resource location crashed
+    the wrapper (it finds no slave class): the shim refuses it."""
     fmu = python_fmus[model]
-    answers = run(fmu, "inst", "%s%s%s%s%n%n{guid}", "-", timeout=120)
-    assert "fmi2Instantiate NULL" in answers.lines
     answers = run(fmu, "inst", "-", "%s%n%s", "log", "%s%s%n%n%s", *INIT, "step", 0.0, 1e-3, "term", timeout=120)
-    assert any("%s%s%n%n%s" in line for line in answers.logs), answers.logs
+    assert answers.statuses("fmi2DoStep") == ["OK"]
+    answers = run(fmu, "nores", "inst", "-", "-", timeout=120)
+    assert "fmi2Instantiate NULL" in answers.lines
+    assert any("fmuResourceLocation ''" in line for line in answers.logs), answers.logs
+
+
+@pytest.mark.parametrize("model", PYTHON_MODELS)
+@pytest.mark.parametrize("case", SEQUENCES)
+def test_pythonfmu_call_sequence_answers_as_fmi2_specifies(python_fmus, model, case):
+    test_call_sequence_answers_as_fmi2_specifies(python_fmus, model, case)
+
+
+def test_pythonfmu_failed_instance_refuses_steps_and_sets(python_fmus):
+    fmu = python_fmus["LegSensor"]
+    answers = run(fmu, "inst", "-", "-", *INIT, "setr", ("vr", "leg_length[1]"), math.nan, "step", 0.0, 1e-3,
+                  "step", 0.0, 1e-3, "setr", ("vr", "leg_length[1]"), 1.0, "last", "term", timeout=120)
+    assert answers.statuses("fmi2DoStep") == ["Discard", "Discard"], answers.lines
+    assert answers.statuses("fmi2SetReal") == ["OK", "Error"] and answers.statuses("fmi2Terminate") == ["OK"]
+    assert "last 0" in answers.lines
+
+
+def test_pythonfmu_no_ok_with_a_non_finite_output(python_fmus):
+    """GuardedSlave checks every output after each step, as the native layer does."""
+    fmu = python_fmus["BaseSensor"]
+    answers = run(fmu, "inst", "-", "-", *INIT, "setr", ("vr", "axis[1]"), 1e300, "step", 0.0, 1e-3, timeout=120)
+    assert answers.statuses("fmi2DoStep") == ["Discard"], answers.lines
+    assert "NonFiniteOutputError at t=0 s" in answers.logs[-1] and "axis[1] = 1e+300" in answers.logs[-1]

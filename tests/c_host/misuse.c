@@ -9,6 +9,7 @@
  * Usage: misuse UNZIPDIR MODEL_IDENTIFIER GUID COMMAND...
  *   inst GUID NAME      fmi2Instantiate ("-": the right GUID, the name "misuse");
  *                       prints "fmi2Instantiate instance" or "fmi2Instantiate NULL"
+ *   nores               the next fmi2Instantiate gets "" as fmuResourceLocation
  *   log CATEGORY        SetDebugLogging(on) for that one category
  *   setup T0 | enter | exit | term | reset | free
  *   step T H            fmi2DoStep
@@ -51,6 +52,7 @@ static void log_message(fmi2ComponentEnvironment env, fmi2String instance, fmi2S
 
 static void *lib;
 static const char *guid_right;
+static char resources[4200];   /* file://UNZIPDIR/resources */
 #define F(name) static fmi2##name##TYPE *name;   /* the FMU's fmi2<name> */
 F(Instantiate) F(FreeInstance) F(SetDebugLogging) F(SetupExperiment)
 F(EnterInitializationMode) F(ExitInitializationMode) F(Terminate) F(Reset) F(DoStep)
@@ -79,6 +81,14 @@ static fmi2Status said(const char *call, fmi2Status status)
 
 static const fmi2CallbackFunctions CALLBACKS = {log_message, calloc, free, NULL, NULL};
 
+/* The threads' and the many instances' logger: their runs probe every value reference. */
+static void quiet(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status, fmi2String category,
+                  fmi2String message, ...)
+{
+    (void)env, (void)instance, (void)status, (void)category, (void)message;
+}
+static const fmi2CallbackFunctions QUIET = {quiet, calloc, free, NULL, NULL};
+
 static unsigned long crc32(const unsigned char *p, size_t n)
 {
     unsigned long crc = 0xFFFFFFFFul;
@@ -96,7 +106,7 @@ typedef struct { int steps; double h; unsigned long hash; int ok; } Run;
 static void *run_one(void *arg)
 {
     Run *run = arg;
-    fmi2Component c = Instantiate("thread", fmi2CoSimulation, guid_right, "", &CALLBACKS, fmi2False, fmi2False);
+    fmi2Component c = Instantiate("thread", fmi2CoSimulation, guid_right, resources, &QUIET, fmi2False, fmi2False);
     run->ok = c != NULL;
     if (!c) return NULL;
     run->ok = SetupExperiment(c, fmi2False, 0, 0, fmi2False, 0) == fmi2OK && EnterInitializationMode(c) == fmi2OK &&
@@ -123,6 +133,7 @@ int main(int argc, char **argv)
     char path[4096];
     snprintf(path, sizeof path, "%s/binaries/linux64/%s.so", argv[1], argv[2]);
     guid_right = argv[3];
+    snprintf(resources, sizeof resources, "file://%s/resources", argv[1]);
     lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     if (!lib) {
         fprintf(stderr, "misuse: dlopen %s: %s\n", path, dlerror());
@@ -143,8 +154,10 @@ int main(int argc, char **argv)
             const char *guid = strcmp(ARG(1), "-") ? ARG(1) : guid_right;
             const char *name = strcmp(ARG(2), "-") ? ARG(2) : "misuse";
             i += 2;
-            c = Instantiate(name, fmi2CoSimulation, guid, "", &CALLBACKS, fmi2False, fmi2True);
+            c = Instantiate(name, fmi2CoSimulation, guid, resources, &CALLBACKS, fmi2False, fmi2True);
             printf("fmi2Instantiate %s\n", c ? "instance" : "NULL");
+        } else if (!strcmp(cmd, "nores")) {
+            resources[0] = '\0';
         } else if (!strcmp(cmd, "log")) {
             fmi2String category = ARG(1);
             i++;
@@ -214,7 +227,7 @@ int main(int argc, char **argv)
             int n = atoi(ARG(1)), ok = 0;
             fmi2Component *all = calloc((size_t)n, sizeof *all);
             for (int k = 0; k < n; k++) {
-                all[k] = Instantiate("many", fmi2CoSimulation, guid_right, "", &CALLBACKS, fmi2False, fmi2False);
+                all[k] = Instantiate("many", fmi2CoSimulation, guid_right, resources, &QUIET, fmi2False, fmi2False);
                 ok += all[k] && SetupExperiment(all[k], fmi2False, 0, 0, fmi2False, 0) == fmi2OK &&
                       EnterInitializationMode(all[k]) == fmi2OK && ExitInitializationMode(all[k]) == fmi2OK;
             }
