@@ -15,7 +15,7 @@
      string such as a GUID or a category holding "%s" is printed, never read as a
      conversion), and the line carries the status the call returns (Discard on a refused
      step, Error on a failed initialization or a misuse).
-   - The FMI 2.0 call sequence (allowed() and the PHASES masks, as the Reference FMUs'
+   - The FMI 2.0 call sequence (allowed() with each function's mask of states, as the Reference FMUs'
      fmi2Functions.c): a call outside its states answers fmi2Error. One deliberate
      difference: after a Discard the instance stays failed and answers every further
      doStep with fmi2Discard ("refusing doStep"), as the pythonfmu FMUs do.
