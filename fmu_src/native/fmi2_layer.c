@@ -203,20 +203,6 @@ static void record_failure(mb_instance *inst, const char *when, fmi2Status statu
     emit(inst, status, status == fmi2Discard ? CAT_DISCARD : CAT_ERROR, s->failure);
 }
 
-int mb_substeps(mb_instance *inst, double h, double max_step, int *substeps)
-{
-    char hb[32], mb[32];
-    double n = ceil(h / max_step - 1e-9);   /* a double: no int overflow, whatever h and max_step */
-    if (!(n <= MB_MAX_SUBSTEPS)) {
-        mb_error(inst, "WorkBoundError", "a step of %s s needs %.3g substeps of at most %s s, more than the %d a "
-                 "doStep may take: take shorter communication steps", mb_repr(h, hb), n, mb_repr(max_step, mb),
-                 MB_MAX_SUBSTEPS);
-        return 1;
-    }
-    *substeps = n > 1 ? (int)n : 1;
-    return 0;
-}
-
 /* Every Real output finite? Else mb_error naming the outputs and the input or parameter
    of largest magnitude (a NaN counts largest): 1. No model answers OK with NaN/inf. */
 static int nonfinite_outputs(mb_instance *inst)
