@@ -2,10 +2,12 @@
 
 Why guarded: an exception escaping do_step gives fmi2Fatal, and the next doStep then
 crashes the importing process (docs/conventions/fmi-notes.md). Every error is caught here,
-logged at the status answered (Discard) with what went wrong and when, and answered with
-fmi2Discard (do_step returns False); the slave then stays failed and refuses further
-steps. An output that comes out NaN or inf is such an error (check_outputs), as in the
-native layer.
+logged at error level with what went wrong and when, and answered with fmi2Discard
+(do_step returns False); the slave then stays failed and refuses further steps.
+
+Log level, precisely: the line carries the status the call answers (issue 18), Discard
+from doStep (category logStatusDiscard), Error from initialization. An output that comes
+out NaN or inf is such an error (check_outputs), as in the native layer.
 
 Units and ranges: pythonfmu writes neither, so each variable's unit and each parameter's
 valid range (``valid=(min, max)``, either side None for open; FMI's min/max are inclusive,
