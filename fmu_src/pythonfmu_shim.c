@@ -15,7 +15,7 @@
  *   library (its own path from dladdr) and forwards every FMI 2 function of
  *   fmi2Functions.h the wrapper exports (common and co-simulation: the FUNCTIONS
  *   table), each to the wrapper's own, with the wrapper's component inside ours.
- * - The host's logger is called through ours (same text, same status). During
+ * - The host's logger is called through ours (same text with '%' doubled, same status). During
  *   fmi2ExitInitializationMode the messages are held until the call returns: if the
  *   wrapper answered fmi2Fatal and the slave had logged an fmi2Error during the call
  *   (GuardedSlave (fmu_src/slave.py) does so before it raises, and keeps the
@@ -47,6 +47,7 @@
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
+#include <math.h>
 #include <link.h>
 #include <pthread.h>
 #include <stdio.h>
@@ -56,51 +57,47 @@
 #include "fmi2Functions.h"
 #include "native/crc32.h"
 
-/* X(name, parameters, arguments): every function forwarded as is; INNER is the
- * wrapper's component inside ours. */
+/* X(name, states, parameters, arguments): every function forwarded as is when called in
+ * one of `states` (FMI 2.0 call sequence, allowed()); INNER is the wrapper's component
+ * inside ours. */
 #define INNER (((Shim *)c)->inner)
 #define FORWARDED(X) \
-    X(fmi2SetDebugLogging, (fmi2Component c, fmi2Boolean on, size_t n, const fmi2String categories[]), \
+    X(fmi2SetDebugLogging, ANY_PHASE, (fmi2Component c, fmi2Boolean on, size_t n, const fmi2String categories[]), \
       (INNER, on, n, categories)) \
-    X(fmi2SetupExperiment, (fmi2Component c, fmi2Boolean tolerance_defined, fmi2Real tolerance, \
-                            fmi2Real start, fmi2Boolean stop_defined, fmi2Real stop), \
-      (INNER, tolerance_defined, tolerance, start, stop_defined, stop)) \
-    X(fmi2EnterInitializationMode, (fmi2Component c), (INNER)) \
-    X(fmi2Reset, (fmi2Component c), (INNER)) \
-    X(fmi2GetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real v[]), (INNER, vr, n, v)) \
-    X(fmi2GetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[]), (INNER, vr, n, v)) \
-    X(fmi2GetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[]), (INNER, vr, n, v)) \
-    X(fmi2GetString, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[]), (INNER, vr, n, v)) \
-    X(fmi2SetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]), (INNER, vr, n, v)) \
-    X(fmi2SetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer v[]), \
+    X(fmi2GetReal, READABLE, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real v[]), (INNER, vr, n, v)) \
+    X(fmi2GetInteger, READABLE, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[]), (INNER, vr, n, v)) \
+    X(fmi2GetBoolean, READABLE, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[]), (INNER, vr, n, v)) \
+    X(fmi2GetString, READABLE, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[]), (INNER, vr, n, v)) \
+    X(fmi2SetReal, SETTABLE, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real v[]), (INNER, vr, n, v)) \
+    X(fmi2SetInteger, SETTABLE, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer v[]), \
       (INNER, vr, n, v)) \
-    X(fmi2SetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean v[]), \
+    X(fmi2SetBoolean, SETTABLE, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean v[]), \
       (INNER, vr, n, v)) \
-    X(fmi2SetString, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String v[]), \
+    X(fmi2SetString, SETTABLE, (fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String v[]), \
       (INNER, vr, n, v)) \
-    X(fmi2GetFMUstate, (fmi2Component c, fmi2FMUstate *state), (INNER, state)) \
-    X(fmi2SetFMUstate, (fmi2Component c, fmi2FMUstate state), (INNER, state)) \
-    X(fmi2FreeFMUstate, (fmi2Component c, fmi2FMUstate *state), (INNER, state)) \
-    X(fmi2SerializedFMUstateSize, (fmi2Component c, fmi2FMUstate state, size_t *size), (INNER, state, size)) \
-    X(fmi2SerializeFMUstate, (fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size), \
+    X(fmi2GetFMUstate, ANY_PHASE, (fmi2Component c, fmi2FMUstate *state), (INNER, state)) \
+    X(fmi2FreeFMUstate, ANY_PHASE, (fmi2Component c, fmi2FMUstate *state), (INNER, state)) \
+    X(fmi2SerializedFMUstateSize, ANY_PHASE, (fmi2Component c, fmi2FMUstate state, size_t *size), (INNER, state, size)) \
+    X(fmi2SerializeFMUstate, ANY_PHASE, (fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size), \
       (INNER, state, bytes, size)) \
-    X(fmi2GetDirectionalDerivative, (fmi2Component c, const fmi2ValueReference unknown[], size_t n_unknown, \
+    X(fmi2GetDirectionalDerivative, ANY_PHASE, (fmi2Component c, const fmi2ValueReference unknown[], size_t n_unknown, \
                                      const fmi2ValueReference known[], size_t n_known, const fmi2Real dv_known[], \
                                      fmi2Real dv_unknown[]), \
       (INNER, unknown, n_unknown, known, n_known, dv_known, dv_unknown)) \
-    X(fmi2SetRealInputDerivatives, (fmi2Component c, const fmi2ValueReference vr[], size_t n, \
+    X(fmi2SetRealInputDerivatives, ANY_PHASE, (fmi2Component c, const fmi2ValueReference vr[], size_t n, \
                                     const fmi2Integer order[], const fmi2Real v[]), (INNER, vr, n, order, v)) \
-    X(fmi2GetRealOutputDerivatives, (fmi2Component c, const fmi2ValueReference vr[], size_t n, \
+    X(fmi2GetRealOutputDerivatives, ANY_PHASE, (fmi2Component c, const fmi2ValueReference vr[], size_t n, \
                                      const fmi2Integer order[], fmi2Real v[]), (INNER, vr, n, order, v)) \
-    X(fmi2CancelStep, (fmi2Component c), (INNER)) \
-    X(fmi2GetStatus, (fmi2Component c, const fmi2StatusKind kind, fmi2Status *v), (INNER, kind, v)) \
-    X(fmi2GetIntegerStatus, (fmi2Component c, const fmi2StatusKind kind, fmi2Integer *v), (INNER, kind, v)) \
-    X(fmi2GetBooleanStatus, (fmi2Component c, const fmi2StatusKind kind, fmi2Boolean *v), (INNER, kind, v)) \
-    X(fmi2GetStringStatus, (fmi2Component c, const fmi2StatusKind kind, fmi2String *v), (INNER, kind, v))
+    X(fmi2CancelStep, ANY_PHASE, (fmi2Component c), (INNER)) \
+    X(fmi2GetStatus, STATUS, (fmi2Component c, const fmi2StatusKind kind, fmi2Status *v), (INNER, kind, v)) \
+    X(fmi2GetIntegerStatus, STATUS, (fmi2Component c, const fmi2StatusKind kind, fmi2Integer *v), (INNER, kind, v)) \
+    X(fmi2GetBooleanStatus, STATUS, (fmi2Component c, const fmi2StatusKind kind, fmi2Boolean *v), (INNER, kind, v)) \
+    X(fmi2GetStringStatus, STATUS, (fmi2Component c, const fmi2StatusKind kind, fmi2String *v), (INNER, kind, v))
 
 /* The functions this file defines itself (they do more than forward). */
 #define OWN(Y) Y(fmi2GetTypesPlatform) Y(fmi2GetVersion) Y(fmi2Instantiate) Y(fmi2FreeInstance) \
-    Y(fmi2ExitInitializationMode) Y(fmi2DeSerializeFMUstate) Y(fmi2Terminate) Y(fmi2DoStep) Y(fmi2GetRealStatus)
+    Y(fmi2SetupExperiment) Y(fmi2EnterInitializationMode) Y(fmi2ExitInitializationMode) Y(fmi2Reset) \
+    Y(fmi2SetFMUstate) Y(fmi2DeSerializeFMUstate) Y(fmi2Terminate) Y(fmi2DoStep) Y(fmi2GetRealStatus)
 
 /* The wrapper's functions, found by dlsym at the first fmi2Instantiate. */
 #define MEMBER(name, ...) name##TYPE *name;
@@ -128,7 +125,17 @@ typedef struct {
     char *name;
     int stepped;                     /* a doStep was accepted: last_ok holds its end */
     fmi2Real last_ok;
+    int phase;                       /* enum phase */
+    int failed;                      /* a doStep answered Discard or the initialization failed */
+    fmi2Real time;                   /* where the next doStep starts; NaN after fmi2SetFMUstate */
 } Shim;
+
+/* FMI 2.0 states, as fmu_src/native/fmi2_layer.c keeps them (bits for the masks). */
+enum phase { INSTANTIATED = 1, INITIALIZATION = 2, STEPPING = 4, TERMINATED = 8 };
+#define ANY_PHASE (INSTANTIATED | INITIALIZATION | STEPPING | TERMINATED)
+#define READABLE (INITIALIZATION | STEPPING | TERMINATED)
+#define SETTABLE (INSTANTIATED | INITIALIZATION | STEPPING)
+#define STATUS (STEPPING | TERMINATED)
 
 static pthread_once_t load_once = PTHREAD_ONCE_INIT;
 static char load_error[4200];   /* empty once the wrapper is loaded */
@@ -201,10 +208,29 @@ static void finalize_before_exit(void) {
 }
 
 /* ---------------------------------------------------------------------- logging */
-/* The wrapper passes each message as the format, with no arguments (a ctypes host such
- * as fmpy reads that format as the text), so it is passed on unchanged the same way. */
+/* The host's logger takes a printf format (FMI 2.0). The wrapper passes each message as
+ * the format, with no arguments, and a message may hold host strings (a GUID, a category,
+ * an instance name with "%s" crashed the host): every '%' is doubled, so a host that
+ * formats prints the text, and one that reads the format as the text (a ctypes logger)
+ * sees it unchanged unless it held a '%'. */
+static void log_text(const fmi2CallbackFunctions *host, const char *name, fmi2Status status, const char *category,
+                     const char *text) {
+    if (!host->logger) return;
+    size_t n = 0, percents = 0;
+    for (const char *p = text; *p; p++) percents += *p == '%';
+    char *escaped = malloc(strlen(text) + percents + 1);
+    if (!escaped) return;
+    for (const char *p = text; *p; p++) {
+        if (*p == '%') escaped[n++] = '%';
+        escaped[n++] = *p;
+    }
+    escaped[n] = '\0';
+    host->logger(host->componentEnvironment, name, status, category, escaped);
+    free(escaped);
+}
+
 static void deliver(Shim *s, fmi2Status status, const char *category, const char *text) {
-    if (s->host.logger) s->host.logger(s->host.componentEnvironment, s->name, status, category, text);
+    log_text(&s->host, s->name, status, category, text);
 }
 
 /* Keep a copy of a message until release(); 0 if out of memory. */
@@ -255,9 +281,67 @@ static void step_finished(fmi2ComponentEnvironment env, fmi2Status status) {
 }
 
 /* -------------------------------------------------------------------- functions */
-#define DEFINE(name, parameters, arguments) \
-    fmi2Status name parameters { return wrapper.name arguments; }
+/* May `function` be called now (FMI 2.0 call sequence, the native layer's rules)? Else an
+   error line and 0. Nothing is set in the failed state. */
+static int allowed(fmi2Component c, int states, const char *function) {
+    Shim *s = c;
+    if (!s) return 0;
+    int setting = states == SETTABLE && s->phase == STEPPING && s->failed;
+    if ((s->phase & states) && !setting) return 1;
+    char text[200];
+    snprintf(text, sizeof text, "%s: not allowed in %s (FMI 2.0 call sequence)", function,
+             s->phase == INSTANTIATED ? "the instantiated state (before fmi2EnterInitializationMode)"
+             : s->phase == INITIALIZATION ? "initialization mode"
+             : s->phase == TERMINATED ? "the terminated state"
+             : s->failed ? "the failed state (after a Discard or a failed initialization)" : "step mode");
+    deliver(s, fmi2Error, "logStatusError", text);
+    return 0;
+}
+
+#define DEFINE(name, states, parameters, arguments) \
+    fmi2Status name parameters { return allowed(c, states, #name) ? wrapper.name arguments : fmi2Error; }
 FORWARDED(DEFINE)
+
+fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tolerance_defined, fmi2Real tolerance, fmi2Real start,
+                               fmi2Boolean stop_defined, fmi2Real stop) {
+    if (!allowed(c, INSTANTIATED, "fmi2SetupExperiment")) return fmi2Error;
+    fmi2Status status = wrapper.fmi2SetupExperiment(INNER, tolerance_defined, tolerance, start, stop_defined, stop);
+    if (status <= fmi2Warning) ((Shim *)c)->time = start;
+    return status;
+}
+
+fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
+    if (!allowed(c, INSTANTIATED, "fmi2EnterInitializationMode")) return fmi2Error;
+    fmi2Status status = wrapper.fmi2EnterInitializationMode(INNER);
+    if (status <= fmi2Warning) ((Shim *)c)->phase = INITIALIZATION;
+    return status;
+}
+
+fmi2Status fmi2Reset(fmi2Component c) {
+    Shim *s = c;
+    if (!allowed(c, ANY_PHASE, "fmi2Reset")) return fmi2Error;
+    fmi2Status status = wrapper.fmi2Reset(s->inner);
+    if (status <= fmi2Warning) {
+        s->phase = INSTANTIATED;
+        s->failed = s->stepped = 0;
+        s->time = 0.0;
+    }
+    return status;
+}
+
+/* The state's time is the slave's: the shim does not know it, so the next doStep's start
+   is not checked (its end is known again after it). */
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate state) {
+    Shim *s = c;
+    if (!allowed(c, ANY_PHASE, "fmi2SetFMUstate")) return fmi2Error;
+    fmi2Status status = wrapper.fmi2SetFMUstate(s->inner, state);
+    if (status <= fmi2Warning && s->phase & (STEPPING | TERMINATED)) {
+        s->phase = STEPPING;
+        s->failed = 0;
+        s->time = NAN;
+    }
+    return status;
+}
 
 const char *fmi2GetTypesPlatform(void) {
     return loaded() ? wrapper.fmi2GetTypesPlatform() : fmi2TypesPlatform;
@@ -271,8 +355,14 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
                               const fmi2CallbackFunctions *functions, fmi2Boolean visible, fmi2Boolean logging) {
     if (!functions) return NULL;
     if (!loaded()) {
-        if (functions->logger) functions->logger(functions->componentEnvironment, name, fmi2Fatal, "logStatusFatal",
-                                                 load_error[0] ? load_error : "pythonfmu shim: not loaded");
+        log_text(functions, name, fmi2Fatal, "logStatusFatal", load_error[0] ? load_error : "pythonfmu shim: not loaded");
+        return NULL;
+    }
+    if (!resources || strncmp(resources, "file:", 5) != 0) {   /* the wrapper would crash finding no slave */
+        char text[400];
+        snprintf(text, sizeof text, "fmi2Instantiate: fmuResourceLocation '%.200s' is not a file: URI of the FMU's "
+                 "resources folder, where the Python slave lives", resources ? resources : "(null)");
+        log_text(functions, name, fmi2Error, "logStatusError", text);
         return NULL;
     }
     Shim *s = calloc(1, sizeof *s);
@@ -281,6 +371,7 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
         return NULL;
     }
     s->host = *functions;
+    s->phase = INSTANTIATED;
     s->callbacks = (fmi2CallbackFunctions){logger, functions->allocateMemory, functions->freeMemory,
                                            functions->stepFinished ? step_finished : NULL, s};
     s->inner = wrapper.fmi2Instantiate(name, type, guid, resources, &s->callbacks, visible, logging);
@@ -305,10 +396,13 @@ void fmi2FreeInstance(fmi2Component c) {
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     Shim *s = c;
+    if (!allowed(c, INITIALIZATION, "fmi2ExitInitializationMode")) return fmi2Error;
+    s->phase = STEPPING;   /* a failed instance too: it refuses doStep with Discard, as the native ones */
     s->holding = 1;
     s->slave_error = 0;
     fmi2Status status = wrapper.fmi2ExitInitializationMode(s->inner);
     int as_error = status == fmi2Fatal && s->slave_error;
+    s->failed = status > fmi2Warning;
     release(s, as_error);
     return as_error ? fmi2Error : status;
 }
@@ -350,6 +444,8 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte bytes[], size
 }
 
 fmi2Status fmi2Terminate(fmi2Component c) {
+    if (!allowed(c, STEPPING, "fmi2Terminate")) return fmi2Error;
+    ((Shim *)c)->phase = TERMINATED;
     fmi2Status status = wrapper.fmi2Terminate(INNER);
     finalize_before_exit();
     return status;
@@ -359,16 +455,34 @@ fmi2Status fmi2Terminate(fmi2Component c) {
    of the latest doStep, which moves on with every refused step a host keeps sending. */
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_prior) {
     Shim *s = c;
+    if (!allowed(c, STEPPING, "fmi2DoStep")) return fmi2Error;
+    char text[200];
+    text[0] = '\0';
+    if (s->failed) {
+        /* the slave refuses it with Discard, saying after what */
+    } else if (!(isfinite(h) && h > 0)) {
+        snprintf(text, sizeof text, "fmi2DoStep: the communication step size must be finite and > 0, got %.17g s", h);
+    } else if (!isnan(s->time) && !(fabs(t - s->time) <= 1e-9 * (fabs(s->time) > 1.0 ? fabs(s->time) : 1.0))) {
+        snprintf(text, sizeof text, "fmi2DoStep: currentCommunicationPoint %.17g s is not the FMU's time %.17g s "
+                 "(the end of the last accepted step)", t, s->time);
+    }
+    if (text[0]) {   /* the native layer's rules (fmi2_layer.c fmi2DoStep) */
+        deliver(s, fmi2Error, "logStatusError", text);
+        return fmi2Error;
+    }
     fmi2Status status = wrapper.fmi2DoStep(s->inner, t, h, no_set_prior);
     if (status == fmi2OK || status == fmi2Warning) {
         s->stepped = 1;
-        s->last_ok = t + h;
+        s->last_ok = s->time = t + h;
+    } else {
+        s->failed = 1;
     }
     return status;
 }
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind kind, fmi2Real *v) {
     Shim *s = c;
+    if (!allowed(c, STATUS, "fmi2GetRealStatus")) return fmi2Error;
     if (kind == fmi2LastSuccessfulTime && s->stepped) {
         *v = s->last_ok;
         return fmi2OK;

@@ -5,6 +5,10 @@ crashes the importing process (docs/conventions/fmi-notes.md). Every error is ca
 logged at error level with what went wrong and when, and answered with fmi2Discard
 (do_step returns False); the slave then stays failed and refuses further steps.
 
+Log level, precisely: the line carries the status the call answers (issue 18), Discard
+from doStep (category logStatusDiscard), Error from initialization. An output that comes
+out NaN or inf is such an error (check_outputs), as in the native layer.
+
 Units and ranges: pythonfmu writes neither, so each variable's unit and each parameter's
 valid range (``valid=(min, max)``, either side None for open; FMI's min/max are inclusive,
 so "> 0" is written as a tiny positive min) are recorded here, and build.py writes them into
@@ -67,6 +71,10 @@ POSITIVE_TIME = 1e-9      # s
 POSITIVE_FORCE = 1e-9     # N
 POSITIVE_RATE = 1e-12     # rad/s, rad/s2
 POSE_UNITS = ("m", "m", "m", "rad", "rad", "rad")
+
+
+class NonFiniteOutputError(ArithmeticError):
+    """An output came out NaN or inf from finite inputs (too large ones, mostly)."""
 
 
 def rate_units(units):
@@ -328,9 +336,11 @@ class GuardedSlave(Fmi2Slave):
             raise InvalidInputError("; ".join(problems))
 
     # ----------------------------------------------------------------- guarding
-    def fail(self, exc, when):
+    def fail(self, exc, when, status=Fmi2Status.error):
+        """Record the failure; its log line carries the status the call answers (Error
+        from initialization, Discard from doStep)."""
         self.failure = f"{type(exc).__name__} {when}: {exc}"
-        self.log(self.failure, Fmi2Status.error, "logStatusError")
+        self.log(self.failure, status, f"logStatus{status.name.capitalize()}")
 
     def enter_initialization_mode(self):
         self._initializing = self._stale = True
@@ -343,6 +353,7 @@ class GuardedSlave(Fmi2Slave):
         try:
             self.check_start()
             self.initialize()
+            self.check_outputs()
         except Exception:   # noqa: BLE001 - reported by exit_initialization_mode, see module doc
             self._restore_outputs()
 
@@ -351,6 +362,7 @@ class GuardedSlave(Fmi2Slave):
         try:
             self.check_start()
             self.initialize()
+            self.check_outputs()
         except Exception as exc:   # noqa: BLE001 - reported through FMI status, see module doc
             self.fail(exc, "in initialization")
             # The wrapper answers fmi2Fatal (the shim: fmi2Error, seeing the error logged
@@ -364,16 +376,46 @@ class GuardedSlave(Fmi2Slave):
     def do_step(self, current_time, step_size):
         if self.failure:
             self.log(f"refusing doStep at t={current_time:.6g} s after: {self.failure}",
-                     Fmi2Status.error, "logStatusError")
+                     Fmi2Status.discard, "logStatusDiscard")
             return False
         self._keep_outputs()
         try:
             self.step(current_time, step_size)
+            self.check_outputs()
             return True
         except Exception as exc:   # noqa: BLE001 - reported through FMI status, see module doc
             self._restore_outputs()   # back to the outputs of the last accepted state
-            self.fail(exc, f"at t={current_time:.6g} s")
+            self.fail(exc, f"at t={current_time:.6g} s", Fmi2Status.discard)
             return False
+
+    def check_outputs(self):
+        """NonFiniteOutputError if an output is NaN or inf, naming those outputs and the
+        Real input or parameter of largest magnitude (a NaN counts largest), worded as the
+        native layer words it (fmi2_layer.c nonfinite_outputs): no FMU answers fmi2OK
+        with a non-finite output, whichever model forgot to check."""
+        if all(np.isfinite(root).all() for root, _ in self._step_saves) and \
+                all(math.isfinite(v.getter()) for v in self._scalar_outputs()):
+            return
+        bad = [(v.name, float(v.getter())) for v in self.vars.values()
+               if v.causality == OUTPUT and isinstance(v, Real) and not math.isfinite(v.getter())]
+        if not bad:
+            return   # a non-finite state element that no output shows
+        worst = None
+        for v in self.vars.values():
+            if v.causality in (INPUT, PARAMETER) and isinstance(v, Real):
+                value = float(v.getter())
+                if worst is None or (not math.isnan(worst[1]) and not abs(value) <= abs(worst[1])):
+                    worst = (v.name, value)
+        listed = ", ".join(f"{name} = {value!r}" for name, value in bad[:4]) + (", ..." if len(bad) > 4 else "")
+        cause = f"; the input or parameter of largest magnitude is {worst[0]} = {worst[1]!r}" if worst else ""
+        raise NonFiniteOutputError(f"{len(bad)} output{'s' if len(bad) > 1 else ''} not finite ({listed}){cause}")
+
+    def _scalar_outputs(self):
+        """The Real outputs outside the vector arrays (checked one by one)."""
+        if not hasattr(self, "_scalars"):
+            self._scalars = [v for vr, v in self.vars.items()
+                             if v.causality == OUTPUT and isinstance(v, Real) and vr not in self.slots]
+        return self._scalars
 
     def _keep_outputs(self):
         for root, saved in self._step_saves:

@@ -27,6 +27,7 @@ import fmpy
 from fmpy import read_model_description
 
 SOURCE = pathlib.Path(__file__).resolve().parent / "c_host" / "fmi2_host.c"
+MISUSE = SOURCE.with_name("misuse.c")
 HEADERS = pathlib.Path(fmpy.__file__).resolve().parent / "c-code"
 
 
@@ -47,21 +48,24 @@ class HostRun:
         return [tuple(line.split()[1:3]) for line in self.stdout.splitlines() if line.startswith("status ")]
 
 
-def compile_host(cache=None):
-    """Path of the compiled host, built once per source/header hash into a temporary cache."""
-    digest = hashlib.sha256(SOURCE.read_bytes())
+def compile_host(cache=None, source=SOURCE):
+    """Path of the compiled host (``source``: fmi2_host.c or misuse.c), built once per
+    source/header/flags hash into a temporary cache. MOVINGBASE_HOST_CFLAGS adds compiler
+    flags: .ci/sanitize.sh builds the host with the sanitizers of the FMUs it loads."""
+    flags = os.environ.get("MOVINGBASE_HOST_CFLAGS", "").split()
+    digest = hashlib.sha256(source.read_bytes() + " ".join(flags).encode())
     for header in sorted(HEADERS.glob("fmi2*.h")):
         digest.update(header.read_bytes())
     cache = pathlib.Path(cache or tempfile.gettempdir()) / "movingbase-c-host"
     cache.mkdir(parents=True, exist_ok=True)
-    exe = cache / f"fmi2_host-{digest.hexdigest()[:16]}"
+    exe = cache / f"{source.stem}-{digest.hexdigest()[:16]}"
     if not exe.exists():
         tmp = exe.with_suffix(f".{os.getpid()}.tmp")
         cc = os.environ.get("CC", "cc")
-        p = subprocess.run([cc, "-O1", "-g", "-Wall", "-Wextra", "-Werror", "-I", str(HEADERS), str(SOURCE),
-                            "-o", str(tmp), "-ldl"], capture_output=True, text=True)
+        p = subprocess.run([cc, "-O1", "-g", "-Wall", "-Wextra", "-Werror", *flags, "-I", str(HEADERS), str(source),
+                            "-o", str(tmp), "-ldl", "-lpthread"], capture_output=True, text=True)
         if p.returncode:
-            raise RuntimeError(f"compiling {SOURCE.name} with {cc} failed:\n{p.stderr}")
+            raise RuntimeError(f"compiling {source.name} with {cc} failed:\n{p.stderr}")
         tmp.replace(exe)   # atomic: parallel test processes never see half a binary
     return exe
 

@@ -327,7 +327,7 @@ def test_a_run_failing_mid_way_is_one_line_and_the_sweep_and_report_go_on(tmp_pa
     assert status == 1
     line, = err.strip().splitlines()
     assert line.startswith(f"run error: {path}: scene telescope_slew, run fixed_base: FMU instance 'plant' failed "
-                           "in doStep at t = 1.264 s (status DISCARD): [ERROR] StrokeError at t=1.264 s: leg "), line
+                           "in doStep at t = 1.264 s (status DISCARD): [DISCARD] StrokeError at t=1.264 s: leg "), line
     assert "outside its stroke" in line
     assert "  fixed_base: FAILED after 79 steps (1.264 s); partial results kept" in out
     assert "  moving_base: 500 steps in" in out

@@ -160,4 +160,4 @@ def test_nan_base_pose_discards_in_both(fmus, native):
         inst.set("base_pose[5]", float("nan"))
         assert step(inst, 0.0, 1e-3) == DISCARD
         lines.append(failure_lines(inst)[-1])
-    assert lines[0] == lines[1] == "[ERROR] InvalidInputError at t=0 s: base pose input contains NaN or inf"
+    assert lines[0] == lines[1] == "[DISCARD] InvalidInputError at t=0 s: base pose input contains NaN or inf"

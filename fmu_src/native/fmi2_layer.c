@@ -8,7 +8,25 @@
    further steps, and the outputs keep the last accepted state; a failing initialization
    answers fmi2Error. The layer never prints and never aborts: every misuse is an
    fmi2Error with a log line. Memory comes from calloc/free (the modelDescription says
-   canNotUseMemoryManagementFunctions). */
+   canNotUseMemoryManagementFunctions).
+
+   Rules every model gets from here, whatever its file forgets:
+   - Log text reaches the host's logger as its format with every '%' doubled (a host
+     string such as a GUID or a category holding "%s" is printed, never read as a
+     conversion), and the line carries the status the call returns (Discard on a refused
+     step, Error on a failed initialization or a misuse).
+   - The FMI 2.0 call sequence (allowed() with each function's mask of states, as the Reference FMUs'
+     fmi2Functions.c): a call outside its states answers fmi2Error. One deliberate
+     difference: after a Discard the instance stays failed and answers every further
+     doStep with fmi2Discard ("refusing doStep"), as the pythonfmu FMUs do.
+   - doStep: currentCommunicationPoint must be the FMU's time (the end of the last
+     accepted step, to 1e-9 relative) and the step finite and > 0, else fmi2Error.
+   - No fmi2OK with a non-finite output: after every step and initialization each Real
+     output is checked; one NaN/inf answers fmi2Discard (initialization: fmi2Error) with
+     a line naming the outputs and the input or parameter of largest magnitude.
+   - Work bound: a model integrating on substeps asks mb_substeps (model.h), which
+     refuses a step needing more than MB_MAX_SUBSTEPS substeps (fmi2Discard, a line
+     saying how many it would need) instead of overflowing an int or running for hours. */
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -19,7 +37,19 @@
 #include "model.h"
 #include "crc32.h"
 
-enum phase { INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED };
+/* FMI 2.0 states (bits, for the masks of allowed()); a failed step is STEPPING with
+   layer_state.failed set (the standard's stepFailed). */
+enum phase { INSTANTIATED = 1, INITIALIZATION = 2, STEPPING = 4, TERMINATED = 8 };
+#define ANY_PHASE (INSTANTIATED | INITIALIZATION | STEPPING | TERMINATED)
+#define READABLE (INITIALIZATION | STEPPING | TERMINATED)
+static const char *phase_name(int phase, int failed)
+{
+    return phase == INSTANTIATED ? "the instantiated state (before fmi2EnterInitializationMode)"
+         : phase == INITIALIZATION ? "initialization mode"
+         : phase == STEPPING ? (failed ? "the failed state (after a Discard or a failed initialization)"
+                                       : "step mode")
+         : "the terminated state";
+}
 enum { CAT_WARNING, CAT_DISCARD, CAT_ERROR, CAT_FATAL, CAT_ALL, NCAT };
 static const char *const CATEGORIES[NCAT] = {"logStatusWarning", "logStatusDiscard", "logStatusError",
                                              "logStatusFatal", "logAll"};
@@ -29,7 +59,7 @@ typedef struct {
     double start_time;
     double time;              /* end of the last accepted step (fmi2LastSuccessfulTime) */
     int failed;
-    int initialized;
+    int phase;                /* enum phase: an FMU state restores it */
     char failure[1024];
 } layer_state;
 
@@ -37,7 +67,6 @@ struct mb_instance {
     fmi2CallbackFunctions cb;
     char *name;
     int category_on[NCAT];
-    int phase;
     int dirty;                /* initialization mode: inputs or parameters set since the outputs were computed */
     size_t size, r_off, i_off, m_off;
     unsigned char *block;     /* layer_state | double r[n] | int i[n] | model */
@@ -54,6 +83,7 @@ typedef struct {
 static const char MAGIC[8] = {'M', 'B', 'F', 'M', 'U', 'S', '3', '\0'};   /* 3: with the checksum */
 
 #define LAYER(inst) ((layer_state *)(inst)->block)
+#define PHASE(inst) (LAYER(inst)->phase)
 #define REALS(inst) ((double *)((inst)->block + (inst)->r_off))
 #define INTS(inst) ((int *)((inst)->block + (inst)->i_off))
 #define MODEL(inst) ((void *)((inst)->block + (inst)->m_off))
@@ -61,11 +91,22 @@ static const char MAGIC[8] = {'M', 'B', 'F', 'M', 'U', 'S', '3', '\0'};   /* 3: 
 static size_t align16(size_t n) { return (n + 15) & ~(size_t)15; }
 
 /* ------------------------------------------------------------------------- logging */
+/* The logger's message is a printf format (FMI 2.0): the text goes with every '%'
+   doubled, so a host that formats it prints the text and one that reads it as text
+   (a ctypes logger) sees the text unchanged unless it held a '%'. Discard, Error and
+   Fatal lines are always delivered: they explain a status. */
 static void emit(mb_instance *inst, fmi2Status status, int category, const char *text)
 {
+    char escaped[2 * 1400 + 1];
+    size_t n = 0;
     if (!inst || !inst->cb.logger) return;
-    if (status < fmi2Error && !inst->category_on[category] && !inst->category_on[CAT_ALL]) return;
-    inst->cb.logger(inst->cb.componentEnvironment, inst->name, status, CATEGORIES[category], text);
+    if (status < fmi2Discard && !inst->category_on[category] && !inst->category_on[CAT_ALL]) return;
+    for (const char *p = text; *p && n + 2 < sizeof escaped; p++) {
+        if (*p == '%') escaped[n++] = '%';
+        escaped[n++] = *p;
+    }
+    escaped[n] = '\0';
+    inst->cb.logger(inst->cb.componentEnvironment, inst->name, status, CATEGORIES[category], escaped);
 }
 
 static void logf_(mb_instance *inst, fmi2Status status, int category, const char *fmt, ...)
@@ -152,19 +193,51 @@ int mb_check_pid_gains(mb_instance *inst, double kp, double ki, double kd, doubl
     return 0;
 }
 
-/* Record the model's failure "<kind> <when>: <message>" (slave.py's GuardedSlave.fail). */
-static void record_failure(mb_instance *inst, const char *when)
+/* Record the model's failure "<kind> <when>: <message>" (slave.py's GuardedSlave.fail),
+   logged with the status the call answers. */
+static void record_failure(mb_instance *inst, const char *when, fmi2Status status)
 {
     layer_state *s = LAYER(inst);
     s->failed = 1;
     snprintf(s->failure, sizeof s->failure, "%s %s: %s", inst->kind, when, inst->message);
-    emit(inst, fmi2Error, CAT_ERROR, s->failure);
+    emit(inst, status, status == fmi2Discard ? CAT_DISCARD : CAT_ERROR, s->failure);
+}
+
+/* Every Real output finite? Else mb_error naming the outputs and the input or parameter
+   of largest magnitude (a NaN counts largest): 1. No model answers OK with NaN/inf. */
+static int nonfinite_outputs(mb_instance *inst)
+{
+    const double *r = REALS(inst);
+    char outs[400] = "", value[32];
+    size_t used = 0;
+    int count = 0, worst = -1;
+    for (int vr = 0; vr < MB_MODEL.nvars; vr++) {
+        const mb_var *v = &MB_MODEL.vars[vr];
+        if (v->type != MB_REAL) continue;
+        if (v->causality == MB_OUTPUT && !isfinite(r[vr])) {
+            if (count++ < 4 && used < sizeof outs)
+                used += (size_t)snprintf(outs + used, sizeof outs - used, "%s%s = %s", count > 1 ? ", " : "", v->name,
+                                         mb_repr(r[vr], value));
+        } else if ((v->causality == MB_INPUT || v->causality == MB_PARAMETER) &&
+                   (worst < 0 || !(fabs(r[vr]) <= fabs(r[worst])))) {
+            if (worst < 0 || !isnan(r[worst])) worst = vr;
+        }
+    }
+    if (!count) return 0;
+    char cause[160] = "";
+    if (worst >= 0)
+        snprintf(cause, sizeof cause, "; the input or parameter of largest magnitude is %s = %s",
+                 MB_MODEL.vars[worst].name, mb_repr(r[worst], value));
+    mb_error(inst, "NonFiniteOutputError", "%d output%s not finite (%s%s)%s", count, count > 1 ? "s" : "", outs,
+             count > 4 ? ", ..." : "", cause);
+    return 1;
 }
 
 /* --------------------------------------------------------------------- instance */
 static void load_starts(mb_instance *inst)
 {
     memset(inst->block, 0, inst->size);
+    PHASE(inst) = INSTANTIATED;
     double *r = REALS(inst);
     int *iv = INTS(inst);
     for (int vr = 0; vr < MB_MODEL.nvars; vr++) {
@@ -174,10 +247,14 @@ static void load_starts(mb_instance *inst)
     }
 }
 
-static int check(mb_instance *inst, const char *function, int ok, const char *why)
+/* Is `function` allowed in the instance's state (mask of enum phase)? Else an error line
+   (the FMI 2.0 call sequence; the Reference FMUs' "Illegal call sequence"). */
+static int allowed(mb_instance *inst, const char *function, int mask)
 {
-    if (!ok) logf_(inst, fmi2Error, CAT_ERROR, "%s: %s", function, why);
-    return ok;
+    if (PHASE(inst) & mask) return 1;
+    logf_(inst, fmi2Error, CAT_ERROR, "%s: not allowed in %s (FMI 2.0 call sequence)", function,
+          phase_name(PHASE(inst), LAYER(inst)->failed));
+    return 0;
 }
 
 static int usable(fmi2Component c)
@@ -264,7 +341,6 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     strcpy(inst->name, name);
     for (int k = 0; k < NCAT; k++) inst->category_on[k] = loggingOn;
     load_starts(inst);
-    inst->phase = INSTANTIATED;
     return inst;
 }
 
@@ -284,8 +360,11 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     (void)toleranceDefined, (void)tolerance, (void)stopTimeDefined, (void)stopTime;
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
-    if (!check(inst, "fmi2SetupExperiment", inst->phase == INSTANTIATED, "only allowed after fmi2Instantiate")) return fmi2Error;
-    if (!check(inst, "fmi2SetupExperiment", isfinite(startTime), "startTime must be finite")) return fmi2Error;
+    if (!allowed(inst, "fmi2SetupExperiment", INSTANTIATED)) return fmi2Error;
+    if (!isfinite(startTime)) {
+        logf_(inst, fmi2Error, CAT_ERROR, "fmi2SetupExperiment: startTime must be finite");
+        return fmi2Error;
+    }
     LAYER(inst)->start_time = startTime;
     LAYER(inst)->time = startTime;
     return fmi2OK;
@@ -295,8 +374,8 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c)
 {
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
-    if (!check(inst, "fmi2EnterInitializationMode", inst->phase == INSTANTIATED, "only allowed after fmi2Instantiate / fmi2SetupExperiment")) return fmi2Error;
-    inst->phase = INITIALIZATION;
+    if (!allowed(inst, "fmi2EnterInitializationMode", INSTANTIATED)) return fmi2Error;
+    PHASE(inst) = INITIALIZATION;
     inst->dirty = 1;
     return fmi2OK;
 }
@@ -381,12 +460,11 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c)
 {
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
-    if (!check(inst, "fmi2ExitInitializationMode", inst->phase == INITIALIZATION, "only allowed in initialization mode")) return fmi2Error;
-    inst->phase = STEPPING;
+    if (!allowed(inst, "fmi2ExitInitializationMode", INITIALIZATION)) return fmi2Error;
+    PHASE(inst) = STEPPING;
     layer_state *s = LAYER(inst);
-    s->initialized = 1;
-    if (check_start(inst) || MODEL_INIT(inst, s->start_time)) {
-        record_failure(inst, "in initialization");
+    if (check_start(inst) || MODEL_INIT(inst, s->start_time) || nonfinite_outputs(inst)) {
+        record_failure(inst, "in initialization", fmi2Error);
         return fmi2Error;
     }
     return fmi2OK;
@@ -394,8 +472,8 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c)
 
 fmi2Status fmi2Terminate(fmi2Component c)
 {
-    if (!usable(c)) return fmi2Error;
-    ((mb_instance *)c)->phase = TERMINATED;
+    if (!usable(c) || !allowed(c, "fmi2Terminate", STEPPING)) return fmi2Error;
+    PHASE((mb_instance *)c) = TERMINATED;
     return fmi2OK;
 }
 
@@ -404,7 +482,6 @@ fmi2Status fmi2Reset(fmi2Component c)
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
     load_starts(inst);
-    inst->phase = INSTANTIATED;
     return fmi2OK;
 }
 
@@ -416,10 +493,11 @@ fmi2Status fmi2Reset(fmi2Component c)
    reports the problem. */
 static void evaluate_initial(mb_instance *inst)
 {
-    if (inst->phase != INITIALIZATION || !inst->dirty) return;
+    if (PHASE(inst) != INITIALIZATION || !inst->dirty) return;
     inst->dirty = 0;
     memcpy(inst->backup, inst->block, inst->size);
-    if (MODEL_INIT(inst, LAYER(inst)->start_time)) memcpy(inst->block, inst->backup, inst->size);
+    if (MODEL_INIT(inst, LAYER(inst)->start_time) || nonfinite_outputs(inst))
+        memcpy(inst->block, inst->backup, inst->size);
 }
 
 static int valid_vr(mb_instance *inst, const char *function, fmi2ValueReference vr, int type)
@@ -432,6 +510,16 @@ static int valid_vr(mb_instance *inst, const char *function, fmi2ValueReference 
     return 1;
 }
 
+/* Nothing is set in the failed state (the standard's stepFailed): only reading, fmi2Terminate,
+   fmi2Reset, fmi2SetFMUstate and fmi2FreeInstance lead on. */
+static int unfailed(mb_instance *inst, const char *function)
+{
+    if (!(PHASE(inst) == STEPPING && LAYER(inst)->failed)) return 1;
+    logf_(inst, fmi2Error, CAT_ERROR, "%s: not allowed in %s (FMI 2.0 call sequence)", function,
+          phase_name(STEPPING, 1));
+    return 0;
+}
+
 /* May the variable be set now? (outputs never; parameters before the end of
    initialization; inputs always). Ranges are checked at fmi2ExitInitializationMode. */
 static int settable(mb_instance *inst, const char *function, fmi2ValueReference vr)
@@ -442,7 +530,7 @@ static int settable(mb_instance *inst, const char *function, fmi2ValueReference 
         return 0;
     }
     if (v->causality == MB_PARAMETER) {
-        if (inst->phase != INSTANTIATED && inst->phase != INITIALIZATION) {
+        if (!(PHASE(inst) & (INSTANTIATED | INITIALIZATION))) {
             logf_(inst, fmi2Error, CAT_ERROR, "%s: parameter %s is fixed after initialization", function, v->name);
             return 0;
         }
@@ -454,6 +542,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 {
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
+    if (!allowed(inst, "fmi2GetReal", READABLE)) return fmi2Error;
     evaluate_initial(inst);
     const double *r = REALS(inst);
     for (size_t k = 0; k < nvr; k++) {
@@ -467,6 +556,7 @@ fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
 {
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
+    if (!allowed(inst, "fmi2GetInteger", READABLE)) return fmi2Error;
     evaluate_initial(inst);
     const int *iv = INTS(inst);
     for (size_t k = 0; k < nvr; k++) {
@@ -480,6 +570,8 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 {
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
+    if (!allowed(inst, "fmi2SetReal", INSTANTIATED | INITIALIZATION | STEPPING) || !unfailed(inst, "fmi2SetReal"))
+        return fmi2Error;
     double *r = REALS(inst);
     for (size_t k = 0; k < nvr; k++) {
         if (!valid_vr(inst, "fmi2SetReal", vr[k], MB_REAL) || !settable(inst, "fmi2SetReal", vr[k]))
@@ -494,6 +586,9 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
 {
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
+    if (!allowed(inst, "fmi2SetInteger", INSTANTIATED | INITIALIZATION | STEPPING) ||
+        !unfailed(inst, "fmi2SetInteger"))
+        return fmi2Error;
     int *iv = INTS(inst);
     for (size_t k = 0; k < nvr; k++) {
         if (!valid_vr(inst, "fmi2SetInteger", vr[k], MB_INTEGER) ||
@@ -505,9 +600,9 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
     return fmi2OK;
 }
 
-static fmi2Status no_variables(fmi2Component c, const char *function, size_t nvr, const char *type)
+static fmi2Status no_variables(fmi2Component c, const char *function, size_t nvr, const char *type, int mask)
 {
-    if (!usable(c)) return fmi2Error;
+    if (!usable(c) || !allowed(c, function, mask)) return fmi2Error;
     if (nvr == 0) return fmi2OK;
     logf_(c, fmi2Error, CAT_ERROR, "%s: %s has no %s variables", function, MB_MODEL.identifier, type);
     return fmi2Error;
@@ -516,28 +611,32 @@ static fmi2Status no_variables(fmi2Component c, const char *function, size_t nvr
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[])
 {
     (void)vr, (void)value;
-    return no_variables(c, "fmi2GetBoolean", nvr, "Boolean");
+    return no_variables(c, "fmi2GetBoolean", nvr, "Boolean", READABLE);
 }
 
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[])
 {
     (void)vr, (void)value;
-    return no_variables(c, "fmi2SetBoolean", nvr, "Boolean");
+    return no_variables(c, "fmi2SetBoolean", nvr, "Boolean", INSTANTIATED | INITIALIZATION | STEPPING);
 }
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[])
 {
     (void)vr, (void)value;
-    return no_variables(c, "fmi2GetString", nvr, "String");
+    return no_variables(c, "fmi2GetString", nvr, "String", READABLE);
 }
 
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[])
 {
     (void)vr, (void)value;
-    return no_variables(c, "fmi2SetString", nvr, "String");
+    return no_variables(c, "fmi2SetString", nvr, "String", INSTANTIATED | INITIALIZATION | STEPPING);
 }
 
 /* ---------------------------------------------------------------------- stepping */
+/* How far currentCommunicationPoint may lie from the FMU's time, relative to max(1 s, |time|):
+   a host summing t += h drifts by ulps, a host skipping or repeating a step is off by h. */
+#define STEP_TIME_TOLERANCE 1e-9
+
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
@@ -545,26 +644,33 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
     layer_state *s = LAYER(inst);
-    if (!check(inst, "fmi2DoStep", inst->phase == STEPPING, "only allowed after fmi2ExitInitializationMode")) return fmi2Error;
+    if (!allowed(inst, "fmi2DoStep", STEPPING)) return fmi2Error;
     if (s->failed) {
-        logf_(inst, fmi2Error, CAT_ERROR, "refusing doStep at t=%.6g s after: %s", currentCommunicationPoint,
+        logf_(inst, fmi2Discard, CAT_DISCARD, "refusing doStep at t=%.6g s after: %s", currentCommunicationPoint,
               s->failure);
         return fmi2Discard;
     }
     double t = currentCommunicationPoint, h = communicationStepSize;
-    if (!isfinite(t) || !isfinite(h) || h < 0) {
-        mb_error(inst, "ValueError", "communication step from t=%.17g over h=%.17g s is not a finite, non-negative step", t, h);
-    } else {
-        memcpy(inst->backup, inst->block, inst->size);
-        if (!MODEL_STEP(inst, t, h)) {
-            s->time = t + h;
-            return fmi2OK;
-        }
-        memcpy(inst->block, inst->backup, inst->size);   /* outputs keep the last accepted state */
+    char tb[32], hb[32], nowb[32];
+    if (!(isfinite(h) && h > 0)) {   /* the Reference FMUs: "Communication step size must be > 0" */
+        logf_(inst, fmi2Error, CAT_ERROR, "fmi2DoStep: the communication step size must be finite and > 0, got %s s",
+              mb_repr(h, hb));
+        return fmi2Error;
     }
+    if (!(fabs(t - s->time) <= STEP_TIME_TOLERANCE * fmax(1.0, fabs(s->time)))) {
+        logf_(inst, fmi2Error, CAT_ERROR, "fmi2DoStep: currentCommunicationPoint %s s is not the FMU's time %s s "
+              "(the end of the last accepted step)", mb_repr(t, tb), mb_repr(s->time, nowb));
+        return fmi2Error;
+    }
+    memcpy(inst->backup, inst->block, inst->size);
+    if (!MODEL_STEP(inst, t, h) && !nonfinite_outputs(inst)) {
+        s->time = t + h;
+        return fmi2OK;
+    }
+    memcpy(inst->block, inst->backup, inst->size);   /* outputs keep the last accepted state */
     char when[64];
     snprintf(when, sizeof when, "at t=%.6g s", t);
-    record_failure(inst, when);
+    record_failure(inst, when, fmi2Discard);
     return fmi2Discard;
 }
 
@@ -577,7 +683,7 @@ fmi2Status fmi2CancelStep(fmi2Component c)
 
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value)
 {
-    if (!usable(c)) return fmi2Error;
+    if (!usable(c) || !allowed(c, "fmi2GetStatus", STEPPING | TERMINATED)) return fmi2Error;
     if (s == fmi2DoStepStatus) {   /* doStep is synchronous: the last one is done */
         *value = LAYER((mb_instance *)c)->failed ? fmi2Discard : fmi2OK;
         return fmi2OK;
@@ -588,7 +694,7 @@ fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *va
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value)
 {
-    if (!usable(c)) return fmi2Error;
+    if (!usable(c) || !allowed(c, "fmi2GetRealStatus", STEPPING | TERMINATED)) return fmi2Error;
     if (s == fmi2LastSuccessfulTime) {
         *value = LAYER((mb_instance *)c)->time;
         return fmi2OK;
@@ -600,14 +706,14 @@ fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value)
 {
     (void)value;
-    if (!usable(c)) return fmi2Error;
+    if (!usable(c) || !allowed(c, "fmi2GetIntegerStatus", STEPPING | TERMINATED)) return fmi2Error;
     logf_(c, fmi2Error, CAT_ERROR, "fmi2GetIntegerStatus: no Integer status (kind %d)", (int)s);
     return fmi2Error;
 }
 
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value)
 {
-    if (!usable(c)) return fmi2Error;
+    if (!usable(c) || !allowed(c, "fmi2GetBooleanStatus", STEPPING | TERMINATED)) return fmi2Error;
     if (s == fmi2Terminated) {   /* a failed instance has ended its simulation */
         *value = LAYER((mb_instance *)c)->failed ? fmi2True : fmi2False;
         return fmi2OK;
@@ -619,7 +725,7 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value)
 {
     (void)value;
-    if (!usable(c)) return fmi2Error;
+    if (!usable(c) || !allowed(c, "fmi2GetStringStatus", STEPPING | TERMINATED)) return fmi2Error;
     logf_(c, fmi2Error, CAT_ERROR, "fmi2GetStringStatus: no String status (kind %d)", (int)s);
     return fmi2Error;
 }
@@ -681,8 +787,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
         logf_(inst, fmi2Error, CAT_ERROR, "fmi2SetFMUstate: the given state is not one of this FMU's");
         return fmi2Error;
     }
-    memcpy(inst->block, st->data, inst->size);
-    inst->phase = LAYER(inst)->initialized ? STEPPING : INSTANTIATED;
+    memcpy(inst->block, st->data, inst->size);   /* the state's phase with it */
     return fmi2OK;
 }
 

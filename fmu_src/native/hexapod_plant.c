@@ -30,8 +30,8 @@ static const char *const INPUT_NAMES[5] = {"leg forces", "base pose", "base rate
 /* Advance over [t0, t0 + h] and fill the outputs; 0, or 1 after mb_error. */
 static int advance(mb_instance *inst, double *r, Model *m, double t0, double h)
 {
-    double n = ceil(h / m->max_step - 1e-9);
-    int substeps = n > 1 ? (int)n : 1;
+    int substeps;
+    if (mb_substeps(inst, h, m->max_step, &substeps)) return 1;
     double det = 0.0, *outputs = &r[VR_leg_length];
     int status = mb_hexapod_advance_actuated(m->rk4, substeps, BASE_JOINTS, PLATFORM_JOINTS, KERNEL_DATA, m->act,
                                              m->x, &r[VR_leg_force], t0, h, m->base_mode, m->legs, m->bounds,

@@ -57,8 +57,8 @@ static int step(mb_instance *inst, double *r, int *i, void *model, double t, dou
 {
     (void)i;
     Model *m = model;
-    double n = ceil(h / m->max_step - 1e-9);
-    int substeps = n > 1 ? (int)n : 1;
+    int substeps;
+    if (mb_substeps(inst, h, m->max_step, &substeps)) return 1;
     int status = mb_m3t_plant_step(PACKED, &r[VR_slider_position], &r[VR_slider_force], m->mode, m->rk4, substeps,
                                    h / substeps, &r[VR_platform_position]);
     if (status == MB_M3T_DIVERGED) {

@@ -10,6 +10,7 @@
    pythonfmu FMU at build time (fmu_src/native_build.py) into <modelIdentifier>_vars.h.
    The model keeps its own state in a plain struct (no pointers) of model_size bytes, so
    the layer saves, restores and serialises an FMU state as bytes. */
+#include <math.h>
 #include <stddef.h>
 
 enum mb_type { MB_REAL = 0, MB_INTEGER = 1 };
@@ -50,6 +51,12 @@ extern const mb_model_info MB_MODEL;
    it at error level. */
 void mb_error(mb_instance *inst, const char *kind, const char *fmt, ...);
 
+/* The work bound of one doStep: a model integrating on substeps takes at most this many
+   (the plant's RK4 substep costs ~1-3 us, so a doStep stays within seconds). A longer
+   step is refused with fmi2Discard and a line saying how many substeps it would need:
+   a 1e6 s step at max_step 1e-3 s would otherwise run 1e9 substeps for hours, and
+   their count overflows an int, so the plant would integrate nothing and answer OK. */
+#define MB_MAX_SUBSTEPS 1000000
 /* A warning log line (category logStatusWarning). */
 void mb_warning(mb_instance *inst, const char *fmt, ...);
 
@@ -66,4 +73,20 @@ int mb_check_pid_gains(mb_instance *inst, double kp, double ki, double kd, doubl
 int mb_nonfinite_rows(int nrows, int width, const double *rows, const char *const *names,
                       char *out, size_t n);
 
+/* substeps = ceil(h / max_step) (at least 1), computed in double: 0, or 1 after mb_error
+   (WorkBoundError) when it passes MB_MAX_SUBSTEPS. Every model with substeps uses it; here
+   (not in a layer) so that the FMI 2.0 and FMI 3.0 layers share it. */
+static inline int mb_substeps(mb_instance *inst, double h, double max_step, int *substeps)
+{
+    char hb[32], mb[32];
+    double n = ceil(h / max_step - 1e-9);   /* a double: no int overflow, whatever h and max_step */
+    if (!(n <= MB_MAX_SUBSTEPS)) {
+        mb_error(inst, "WorkBoundError", "a step of %s s needs %.3g substeps of at most %s s, more than the %d a "
+                 "doStep may take: take shorter communication steps", mb_repr(h, hb), n, mb_repr(max_step, mb),
+                 MB_MAX_SUBSTEPS);
+        return 1;
+    }
+    *substeps = n > 1 ? (int)n : 1;
+    return 0;
+}
 #endif

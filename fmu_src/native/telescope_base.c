@@ -9,6 +9,11 @@
 #include "TelescopeBase_vars.h"
 #include "telescope.h"
 
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+#define SERVO_MAX_WH 0.05   /* w h of one servo RK4 substep, as plant/c/telescope.c takes it */
+
 typedef struct {
     mb_tel_params params;
     mb_tel_profile profile;
@@ -144,6 +149,8 @@ static int step(mb_instance *inst, double *r, int *i, void *model, double t, dou
     Model *m = model;
     if (m->servo) {
         double command[6];
+        int substeps;   /* the count mb_tel_servo_advance takes: w h / SERVO_MAX_WH (plant/c/telescope.c) */
+        if (mb_substeps(inst, h, SERVO_MAX_WH / (2 * M_PI * r[VR_servo_bandwidth]), &substeps)) return 1;
         if (command_at(inst, m, t + h, command)) return 1;
         mb_tel_servo_advance(r[VR_servo_bandwidth], r[VR_servo_damping], h, m->command, command, m->state);
         memcpy(m->command, command, sizeof command);

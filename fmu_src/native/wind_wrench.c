@@ -2,6 +2,8 @@
    (plant/c/wind.h; this file is not wind.c because the kernel's wind.c lands in the same
    flat sources/ folder of the FMU). The gust's components are drawn from the seed at initialization and
    fixed afterwards: the model struct holds them, so an FMU state carries them too. */
+#include <string.h>
+
 #include "Wind_vars.h"
 #include "wind.h"
 
@@ -23,6 +25,7 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     (void)start_time;
     Model *m = model;
     mb_wind_params p;
+    memset(&p, 0, sizeof p);   /* the kernel copies p whole into the saved state: no stack bytes in its padding */
     p.mean_speed = r[VR_mean_speed];
     p.turbulence_intensity = r[VR_turbulence_intensity];
     p.length_scale = r[VR_length_scale];
