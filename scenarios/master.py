@@ -63,7 +63,7 @@ def failure_line(error, instances):
     head = str(error).split(" Log:", 1)[0].rstrip(".")
     named = re.match(r"FMU instance '(.+?)'", head)
     log = instances[named.group(1)].log if named and named.group(1) in instances else []
-    errors = [line for line in log if line.startswith(("[ERROR]", "[FATAL]"))] or log[-1:]
+    errors = [line for line in log if line.startswith(("[ERROR]", "[FATAL]", "[DISCARD]"))] or log[-1:]
     return f"{head}: {errors[0]}" if errors else head
 
 
