@@ -39,10 +39,9 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
-from movingbase.fmu_src.builder import ensure_built
 from . import engine, spec
 from .fmi import unpack
-from .runner import resolve
+from .runner import fmu_paths, resolve
 
 _TOP = ("name", "description", "scenario", "set", "grid", "cases", "ci", "keep_records")
 SCENARIO_KEYS = ("start_time", "stop_time", "step", "master", "extrapolation")
@@ -222,9 +221,9 @@ def parse(text, source="<string>", base_dir=".", ci=False):
 
 
 def _descriptions(scenario):
-    """Model descriptions per instance (FMUs built if missing or stale)."""
-    scripts = ensure_built(sorted({spec.FMU_SCRIPTS[f] for f in scenario.fmus.values()}))
-    return {inst: unpack(scripts[spec.FMU_SCRIPTS[fmu]])[0] for inst, fmu in scenario.fmus.items()}
+    """Model descriptions per instance, of the implementation the scenario chose (FMUs
+    built if missing or stale)."""
+    return {inst: unpack(p)[0] for inst, p in fmu_paths(scenario).items()}
 
 
 SHIPPED = pathlib.Path(__file__).resolve().parent / "campaigns"
@@ -253,7 +252,6 @@ class CampaignJobs:
         self.campaign = campaign
         self._bound = {}            # top-level overrides -> (scenario, values, descriptions, digests)
         self.files = {}             # sha256 -> FMU path
-        self._scripts = None
         self._bind({})              # the FMUs, built and hashed before anything runs
 
     def __len__(self):
@@ -267,8 +265,7 @@ class CampaignJobs:
             if any(p.get("fidelity") == "auto" for p in scenario.parameters.values()):
                 raise CampaignError(c.source, "scenario", 'a plant fidelity "auto" is chosen per scenario '
                                     'run; a campaign names a fidelity level (set "plant.fidelity")')
-            self._scripts = self._scripts or ensure_built(sorted({spec.FMU_SCRIPTS[f] for f in scenario.fmus.values()}))
-            paths = {inst: self._scripts[spec.FMU_SCRIPTS[fmu]] for inst, fmu in scenario.fmus.items()}
+            paths = fmu_paths(scenario)     # each instance's implementation, as the scenario says
             digests = {inst: engine.file_digest(p) for inst, p in paths.items()}
             self.files.update({digests[inst]: p for inst, p in paths.items()})
             descriptions = {inst: unpack(p)[0] for inst, p in paths.items()}

@@ -28,6 +28,7 @@ each run is the same deterministic computation in a fresh set of instances; floa
 through JSON as their repr (exact) and series through npz.
 """
 import atexit
+import contextlib
 import dataclasses
 import gzip
 import hashlib
@@ -36,16 +37,20 @@ import logging
 import os
 import pathlib
 import shutil
+import signal
 import socket
+import sys
 import tempfile
 import threading
 import time
+import zipfile
 from itertools import islice
 
 import numpy as np
 from tqdm import tqdm
 
 from . import master, metrics
+from .fmi import content_digest
 from .spec import Link
 
 # Dask's statistical profiler samples the worker's threads every 10 ms: it took ~13 % of a
@@ -66,7 +71,9 @@ def default_jobs():
 
 
 def file_digest(path):
-    return hashlib.sha256(pathlib.Path(path).read_bytes()).hexdigest()
+    """The FMU's content digest (scenarios.fmi.content_digest): a rebuild of the same
+    sources keeps every cached result's key."""
+    return content_digest(path)
 
 
 def _plain(value):
@@ -153,17 +160,37 @@ class Store:
     """One folder of run results keyed by run key: <key>.json (written last), <key>.npz,
     <key>.csv.gz."""
 
-    def __init__(self, folder):
-        self.folder = pathlib.Path(folder)
-        self.folder.mkdir(parents=True, exist_ok=True)
-
     def path(self, key, suffix):
         return self.folder / f"{key}{suffix}"
 
+    def __init__(self, folder):
+        self.folder = pathlib.Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.damaged = {}           # key -> what is wrong with its files (run again)
+
     def status(self, key):
-        """'ok', 'failed' or None (not run yet)."""
+        """'ok', 'failed' or None: not run yet, or its files are truncated or corrupt
+        (then named in ``damaged`` and run again, never taken as good)."""
         path = self.path(key, ".json")
-        return json.loads(path.read_text())["status"] if path.exists() else None
+        if not path.exists():
+            return None
+        try:
+            status = json.loads(path.read_text())["status"]
+        except (ValueError, KeyError, TypeError, UnicodeDecodeError) as exc:
+            self.damaged[key] = f"{path}: unreadable ({type(exc).__name__}: {exc})"
+            return None
+        series = self.path(key, ".npz")
+        if status not in ("ok", "failed"):
+            self.damaged[key] = f"{path}: unknown status {status!r}"
+            return None
+        if status == "ok" and not zipfile.is_zipfile(series):
+            self.damaged[key] = f"{series}: {'missing' if not series.exists() else 'truncated or corrupt'}"
+            return None
+        return status
+
+    def keys(self):
+        """Keys of every result on disk."""
+        return {p.name.removesuffix(".json") for p in self.folder.glob("*.json")}
 
     def read(self, key):
         return json.loads(self.path(key, ".json").read_text())
@@ -205,6 +232,22 @@ class Outcome:
     failed: dict                    # key -> message (run failures and lost tasks)
     wall_time: float
     interrupted: bool = False
+    damaged: dict = dataclasses.field(default_factory=dict)    # key -> the fault found (recomputed)
+    orphans: int = 0                # results in the store that belong to none of these jobs
+
+
+@contextlib.contextmanager
+def _workers_ignore_ctrl_c():
+    """Worker processes started inside inherit an ignored SIGINT: Ctrl-C reaches the client
+    alone, which stops the campaign in one message (not one traceback per worker)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 class Engine:
@@ -230,7 +273,7 @@ class Engine:
             if self.address:
                 self._client = Client(self.address, timeout=30)
             else:
-                with dask.config.set(WORKER_CONFIG):
+                with dask.config.set(WORKER_CONFIG), _workers_ignore_ctrl_c():
                     self.cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
                                                 dashboard_address=None, silence_logs=logging.ERROR)
                 self._client = Client(self.cluster)
@@ -292,7 +335,10 @@ class Engine:
 
         skipped = []
         count = sum(1 for _ in to_run(skipped))     # a first pass: how many, for the progress bar
-        outcome = Outcome(total, [], skipped, {}, 0.0)
+        outcome = Outcome(total, [], skipped, {}, 0.0, damaged=dict(store.damaged))
+        outcome.orphans = len(store.keys() - {job.key for job in jobs})
+        for fault in outcome.damaged.values():
+            print(f"damaged result, run again: {fault}", file=sys.stderr)
         if not count:
             return outcome
         blobs = self._scatter(fmu_files)
