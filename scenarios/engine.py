@@ -36,6 +36,7 @@ import json
 import logging
 import os
 import pathlib
+import re
 import shutil
 import signal
 import socket
@@ -51,7 +52,8 @@ from tqdm import tqdm
 
 from . import master, metrics
 from .fmi import content_digest
-from .spec import Link
+from .resources import cores
+from .spec import Link, file_label
 
 # Dask's statistical profiler samples the worker's threads every 10 ms: it took ~13 % of a
 # run's CPU (benchmarks/bench_campaign.py). Off for local workers; for a cluster's workers
@@ -62,12 +64,25 @@ _FMU_DIR = None                     # this worker process's copies of the FMU fi
 _FMU_FILES = {}                     # sha256 -> local FMU path
 
 
-def default_jobs():
-    """All cores this process may use."""
+default_jobs = cores                # all cores this process may use
+
+
+class EngineError(ValueError):
+    """A cluster that cannot be used (an address that is malformed or does not answer)."""
+
+
+def check_address(address, timeout=5.0):
+    """EngineError naming the problem for a Dask scheduler address that is malformed or
+    where nothing answers within ``timeout`` s: told before anything runs."""
+    match = re.fullmatch(r"(?:(?:tcp|tls)://)?(\[[^\]]+\]|[^:/\s]+):(\d{1,5})", str(address))
+    if not match or not 0 < int(match.group(2)) < 65536:
+        raise EngineError(f"--dask {address!r}: expected a scheduler address tcp://HOST:PORT")
+    host, port = match.group(1).strip("[]"), int(match.group(2))
     try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:          # not Linux
-        return os.cpu_count() or 1
+        socket.create_connection((host, port), timeout=timeout).close()
+    except OSError as exc:
+        raise EngineError(f"--dask {address}: no scheduler answers at {host}:{port} "
+                          f"({exc.strerror or type(exc).__name__}); start one or check the address") from None
 
 
 def file_digest(path):
@@ -407,7 +422,7 @@ def run_sweep(scenario, paths, descriptions, values, items, outdir, jobs=None, a
     cases = []
     for item in items:
         inst, name, value = sweep_value(scenario, descriptions, item) if item is not None else (None, None, None)
-        cases.append(("run" if item is None else str(item), {inst: {name: value}} if inst else {}))
+        cases.append(("run" if item is None else file_label(item), {inst: {name: value}} if inst else {}))
     job_list, files = prepared_jobs(scenario, paths, values, cases)
     store = Store(pathlib.Path(outdir) / "runs")
     with Engine(jobs, address) as eng:

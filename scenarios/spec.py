@@ -19,6 +19,7 @@ before the master starts.
 import contextlib
 import dataclasses
 import difflib
+import math
 import pathlib
 import re
 from dataclasses import dataclass, field
@@ -75,6 +76,7 @@ PLAIN_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}")     # names that bec
 INSTANCE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
 MAX_FILE_BYTES = 1 << 20       # a scenario or campaign file larger than this is not one
 MAX_DEPTH = 8                  # tables and arrays nested deeper than this are no scenario's
+CHECK_POINTS = 100_001        # times at which a model's profile is checked over a run, at most
 MAX_INTEGER = 2 ** 53          # larger integer literals are no setting's (and lose precision as floats)
 
 
@@ -190,8 +192,7 @@ def read_text(path, error=ScenarioError, what="scenario"):
         raise error(str(path), "file", f"cannot be read: {exc.strerror}") from None
     if len(data) > MAX_FILE_BYTES:
         raise error(str(path), "file", f"is larger than {MAX_FILE_BYTES >> 20} MiB: not a {what} file")
-    if data[:2] in (b"\xff\xfe", b"\xfe\xff") or (len(data) > 3 and data[1:6:2].count(0) == len(data[1:6:2])
-                                                   and 0 not in data[0:6:2]):
+    if _utf16(data):
         raise error(str(path), "file", f"is UTF-16 text; save it as UTF-8 (a {what} is a TOML file in UTF-8)")
     if b"\0" in data:
         raise error(str(path), "file", f"is a binary file (NUL byte at offset {data.find(0)}), not a TOML {what}")
@@ -200,6 +201,19 @@ def read_text(path, error=ScenarioError, what="scenario"):
     except UnicodeDecodeError as exc:
         raise error(str(path), "file", f"is not UTF-8 text (byte 0x{data[exc.start]:02x} at offset "
                     f"{exc.start}); a {what} is a TOML file in UTF-8") from None
+
+
+def _utf16(data):
+    """Whether bytes are UTF-16 text (a BOM, or the NUL high bytes of ASCII) that decodes."""
+    if not (data[:2] in (b"\xff\xfe", b"\xfe\xff") or (len(data) >= 4 and (data[1] == data[3] == 0 or
+                                                                           data[0] == data[2] == 0))):
+        return False
+    try:
+        text = data.decode("utf-16" if data[:2] in (b"\xff\xfe", b"\xfe\xff") else
+                           "utf-16-le" if data[1] == 0 else "utf-16-be")
+    except UnicodeDecodeError:
+        return False
+    return all(c.isprintable() or c in "\r\n\t" for c in text.lstrip("\ufeff"))
 
 
 def merged(data, overrides):
@@ -312,9 +326,8 @@ def parse(text, source="<string>", overrides=None):
             problems.errors.append(ScenarioError(source, key, f"missing; {needs}"))
     problems.raise_any()     # the parts below rely on the keys' presence and types
 
-    start = stop = step = 0.0
-    steps = 1
-    with problems.part():
+    start, stop, step, steps, grid_ok = 0.0, math.inf, 1.0, 1, False
+    with problems.part():       # the time grid; the checks against it below use it only if it holds
         start = _quantity(source, "start_time", data.get("start_time", 0.0), "s")
         stop = _quantity(source, "stop_time", data["stop_time"], "s")
         step = _quantity(source, "step", data["step"], "s")
@@ -322,12 +335,15 @@ def parse(text, source="<string>", overrides=None):
             raise ScenarioError(source, "step", f"must be positive, got {data['step']!r}")
         if not stop > start:
             raise ScenarioError(source, "stop_time", f"must be after start_time ({start} s)")
-        steps = (stop - start) / step
-        if abs(steps - round(steps)) > 1e-9 * max(1.0, steps):
+        if abs((stop - start) / step - round((stop - start) / step)) > 1e-9 * max(1.0, (stop - start) / step):
+            steps = (stop - start) / step
             nearest = " and ".join(f"{start + n * step:.12g} s" for n in sorted({max(1, int(steps)), int(steps) + 1}))
             raise ScenarioError(source, "stop_time", f"{data['stop_time']!r} is not a whole number of steps of "
                                 f"{data['step']!r} after start_time ({steps:.6g} steps); nearest valid stop times: "
                                 f"{nearest}")
+        steps, grid_ok = round((stop - start) / step), True
+    if not grid_ok:         # what failed is told; nothing below is measured against it
+        start, stop, step, steps = 0.0, math.inf, 1.0, 1
     master = data.get("master", "jacobi")
     if master not in MASTERS:
         problems.errors.append(ScenarioError(source, "master", f"unknown master {master!r}; choose one of {MASTERS}"))
@@ -384,11 +400,11 @@ def parse(text, source="<string>", overrides=None):
         for extra, problem in unknown_keys(set(record) - {"interval", "variables"}, ["interval", "variables"]):
             problems.errors.append(ScenarioError(source, f"record.{extra}", problem))
         interval = _quantity(source, "record.interval", record.get("interval", data["step"]), "s")
-        ratio = interval / step if step > 0 else 1.0
-        if interval < step or abs(ratio - round(ratio)) > 1e-9 * ratio:
+        ratio = interval / step
+        if grid_ok and (interval < step or abs(ratio - round(ratio)) > 1e-9 * ratio):
             raise ScenarioError(source, "record.interval", "must be a whole multiple of step")
-        every = int(round(ratio))
-        last_record = start + (int(round(steps)) // every) * every * step
+        every = max(1, int(round(ratio)))
+        last_record = start + (steps // every) * every * step if grid_ok else math.inf
         recorded = [_reference(source, "record.variables", v, fmus)
                     for v in _string_list(source, "record.variables", record.get("variables", []))] \
             if record.get("variables") else []
@@ -411,7 +427,7 @@ def parse(text, source="<string>", overrides=None):
             if metric_start >= stop or metric_start > last_record + 1e-9 * step:
                 where = f"at or after stop_time ({stop:g} s)" if metric_start >= stop else \
                     f"after the last recorded time ({last_record:g} s)"
-                raise ScenarioError(source, f"{key}.from", f"{metric.pop('from')!r} lies {where}: the metric would "
+                raise ScenarioError(source, f"{key}.from", f"{metric.get('from', '0 s')!r} lies {where}: the metric would "
                                     "count nothing")
             metric.pop("from", None)
             for required in METRIC_KINDS[kind]:
@@ -703,8 +719,9 @@ def _check_telescope(src, key, scenario, inst, md_variables, values, written):
     except InvalidInputError as exc:
         raise ScenarioError(src, where, f"{shown(limits)}: plant.telescope refuses them: {exc}") from None
     # the FMU evaluates the profile at t - start_delay; a grid of <= 1 s spacing over the run
-    times = np.linspace(scenario.start_time, scenario.stop_time,
-                        2 + int(np.ceil(scenario.stop_time - scenario.start_time))) - setting("start_delay")
+    # (at most CHECK_POINTS points: the check of a run of years costs no more than a day's)
+    points = min(CHECK_POINTS, 2 + int(np.ceil(scenario.stop_time - scenario.start_time)))
+    times = np.linspace(scenario.start_time, scenario.stop_time, points) - setting("start_delay")
     try:
         if profile == "slew":
             telescope.slew(params, (setting("start_azimuth"), setting("start_elevation")),

@@ -82,9 +82,9 @@ def test_missing_and_binary_files(tmp_path):
     with pytest.raises(campaign.CampaignError, match="does not exist"):
         campaign.load(tmp_path / "none.toml")
     (tmp_path / "b.toml").write_bytes(b"\xff\xfe\x00binary")
-    with pytest.raises(campaign.CampaignError, match="not UTF-8"):
+    with pytest.raises(campaign.CampaignError, match="is a binary file"):
         campaign.load(tmp_path / "b.toml")
-    with pytest.raises(campaign.CampaignError, match="is not a file"):
+    with pytest.raises(campaign.CampaignError, match="is a directory"):
         campaign.load(tmp_path)
 
 
