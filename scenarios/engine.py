@@ -253,8 +253,10 @@ class Outcome:
 
 @contextlib.contextmanager
 def _workers_ignore_ctrl_c():
-    """Worker processes started inside inherit an ignored SIGINT: Ctrl-C reaches the client
-    alone, which stops the campaign in one message (not one traceback per worker)."""
+    """SIGINT ignored while the worker processes start: they inherit the ignored SIGINT
+    (a blocked one they would not), so Ctrl-C reaches the client alone and the campaign
+    ends in one message, not one traceback per worker. The price: a Ctrl-C in the few
+    seconds the workers take to start is not seen (press it again)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return

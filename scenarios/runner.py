@@ -40,7 +40,7 @@ def output_folder(out, path):
     folder = out / pathlib.Path(path).stem
     try:
         folder.mkdir(parents=True, exist_ok=True)
-    except FileExistsError:
+    except (FileExistsError, NotADirectoryError):
         blocker = next(p for p in (folder, *folder.parents) if p.exists() and not p.is_dir())
         raise OutputError(f"output folder {folder}: {blocker} is a file, not a folder; choose another --out") from None
     except OSError as exc:

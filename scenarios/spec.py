@@ -294,6 +294,8 @@ def _string_list(source, key, value):
 
 
 def _reference(source, key, value, instances):
+    if isinstance(value, str) and value.split(".", 1)[0] in instances and "." in value:
+        return value     # a declared instance (an invalid instance name is told at its [fmus] table)
     if not isinstance(value, str) or not re.fullmatch(r"[A-Za-z_]\w*\.[\w\[\]\.]+", value, re.ASCII):
         raise ScenarioError(source, key, f"expected 'instance.variable', got {value!r}")
     instance = value.split(".", 1)[0]
