@@ -431,6 +431,9 @@ def run_sweep(scenario, paths, descriptions, values, items, outdir, jobs=None, a
         outcome = eng.run(job_list, files, store, progress, name=scenario.name)
     if outcome.interrupted:
         raise KeyboardInterrupt
+    if outcome.orphans:
+        print(f"{outcome.orphans} results in {store.folder} belong to no run of this sweep (other settings, or FMUs "
+              "of other sources); they are kept: delete them to reclaim the space", file=sys.stderr)
     runs = []
     for job in job_list:
         if store.status(job.key) is None:

@@ -151,9 +151,11 @@ def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None,
         except master.RunFailed as failed:   # keep what it did; the other runs still run
             failed.run.failure = f"{scenario.source}: scene {scenario.name}, run {label}: {failed.run.failure}"
             runs.append(failed.run)
-        finally:
-            bar.update(100 - bar.n)
-            bar.close()
+        except BaseException:                # Ctrl-C, or an error that ends the command
+            bar.close()                      # where it stopped, not 100 %
+            raise
+        bar.update(100 - bar.n)
+        bar.close()
     summary = {r.label: {"metrics": r.metrics, "wall_time_s": r.wall_time, "steps": r.steps,
                          "real_time_factor": r.real_time_factor, **({"failed": r.failure} if r.failure else {})}
                for r in runs}
