@@ -4,7 +4,8 @@ A scenario names FMUs (by the kit's FMU names) with their parameters, the connec
 between them, the time grid, the master algorithm, what to record, the metrics to report
 and optionally one parameter to sweep. Every error points at the file, the key and the
 problem. Quantities may carry units ("1 ms", "30 deg"); they are converted to SI here,
-checked against the unit the FMU declares. The format is documented in the README's "Scenarios" section.
+checked against the unit the FMU declares. The format: docs/scenarios.md and the
+scenario-file reference generated from KEYS below (docs/generate.py).
 
 A parameter written "@inst.var" takes the value of that output of another FMU at the
 start time (e.g. the plant's initial pose from the telescope's reference pose).
@@ -53,24 +54,51 @@ METRIC_KINDS = {  # kind -> required keys
     "peak": ("variable",),
     "base_effect": ("base", "reference"),
 }
-# top-level keys -> (TOML types, what the value is); the types are checked, the text names them
-TOP_LEVEL = {
-    "name": ((str,), "the run's name, also its output folder's: letters, digits, _ . - (default: the file's stem)"),
-    "description": ((str,), "free text for the report"),
-    "start_time": ((int, float, str), "a time (default 0 s)"),
-    "stop_time": ((int, float, str), "a time, a whole number of steps after start_time"),
-    "step": ((int, float, str), "the communication step, a time"),
-    "master": ((str,), f"one of {', '.join(MASTERS)}"),
-    "extrapolation": ((str,), f"one of {', '.join(EXTRAPOLATIONS)}"),
-    "fmus": ((dict,), "one [fmus.<instance>] table per FMU"),
-    "connections": ((list,), "[[connections]] tables with from and to"),
-    "record": ((dict,), "[record] with interval and variables"),
-    "metrics": ((list,), "[[metrics]] tables"),
-    "sweep": ((dict,), "[sweep] with parameter and values"),
-    "ci": ((dict,), "top-level keys replaced for the short CI run"),
-    "fidelity_tolerance": ((int, float, str), "a force"),
+_TOP_KEYS = {"name", "description", "start_time", "stop_time", "step", "master", "extrapolation",
+             "fmus", "connections", "record", "metrics", "sweep", "ci", "fidelity_tolerance"}
+_REQUIRED = "required"
+# Every key of a scenario file: key -> (what it takes, default, meaning), in the order the
+# reference lists them. The scenario-file reference is generated from this table and the
+# constants above (docs/generate.py); tests/test_docs.py holds it to what parse() accepts,
+# refuses and fills in, so a key added to the checker without a line here fails a test.
+KEYS = {
+    "name": ("string", "the file's name without .toml", "report title: letters, digits, _ . - (the output "
+             "folder is named after the file run)"),
+    "description": ("string", "empty", "text under the report's title"),
+    "start_time": ("time", "0 s", "start of the time grid"),
+    "stop_time": ("time", _REQUIRED, "end of the time grid: a whole number of steps after start_time"),
+    "step": ("time", _REQUIRED, "communication step of the master"),
+    "master": (" or ".join(f'"{m}"' for m in MASTERS), f'"{MASTERS[0]}"',
+               "Jacobi (every FMU steps on the others' outputs of the last step) or Gauss-Seidel "
+               "(in the order of the connection graph)"),
+    "extrapolation": (" or ".join(f'"{e}"' for e in EXTRAPOLATIONS), f'"{EXTRAPOLATIONS[0]}"',
+                      "inputs from FMUs not yet stepped: held, or extrapolated linearly"),
+    "fidelity_tolerance": ("force", "none", 'with a hexapod_plant fidelity = "auto": the cheapest fidelity '
+                           "level whose leg-force error along the scene stays within it"),
+    "fmus.<instance>.fmu": (", ".join(FMU_SCRIPTS), _REQUIRED, "which of the kit's FMUs this instance is"),
+    "fmus.<instance>.implementation": (" or ".join(f'"{i}"' for i in IMPLEMENTATIONS), f'"{IMPLEMENTATIONS[0]}"',
+                                       "the native C FMU (no Python in the host) or the pythonfmu one"),
+    "fmus.<instance>.parameters": ("table of values", "the FMU's start values",
+                                   'values with units ("30 deg"), enumeration names ("slew"), lists for '
+                                   'vectors, or "@instance.output" (that output at the start time)'),
+    "connections[].from": ('"instance.output"', _REQUIRED, "the output; a vector connects element-wise"),
+    "connections[].to": ('"instance.input" or a list of them', _REQUIRED,
+                         "the inputs it feeds; every input has exactly one source"),
+    "record.interval": ("time", "step", "recording interval: a whole multiple of step"),
+    "record.variables": ('list of "instance.variable"', "none", "what the CSV records"),
+    "metrics[].kind": (", ".join(METRIC_KINDS), _REQUIRED, "what the metric computes (table below)"),
+    "metrics[].name": ("string", "the kind", "the metric's name in the report and metrics.json"),
+    "metrics[].from": ("time", "0 s", "the metric counts from this time on (after settling)"),
+    "sweep.parameter": ('"instance.parameter"', _REQUIRED, "the parameter to sweep: one run per value"),
+    "sweep.values": ("non-empty list of values", _REQUIRED, "its values, written as in parameters"),
+    "ci": ("table of top-level keys", "none", "what replaces them in the short CI run (--ci)"),
 }
-_TOP_KEYS = set(TOP_LEVEL)
+# the TOML types each top-level key takes (checked before its value: a table where text
+# belongs is told as such); what it takes in words comes from KEYS
+TOP_LEVEL_TYPES = {"name": (str,), "description": (str,), "start_time": (int, float, str),
+                   "stop_time": (int, float, str), "step": (int, float, str), "master": (str,),
+                   "extrapolation": (str,), "fidelity_tolerance": (int, float, str), "fmus": (dict,),
+                   "connections": (list,), "record": (dict,), "metrics": (list,), "sweep": (dict,), "ci": (dict,)}
 _TYPE_NAMES = {str: "text", int: "integer", float: "number", dict: "table", list: "array", bool: "true/false"}
 PLAIN_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}")     # names that become file or folder names
 INSTANCE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
@@ -319,8 +347,9 @@ def parse(text, source="<string>", overrides=None):
     problems = _Problems()
     for key, problem in unknown_keys(set(data) - _TOP_KEYS, sorted(_TOP_KEYS)):
         problems.errors.append(ScenarioError(source, key, problem))
-    for key, (types, what) in TOP_LEVEL.items():
+    for key, types in TOP_LEVEL_TYPES.items():
         if key in data and (not isinstance(data[key], types) or isinstance(data[key], bool)):
+            what = KEYS[key][0] if key in KEYS else " or ".join(_TYPE_NAMES[t] for t in types)
             got = _TYPE_NAMES.get(type(data[key]), type(data[key]).__name__)
             problems.errors.append(ScenarioError(source, key, f"expected {what}, got {got} {data[key]!r:.60}"))
     for key in ("stop_time", "step", "fmus", "connections"):
