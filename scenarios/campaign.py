@@ -24,7 +24,7 @@ unquoted). The base scenario's [sweep] is one more axis unless the campaign sets
 parameter. Every key and value is checked before anything runs; errors name the file,
 the key and the problem, like scenario files.
 
-Results: <out>/<name>/runs/<key>.json|.npz (scenarios.engine.Store) and summary.csv,
+Results: <out>/<campaign file stem>/runs/<key>.json|.npz (scenarios.engine.Store) and summary.csv,
 one row per run, read back from the files.
 """
 import argparse

@@ -4,10 +4,11 @@ cluster given its scheduler's address. Both go through the same code path.
 
 Why this shape:
 
-* A run is a ``Job``: the checked scenario, its bound parameter values, and the SHA-256
-  of every FMU file it needs. Its key is a hash of exactly what decides its numbers
-  (time grid, master, connections, recording, metrics, parameters, FMU contents), so a
-  result on disk is found again by any later campaign that asks for the same run.
+* A run is a ``Job``: the checked scenario, its bound parameter values, and the content
+  digest of every FMU it needs (scenarios.fmi.content_digest: the same for two builds of
+  the same sources). Its key is a hash of exactly what decides its numbers (time grid,
+  master, connections, recording, metrics, parameters, FMU contents), so a result on disk
+  is found again by any later campaign that asks for the same run, after a rebuild too.
 * The FMU files travel once to every worker (scattered, not per task); each worker
   process writes them to a local folder and extracts each once (``scenarios.fmi.unpack``
   caches by path). A run then instantiates its FMUs from the extracted folders: ~13 ms
