@@ -238,16 +238,15 @@ def parse(text, source="<string>", base_dir=".", ci=False):
             except spec.ScenarioError as exc:
                 raise CampaignError(source, where, str(exc).removeprefix(f"{source}: {where}: ")) from None
 
-    for key, value in fixed.items():
-        check(f"set.{key}", key, value)
-    for where, keys, rows in axes:
-        for j, row in enumerate(rows):
-            for key, value in zip(keys, row):
-                check(f"{where}.{key}[{j}]" if where != "scenario sweep" else f"{path.name}: sweep.values[{j}]",
-                      key, value)
-    for where, _, case in cases:
-        for key, value in case.items():
-            check(f"{where}.{key}", key, value)
+    every = [(f"set.{key}", key, value) for key, value in fixed.items()]
+    every += [(f"{where}.{key}[{j}]" if where != "scenario sweep" else f"{path.name}: sweep.values[{j}]", key, value)
+              for where, keys, rows in axes for j, row in enumerate(rows) for key, value in zip(keys, row)]
+    every += [(f"{where}.{key}", key, value) for where, _, case in cases for key, value in case.items()]
+    problems = spec._Problems(CampaignError)      # every bad value of the file, told at once
+    for where, key, value in every:
+        with problems.part():
+            check(where, key, value)
+    problems.raise_any()
 
     runs, varying = [], []
     for where, label, case in cases:

@@ -330,3 +330,14 @@ def test_ctrl_c_on_a_sweep_and_a_campaign_ends_in_one_clear_line(tmp_path):
     assert status != 0 and "Traceback" not in err and "KeyboardInterrupt" not in err, err
     assert [line for line in err.splitlines() if "interrupted" in line] == [
         "interrupted: the runs finished so far are on disk; run the same command again to resume"], err
+
+
+def test_every_bad_value_of_a_campaign_is_reported_at_once(tmp_path):
+    path = tmp_path / "c.toml"
+    path.write_text(HEAD + 'set = { "base.colour" = 1 }\n[grid]\n"base.start_azimuth" = ["10 deg", "3 kg"]\n'
+                    '[[cases]]\n"controller.feedforward" = "sometimes"\n')
+    with pytest.raises(campaign.CampaignError) as info:
+        campaign.load(path)
+    lines = str(info.value).splitlines()
+    assert [line.split(": ", 2)[1] for line in lines] == [
+        "set.base.colour", "grid[0].base.start_azimuth[1]", "cases[0].controller.feedforward"], lines
