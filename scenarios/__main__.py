@@ -8,11 +8,15 @@ Without a scenario it runs the main job: the telescope slew (FMUs built first) a
 paper's leg-force charts.
 """
 import argparse
+import pathlib
 import sys
 
+from .engine import EngineError, check_address
+from .fmi import FmuFileError
 from .paper_forces import main as paper_charts
-from .runner import SHIPPED, prepare, resolve, run_scenario
 from .records import run_records
+from .resources import ResourceError, check_jobs
+from .runner import SHIPPED, OutputError, prepare, resolve, run_scenario
 from .spec import IMPLEMENTATIONS, ScenarioError, sweep_value
 from .ssp import export_ssp
 
@@ -41,21 +45,40 @@ def main(argv=None, prog="movingbase run"):
                         help="also export each run's records as CSV (<label>.csv beside its <label>.npz)")
     parser.add_argument("--ssp", metavar="FILE", help="export the (one) scenario as an SSP file, first sweep value")
     args = parser.parse_args(argv)
+    try:
+        _run(args, shipped)
+    except KeyboardInterrupt:
+        sys.exit(f"interrupted: the runs that finished are in {args.out}; a sweep run with --jobs or --dask "
+                 "resumes where it stopped when the same command runs again")
+
+
+def _run(args, shipped):
+    """The checks of the command line (all before anything runs), then each scenario."""
     names = args.scenarios or ["telescope_slew"]
     unknown = [n for n in names if not resolve(n).exists()]
     if unknown:
         sys.exit(f"scenario error: no scenario file or shipped scenario named {', '.join(map(repr, unknown))}; "
                  f"shipped: {shipped}")
+    folders = {}
+    for name in names:   # the output folder follows the file: two files of one stem would share it
+        path = resolve(name).resolve()
+        folders.setdefault(path.stem, set()).add(path)
+    clashes = {stem: paths for stem, paths in folders.items() if len(paths) > 1}
+    repeated = [n for n in dict.fromkeys(names) if [resolve(m).resolve() for m in names].count(resolve(n).resolve()) > 1]
+    if clashes or repeated:
+        what = [f"{', '.join(sorted(map(str, p)))} would all write to {args.out}/{stem}" for stem, p in clashes.items()]
+        what += [f"{n!r} is named more than once" for n in repeated]
+        sys.exit(f"scenario error: {'; '.join(what)}: run them in separate commands with their own --out")
+    try:
+        for warning in (check_jobs(args.jobs),):
+            if warning:
+                print(warning, file=sys.stderr)
+        if args.dask:
+            check_address(args.dask)
+    except (ResourceError, EngineError) as exc:
+        sys.exit(f"command error: {exc}")
     if args.ssp:
-        try:
-            scenario, paths, descriptions, values = prepare(resolve(names[0]), ci=args.ci,
-                                                             implementation=args.implementation)
-        except ScenarioError as exc:
-            sys.exit(f"scenario error: {exc}")
-        if scenario.sweep:
-            inst, name, value = sweep_value(scenario, descriptions, scenario.sweep[1][0])
-            values[inst][name] = value
-        print(f"SSP written to {export_ssp(scenario, paths, values, args.ssp)}")
+        _export(args, names[0])
         return
     errors = []   # one line each; every scenario and every run is still tried
     for name in names:
@@ -65,6 +88,12 @@ def main(argv=None, prog="movingbase run"):
                                                   implementation=args.implementation)
         except ScenarioError as exc:
             errors.append(f"scenario error: {exc}")
+            continue
+        except (OutputError, ResourceError, FmuFileError) as exc:
+            errors.append(f"{name}: {exc}")
+            continue
+        except OSError as exc:     # the disk filled or the folder went away while writing
+            errors.append(f"{name}: output error: {exc.filename or args.out}: {exc.strerror or exc}")
             continue
         print(f"{scenario.name}: report {report}")
         if args.csv:
@@ -82,6 +111,27 @@ def main(argv=None, prog="movingbase run"):
         sys.exit("\n".join(errors))
     if not args.scenarios:
         paper_charts(f"{args.out}/paper")
+
+
+def _export(args, name):
+    """--ssp: the scenario (its first sweep value) as an SSP file; the target must be a
+    file path whose folder exists."""
+    target = pathlib.Path(args.ssp)
+    if target.is_dir() or not target.parent.is_dir():
+        why = "is a folder" if target.is_dir() else f"its folder {target.parent} does not exist"
+        sys.exit(f"command error: --ssp {target}: {why}; give the path of the .ssp file to write")
+    try:
+        scenario, paths, descriptions, values = prepare(resolve(name), ci=args.ci, implementation=args.implementation)
+        if scenario.sweep:
+            inst, var, value = sweep_value(scenario, descriptions, scenario.sweep[1][0])
+            values[inst][var] = value
+        print(f"SSP written to {export_ssp(scenario, paths, values, target)}")
+    except ScenarioError as exc:
+        sys.exit(f"scenario error: {exc}")
+    except (ResourceError, FmuFileError) as exc:
+        sys.exit(f"{name}: {exc}")
+    except OSError as exc:
+        sys.exit(f"output error: --ssp {target}: {exc.strerror or exc}")
 
 
 if __name__ == "__main__":

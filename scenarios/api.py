@@ -256,12 +256,14 @@ def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: boo
     """Run a scenario (a shipped name, a file path or a Scenario) as ``movingbase run``
     does, every sweep value; ``set`` and ``ci`` as in ``load_scenario``;
     ``implementation`` ("native" or "python") for every FMU. Nothing is written to disk
-    unless ``out`` is given: then the files of ``movingbase run --out OUT`` (OUT/<name>/)."""
+    unless ``out`` is given: then the files of ``movingbase run --out OUT`` (OUT/<file stem>/)."""
     loaded = load_scenario(scenario, set=set, ci=ci)
     if progress:
         print(f"{loaded.name}: checking the scenario, building FMUs that are missing or stale", flush=True)
-    prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation)
-    outdir = None if out is None else pathlib.Path(out) / prepared.name
+    prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation, out)
+    outdir = None if out is None else runner.output_folder(out, prepared.source)
+    if outdir is not None and runner.replaced(outdir):
+        print(runner.replaced(outdir), flush=True)
     runs = runner.run_prepared(prepared, paths, descriptions, values, outdir, progress)
     return Result(prepared, runs, runner.write_results(prepared, runs, outdir) if outdir else None)
 

@@ -24,35 +24,31 @@ unquoted). The base scenario's [sweep] is one more axis unless the campaign sets
 parameter. Every key and value is checked before anything runs; errors name the file,
 the key and the problem, like scenario files.
 
-Results: <out>/<name>/runs/<key>.json|.npz (scenarios.engine.Store) and summary.csv,
+Results: <out>/<campaign file stem>/runs/<key>.json|.npz (scenarios.engine.Store) and summary.csv,
 one row per run, read back from the files.
 """
 import argparse
 import csv
+import dataclasses
 import itertools
 import pathlib
 import sys
 from dataclasses import dataclass
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib
-
-from movingbase.fmu_src.builder import ensure_built
-from . import engine, spec
-from .fmi import unpack
-from .runner import resolve
+from . import engine, resources, spec
+from .fmi import FmuFileError, unpack
+from .runner import OutputError, fmu_paths, output_folder, resolve
 
 _TOP = ("name", "description", "scenario", "set", "grid", "cases", "ci", "keep_records")
+_CI = ("name", "description", "set", "grid", "cases", "keep_records")     # what [ci] may replace
 SCENARIO_KEYS = ("start_time", "stop_time", "step", "master", "extrapolation")
 
 
-class CampaignError(ValueError):
-    """A problem in a campaign file; the message says file, key and problem."""
+class CampaignError(spec.ScenarioError):
+    """Problems in a campaign file; the message says file, key and problem, one line each."""
 
-    def __init__(self, source, key, problem):
-        super().__init__(f"{source}: {key}: {problem}")
+
+MAX_RUNS = 200_000              # a campaign of more runs is refused before its cases are made
 
 
 @dataclass
@@ -107,11 +103,23 @@ def _axes(source, grid):
             if not isinstance(values, list) or not values:
                 raise CampaignError(source, f"{where}.{key}", "expected a non-empty list of values")
             lengths.add(len(values))
+            for j, value in enumerate(values):
+                if repr(value) in map(repr, values[:j]):
+                    raise CampaignError(source, f"{where}.{key}[{j}]", f"{value!r} is already value "
+                                        f"[{list(map(repr, values)).index(repr(value))}] of this axis: each runs once")
         if len(lengths) > 1:
             raise CampaignError(source, where, f"the keys of one axis vary together and need lists of one "
                                 f"length; got lengths {', '.join(str(len(v)) for v in table.values())}")
         axes.append((where, list(table), list(zip(*table.values()))))
     return axes
+
+
+def _is_quantity(value):
+    try:
+        spec.to_si(value, "s")
+        return True
+    except spec.UnitError:
+        return False
 
 
 def _label(value):
@@ -121,17 +129,26 @@ def _label(value):
 def parse(text, source="<string>", base_dir=".", ci=False):
     """Campaign from TOML text (``ci``: apply its [ci] replacements); the base scenario
     is loaded and every key and value checked against it and its FMUs."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise CampaignError(source, "TOML", str(exc)) from None
-    unknown = set(data) - set(_TOP)
-    if unknown:
-        raise CampaignError(source, sorted(unknown)[0], f"unknown key; allowed: {', '.join(_TOP)}")
+    data = spec.read_toml(text, source, CampaignError)
+    problems = spec._Problems(CampaignError)
+    for key, problem in spec.unknown_keys(set(data) - set(_TOP), _TOP):
+        problems.errors.append(CampaignError(source, key, problem))
+    ci_table = data.get("ci", {})
+    if not isinstance(ci_table, dict):
+        problems.errors.append(CampaignError(source, "ci", "expected a table of the keys it replaces"))
+    else:
+        for key, problem in spec.unknown_keys(set(ci_table) - set(_CI), _CI):
+            problems.errors.append(CampaignError(source, f"ci.{key}", problem))
+    for key in ("description", "name"):
+        if key in data and not isinstance(data[key], str):
+            problems.errors.append(CampaignError(source, key, f"expected text, got {data[key]!r:.60}"))
+    problems.raise_any()
     if ci:
-        data.update(_table(source, "ci", data.get("ci", {})))
+        data.update(ci_table)
     if "scenario" not in data or not isinstance(data["scenario"], str):
         raise CampaignError(source, "scenario", "missing: name a shipped scenario or a scenario file")
+    name = spec.check_name(source, "name" if "name" in data else "file name",
+                           data.get("name", pathlib.Path(source).stem), CampaignError)
     path = resolve(data["scenario"])
     if not path.exists() and (pathlib.Path(base_dir) / data["scenario"]).exists():
         path = pathlib.Path(base_dir) / data["scenario"]
@@ -150,12 +167,35 @@ def parse(text, source="<string>", base_dir=".", ci=False):
             raise CampaignError(source, f"cases[{i}].label", "expected a string")
         cases.append((f"cases[{i}]", label, case))
 
+    where_set = {}                  # key -> where the campaign sets it; a key is set in one place
+    for where, keys in [("set", list(fixed)), *[(w, k) for w, k, _ in axes]]:
+        for key in keys:
+            if key in where_set:
+                raise CampaignError(source, f"{where}.{key}", f"also set in {where_set[key]}: one value would "
+                                    "silently replace the other (the run labels would name values that did not run)")
+            where_set[key] = where
+    for where, _, case in cases:
+        for key in case:
+            if key in where_set:
+                raise CampaignError(source, f"{where}.{key}", f"also set in {where_set[key]}, which would replace "
+                                    "this case's value in every run")
+    count = len(cases)
+    for _, _, rows in axes:
+        count *= len(rows)
+    if count > MAX_RUNS:
+        raise CampaignError(source, "grid", f"{count:,} runs (cases x the axes' lengths); a campaign holds at most "
+                            f"{MAX_RUNS:,}: split it or coarsen the grid")
+
     try:
         base = spec.load(path)
     except spec.ScenarioError as exc:
         raise CampaignError(source, "scenario", str(exc)) from None
     sweep_key = base.sweep[0] if base.sweep else None
     named = set(fixed) | {k for _, keys, _ in axes for k in keys} | {k for _, _, c in cases for k in c}
+    written = [*fixed.items(), *[(k, v) for _, keys, rows in axes for row in rows for k, v in zip(keys, row)],
+               *[(k, v) for _, _, c in cases for k, v in c.items()]]
+    steps = [base.step] + [spec.to_si(v, "s") for k, v in written if k == "step" and _is_quantity(v)]
+    connected = {(t.split(".", 1)[0], t.split(".", 1)[1]) for _, targets in base.connections for t in targets}
     if sweep_key and sweep_key not in named:
         axes.append(("scenario sweep", [sweep_key], [(v,) for v in base.sweep[1]]))
 
@@ -181,25 +221,32 @@ def parse(text, source="<string>", base_dir=".", ci=False):
         targets = spec.expand(variables, key)
         if not targets or any(variables[t].causality not in ("parameter", "input") for t in targets):
             raise CampaignError(source, where, f"{inst} ({base.fmus[inst]}) has no parameter {name!r}")
+        if (inst, name) in connected or any((inst, t) in connected for t in targets):
+            raise CampaignError(source, where, f"{key} is an input that {path.name} connects: the connection "
+                                "feeds it in every run, a value set here would be ignored")
         values = value if isinstance(value, list) else [value]
         if len(values) != len(targets):
             raise CampaignError(source, where, f"expected {len(targets)} values, got {len(values)}")
         for target, item in zip(targets, values):
             try:
-                spec._value(source, where, variables[target], item)
+                converted = spec._value(source, where, variables[target], item)
+            except spec.ScenarioError as exc:
+                raise CampaignError(source, where, str(exc).removeprefix(f"{source}: {where}: ")) from None
+            try:            # the largest step of the campaign: a cut-off must lie below each run's Nyquist
+                spec.check_rates(source, where, dataclasses.replace(base, step=max(steps)),
+                                 {inst: {target: variables[target]}}, {inst: {target: converted}})
             except spec.ScenarioError as exc:
                 raise CampaignError(source, where, str(exc).removeprefix(f"{source}: {where}: ")) from None
 
-    for key, value in fixed.items():
-        check(f"set.{key}", key, value)
-    for where, keys, rows in axes:
-        for j, row in enumerate(rows):
-            for key, value in zip(keys, row):
-                check(f"{where}.{key}[{j}]" if where != "scenario sweep" else f"{path.name}: sweep.values[{j}]",
-                      key, value)
-    for where, _, case in cases:
-        for key, value in case.items():
-            check(f"{where}.{key}", key, value)
+    every = [(f"set.{key}", key, value) for key, value in fixed.items()]
+    every += [(f"{where}.{key}[{j}]" if where != "scenario sweep" else f"{path.name}: sweep.values[{j}]", key, value)
+              for where, keys, rows in axes for j, row in enumerate(rows) for key, value in zip(keys, row)]
+    every += [(f"{where}.{key}", key, value) for where, _, case in cases for key, value in case.items()]
+    problems = spec._Problems(CampaignError)      # every bad value of the file, told at once
+    for where, key, value in every:
+        with problems.part():
+            check(where, key, value)
+    problems.raise_any()
 
     runs, varying = [], []
     for where, label, case in cases:
@@ -217,14 +264,13 @@ def parse(text, source="<string>", base_dir=".", ci=False):
     keep = data.get("keep_records", False)
     if not isinstance(keep, bool):
         raise CampaignError(source, "keep_records", "expected true or false")
-    name = data.get("name", pathlib.Path(source).stem)
     return Campaign(source, name, data.get("description", ""), path, runs, varying, keep)
 
 
 def _descriptions(scenario):
-    """Model descriptions per instance (FMUs built if missing or stale)."""
-    scripts = ensure_built(sorted({spec.FMU_SCRIPTS[f] for f in scenario.fmus.values()}))
-    return {inst: unpack(scripts[spec.FMU_SCRIPTS[fmu]])[0] for inst, fmu in scenario.fmus.items()}
+    """Model descriptions per instance, of the implementation the scenario chose (FMUs
+    built if missing or stale)."""
+    return {inst: unpack(p)[0] for inst, p in fmu_paths(scenario).items()}
 
 
 SHIPPED = pathlib.Path(__file__).resolve().parent / "campaigns"
@@ -235,13 +281,7 @@ def load(path, ci=False):
     path = pathlib.Path(path)
     if not path.exists() and path.suffix != ".toml" and (SHIPPED / f"{path}.toml").exists():
         path = SHIPPED / f"{path}.toml"
-    if not path.is_file():
-        raise CampaignError(str(path), "file", "does not exist" if not path.exists() else "is not a file")
-    try:
-        text = path.read_text()
-    except UnicodeDecodeError:
-        raise CampaignError(str(path), "file", "is not UTF-8 text (a TOML campaign file)") from None
-    return parse(text, str(path), path.parent, ci)
+    return parse(spec.read_text(path, CampaignError, "campaign"), str(path), path.parent, ci)
 
 
 class CampaignJobs:
@@ -253,8 +293,7 @@ class CampaignJobs:
         self.campaign = campaign
         self._bound = {}            # top-level overrides -> (scenario, values, descriptions, digests)
         self.files = {}             # sha256 -> FMU path
-        self._scripts = None
-        self._bind({})              # the FMUs, built and hashed before anything runs
+        self.base = self._bind({})[0]   # the FMUs, built and hashed before anything runs
 
     def __len__(self):
         return len(self.campaign.cases)
@@ -267,8 +306,7 @@ class CampaignJobs:
             if any(p.get("fidelity") == "auto" for p in scenario.parameters.values()):
                 raise CampaignError(c.source, "scenario", 'a plant fidelity "auto" is chosen per scenario '
                                     'run; a campaign names a fidelity level (set "plant.fidelity")')
-            self._scripts = self._scripts or ensure_built(sorted({spec.FMU_SCRIPTS[f] for f in scenario.fmus.values()}))
-            paths = {inst: self._scripts[spec.FMU_SCRIPTS[fmu]] for inst, fmu in scenario.fmus.items()}
+            paths = fmu_paths(scenario)     # each instance's implementation, as the scenario says
             digests = {inst: engine.file_digest(p) for inst, p in paths.items()}
             self.files.update({digests[inst]: p for inst, p in paths.items()})
             descriptions = {inst: unpack(p)[0] for inst, p in paths.items()}
@@ -326,7 +364,14 @@ def run_campaign(path, out="out", ci=False, jobs_=None, address=None, progress=T
     Returns (campaign, job list, store, outcome, summary path)."""
     campaign = load(path, ci)
     job_list, files = jobs(campaign)
-    outdir = pathlib.Path(out) / campaign.name
+    cost = resources.estimate(job_list.base, runs=len(campaign.cases), keep_records=campaign.keep_records)
+    warning = resources.check(cost, out, campaign.source)
+    if warning:
+        print(warning, file=sys.stderr)
+    outdir = output_folder(out, campaign.source)
+    if (outdir / "summary.csv").exists():
+        print(f"{outdir / 'summary.csv'} from an earlier run is replaced; the results in {outdir / 'runs'} are "
+              "reused where a run's key matches", file=sys.stderr)
     store = engine.Store(outdir / "runs")
     with engine.Engine(jobs_, address) as eng:
         outcome = eng.run(job_list, files, store, progress, retry_failed, name=campaign.name)
@@ -344,12 +389,28 @@ def main(argv=None):
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     try:
+        warning = resources.check_jobs(args.jobs)
+        if warning:
+            print(warning, file=sys.stderr)
+        if args.dask:
+            engine.check_address(args.dask)
         campaign, job_list, store, outcome, summary = run_campaign(
             args.campaign, args.out, args.ci, args.jobs, args.dask, not args.quiet, args.retry_failed)
-    except (CampaignError, spec.ScenarioError) as exc:
+    except spec.ScenarioError as exc:       # a CampaignError too
         sys.exit(f"campaign error: {exc}")
+    except (resources.ResourceError, engine.EngineError, OutputError, FmuFileError) as exc:
+        sys.exit(f"campaign error: {exc}")
+    except OSError as exc:
+        sys.exit(f"campaign error: output: {exc.filename or args.out}: {exc.strerror or exc}")
+    except KeyboardInterrupt:
+        sys.exit("interrupted: the runs finished so far are on disk; run the same command again to resume")
     print(f"{campaign.name}: {len(outcome.computed)} runs done now, {len(outcome.skipped)} found on disk, "
           f"{len(outcome.failed)} failed, of {outcome.total}, in {outcome.wall_time:.1f} s; summary {summary}")
+    if outcome.damaged:
+        print(f"  {len(outcome.damaged)} damaged results were found and run again (named above)")
+    if outcome.orphans:
+        print(f"  {outcome.orphans} results in {store.folder} belong to no run of this campaign (other settings, "
+              "or FMUs of other sources); they are kept: delete them to reclaim the space")
     labels = {job.key: job.label for job in job_list}
     for key, message in list(outcome.failed.items())[:10]:
         print(f"  failed: {labels[key]}: {message.splitlines()[0]}")

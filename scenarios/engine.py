@@ -4,10 +4,11 @@ cluster given its scheduler's address. Both go through the same code path.
 
 Why this shape:
 
-* A run is a ``Job``: the checked scenario, its bound parameter values, and the SHA-256
-  of every FMU file it needs. Its key is a hash of exactly what decides its numbers
-  (time grid, master, connections, recording, metrics, parameters, FMU contents), so a
-  result on disk is found again by any later campaign that asks for the same run.
+* A run is a ``Job``: the checked scenario, its bound parameter values, and the content
+  digest of every FMU it needs (scenarios.fmi.content_digest: the same for two builds of
+  the same sources). Its key is a hash of exactly what decides its numbers (time grid,
+  master, connections, recording, metrics, parameters, FMU contents), so a result on disk
+  is found again by any later campaign that asks for the same run, after a rebuild too.
 * The FMU files travel once to every worker (scattered, not per task); each worker
   process writes them to a local folder and extracts each once (``scenarios.fmi.unpack``
   caches by path). A run then instantiates its FMUs from the extracted folders: ~13 ms
@@ -28,24 +29,31 @@ each run is the same deterministic computation in a fresh set of instances; floa
 through JSON as their repr (exact) and series through npz.
 """
 import atexit
+import contextlib
 import dataclasses
 import hashlib
 import json
 import logging
 import os
 import pathlib
+import re
 import shutil
+import signal
 import socket
+import sys
 import tempfile
 import threading
 import time
+import zipfile
 from itertools import islice
 
 import numpy as np
 from tqdm import tqdm
 
 from . import master, metrics
-from .spec import Link
+from .fmi import content_digest
+from .resources import cores
+from .spec import Link, file_label
 
 RECORDS = ".records.npz"     # a kept run's recorded variables (scenarios.records), next to <key>.json
 
@@ -58,16 +66,31 @@ _FMU_DIR = None                     # this worker process's copies of the FMU fi
 _FMU_FILES = {}                     # sha256 -> local FMU path
 
 
-def default_jobs():
-    """All cores this process may use."""
+default_jobs = cores                # all cores this process may use
+
+
+class EngineError(ValueError):
+    """A cluster that cannot be used (an address that is malformed or does not answer)."""
+
+
+def check_address(address, timeout=5.0):
+    """EngineError naming the problem for a Dask scheduler address that is malformed or
+    where nothing answers within ``timeout`` s: told before anything runs."""
+    match = re.fullmatch(r"(?:(?:tcp|tls)://)?(\[[^\]]+\]|[^:/\s]+):(\d{1,5})", str(address))
+    if not match or not 0 < int(match.group(2)) < 65536:
+        raise EngineError(f"--dask {address!r}: expected a scheduler address tcp://HOST:PORT")
+    host, port = match.group(1).strip("[]"), int(match.group(2))
     try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:          # not Linux
-        return os.cpu_count() or 1
+        socket.create_connection((host, port), timeout=timeout).close()
+    except OSError as exc:
+        raise EngineError(f"--dask {address}: no scheduler answers at {host}:{port} "
+                          f"({exc.strerror or type(exc).__name__}); start one or check the address") from None
 
 
 def file_digest(path):
-    return hashlib.sha256(pathlib.Path(path).read_bytes()).hexdigest()
+    """The FMU's content digest (scenarios.fmi.content_digest): a rebuild of the same
+    sources keeps every cached result's key."""
+    return content_digest(path)
 
 
 def _plain(value):
@@ -153,17 +176,37 @@ class Store:
     """One folder of run results keyed by run key: <key>.json (written last), <key>.npz,
     <key>.records.npz (scenarios.records)."""
 
-    def __init__(self, folder):
-        self.folder = pathlib.Path(folder)
-        self.folder.mkdir(parents=True, exist_ok=True)
-
     def path(self, key, suffix):
         return self.folder / f"{key}{suffix}"
 
+    def __init__(self, folder):
+        self.folder = pathlib.Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.damaged = {}           # key -> what is wrong with its files (run again)
+
     def status(self, key):
-        """'ok', 'failed' or None (not run yet)."""
+        """'ok', 'failed' or None: not run yet, or its files are truncated or corrupt
+        (then named in ``damaged`` and run again, never taken as good)."""
         path = self.path(key, ".json")
-        return json.loads(path.read_text())["status"] if path.exists() else None
+        if not path.exists():
+            return None
+        try:
+            status = json.loads(path.read_text())["status"]
+        except (ValueError, KeyError, TypeError, UnicodeDecodeError) as exc:
+            self.damaged[key] = f"{path}: unreadable ({type(exc).__name__}: {exc})"
+            return None
+        series = self.path(key, ".npz")
+        if status not in ("ok", "failed"):
+            self.damaged[key] = f"{path}: unknown status {status!r}"
+            return None
+        if status == "ok" and not zipfile.is_zipfile(series):
+            self.damaged[key] = f"{series}: {'missing' if not series.exists() else 'truncated or corrupt'}"
+            return None
+        return status
+
+    def keys(self):
+        """Keys of every result on disk."""
+        return {p.name.removesuffix(".json") for p in self.folder.glob("*.json")}
 
     def read(self, key):
         return json.loads(self.path(key, ".json").read_text())
@@ -207,6 +250,24 @@ class Outcome:
     failed: dict                    # key -> message (run failures and lost tasks)
     wall_time: float
     interrupted: bool = False
+    damaged: dict = dataclasses.field(default_factory=dict)    # key -> the fault found (recomputed)
+    orphans: int = 0                # results in the store that belong to none of these jobs
+
+
+@contextlib.contextmanager
+def _workers_ignore_ctrl_c():
+    """SIGINT ignored while the worker processes start: they inherit the ignored SIGINT
+    (a blocked one they would not), so Ctrl-C reaches the client alone and the campaign
+    ends in one message, not one traceback per worker. The price: a Ctrl-C in the few
+    seconds the workers take to start is not seen (press it again)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 class Engine:
@@ -232,7 +293,7 @@ class Engine:
             if self.address:
                 self._client = Client(self.address, timeout=30)
             else:
-                with dask.config.set(WORKER_CONFIG):
+                with dask.config.set(WORKER_CONFIG), _workers_ignore_ctrl_c():
                     self.cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
                                                 dashboard_address=None, silence_logs=logging.ERROR)
                 self._client = Client(self.cluster)
@@ -294,7 +355,10 @@ class Engine:
 
         skipped = []
         count = sum(1 for _ in to_run(skipped))     # a first pass: how many, for the progress bar
-        outcome = Outcome(total, [], skipped, {}, 0.0)
+        outcome = Outcome(total, [], skipped, {}, 0.0, damaged=dict(store.damaged))
+        outcome.orphans = len(store.keys() - {job.key for job in jobs})
+        for fault in outcome.damaged.values():
+            print(f"damaged result, run again: {fault}", file=sys.stderr)
         if not count:
             return outcome
         blobs = self._scatter(fmu_files)
@@ -363,13 +427,16 @@ def run_sweep(scenario, paths, descriptions, values, items, outdir, jobs=None, a
     cases = []
     for item in items:
         inst, name, value = sweep_value(scenario, descriptions, item) if item is not None else (None, None, None)
-        cases.append(("run" if item is None else str(item), {inst: {name: value}} if inst else {}))
+        cases.append(("run" if item is None else file_label(item), {inst: {name: value}} if inst else {}))
     job_list, files = prepared_jobs(scenario, paths, values, cases)
     store = Store(pathlib.Path(outdir) / "runs")
     with Engine(jobs, address) as eng:
         outcome = eng.run(job_list, files, store, progress, name=scenario.name)
     if outcome.interrupted:
         raise KeyboardInterrupt
+    if outcome.orphans:
+        print(f"{outcome.orphans} results in {store.folder} belong to no run of this sweep (other settings, or FMUs "
+              "of other sources); they are kept: delete them to reclaim the space", file=sys.stderr)
     runs = []
     for job in job_list:
         if store.status(job.key) is None:

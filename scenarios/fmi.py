@@ -5,6 +5,12 @@ and every failing call turned into an error that names the instance, time and lo
 The per-step calls (doStep, getReal, setReal) go to fmpy's loaded C functions directly
 and check the returned status here: fmpy's Python wrapper around each call costs more
 than the call itself at a 1 ms step (benchmarks/bench_scenarios.py)."""
+import atexit
+import hashlib
+import pathlib
+import re
+import shutil
+import zipfile
 from functools import lru_cache
 
 import numpy as np
@@ -21,10 +27,77 @@ class FmuError(RuntimeError):
     """An FMU answered Discard/Error/Fatal; the message names the instance, time and log."""
 
 
+MAX_MEMBER_BYTES = 1 << 30     # an FMU member larger than this is refused before extracting
+_FOLDERS = []                  # extraction folders of this process, removed at exit
+
+
+class FmuFileError(ValueError):
+    """An FMU path that is not a usable FMU file (a folder, not a zip, truncated, huge)."""
+
+
+def check_file(path):
+    """The zip listing of an FMU file; FmuFileError naming the path and the problem for
+    a folder, a missing file, a file that is not a zip, a truncated zip, one without
+    modelDescription.xml or with a member too large to extract. Reads the listing only."""
+    path = pathlib.Path(path)
+    if path.is_dir():
+        raise FmuFileError(f"FMU {path}: is a folder; an FMU is a .fmu (zip) file")
+    if not path.is_file():
+        raise FmuFileError(f"FMU {path}: does not exist")
+    try:
+        with zipfile.ZipFile(path) as archive:
+            members = archive.infolist()
+    except (zipfile.BadZipFile, OSError, ValueError) as exc:
+        raise FmuFileError(f"FMU {path}: not a readable zip file ({exc}); it may be truncated, rebuild it") from None
+    names = {m.filename for m in members}
+    if "modelDescription.xml" not in names:
+        raise FmuFileError(f"FMU {path}: has no modelDescription.xml")
+    huge = [m for m in members if m.file_size > MAX_MEMBER_BYTES]
+    if huge:
+        raise FmuFileError(f"FMU {path}: member {huge[0].filename} unpacks to {huge[0].file_size / 2**30:.1f} GiB "
+                           f"(limit {MAX_MEMBER_BYTES / 2**30:.0f} GiB); refused")
+    return members
+
+
 @lru_cache(maxsize=None)
 def unpack(path):
-    """Model description and extraction folder of an FMU file, once per process."""
-    return read_model_description(str(path)), extract(str(path))
+    """Model description and extraction folder of an FMU file, once per process; the
+    folder is removed when the process ends."""
+    check_file(path)
+    try:
+        description = read_model_description(str(path))
+        folder = extract(str(path))
+    except (zipfile.BadZipFile, OSError, ValueError) as exc:   # a member's CRC or XML fails
+        raise FmuFileError(f"FMU {path}: cannot be read ({exc}); rebuild it") from None
+    _FOLDERS.append(folder)
+    return description, folder
+
+
+@atexit.register
+def _remove_folders():
+    for folder in _FOLDERS:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+_BUILD_ID = re.compile(rb"(\x04\x00\x00\x00\x14\x00\x00\x00\x03\x00\x00\x00GNU\x00).{20}", re.S)
+_STAMP = re.compile(rb'\s(?:guid|generationDateAndTime)="[^"]*"')
+
+
+def content_digest(path):
+    """SHA-256 of what decides an FMU's numbers: every member's name and bytes, with what
+    each build makes anew (the guid wherever it appears, the generation time, the ELF
+    build id) blanked. Two builds of the same sources give the same digest."""
+    with zipfile.ZipFile(path) as archive:
+        xml = archive.read("modelDescription.xml")
+        guid = re.search(rb'\sguid="([^"]*)"', xml)
+        digest = hashlib.sha256()
+        for name in sorted(archive.namelist()):
+            data = archive.read(name)
+            if guid and guid.group(1):
+                data = data.replace(guid.group(1), b"<guid>")
+            data = _STAMP.sub(b"", data) if name == "modelDescription.xml" else _BUILD_ID.sub(rb"\1", data)
+            digest.update(name.encode() + b"\0" + len(data).to_bytes(8, "little") + data)
+    return digest.hexdigest()
 
 
 class Instance:

@@ -2,15 +2,17 @@
 sweep value with a progress bar, and write results, charts and the report. A run an FMU
 stops is kept with its partial results and marked; the other sweep values still run."""
 import json
+import os
 import pathlib
 import sys
+import time
 
 from tqdm import tqdm
 
 from movingbase.fmu_src.builder import ensure_built
 from movingbase.fmu_src.native_build import ensure_native
 from movingbase.plant.stewart import FIDELITIES
-from . import engine, fidelity, master, metrics, report, spec
+from . import engine, fidelity, master, metrics, report, resources, spec
 from .fmi import unpack
 
 SHIPPED = pathlib.Path(__file__).resolve().parent / "files"
@@ -26,17 +28,51 @@ def resolve(name):
     return next((c for c in candidates if c.is_file()), path)
 
 
-def prepare(path, ci=False, implementation=None):
+class OutputError(ValueError):
+    """An output folder that cannot take the results; the message names it and why."""
+
+
+def output_folder(out, path):
+    """``out``/<the scenario file's stem>: the results follow the file the user ran (a
+    copy of a shipped scenario does not write into the shipped one's folder). Created
+    here; OutputError if ``out`` is a file, cannot be created or is not writable."""
+    out = pathlib.Path(out)
+    folder = out / pathlib.Path(path).stem
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        blocker = next(p for p in (folder, *folder.parents) if p.exists() and not p.is_dir())
+        raise OutputError(f"output folder {folder}: {blocker} is a file, not a folder; choose another --out") from None
+    except OSError as exc:
+        raise OutputError(f"output folder {folder}: cannot be created ({exc.strerror})") from None
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise OutputError(f"output folder {folder}: not writable; choose another --out")
+    return folder
+
+
+def replaced(folder):
+    """What an earlier run left in ``folder`` that this run replaces, as one line, or ""."""
+    earlier = sorted(p.name for p in pathlib.Path(folder).iterdir() if p.is_file())
+    if not earlier:
+        return ""
+    when = max(pathlib.Path(folder, n).stat().st_mtime for n in earlier)
+    shown = ", ".join(earlier[:4]) + (f" and {len(earlier) - 4} more" if len(earlier) > 4 else "")
+    return (f"{folder} holds the results of an earlier run (last written "
+            f"{time.strftime('%Y-%m-%d %H:%M', time.localtime(when))}): {shown}; this run replaces them")
+
+
+def prepare(path, ci=False, implementation=None, out=None):
     """Scenario, FMU paths per instance and checked parameter values: all checks done
     before anything runs. ``ci`` applies the file's [ci] overrides (a shorter run);
-    ``implementation`` ("native" or "python") overrides every instance's choice."""
+    ``implementation`` ("native" or "python") overrides every instance's choice; ``out``
+    (a folder) is checked to hold the records (scenarios.resources), warnings printed."""
     scenario = spec.load(path)
     if ci and scenario.ci:
         scenario = spec.load(path, overrides=scenario.ci)
-    return prepare_loaded(scenario, implementation)
+    return prepare_loaded(scenario, implementation, out)
 
 
-def prepare_loaded(scenario, implementation=None):
+def prepare_loaded(scenario, implementation=None, out=None):
     """prepare for a Scenario already loaded (and changed in Python, scenarios.api)."""
     if implementation is not None:
         if implementation not in spec.IMPLEMENTATIONS:
@@ -44,6 +80,10 @@ def prepare_loaded(scenario, implementation=None):
         scenario.implementations = dict.fromkeys(scenario.fmus, implementation)
     paths = fmu_paths(scenario)
     descriptions = {inst: unpack(p)[0] for inst, p in paths.items()}
+    runs = len(scenario.sweep[1]) if scenario.sweep else 1
+    warning = resources.check(resources.estimate(scenario, descriptions, runs), out or ".", scenario.source)
+    if warning:
+        print(warning, file=sys.stderr)
     auto = [inst for inst, params in scenario.parameters.items() if params.get("fidelity") == "auto"]
     for inst in auto:
         scenario.parameters[inst]["fidelity"] = "full"    # bound as full, then chosen below
@@ -85,8 +125,11 @@ def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None,
     if progress:
         print(f"{pathlib.Path(str(path)).stem}: checking the scenario, building FMUs that are missing or stale "
               "(a first build takes ~10 s)", file=sys.stderr, flush=True)
-    scenario, paths, descriptions, values = prepare(resolve(path), ci, implementation)
-    outdir = pathlib.Path(out) / scenario.name
+    scenario, paths, descriptions, values = prepare(resolve(path), ci, implementation, out)
+    outdir = output_folder(out, scenario.source)
+    earlier = replaced(outdir)
+    if earlier:
+        print(earlier, file=sys.stderr)
     runs = run_prepared(scenario, paths, descriptions, values, outdir, progress, jobs, dask)
     return scenario, runs, write_results(scenario, runs, outdir)
 
@@ -107,7 +150,7 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
         if item is not None:
             inst, name, value = spec.sweep_value(scenario, descriptions, item)
             params[inst][name] = value
-            label = str(item)
+            label = spec.file_label(item)
         desc = f"{scenario.name} [{label}]"
         bar = tqdm(total=100, desc=f"{desc} loading and initialising the FMUs", unit="%", disable=not progress,
                    bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
@@ -123,9 +166,11 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
         except master.RunFailed as failed:   # keep what it did; the other runs still run
             failed.run.failure = f"{scenario.source}: scene {scenario.name}, run {label}: {failed.run.failure}"
             runs.append(failed.run)
-        finally:
-            bar.update(100 - bar.n)
-            bar.close()
+        except BaseException:                # Ctrl-C, or an error that ends the command
+            bar.close()                      # where it stopped, not 100 %
+            raise
+        bar.update(100 - bar.n)
+        bar.close()
     return runs
 
 

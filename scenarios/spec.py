@@ -17,7 +17,10 @@ fed by exactly one source, values within the variables' declared min/max) and wh
 models refuse that min/max cannot say (the telescope profile over the run). Both run
 before the master starts.
 """
+import contextlib
 import dataclasses
+import difflib
+import math
 import pathlib
 import re
 from dataclasses import dataclass, field
@@ -59,7 +62,8 @@ _REQUIRED = "required"
 # constants above (docs/generate.py); tests/test_docs.py holds it to what parse() accepts,
 # refuses and fills in, so a key added to the checker without a line here fails a test.
 KEYS = {
-    "name": ("string", "the file's name without .toml", "report title and output folder"),
+    "name": ("string", "the file's name without .toml", "report title: letters, digits, _ . - (the output "
+             "folder is named after the file run)"),
     "description": ("string", "empty", "text under the report's title"),
     "start_time": ("time", "0 s", "start of the time grid"),
     "stop_time": ("time", _REQUIRED, "end of the time grid: a whole number of steps after start_time"),
@@ -89,13 +93,164 @@ KEYS = {
     "sweep.values": ("non-empty list of values", _REQUIRED, "its values, written as in parameters"),
     "ci": ("table of top-level keys", "none", "what replaces them in the short CI run (--ci)"),
 }
+# the TOML types each top-level key takes (checked before its value: a table where text
+# belongs is told as such); what it takes in words comes from KEYS
+TOP_LEVEL_TYPES = {"name": (str,), "description": (str,), "start_time": (int, float, str),
+                   "stop_time": (int, float, str), "step": (int, float, str), "master": (str,),
+                   "extrapolation": (str,), "fidelity_tolerance": (int, float, str), "fmus": (dict,),
+                   "connections": (list,), "record": (dict,), "metrics": (list,), "sweep": (dict,), "ci": (dict,)}
+_TYPE_NAMES = {str: "text", int: "integer", float: "number", dict: "table", list: "array", bool: "true/false"}
+PLAIN_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}")     # names that become file or folder names
+INSTANCE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
+MAX_FILE_BYTES = 1 << 20       # a scenario or campaign file larger than this is not one
+MAX_DEPTH = 8                  # tables and arrays nested deeper than this are no scenario's
+CHECK_POINTS = 100_001        # times at which a model's profile is checked over a run, at most
+MAX_INTEGER = 2 ** 53          # larger integer literals are no setting's (and lose precision as floats)
 
 
 class ScenarioError(ValueError):
-    """A problem in a scenario file; the message says file, key and problem."""
+    """Problems in a scenario file; the message says file, key and problem, one line each
+    (every problem found in the file, not only the first)."""
 
     def __init__(self, source, key, problem):
         super().__init__(f"{source}: {key}: {problem}")
+        self.problems = [(source, key, problem)]
+
+    @classmethod
+    def joined(cls, errors):
+        """One error carrying every problem of ``errors``, in order."""
+        error = cls(*errors[0].problems[0])
+        error.problems = [p for e in errors for p in e.problems]
+        error.args = ("\n".join(f"{s}: {k}: {p}" for s, k, p in error.problems),)
+        return error
+
+
+class _Problems:
+    """Collects the problems of one file: each part is checked on its own, all are told."""
+
+    def __init__(self, error=ScenarioError):
+        self.errors = []
+        self.error = error
+
+    @contextlib.contextmanager
+    def part(self):
+        try:
+            yield
+        except self.error as exc:
+            self.errors.append(exc)
+
+    def raise_any(self):
+        if self.errors:
+            raise self.error.joined(self.errors)
+
+
+def unknown_keys(keys, allowed):
+    """'unknown key 'stop_tme'; did you mean 'stop_time'? allowed: ...' per key."""
+    out = []
+    for key in sorted(keys, key=str):
+        near = difflib.get_close_matches(str(key), [str(a) for a in allowed], 1, 0.6)
+        hint = f"did you mean {near[0]!r}? " if near else ""
+        out.append((key, f"unknown key; {hint}allowed: {', '.join(map(str, allowed))}"))
+    return out
+
+
+def check_name(source, key, value, error=ScenarioError):
+    """A name that becomes a file or folder name: text of letters, digits, _ . - (not
+    starting with . or -), at most 100 characters; anything else is refused, naming it."""
+    if not isinstance(value, str):
+        raise error(source, key, f"expected text, got {_TYPE_NAMES.get(type(value), type(value).__name__)}")
+    if not PLAIN_NAME.fullmatch(value):
+        bad = sorted({c for c in value if not re.fullmatch(r"[A-Za-z0-9_.-]", c)})
+        why = (f"is {len(value)} characters long (at most 100)" if len(value) > 100 else
+               f"holds {', '.join(map(repr, bad))}" if bad else "starts with . or -" if value else "is empty")
+        raise error(source, key, f"{value[:60]!r}{'...' if len(value) > 60 else ''} {why}: a name is also a folder "
+                    "name, so it takes letters, digits, _ . - only (not a path)")
+    return value
+
+
+def file_label(value):
+    """The label of a run made from a value as written (a sweep value): also a file name,
+    so every character but letters, digits and ' _.,+=-' becomes '_' ("10 N/m" -> "10 N_m")."""
+    text = value if isinstance(value, str) else repr(value)
+    return re.sub(r"[^A-Za-z0-9 _.,+=-]", "_", text)[:100] or "_"
+
+
+def read_toml(text, source, error=ScenarioError):
+    """TOML text to data, or ``error`` naming what is wrong: a syntax error, nesting
+    deeper than MAX_DEPTH, an integer beyond MAX_INTEGER (checked before any use)."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(source, "TOML", str(exc)) from None
+    except RecursionError:
+        raise error(source, "TOML", f"nested deeper than any scenario (at most {MAX_DEPTH} levels)") from None
+    except ValueError as exc:       # an integer literal longer than Python converts
+        raise error(source, "TOML", f"a value cannot be read: {exc}") from None
+    stack = [(data, "", 0)]
+    while stack:
+        value, where, depth = stack.pop()
+        if depth > MAX_DEPTH:
+            raise error(source, where, f"nested {depth} levels deep; a scenario nests at most {MAX_DEPTH}")
+        if isinstance(value, dict):
+            stack.extend((v, f"{where}.{k}" if where else str(k), depth + 1) for k, v in value.items())
+        elif isinstance(value, list):
+            stack.extend((v, f"{where}[{i}]", depth + 1) for i, v in enumerate(value))
+        elif isinstance(value, int) and not isinstance(value, bool) and abs(value) > MAX_INTEGER:
+            raise error(source, where, f"integer {str(value)[:20]}... ({len(str(abs(value)))} digits) is too "
+                        f"large (at most 2^53)")
+    return data
+
+
+def read_text(path, error=ScenarioError, what="scenario"):
+    """A TOML file's text; ``error`` for a directory, a missing file, a device or pipe,
+    a file over MAX_FILE_BYTES, a binary, UTF-16 or otherwise non-UTF-8 file."""
+    path = pathlib.Path(path)
+    if path.is_dir():
+        inside = sorted(p.name for p in path.glob("*.toml"))
+        hint = f"; it holds {', '.join(inside)}" if inside else ""
+        raise error(str(path), "file", f"is a directory, not a {what} file (.toml){hint}")
+    if not path.exists():
+        raise error(str(path), "file", "does not exist")
+    if not path.is_file():
+        raise error(str(path), "file", f"is not a regular file (a device or a pipe), not a {what} file")
+    try:
+        with open(path, "rb") as file:
+            data = file.read(MAX_FILE_BYTES + 1)
+    except OSError as exc:
+        raise error(str(path), "file", f"cannot be read: {exc.strerror}") from None
+    if len(data) > MAX_FILE_BYTES:
+        raise error(str(path), "file", f"is larger than {MAX_FILE_BYTES >> 20} MiB: not a {what} file")
+    if _utf16(data):
+        raise error(str(path), "file", f"is UTF-16 text; save it as UTF-8 (a {what} is a TOML file in UTF-8)")
+    if b"\0" in data:
+        raise error(str(path), "file", f"is a binary file (NUL byte at offset {data.find(0)}), not a TOML {what}")
+    try:
+        return data.decode("utf-8-sig")   # a leading BOM (some editors write one) is not TOML
+    except UnicodeDecodeError as exc:
+        raise error(str(path), "file", f"is not UTF-8 text (byte 0x{data[exc.start]:02x} at offset "
+                    f"{exc.start}); a {what} is a TOML file in UTF-8") from None
+
+
+def _utf16(data):
+    """Whether bytes are UTF-16 text (a BOM, or the NUL high bytes of ASCII) that decodes."""
+    if not (data[:2] in (b"\xff\xfe", b"\xfe\xff") or (len(data) >= 4 and (data[1] == data[3] == 0 or
+                                                                           data[0] == data[2] == 0))):
+        return False
+    try:
+        text = data.decode("utf-16" if data[:2] in (b"\xff\xfe", b"\xfe\xff") else
+                           "utf-16-le" if data[1] == 0 else "utf-16-be")
+    except UnicodeDecodeError:
+        return False
+    return all(c.isprintable() or c in "\r\n\t" for c in text.lstrip("\ufeff"))
+
+
+def merged(data, overrides):
+    """data with ``overrides`` laid over it, tables merged key by key (a [ci.fmus.plant]
+    table changes that instance's keys only, not the other instances)."""
+    out = dict(data)
+    for key, value in (overrides or {}).items():
+        out[key] = merged(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
+    return out
 
 
 @dataclass(frozen=True)
@@ -146,7 +301,16 @@ def _quantity(source, key, value, dimension):
 
 def _table(source, key, value):
     if not isinstance(value, dict):
-        raise ScenarioError(source, key, f"expected a table, got {type(value).__name__}")
+        raise ScenarioError(source, key, f"expected a table, got {_TYPE_NAMES.get(type(value), type(value).__name__)}")
+    return value
+
+
+def _text(source, key, value, default=None):
+    """A text setting (a table or number where text belongs is refused, naming it)."""
+    value = default if value is None else value
+    if not isinstance(value, str):
+        raise ScenarioError(source, key, f"expected text, got {_TYPE_NAMES.get(type(value), type(value).__name__)}"
+                            f" {value!r:.60}")
     return value
 
 
@@ -158,162 +322,200 @@ def _string_list(source, key, value):
 
 
 def _reference(source, key, value, instances):
-    if not isinstance(value, str) or not re.fullmatch(r"[A-Za-z_]\w*\.[\w\[\]\.]+", value):
+    if isinstance(value, str) and value.split(".", 1)[0] in instances and "." in value:
+        return value     # a declared instance (an invalid instance name is told at its [fmus] table)
+    if not isinstance(value, str) or not re.fullmatch(r"[A-Za-z_]\w*\.[\w\[\]\.]+", value, re.ASCII):
         raise ScenarioError(source, key, f"expected 'instance.variable', got {value!r}")
     instance = value.split(".", 1)[0]
     if instance not in instances:
-        raise ScenarioError(source, key, f"unknown FMU instance {instance!r}; declared: {', '.join(instances)}")
+        near = difflib.get_close_matches(instance, list(instances), 1, 0.6)
+        hint = f"did you mean {near[0]!r}? " if near else ""
+        raise ScenarioError(source, key, f"unknown FMU instance {instance!r}; {hint}declared: {', '.join(instances)}")
     return value
 
 
 def parse(text, source="<string>", overrides=None):
     """Scenario from TOML text; ``overrides`` replaces top-level keys (e.g. the CI's
-    shorter stop_time)."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(source, "TOML", str(exc)) from None
+    shorter stop_time; tables merge key by key). Every problem in the file is reported
+    at once, in one ScenarioError."""
+    data = read_toml(text, source)
     needs = ("a scenario needs stop_time, step, one [fmus.<instance>] table per FMU and [[connections]] "
              "(example: scenarios/files/telescope_slew.toml)")
     if not data:
         raise ScenarioError(source, "file", f"empty (no TOML keys): {needs}")
-    data.update(overrides or {})
-    unknown = set(data) - _TOP_KEYS
-    if unknown:
-        raise ScenarioError(source, sorted(unknown)[0], f"unknown key; allowed: {', '.join(sorted(_TOP_KEYS))}")
+    data = merged(data, overrides)
+    problems = _Problems()
+    for key, problem in unknown_keys(set(data) - _TOP_KEYS, sorted(_TOP_KEYS)):
+        problems.errors.append(ScenarioError(source, key, problem))
+    for key, types in TOP_LEVEL_TYPES.items():
+        if key in data and (not isinstance(data[key], types) or isinstance(data[key], bool)):
+            what = KEYS[key][0] if key in KEYS else " or ".join(_TYPE_NAMES[t] for t in types)
+            got = _TYPE_NAMES.get(type(data[key]), type(data[key]).__name__)
+            problems.errors.append(ScenarioError(source, key, f"expected {what}, got {got} {data[key]!r:.60}"))
     for key in ("stop_time", "step", "fmus", "connections"):
         if key not in data:
-            raise ScenarioError(source, key, f"missing; {needs}")
-    start = _quantity(source, "start_time", data.get("start_time", 0.0), "s")
-    stop = _quantity(source, "stop_time", data["stop_time"], "s")
-    step = _quantity(source, "step", data["step"], "s")
-    if not step > 0:
-        raise ScenarioError(source, "step", f"must be positive, got {data['step']!r}")
-    if not stop > start:
-        raise ScenarioError(source, "stop_time", f"must be after start_time ({start} s)")
-    steps = (stop - start) / step
-    if abs(steps - round(steps)) > 1e-9 * max(1.0, steps):
-        nearest = " and ".join(f"{start + n * step:.12g} s" for n in sorted({max(1, int(steps)), int(steps) + 1}))
-        raise ScenarioError(source, "stop_time", f"{data['stop_time']!r} is not a whole number of steps of "
-                            f"{data['step']!r} after start_time ({steps:.6g} steps); nearest valid stop times: "
-                            f"{nearest}")
+            problems.errors.append(ScenarioError(source, key, f"missing; {needs}"))
+    problems.raise_any()     # the parts below rely on the keys' presence and types
+
+    start, stop, step, steps, grid_ok = 0.0, math.inf, 1.0, 1, False
+    with problems.part():       # the time grid; the checks against it below use it only if it holds
+        start = _quantity(source, "start_time", data.get("start_time", 0.0), "s")
+        stop = _quantity(source, "stop_time", data["stop_time"], "s")
+        step = _quantity(source, "step", data["step"], "s")
+        if not step > 0:
+            raise ScenarioError(source, "step", f"must be positive, got {data['step']!r}")
+        if not stop > start:
+            raise ScenarioError(source, "stop_time", f"must be after start_time ({start} s)")
+        if abs((stop - start) / step - round((stop - start) / step)) > 1e-9 * max(1.0, (stop - start) / step):
+            steps = (stop - start) / step
+            nearest = " and ".join(f"{start + n * step:.12g} s" for n in sorted({max(1, int(steps)), int(steps) + 1}))
+            raise ScenarioError(source, "stop_time", f"{data['stop_time']!r} is not a whole number of steps of "
+                                f"{data['step']!r} after start_time ({steps:.6g} steps); nearest valid stop times: "
+                                f"{nearest}")
+        steps, grid_ok = round((stop - start) / step), True
+    if not grid_ok:         # what failed is told; nothing below is measured against it
+        start, stop, step, steps = 0.0, math.inf, 1.0, 1
     master = data.get("master", "jacobi")
     if master not in MASTERS:
-        raise ScenarioError(source, "master", f"unknown master {master!r}; choose one of {MASTERS}")
+        problems.errors.append(ScenarioError(source, "master", f"unknown master {master!r}; choose one of {MASTERS}"))
     extrapolation = data.get("extrapolation", "none")
     if extrapolation not in EXTRAPOLATIONS:
-        raise ScenarioError(source, "extrapolation", f"unknown {extrapolation!r}; choose one of {EXTRAPOLATIONS}")
+        problems.errors.append(ScenarioError(source, "extrapolation", f"unknown {extrapolation!r}; choose one of "
+                                             f"{EXTRAPOLATIONS}"))
+    name = data.get("name", pathlib.Path(source).stem)
+    with problems.part():
+        check_name(source, "name" if "name" in data else "file name", name)
 
     fmus, parameters, implementations = {}, {}, {}
-    for instance, table in _table(source, "fmus", data["fmus"]).items():
+    for instance, table in data["fmus"].items():
         key = f"fmus.{instance}"
-        table = _table(source, key, table)
-        extra = set(table) - {"fmu", "implementation", "parameters"}
-        if extra:
-            raise ScenarioError(source, f"{key}.{sorted(extra)[0]}",
-                                "unknown key; allowed: fmu, implementation, parameters")
-        implementations[instance] = table.get("implementation", IMPLEMENTATIONS[0])
-        if implementations[instance] not in IMPLEMENTATIONS:
-            raise ScenarioError(source, f"{key}.implementation", f"unknown implementation "
-                                f"{implementations[instance]!r}; choose one of {', '.join(IMPLEMENTATIONS)}")
-        if table.get("fmu") not in FMU_SCRIPTS:
-            raise ScenarioError(source, f"{key}.fmu", f"unknown FMU {table.get('fmu')!r}; choose one of "
-                                f"{', '.join(FMU_SCRIPTS)}")
-        fmus[instance] = table["fmu"]
-        parameters[instance] = dict(_table(source, f"{key}.parameters", table.get("parameters", {})))
+        with problems.part():
+            if not INSTANCE_NAME.fullmatch(instance):
+                bad = sorted({c for c in instance if not re.fullmatch(r"\w", c, re.ASCII)})
+                raise ScenarioError(source, key, f"instance name {instance!r} "
+                                    f"{'holds ' + ', '.join(map(repr, bad)) if bad else 'is not valid'}: an instance "
+                                    "name takes ASCII letters, digits and _ (not starting with a digit), at most 64")
+        fmus[instance] = None        # declared: references to it are not also reported as unknown
+        with problems.part():
+            table = _table(source, key, table)
+            for extra, problem in unknown_keys(set(table) - {"fmu", "implementation", "parameters"},
+                                               ["fmu", "implementation", "parameters"]):
+                problems.errors.append(ScenarioError(source, f"{key}.{extra}", problem))
+            implementations[instance] = _text(source, f"{key}.implementation", table.get("implementation"),
+                                              IMPLEMENTATIONS[0])
+            if implementations[instance] not in IMPLEMENTATIONS:
+                raise ScenarioError(source, f"{key}.implementation", f"unknown implementation "
+                                    f"{implementations[instance]!r}; choose one of {', '.join(IMPLEMENTATIONS)}")
+            fmu = _text(source, f"{key}.fmu", table.get("fmu"), "")
+            if fmu not in FMU_SCRIPTS:
+                near = difflib.get_close_matches(fmu, list(FMU_SCRIPTS), 1, 0.6)
+                hint = f"did you mean {near[0]!r}? " if near else ""
+                raise ScenarioError(source, f"{key}.fmu", f"unknown FMU {table.get('fmu')!r}; {hint}choose one of "
+                                    f"{', '.join(FMU_SCRIPTS)}")
+            fmus[instance] = fmu
+            parameters[instance] = dict(_table(source, f"{key}.parameters", table.get("parameters", {})))
 
     connections = []
-    for i, conn in enumerate(data["connections"] if isinstance(data["connections"], list) else [None]):
+    for i, conn in enumerate(data["connections"]):
         key = f"connections[{i}]"
-        conn = _table(source, key, conn)
-        if set(conn) != {"from", "to"}:
-            raise ScenarioError(source, key, "a connection has exactly the keys 'from' and 'to'")
-        targets = [_reference(source, f"{key}.to", t, fmus) for t in _string_list(source, f"{key}.to", conn["to"])]
-        connections.append((_reference(source, f"{key}.from", conn["from"], fmus), targets))
+        with problems.part():
+            conn = _table(source, key, conn)
+            if set(conn) != {"from", "to"}:
+                raise ScenarioError(source, key, "a connection has exactly the keys 'from' and 'to'")
+            targets = [_reference(source, f"{key}.to", t, fmus) for t in _string_list(source, f"{key}.to", conn["to"])]
+            connections.append((_reference(source, f"{key}.from", conn["from"], fmus), targets))
 
-    record = _table(source, "record", data.get("record", {}))
-    extra = set(record) - {"interval", "variables"}
-    if extra:
-        raise ScenarioError(source, f"record.{sorted(extra)[0]}", "unknown key; allowed: interval, variables")
-    interval = _quantity(source, "record.interval", record.get("interval", data["step"]), "s")
-    ratio = interval / step
-    if interval < step or abs(ratio - round(ratio)) > 1e-9 * ratio:
-        raise ScenarioError(source, "record.interval", "must be a whole multiple of step")
-    every = int(round(ratio))
-    last_record = start + (int(round(steps)) // every) * every * step
-    recorded = [_reference(source, "record.variables", v, fmus)
-                for v in _string_list(source, "record.variables", record.get("variables", [])) ] \
-        if record.get("variables") else []
+    interval, recorded, last_record = step, [], stop
+    with problems.part():
+        record = data.get("record", {})
+        for extra, problem in unknown_keys(set(record) - {"interval", "variables"}, ["interval", "variables"]):
+            problems.errors.append(ScenarioError(source, f"record.{extra}", problem))
+        interval = _quantity(source, "record.interval", record.get("interval", data["step"]), "s")
+        ratio = interval / step
+        if grid_ok and (interval < step or abs(ratio - round(ratio)) > 1e-9 * ratio):
+            raise ScenarioError(source, "record.interval", "must be a whole multiple of step")
+        every = max(1, int(round(ratio)))
+        last_record = start + (steps // every) * every * step if grid_ok else math.inf
+        recorded = [_reference(source, "record.variables", v, fmus)
+                    for v in _string_list(source, "record.variables", record.get("variables", []))] \
+            if record.get("variables") else []
 
-    metrics = []
+    metrics, named = [], {}
     for i, metric in enumerate(data.get("metrics", [])):
         key = f"metrics[{i}]"
-        metric = dict(_table(source, key, metric))
-        kind = metric.pop("kind", None)
-        if kind not in METRIC_KINDS:
-            raise ScenarioError(source, f"{key}.kind", f"unknown metric kind {kind!r}; choose one of "
-                                f"{', '.join(METRIC_KINDS)}")
-        name = metric.pop("name", kind)
-        metric_start = _quantity(source, f"{key}.from", metric.get("from", "0 s"), "s")
-        if metric_start >= stop or metric_start > last_record + 1e-9 * step:
-            where = f"at or after stop_time ({stop:g} s)" if metric_start >= stop else \
-                f"after the last recorded time ({last_record:g} s)"
-            raise ScenarioError(source, f"{key}.from", f"{metric.pop('from')!r} lies {where}: the metric would "
-                                "count nothing")
-        metric.pop("from", None)
-        for required in METRIC_KINDS[kind]:
-            if required not in metric:
-                raise ScenarioError(source, f"{key}.{required}", f"missing (metric kind {kind!r})")
-        for arg, value in metric.items():
-            if kind == "base_effect":
-                if value not in fmus:
-                    raise ScenarioError(source, f"{key}.{arg}", f"unknown FMU instance {value!r}")
-            else:
-                _reference(source, f"{key}.{arg}", value, fmus)
-        metrics.append(Metric(name, kind, metric, metric_start))
+        with problems.part():
+            metric = dict(_table(source, key, metric))
+            kind = metric.pop("kind", None)
+            if not isinstance(kind, str) or kind not in METRIC_KINDS:
+                raise ScenarioError(source, f"{key}.kind", f"unknown metric kind {kind!r}; choose one of "
+                                    f"{', '.join(METRIC_KINDS)}")
+            name_ = _text(source, f"{key}.name", metric.pop("name", None), kind)
+            if name_ in named:
+                raise ScenarioError(source, f"{key}.name", f"{name_!r} is also the name of metrics[{named[name_]}]; "
+                                    "metric names are the columns of the results: give each its own")
+            named[name_] = i
+            metric_start = _quantity(source, f"{key}.from", metric.get("from", "0 s"), "s")
+            if metric_start >= stop or metric_start > last_record + 1e-9 * step:
+                where = f"at or after stop_time ({stop:g} s)" if metric_start >= stop else \
+                    f"after the last recorded time ({last_record:g} s)"
+                raise ScenarioError(source, f"{key}.from", f"{metric.get('from', '0 s')!r} lies {where}: the metric would "
+                                    "count nothing")
+            metric.pop("from", None)
+            for required in METRIC_KINDS[kind]:
+                if required not in metric:
+                    raise ScenarioError(source, f"{key}.{required}", f"missing (metric kind {kind!r})")
+            for extra, problem in unknown_keys(set(metric) - set(METRIC_KINDS[kind]),
+                                               ["kind", "name", "from", *METRIC_KINDS[kind]]):
+                raise ScenarioError(source, f"{key}.{extra}", problem)
+            for arg, value in metric.items():
+                if kind == "base_effect":
+                    if not isinstance(value, str) or value not in fmus:
+                        raise ScenarioError(source, f"{key}.{arg}", f"unknown FMU instance {value!r}")
+                else:
+                    _reference(source, f"{key}.{arg}", value, fmus)
+            metrics.append(Metric(name_, kind, metric, metric_start))
 
     sweep = None
     if "sweep" in data:
-        table = _table(source, "sweep", data["sweep"])
-        if set(table) != {"parameter", "values"}:
-            raise ScenarioError(source, "sweep", "a sweep has exactly the keys 'parameter' and 'values'")
-        if not isinstance(table["values"], list) or not table["values"]:
-            raise ScenarioError(source, "sweep.values", "expected a non-empty list")
-        sweep = (_reference(source, "sweep.parameter", table["parameter"], fmus), table["values"])
-    ci = _table(source, "ci", data.get("ci", {}))
+        table = data["sweep"]
+        with problems.part():
+            if set(table) != {"parameter", "values"}:
+                raise ScenarioError(source, "sweep", "a sweep has exactly the keys 'parameter' and 'values'")
+            if not isinstance(table["values"], list) or not table["values"]:
+                raise ScenarioError(source, "sweep.values", "expected a non-empty list")
+            for i, value in enumerate(table["values"]):
+                if not isinstance(value, (str, int, float)):
+                    raise ScenarioError(source, f"sweep.values[{i}]", f"expected a number or a quantity, got "
+                                        f"{_TYPE_NAMES.get(type(value), type(value).__name__)} {value!r:.60}")
+            labels = {}
+            for i, value in enumerate(table["values"]):
+                label = file_label(value)
+                if label in labels:
+                    raise ScenarioError(source, f"sweep.values[{i}]", f"{value!r} repeats sweep.values"
+                                        f"[{labels[label]}] ({table['values'][labels[label]]!r}): each value runs once")
+                labels[label] = i
+            sweep = (_reference(source, "sweep.parameter", table["parameter"], fmus), table["values"])
+    ci = data.get("ci", {})
+    for extra, problem in unknown_keys(set(ci) - _TOP_KEYS, sorted(_TOP_KEYS)):
+        problems.errors.append(ScenarioError(source, f"ci.{extra}", problem))
     tolerance = None
     if "fidelity_tolerance" in data:
-        tolerance = _quantity(source, "fidelity_tolerance", data["fidelity_tolerance"], "N")
+        with problems.part():
+            tolerance = _quantity(source, "fidelity_tolerance", data["fidelity_tolerance"], "N")
     for inst, params in parameters.items():
         if params.get("fidelity") == "auto" and (fmus[inst] != "hexapod_plant" or tolerance is None):
-            raise ScenarioError(source, f"fmus.{inst}.parameters.fidelity",
-                                '"auto" needs a hexapod_plant and a top-level fidelity_tolerance (a force)')
-    name = data.get("name", pathlib.Path(source).stem)
+            problems.errors.append(ScenarioError(source, f"fmus.{inst}.parameters.fidelity",
+                                   '"auto" needs a hexapod_plant and a top-level fidelity_tolerance (a force)'))
+    problems.raise_any()
     return Scenario(source, name, data.get("description", ""), start, stop, step, master, extrapolation,
                     fmus, parameters, connections, interval, recorded, metrics, sweep, ci, tolerance,
                     implementations=implementations)
 
 
 def load(path, overrides=None):
-    """Scenario from a TOML file; a missing path, a directory or a file that is not
-    UTF-8 text is refused with what was expected."""
-    path = pathlib.Path(path)
-    if path.is_dir():
-        inside = sorted(p.name for p in path.glob("*.toml"))
-        hint = f"; it holds {', '.join(inside)}" if inside else ""
-        raise ScenarioError(str(path), "file", f"is a directory, not a scenario file (.toml){hint}")
-    if not path.exists():
-        raise ScenarioError(str(path), "file", "does not exist")
-    data = path.read_bytes()
-    if b"\0" in data:
-        raise ScenarioError(str(path), "file", f"is a binary file (NUL byte at offset {data.find(0)}), "
-                            "not a TOML scenario")
-    try:
-        text = data.decode("utf-8-sig")   # a leading BOM (some editors write one) is not TOML
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(str(path), "file", f"is not UTF-8 text (byte 0x{data[exc.start]:02x} at offset "
-                            f"{exc.start}); a scenario is a TOML file in UTF-8") from None
-    return parse(text, str(path), overrides)
+    """Scenario from a TOML file; a missing path, a directory, a device, a huge file or
+    a file that is not UTF-8 text is refused with what was expected."""
+    return parse(read_text(path), str(pathlib.Path(path)), overrides)
 
 
 # ------------------------------------------------------------------- binding to the FMUs
@@ -347,67 +549,128 @@ def bind(scenario, model_descriptions):
                                 f"{reference.split('.', 1)[1]!r}")
         return inst, [variables[inst][n] for n in names]
 
-    values = {}
+    problems = _Problems()
+    values = {inst: {} for inst in scenario.fmus}
     fed = set()
     for inst, params in scenario.parameters.items():
-        values[inst] = {}
         for name, raw in params.items():
             key = f"fmus.{inst}.parameters.{name}"
-            _, targets = scalars(key, f"{inst}.{name}")
-            if isinstance(raw, str) and raw.startswith("@"):
-                link_inst, sources = scalars(key, raw[1:])
-                if len(sources) != len(targets) or any(v.causality != "output" for v in sources):
-                    raise ScenarioError(src, key, f"{raw} must be an output of the same size as {name}")
-                if link_inst == inst:
-                    raise ScenarioError(src, key, "a parameter cannot come from its own FMU")
-                for var, source_var in zip(targets, sources):
-                    values[inst][var.name] = Link(link_inst, source_var.name)
-                continue
-            raws = raw if isinstance(raw, list) else [raw]
-            if len(raws) != len(targets):
-                raise ScenarioError(src, key, f"expected {len(targets)} values, got {len(raws)}")
-            for var, item in zip(targets, raws):
-                if var.causality not in ("parameter", "input"):
-                    raise ScenarioError(src, key, f"{var.name} is an {var.causality}, not a parameter or input")
-                values[inst][var.name] = _value(src, key, var, item)
-                fed.add((inst, var.name))
+            with problems.part():
+                _bind_parameter(src, key, inst, name, raw, scalars, values, fed)
+    with problems.part():
+        _check_links(src, values)
     feeders = {}   # (instance, input) -> (connection index, "source -> target" as written, source)
     for i, (source_ref, targets) in enumerate(scenario.connections):
         key = f"connections[{i}]"
-        s_inst, s_vars = scalars(f"{key}.from", source_ref)
         for target in targets:
-            t_inst, t_vars = scalars(f"{key}.to", target)
-            if any(v.causality != "output" for v in s_vars):
-                raise ScenarioError(src, f"{key}.from", f"{source_ref} is not an output")
-            if any(v.causality != "input" for v in t_vars):
-                raise ScenarioError(src, f"{key}.to", f"{target} is not an input")
-            if len(s_vars) != len(t_vars):
-                raise ScenarioError(src, key, f"{source_ref} has {len(s_vars)} values, {target} {len(t_vars)}")
-            for s, t in zip(s_vars, t_vars):
-                if s.type != t.type or (s.unit or "") != (t.unit or ""):
-                    raise ScenarioError(src, key, f"incompatible: {s_inst}.{s.name} ({s.type}, {s.unit}) -> "
-                                        f"{t_inst}.{t.name} ({t.type}, {t.unit})")
-                _feed_once(src, key, i, f"{source_ref} -> {target}", (s_inst, s.name), (t_inst, t.name),
-                           feeders, fed)
+            with problems.part():
+                s_inst, s_vars = scalars(f"{key}.from", source_ref)
+                t_inst, t_vars = scalars(f"{key}.to", target)
+                if any(v.causality != "output" for v in s_vars):
+                    raise ScenarioError(src, f"{key}.from", f"{source_ref} is not an output")
+                if any(v.causality != "input" for v in t_vars):
+                    raise ScenarioError(src, f"{key}.to", f"{target} is not an input")
+                if len(s_vars) != len(t_vars):
+                    raise ScenarioError(src, key, f"{source_ref} has {len(s_vars)} values, {target} {len(t_vars)}")
+                for s, t in zip(s_vars, t_vars):
+                    if s.type != t.type or (s.unit or "") != (t.unit or ""):
+                        raise ScenarioError(src, key, f"incompatible: {s_inst}.{s.name} ({s.type}, {s.unit}) -> "
+                                            f"{t_inst}.{t.name} ({t.type}, {t.unit})")
+                    _feed_once(src, key, i, f"{source_ref} -> {target}", (s_inst, s.name), (t_inst, t.name),
+                               feeders, fed)
     for inst in scenario.fmus:
         optional = OPTIONAL_INPUTS.get(scenario.fmus[inst], ())
         missing = [n for n, v in variables[inst].items() if v.causality == "input" and (inst, n) not in fed
                    and n.split("[", 1)[0] not in optional]
         if missing:
-            raise ScenarioError(src, f"fmus.{inst}", f"inputs neither connected nor set: {', '.join(missing)}")
+            problems.errors.append(ScenarioError(src, f"fmus.{inst}",
+                                                 f"inputs neither connected nor set: {', '.join(missing)}"))
     for reference in scenario.record:
-        scalars("record.variables", reference)
+        with problems.part():
+            scalars("record.variables", reference)
     for i, metric in enumerate(scenario.metrics):
-        _check_metric(src, f"metrics[{i}]", metric, scalars)
+        with problems.part():
+            _check_metric(src, f"metrics[{i}]", metric, scalars)
+    problems.raise_any()     # the checks below need every value bound
+    check_rates(src, "fmus", scenario, variables, values)
     _check_models(src, "fmus", scenario, variables, values)
     if scenario.sweep:
         inst, (var, *_) = scalars("sweep.parameter", scenario.sweep[0])
+        seen = {}
         for i, item in enumerate(scenario.sweep[1]):
             key = f"sweep.values[{i}]"
-            swept = {name: dict(v) for name, v in values.items()}
-            swept[inst][var.name] = _value(src, key, var, item)
-            _check_models(src, key, scenario, variables, swept, {(inst, var.name): item})
+            with problems.part():
+                swept = {name: dict(v) for name, v in values.items()}
+                swept[inst][var.name] = _value(src, key, var, item)
+                if swept[inst][var.name] in seen:
+                    j = seen[swept[inst][var.name]]
+                    raise ScenarioError(src, key, f"{item!r} is the same value as sweep.values[{j}] "
+                                        f"({scenario.sweep[1][j]!r}): each value runs once")
+                seen[swept[inst][var.name]] = i
+                check_rates(src, key, scenario, variables, swept)
+                _check_models(src, key, scenario, variables, swept, {(inst, var.name): item})
+    problems.raise_any()
     return values
+
+
+def _bind_parameter(src, key, inst, name, raw, scalars, values, fed):
+    """One parameter as written (a value, a list for a vector, or a link "@inst.var")
+    into ``values``; the inputs it sets are added to ``fed``."""
+    _, targets = scalars(key, f"{inst}.{name}")
+    if isinstance(raw, str) and raw.startswith("@"):
+        link_inst, sources = scalars(key, raw[1:])
+        if len(sources) != len(targets) or any(v.causality != "output" for v in sources):
+            raise ScenarioError(src, key, f"{raw} must be an output of the same size as {name}")
+        if link_inst == inst:
+            raise ScenarioError(src, key, "a parameter cannot come from its own FMU")
+        for var, source_var in zip(targets, sources):
+            values[inst][var.name] = Link(link_inst, source_var.name)
+        return
+    raws = raw if isinstance(raw, list) else [raw]
+    if len(raws) != len(targets):
+        raise ScenarioError(src, key, f"expected {len(targets)} values, got {len(raws)}")
+    for var, item in zip(targets, raws):
+        if var.causality not in ("parameter", "input"):
+            raise ScenarioError(src, key, f"{var.name} is an {var.causality}, not a parameter or input")
+        values[inst][var.name] = _value(src, key, var, item)
+        fed.add((inst, var.name))
+
+
+def _check_links(src, values):
+    """Parameter links ("@inst.var") are read at the start from an FMU already initialised:
+    links that form a cycle have no such order, and are refused naming the cycle."""
+    needs = {inst: sorted({v.instance for v in params.values() if isinstance(v, Link)})
+             for inst, params in values.items()}
+    state = {}
+
+    def visit(inst, path):
+        if state.get(inst) == "done":
+            return
+        if state.get(inst) == "open":
+            cycle = path[path.index(inst):] + [inst]
+            raise ScenarioError(src, f"fmus.{inst}.parameters", "parameter links form a cycle: "
+                                f"{' <- '.join(cycle)} (each takes a start value from the next); break it")
+        state[inst] = "open"
+        for other in needs.get(inst, ()):
+            visit(other, path + [inst])
+        state[inst] = "done"
+
+    for inst in needs:
+        visit(inst, [])
+
+
+def check_rates(src, key, scenario, variables, values):
+    """A cut-off frequency (a parameter named *cutoff in 1/s) above the Nyquist frequency
+    of the communication step, 1/(2 step), is no filter the FMU can run: refused."""
+    nyquist = 0.5 / scenario.step
+    for inst, params in values.items():
+        for name, value in params.items():
+            var = variables[inst].get(name)
+            if var is not None and name.endswith("cutoff") and var.unit == "1/s" and \
+                    isinstance(value, float) and value > nyquist:
+                where = f"fmus.{inst}.parameters.{name}" if key == "fmus" else key
+                raise ScenarioError(src, where, f"{value:g} Hz is above the Nyquist frequency of the step "
+                                    f"({scenario.step:g} s: {nyquist:g} Hz); lower it or the step")
 
 
 def _feed_once(src, key, index, written, source, target, feeders, fed):
@@ -487,8 +750,9 @@ def _check_telescope(src, key, scenario, inst, md_variables, values, written):
     except InvalidInputError as exc:
         raise ScenarioError(src, where, f"{shown(limits)}: plant.telescope refuses them: {exc}") from None
     # the FMU evaluates the profile at t - start_delay; a grid of <= 1 s spacing over the run
-    times = np.linspace(scenario.start_time, scenario.stop_time,
-                        2 + int(np.ceil(scenario.stop_time - scenario.start_time))) - setting("start_delay")
+    # (at most CHECK_POINTS points: the check of a run of years costs no more than a day's)
+    points = min(CHECK_POINTS, 2 + int(np.ceil(scenario.stop_time - scenario.start_time)))
+    times = np.linspace(scenario.start_time, scenario.stop_time, points) - setting("start_delay")
     try:
         if profile == "slew":
             telescope.slew(params, (setting("start_azimuth"), setting("start_elevation")),

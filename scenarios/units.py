@@ -1,11 +1,13 @@
 """Quantities as people write them in scenario files ("1 ms", "30 deg", "2681.5 mm"),
-converted to SI at the edge. A bare number is taken as SI."""
+converted to SI at the edge. A bare number is taken as SI; the unit a variable declares
+is always accepted for it ("1.225 kg/m3" for a density in kg/m3); the micro prefix may
+be written u, µ (micro sign) or μ (Greek mu)."""
 import math
 import re
 
 # unit -> (SI factor, dimension)
 UNITS = {
-    "s": (1.0, "s"), "ms": (1e-3, "s"), "min": (60.0, "s"), "h": (3600.0, "s"),
+    "s": (1.0, "s"), "ms": (1e-3, "s"), "us": (1e-6, "s"), "min": (60.0, "s"), "h": (3600.0, "s"),
     "m": (1.0, "m"), "mm": (1e-3, "m"), "um": (1e-6, "m"), "µm": (1e-6, "m"),
     "rad": (1.0, "rad"), "deg": (math.pi / 180, "rad"), "mrad": (1e-3, "rad"), "urad": (1e-6, "rad"),
     "N": (1.0, "N"), "kN": (1e3, "N"),
@@ -17,6 +19,9 @@ UNITS = {
     "Hz": (1.0, "1/s"),
 }
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(\S+)?\s*$")
+
+
+_MICRO = re.compile("^[\u00b5\u03bc]")
 
 
 class UnitError(ValueError):
@@ -45,7 +50,10 @@ def to_si(value, dimension=None):
         number = float(value)
     elif isinstance(value, str):
         number, unit = split(value)
-        if unit is not None:
+        if unit is not None and unit == dimension:
+            pass                                   # the variable's own unit
+        elif unit is not None:
+            unit = _MICRO.sub("u", unit) if _MICRO.sub("u", unit) in UNITS else unit
             expected = f"; expected a quantity in {dimension} ({units_of(dimension)})" if dimension else ""
             if unit not in UNITS:
                 raise UnitError(f"unknown unit {unit!r} in {value!r}{expected or '; known: ' + ', '.join(UNITS)}")

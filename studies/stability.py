@@ -179,6 +179,7 @@ master = "jacobi"
 
 [fmus.plant]
 fmu = "hexapod_plant"
+implementation = "python"   # what CoSim runs: the pythonfmu FMUs (builder.ensure_built)
 [fmus.plant.parameters]
 moving_base = 0
 fidelity = "full"
@@ -191,6 +192,7 @@ base_acc = [0, 0, 0, 0, 0, 0]
 
 [fmus.controller]
 fmu = "leg_controller"
+implementation = "python"   # what CoSim runs: the pythonfmu FMUs (builder.ensure_built)
 [fmus.controller.parameters]
 feedforward = "fixed_base"
 kp = {kp!r}

@@ -82,9 +82,9 @@ def test_missing_and_binary_files(tmp_path):
     with pytest.raises(campaign.CampaignError, match="does not exist"):
         campaign.load(tmp_path / "none.toml")
     (tmp_path / "b.toml").write_bytes(b"\xff\xfe\x00binary")
-    with pytest.raises(campaign.CampaignError, match="not UTF-8"):
+    with pytest.raises(campaign.CampaignError, match="is a binary file"):
         campaign.load(tmp_path / "b.toml")
-    with pytest.raises(campaign.CampaignError, match="is not a file"):
+    with pytest.raises(campaign.CampaignError, match="is a directory"):
         campaign.load(tmp_path)
 
 
@@ -130,3 +130,28 @@ def test_sky_coverage_ci_charts_and_worst_cases(tmp_path):
         for mode in sky_coverage.MODES:
             assert by[("0 deg", el, mode)] == pytest.approx(by[("180 deg", el, mode)], rel=1e-6)
     assert max(fixed) > 100 > 10 > max(moving)   # the headline: fixed-base past 0.1 mm, moving-base under 10 µm
+
+
+def _implementation(path):
+    """What an FMU file is, read from its own model description (not from how it was found)."""
+    from movingbase.scenarios.fmi import unpack
+    return "native" if "native_build" in unpack(path)[0].generationTool else "python"
+
+
+def test_every_path_runs_the_implementation_the_scenario_names(tmp_path):
+    """Issue 21: campaigns ran the pythonfmu FMUs whatever the scenario said. The CLI's
+    prepare, the sweep's jobs and a campaign's jobs each run each instance's choice."""
+    text = (runner.SHIPPED / "telescope_slew.toml").read_text()
+    scene = tmp_path / "mixed.toml"
+    scene.write_text(text.replace('implementation = "native"', 'implementation = "python"', 1))
+    chosen = spec.load(scene).implementations
+    assert set(chosen.values()) == {"python", "native"}
+    scenario, paths, descriptions, values = runner.prepare(scene)
+    assert {inst: _implementation(p) for inst, p in paths.items()} == chosen
+    path = tmp_path / "c.toml"
+    path.write_text(f'name = "t"\nscenario = "{scene}"\nset = {{ stop_time = "5.4 s" }}\n')
+    job_list, files = campaign.jobs(campaign.load(path))
+    job = next(iter(job_list))
+    assert {inst: _implementation(files[digest]) for inst, digest in job.fmus.items()} == chosen
+    sweep_jobs, sweep_files = runner.engine.prepared_jobs(scenario, paths, values, [("run", {})])
+    assert {inst: _implementation(sweep_files[d]) for inst, d in sweep_jobs[0].fmus.items()} == chosen

@@ -58,12 +58,9 @@ def test_every_top_level_key_the_checker_accepts_is_documented():
      BODY + "[record]\nbogus = 1\n"),
     ("sweep", {"parameter", "values"}, BODY + '[sweep]\nparameter = "controller.feedforward"\nvalues = ["off", "on"]\n',
      BODY + '[sweep]\nparameter = "controller.feedforward"\nvalues = ["off"]\nbogus = 1\n'),
-    pytest.param(
-        "metrics[]", {"kind", "name", "from"}, BODY + '[[metrics]]\nkind = "peak"\nname = "force"\nfrom = "0.5 s"\n'
-                            'variable = "controller.slider_force"\n',
-        BODY + '[[metrics]]\nkind = "peak"\nvariable = "controller.slider_force"\nbogus = "plant.slider_rate"\n',
-        marks=pytest.mark.xfail(strict=True, reason="known defect: spec.parse accepts a metric key its kind does not "
-                                "take when it names a variable; the run then ends in a TypeError traceback")),
+    ("metrics[]", {"kind", "name", "from"}, BODY + '[[metrics]]\nkind = "peak"\nname = "force"\nfrom = "0.5 s"\n'
+     'variable = "controller.slider_force"\n',
+     BODY + '[[metrics]]\nkind = "peak"\nvariable = "controller.slider_force"\nbogus = "plant.slider_rate"\n'),
 ])
 def test_sub_keys_documented_are_those_the_checker_accepts(table, accepted, documented_body, bogus_body):
     """The documented keys of a table are those the checker takes (``accepted``, read from

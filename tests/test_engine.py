@@ -151,3 +151,46 @@ def test_sweep_on_workers_writes_what_the_sequential_runner_writes(tmp_path):
         a, b = read_records(par.record_path), read_records(seq.record_path)
         assert a.header == b.header and a.values.tobytes() == b.values.tobytes()
     assert report.exists()
+
+
+def test_damaged_results_are_named_and_recomputed_and_orphans_counted(campaign, tmp_path, capsys):
+    """Issue 17 section 4: a truncated JSON or a corrupt npz once blocked resuming with a
+    traceback naming no file, or was taken as good."""
+    scenario, paths, values, jobs, files, sequential = campaign
+    store = engine.Store(tmp_path)
+    with engine.Engine(jobs=1) as eng:
+        assert len(eng.run(jobs[:3], files, store, progress=False).computed) == 3
+        json_file, npz_file = store.path(jobs[0].key, ".json"), store.path(jobs[1].key, ".npz")
+        json_file.write_bytes(json_file.read_bytes()[:40])               # truncated mid-way
+        npz_file.write_bytes(b"PK\x03\x04" + os.urandom(200))             # corrupt
+        store.path("0123456789abcdef01234567", ".json").write_text('{"status": "ok"}')   # an orphan
+        again = engine.Store(tmp_path)
+        outcome = eng.run(jobs[:3], files, again, progress=False)
+    assert sorted(outcome.computed) == sorted([jobs[0].key, jobs[1].key]) and outcome.skipped == [jobs[2].key]
+    assert set(outcome.damaged) == {jobs[0].key, jobs[1].key}
+    assert str(json_file) in outcome.damaged[jobs[0].key] and str(npz_file) in outcome.damaged[jobs[1].key]
+    assert str(json_file) in capsys.readouterr().err
+    assert outcome.orphans == 1
+    for job in jobs[:3]:
+        _same_as_sequential(again, job.key, sequential[job.key])
+
+
+def test_a_rebuild_of_the_same_sources_keeps_the_cache_key(tmp_path):
+    """The builds are not byte-reproducible (a new guid, generation time and ELF build id
+    each time): the key follows the content that decides the numbers, so rebuilt FMUs
+    find the results on disk. A changed member changes it."""
+    import zipfile
+    from movingbase.fmu_src import builder, native_build
+    first, second = [], []
+    for folder, built in ((tmp_path / "a", first), (tmp_path / "b", second)):
+        built.append(builder.ensure_built(["leg_sensor_fmu"], folder)["leg_sensor_fmu"])
+        built.append(native_build.ensure_native(["leg_sensor_fmu"], folder / "native")["leg_sensor_fmu"])
+    for a, b in zip(first, second):
+        assert a.read_bytes() != b.read_bytes()                      # the files differ
+        assert engine.file_digest(a) == engine.file_digest(b)        # what decides the numbers does not
+    changed = tmp_path / "changed.fmu"
+    with zipfile.ZipFile(first[0]) as source, zipfile.ZipFile(changed, "w") as target:
+        for info in source.infolist():
+            data = source.read(info)
+            target.writestr(info, data + b"\n# edited" if info.filename.endswith("leg_sensor_fmu.py") else data)
+    assert engine.file_digest(changed) != engine.file_digest(first[0])

@@ -114,7 +114,7 @@ def test_the_cli_refuses_two_sources_before_anything_runs(tmp_path):
                            "connections[3] (base.reference_pose -> controller.reference_pose) and connections[9] "
                            "(base.base_pose -> controller.reference_pose) both feed controller.reference_pose[1]; "
                            "keep one")
-    assert not (tmp_path / "out" / "telescope_slew").exists()   # nothing ran
+    assert not (tmp_path / "out" / "two_sources").exists()   # nothing ran
 
 
 @pytest.mark.parametrize("stop, nearest", [("8.0005 s", "8 s and 8.001 s"), ("0.5 ms", "0.001 s"),
@@ -331,7 +331,7 @@ def test_a_run_failing_mid_way_is_one_line_and_the_sweep_and_report_go_on(tmp_pa
     assert "outside its stroke" in line
     assert "  fixed_base: FAILED after 79 steps (1.264 s); partial results kept" in out
     assert "  moving_base: 500 steps in" in out
-    folder = tmp_path / "out" / "telescope_slew"
+    folder = tmp_path / "out" / "step16"         # the folder follows the file run, not the name it copies
     summary = json.loads((folder / "metrics.json").read_text())
     assert summary["fixed_base"]["failed"] == line.removeprefix("run error: ")
     assert summary["fixed_base"]["steps"] == 79

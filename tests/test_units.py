@@ -10,7 +10,8 @@ from movingbase.scenarios.units import UnitError, to_si
 
 # unit -> (SI value of one unit, SI dimension), from the definitions
 DEFINITIONS = {
-    "s": (1.0, "s"), "ms": (constants.milli, "s"), "min": (constants.minute, "s"), "h": (constants.hour, "s"),
+    "s": (1.0, "s"), "ms": (constants.milli, "s"), "us": (constants.micro, "s"), "min": (constants.minute, "s"),
+    "h": (constants.hour, "s"),
     "m": (1.0, "m"), "mm": (constants.milli, "m"), "um": (constants.micro, "m"), "µm": (constants.micro, "m"),
     "rad": (1.0, "rad"), "deg": (constants.degree, "rad"), "mrad": (constants.milli, "rad"),
     "urad": (constants.micro, "rad"),

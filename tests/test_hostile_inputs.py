@@ -1,0 +1,343 @@
+"""Issue 17 sections 2-3: inputs a user can produce that once ran with wrong results,
+ended in a traceback or ran out of resources. Each class of defect is fed here and must
+end in one clear error that names the file, the key and the problem (or, where the input
+is valid, be accepted). The tables hold many inputs of each class."""
+import os
+import pathlib
+import shutil
+import subprocess
+import sys
+import zipfile
+
+import pytest
+
+from movingbase.scenarios import campaign, engine, fmi, resources, runner, spec
+from movingbase.scenarios.fmi import unpack
+from movingbase.scenarios.units import to_si
+from tests.test_scenario_errors import SLEW, edited, refused
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+HEAD = 'name = "t"\nscenario = "telescope_slew"\n'
+SCRIPTS = {"base": "telescope_fmu", "plant": "hexapod_plant_fmu", "controller": "leg_controller_fmu"}
+
+
+@pytest.fixture(scope="module")
+def descriptions(fmus):
+    return {inst: unpack(fmus[script])[0] for inst, script in SCRIPTS.items()}
+
+
+def _cli(tmp_path, *args, command="run"):
+    done = subprocess.run([sys.executable, "-m", "movingbase", command, *map(str, args)], capture_output=True,
+                          text=True, cwd=tmp_path, timeout=600)
+    assert "Traceback" not in done.stderr, done.stderr
+    return done.returncode, done.stdout, done.stderr
+
+
+# --------------------------------------------- scenario files: parse and bind refuse, naming
+@pytest.mark.parametrize("changes, key, parts", [
+    # a table, a number or a path where text belongs
+    ([('name = "telescope_slew"', 'name = { a = 1 }')], "name", ("expected", "table")),
+    ([('name = "telescope_slew"', 'name = 5')], "name", ("expected", "integer")),
+    ([('name = "telescope_slew"', 'name = "../../etc/x"')], "name", ("'/'", "not a path")),
+    ([('name = "telescope_slew"', f'name = "{"x" * 300}"')], "name", ("300 characters",)),
+    ([('name = "telescope_slew"', 'name = ".hidden"')], "name", ("starts with .",)),
+    ([('master = "jacobi"', 'master = { a = 1 }')], "master", ('expected "jacobi" or', "table")),
+    ([('fmu = "leg_controller"', 'fmu = { x = 1 }')], "fmus.controller.fmu", ("expected text", "table")),
+    ([('name = "leg error"', 'name = ["a"]')], "metrics[0].name", ("expected text", "array")),
+    # the same metric name twice: the results' columns would collide after all runs
+    ([('name = "pose error"', 'name = "leg error"')], "metrics[1].name", ("also the name of metrics[0]",)),
+    # TOML nesting and integer literals beyond any setting
+    ([("[ci]", "deep = " + "[" * 40 + "]" * 40 + "\n[ci]")], "deep" + "[0]" * 8, ("nested 9 levels", "at most 8")),
+    ([("[ci]", "deep = " + "[" * 5000 + "]" * 5000 + "\n[ci]")], "TOML", ("nested deeper",)),
+    ([('moving_base = 1', 'moving_base = ' + "9" * 5000)], "TOML", ("cannot be read", "digits")),
+    ([('moving_base = 1', 'moving_base = ' + "9" * 30)], "fmus.plant.parameters.moving_base", ("too large",)),
+    # an instance name that is not one, said so (not "expected 'instance.variable'")
+    ([("[fmus.controller]", '[fmus."contrôleur"]'), ('"controller.', '"contrôleur.')],
+     "fmus.contrôleur", ("'ô'", "ASCII letters")),
+    # a sweep value that is a table
+    ([('values = ["none", "fixed_base", "moving_base"]', 'values = ["none", { a = 1 }]')], "sweep.values[1]",
+     ("expected a number or a quantity", "table")),
+    # duplicate sweep values: as written, and the same value in two units
+    ([('values = ["none", "fixed_base", "moving_base"]', 'values = ["none", "none"]')], "sweep.values[1]",
+     ("repeats sweep.values[0]",)),
+    # an unknown key in [ci] (the full run would run)
+    ([("stop_time = \"8 s\"", "stop_tme = \"8 s\"")], "ci.stop_tme", ("did you mean 'stop_time'",)),
+])
+def test_bad_scenarios_are_refused_naming_key_and_problem(descriptions, changes, key, parts):
+    refused(edited(SLEW, *changes), key, *parts, descriptions=descriptions)
+
+
+def test_every_problem_of_a_file_is_reported_at_once_with_the_nearest_key(descriptions):
+    text = edited(SLEW, ('step = "1 ms"', 'stpe = "1 ms"'), ('master = "jacobi"', 'master = "jacoby"'),
+                  ('fmu = "leg_controller"', 'fmu = "leg_controler"'))
+    with pytest.raises(spec.ScenarioError) as error:
+        spec.parse(text, "bad.toml")
+    message = str(error.value)
+    assert "stpe: unknown key; did you mean 'step'?" in message
+    assert "bad.toml: step: missing" in message
+    text = edited(SLEW, ('master = "jacobi"', 'master = "jacoby"'), ('fmu = "leg_controller"', 'fmu = "leg_controler"'),
+                  ('interval = "10 ms"', 'interval = "10 ms"\nevery = 2'))
+    with pytest.raises(spec.ScenarioError) as error:
+        spec.parse(text, "bad.toml")
+    lines = str(error.value).splitlines()
+    assert len(lines) == 3, lines
+    assert any("master: unknown master 'jacoby'" in line for line in lines)
+    assert any("fmus.controller.fmu" in line and "did you mean 'leg_controller'" in line for line in lines)
+    assert any("record.every: unknown key" in line for line in lines)
+
+
+def test_a_cutoff_above_the_nyquist_frequency_is_refused(fmus):
+    """A filter's cut-off above 1/(2 step) cannot be run by a sampled filter: the sensor
+    would run a different filter than the one asked for."""
+    text = (ROOT / "scenarios/files/telescope_slew_base_sources.toml").read_text()
+    scenario = spec.parse(text, "bad.toml")
+    paths = runner.fmu_paths(scenario)
+    md = {inst: unpack(p)[0] for inst, p in paths.items()}
+    sensor = next(i for i, f in scenario.fmus.items() if f == "base_sensor")
+    nyquist = 0.5 / scenario.step
+    below = spec.parse(text, "ok.toml")
+    below.parameters[sensor]["rate_cutoff"] = f"{0.9 * nyquist} Hz"
+    spec.bind(below, md)
+    above = spec.parse(text, "bad.toml")
+    above.parameters[sensor]["rate_cutoff"] = f"{1.1 * nyquist} Hz"
+    with pytest.raises(spec.ScenarioError, match=f"fmus.{sensor}.parameters.rate_cutoff: .* above the Nyquist"):
+        spec.bind(above, md)
+
+
+def test_parameter_links_that_form_a_cycle_are_refused():
+    values = {"a": {"x": spec.Link("b", "y")}, "b": {"z": spec.Link("c", "w")}, "c": {"v": spec.Link("a", "u")}}
+    with pytest.raises(spec.ScenarioError, match=r"parameter links form a cycle: a <- b <- c <- a"):
+        spec._check_links("bad.toml", values)
+    spec._check_links("ok.toml", {"a": {"x": spec.Link("b", "y")}, "b": {}, "c": {"v": spec.Link("b", "w")}})
+
+
+def test_the_same_sweep_value_in_two_units_is_refused(descriptions):
+    text = edited(SLEW, ('parameter = "controller.feedforward"', 'parameter = "base.lever_arm"'),
+                  ('values = ["none", "fixed_base", "moving_base"]', 'values = ["25 m", "25000 mm"]'))
+    refused(text, "sweep.values[1]", "same value as sweep.values[0]", descriptions=descriptions)
+
+
+def test_sweep_values_become_plain_file_names():
+    assert spec.file_label("10 N/m") == "10 N_m"
+    assert spec.file_label("../../x") == ".._.._x"
+    assert spec.file_label(0.5) == "0.5"
+    for label in map(spec.file_label, ("a/b", "c\\d", "x\0y", "é", "a" * 500)):
+        assert "/" not in label and "\0" not in label and len(label) <= 100 and label.isascii()
+
+
+# ------------------------------------------------------------------ files that are not scenarios
+def test_files_that_are_not_scenarios_are_refused_naming_what_they_are(tmp_path):
+    cases = {"/dev/zero": "not a regular file"}
+    (tmp_path / "utf16.toml").write_text('name = "x"\n', encoding="utf-16")
+    cases[tmp_path / "utf16.toml"] = "is UTF-16 text; save it as UTF-8"
+    (tmp_path / "utf16le.toml").write_bytes('name = "x"\n'.encode("utf-16-le"))
+    cases[tmp_path / "utf16le.toml"] = "is UTF-16 text"
+    (tmp_path / "huge.toml").write_bytes(b"# " + b"x" * (spec.MAX_FILE_BYTES + 10))
+    cases[tmp_path / "huge.toml"] = "larger than 1 MiB"
+    for path, part in cases.items():
+        with pytest.raises(spec.ScenarioError, match=part):
+            spec.load(path)
+        with pytest.raises(campaign.CampaignError, match=part):
+            campaign.load(path)
+
+
+def test_a_partial_ci_table_changes_only_its_instance(descriptions):
+    """[ci.fmus.plant.parameters] once replaced every [fmus] table, and the error then
+    spoke of another instance; it now merges key by key."""
+    text = edited(SLEW, ('stop_time = "8 s"', 'stop_time = "8 s"\n[ci.fmus.plant.parameters]\nmoving_base = 0'))
+    scenario = spec.parse(text, "ok.toml")
+    short = spec.parse(text, "ok.toml", overrides=scenario.ci)
+    assert short.parameters["plant"]["moving_base"] == 0 and set(short.fmus) == set(scenario.fmus)
+    assert short.parameters["plant"]["integrator"] == "rk4" and short.stop_time == 8.0
+    bad = edited(SLEW, ('stop_time = "8 s"', 'stop_time = "8 s"\n[ci.fmus.plant.parameters]\nmoving_bse = 0'))
+    refused(bad, "fmus.plant.parameters.moving_bse", "no variable", descriptions=descriptions,
+            overrides=spec.parse(bad, "bad.toml").ci)
+
+
+# ------------------------------------------------------------------ valid input accepted
+def test_the_variables_own_unit_and_micro_prefixes_are_accepted(fmus):
+    wind = {v.name: v for v in unpack(fmus["wind_fmu"])[0].modelVariables}
+    assert wind["air_density"].unit == "kg/m3"
+    assert spec._value("ok.toml", "k", wind["air_density"], "1.225 kg/m3") == 1.225
+    for written in ("100 µs", "100 μs", "100 us"):
+        assert to_si(written, "s") == pytest.approx(1e-4, rel=1e-15)
+    scenario = spec.parse(edited(SLEW, ('step = "1 ms"', 'step = "100 µs"')), "ok.toml")
+    assert scenario.step == pytest.approx(1e-4) and round(scenario.record_interval / scenario.step) == 100
+
+
+# ------------------------------------------------------------------ resources
+def test_resources_are_estimated_and_what_cannot_finish_is_refused(tmp_path):
+    slew = spec.parse(SLEW, "slew.toml")
+    cost = resources.estimate(slew)
+    assert cost.steps == 60_000 and cost.rows == 6001       # (60 s / 1 ms) steps, every 10 ms plus t = 0
+    assert resources.check(cost, tmp_path, "slew.toml") == ""
+    long = spec.parse(edited(SLEW, ('stop_time = "60 s"', 'stop_time = "1e9 s"')), "long.toml")
+    with pytest.raises(resources.ResourceError, match=r"1e\+12|1,000,000,000,000 steps"):
+        resources.check(resources.estimate(long), tmp_path, "long.toml")
+    fine = spec.parse(edited(SLEW, ('step = "1 ms"', 'step = "1e-9 s"'), ('interval = "10 ms"', 'interval = "1 s"')),
+                      "fine.toml")
+    assert "large" in resources.check(resources.estimate(fine), tmp_path, "fine.toml")
+    small = dataclass_copy(cost, disk_bytes=2 * resources.free_bytes(tmp_path))
+    with pytest.raises(resources.ResourceError, match="free under"):
+        resources.check(small, tmp_path, "x")
+
+
+def dataclass_copy(obj, **changes):
+    import dataclasses
+    return dataclasses.replace(obj, **changes)
+
+
+def test_a_long_run_is_refused_quickly_by_the_cli(tmp_path):
+    """stop_time = "1e9 s": once, the check itself allocated 7 GiB."""
+    path = tmp_path / "long.toml"
+    path.write_text(edited(SLEW, ('stop_time = "60 s"', 'stop_time = "1e9 s"')))
+    status, _, err = _cli(tmp_path, path, "--quiet", "--out", tmp_path / "out")
+    assert status != 0 and "would not finish" in err or "free under" in err, err
+
+
+@pytest.mark.parametrize("jobs, part", [(0, "at least 1"), (-2, "at least 1"), (10 ** 6, "of memory")])
+def test_bad_worker_counts_are_refused(jobs, part):
+    with pytest.raises(resources.ResourceError, match=part):
+        resources.check_jobs(jobs)
+
+
+def test_a_huge_grid_is_refused_before_its_runs_are_made(tmp_path):
+    axes = "".join(f'[[grid]]\n"base.lever_arm" = [{", ".join(f"{i + 1}" for i in range(20))}]\n' for _ in range(1))
+    axes += "".join(f'[[grid]]\n"base.start_delay{k}" = [{", ".join(str(i) for i in range(10))}]\n'
+                    for k in range(6))
+    path = tmp_path / "c.toml"
+    path.write_text(HEAD + axes)
+    with pytest.raises(campaign.CampaignError, match="20,000,000 runs"):
+        campaign.load(path)
+
+
+# ------------------------------------------------------------------ campaigns: silent wrong results
+@pytest.mark.parametrize("body, key, problem", [
+    ('[[grid]]\n"base.lever_arm" = ["20 m", "30 m"]\n[[grid]]\n"base.lever_arm" = ["40 m", "50 m"]\n',
+     "grid[1].base.lever_arm", "also set in grid[0]"),
+    ('set = { "base.lever_arm" = "20 m" }\n[grid]\n"base.lever_arm" = ["40 m", "50 m"]\n',
+     "grid[0].base.lever_arm", "also set in set"),
+    ('[grid]\n"base.lever_arm" = ["40 m", "50 m"]\n[[cases]]\n"base.lever_arm" = "20 m"\n',
+     "cases[0].base.lever_arm", "also set in grid[0]"),
+    ('[grid]\n"base.lever_arm" = ["40 m", "50 m", "40 m"]\n', "grid[0].base.lever_arm[2]", "already value [0]"),
+    ('set = { "controller.leg_length" = [2.6, 2.6, 2.6, 2.6, 2.6, 2.6] }\n', "set.controller.leg_length",
+     "an input that telescope_slew.toml connects"),
+    ('[ci]\nstop_time = "8 s"\n', "ci.stop_time", "unknown key"),
+    ('nmae = "x"\n', "nmae", "did you mean 'name'"),
+    ('name = "a/b"\n', "name", "not a path"),
+    ('name = 7\n', "name", "expected text"),
+])
+def test_campaign_inputs_that_ran_wrongly_are_refused(tmp_path, body, key, problem):
+    path = tmp_path / "c.toml"
+    path.write_text(HEAD.replace('name = "t"\n', "") + body if body.startswith("name") else HEAD + body)
+    with pytest.raises(campaign.CampaignError) as info:
+        campaign.load(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: {key}: ") and problem in message, message
+
+
+# ------------------------------------------------------------------ command line and output folders
+def test_command_line_inputs_are_refused_before_anything_runs(tmp_path):
+    (tmp_path / "file").write_text("x")
+    for args, part in [(("--jobs", "0"), "at least 1"), (("--jobs", "-3"), "at least 1"),
+                       (("--dask", "tcp://127.0.0.1:9"), "no scheduler answers"),
+                       (("--dask", "nonsense"), "tcp://HOST:PORT"),
+                       (("--ssp", tmp_path), "is a folder"),
+                       (("telescope_slew",), "named more than once")]:
+        status, _, err = _cli(tmp_path, "telescope_slew", *args)
+        assert status != 0 and part in err, (args, err)
+    status, _, err = _cli(tmp_path, "telescope_slew", "--ci", "--quiet", "--out", tmp_path / "file")
+    assert status != 0 and "is a file, not a folder" in err, err
+    status, _, err = _cli(tmp_path, "sky_slews", "--jobs", "0", command="campaign")
+    assert status != 0 and "at least 1" in err, err
+
+
+def test_output_folders_follow_the_file_run_and_say_what_they_replace(tmp_path, capsys):
+    mine = tmp_path / "my_slew.toml"
+    mine.write_text(SLEW)           # a copy: its name is still "telescope_slew"
+    assert runner.output_folder(tmp_path / "out", runner.resolve(str(mine))) == tmp_path / "out" / "my_slew"
+    folder = runner.output_folder(tmp_path / "out", runner.SHIPPED / "telescope_slew.toml")
+    assert folder == tmp_path / "out" / "telescope_slew" and runner.replaced(folder) == ""
+    (folder / "report.md").write_text("earlier")
+    assert "report.md" in runner.replaced(folder) and "replaces" in runner.replaced(folder)
+    other = tmp_path / "sub" / "telescope_slew.toml"
+    other.parent.mkdir()
+    other.write_text(SLEW)
+    status, _, err = _cli(tmp_path, "telescope_slew", other, "--out", tmp_path / "o")
+    assert status != 0 and "would all write to" in err, err
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes anywhere")
+def test_a_read_only_output_folder_is_refused(tmp_path):
+    (tmp_path / "ro").mkdir(mode=0o555)
+    with pytest.raises(runner.OutputError, match="not writable|cannot be created"):
+        runner.output_folder(tmp_path / "ro", "x.toml")
+
+
+# ------------------------------------------------------------------ FMU files
+def test_fmu_paths_that_are_not_fmus_are_refused_naming_the_problem(fmus, tmp_path, monkeypatch):
+    good = pathlib.Path(fmus["leg_sensor_fmu"])
+    truncated = tmp_path / "truncated.fmu"
+    truncated.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
+    (tmp_path / "text.fmu").write_text("not a zip")
+    with zipfile.ZipFile(tmp_path / "empty.fmu", "w") as archive:
+        archive.writestr("other.txt", "x")
+    for path, part in [(tmp_path, "is a folder"), (tmp_path / "none.fmu", "does not exist"),
+                       (tmp_path / "text.fmu", "not a readable zip"), (truncated, "not a readable zip"),
+                       (tmp_path / "empty.fmu", "no modelDescription.xml")]:
+        with pytest.raises(fmi.FmuFileError, match=part):
+            fmi.unpack(path)
+    monkeypatch.setattr(fmi, "MAX_MEMBER_BYTES", 1000)    # the size the listing declares, not extracted
+    with pytest.raises(fmi.FmuFileError, match="unpacks to .* GiB"):
+        fmi.check_file(good)
+
+
+def test_unpacked_fmus_are_removed_when_the_process_ends(fmus, tmp_path):
+    code = ("import sys; from movingbase.scenarios.fmi import unpack; "
+            f"print(unpack({str(fmus['leg_sensor_fmu'])!r})[1])")
+    folder = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    assert folder and not pathlib.Path(folder).exists()
+
+
+# ------------------------------------------------------------------ Ctrl-C
+def _interrupted(tmp_path, args, ready):
+    """The command's (exit status, stderr) after Ctrl-C (SIGINT to its whole process
+    group, as a terminal sends it) once its stderr shows ``ready``."""
+    import signal
+    import threading
+    import time
+    process = subprocess.Popen([sys.executable, "-m", "movingbase", *map(str, args)], cwd=tmp_path,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
+    chunks = []
+    reader = threading.Thread(target=lambda: chunks.extend(iter(lambda: process.stderr.read1(4096), b"")))
+    reader.start()
+    deadline = time.monotonic() + 300
+    while ready not in b"".join(chunks) and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.1)
+    time.sleep(1.0)
+    os.killpg(process.pid, signal.SIGINT)
+    process.wait(timeout=120)
+    reader.join()
+    return process.returncode, b"".join(chunks).decode(errors="replace")
+
+
+def test_ctrl_c_on_a_sweep_and_a_campaign_ends_in_one_clear_line(tmp_path):
+    status, err = _interrupted(tmp_path, ["run", "telescope_slew", "--out", tmp_path / "o"], b"[fixed_base]")
+    assert status != 0 and "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    assert err.strip().splitlines()[-1].startswith("interrupted:"), err
+    status, err = _interrupted(tmp_path, ["campaign", "sky_slews", "--jobs", "2", "--out", tmp_path / "c"],
+                               b"on disk)")     # the progress bar: the workers are up
+    assert status != 0 and "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    assert [line for line in err.splitlines() if "interrupted" in line] == [
+        "interrupted: the runs finished so far are on disk; run the same command again to resume"], err
+
+
+def test_every_bad_value_of_a_campaign_is_reported_at_once(tmp_path):
+    path = tmp_path / "c.toml"
+    path.write_text(HEAD + 'set = { "base.colour" = 1 }\n[grid]\n"base.start_azimuth" = ["10 deg", "3 kg"]\n'
+                    '[[cases]]\n"controller.feedforward" = "sometimes"\n')
+    with pytest.raises(campaign.CampaignError) as info:
+        campaign.load(path)
+    lines = str(info.value).splitlines()
+    assert [line.split(": ", 2)[1] for line in lines] == [
+        "set.base.colour", "grid[0].base.start_azimuth[1]", "cases[0].controller.feedforward"], lines
