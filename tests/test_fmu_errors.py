@@ -59,7 +59,7 @@ def test_every_parameter_declares_a_range_that_holds_its_default(fmus, script):
         assert v.min is not None or v.max is not None, v.name
         start = float(v.start)
         assert (v.min is None or float(v.min) <= start) and (v.max is None or start <= float(v.max)), v.name
-        labels = re.findall(r"(\d+) \w+", v.description.split(":", 1)[-1]) if v.type == "Integer" else []
+        labels = re.findall(r"(\d+) \w+", v.description.split(":", 1)[-1]) if v.type in ("Integer", "Enumeration") else []
         if labels and v.name not in ("moving_base", "mode"):
             assert (int(v.min), int(v.max)) == (0, int(labels[-1])), (v.name, v.description)
 
