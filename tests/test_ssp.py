@@ -242,6 +242,29 @@ def test_fmpy_as_is_steps_first_with_zero_inputs_and_the_controller_refuses(case
         controller.terminate()
 
 
+def _fmpy_itself(path, stop, step):
+    """fmpy.ssp.simulate_ssp with no project code between (no parameter set, no initial
+    exchange): (error message or "no error", rows)."""
+    from fmpy.ssp.simulation import simulate_ssp
+    try:
+        return "no error", len(simulate_ssp(str(path), stop_time=stop, step_size=step))
+    except FMICallException as exc:
+        return str(exc), 0
+
+
+def test_plain_fmpy_simulate_ssp_stops_at_the_first_step(case):
+    """The plain host: fmpy 0.3.32 writes its connectors' initial 0.0 into every connected
+    input before the first doStep (fmpy/ssp/simulation.py: ``connector.value = 0.0``, then
+    do_step's set_value), so the FMUs' start values (the operating point, which a host that
+    steps without setting inputs does use: tests/test_defaults.py) never reach that step,
+    and the controller refuses the zero reference pose. What a plain fmpy user meets, kept
+    as a regression: it must fail at t = 0 with the controller's Discard, never run on."""
+    scenario, paths, descriptions, params, path, _ = case
+    with multiprocessing.get_context("spawn").Pool(1) as pool:
+        error, rows = pool.apply(_fmpy_itself, (path, 5 * scenario.step, scenario.step))
+    assert "fmi2DoStep failed with status 2" in error and rows == 0
+
+
 def test_export_refuses_what_it_cannot_write(case):
     scenario, paths, descriptions, params, _, folder = case
     bad = {inst: dict(v) for inst, v in params.items()}
