@@ -1,7 +1,7 @@
 """What every FMU of the kit shares: guarded stepping, vector variables with units.
 
 Why guarded: an exception escaping do_step gives fmi2Fatal, and the next doStep then
-crashes the importing process (shared/spec/fmi-notes.md). Every error is caught here,
+crashes the importing process (docs/conventions/fmi-notes.md). Every error is caught here,
 logged at error level with what went wrong and when, and answered with fmi2Discard
 (do_step returns False); the slave then stays failed and refuses further steps.
 

@@ -4,7 +4,7 @@ Why: the mechanism has a symbolic forward solution (x = x_A2, y = y_A1 + d, z fr
 closed form), so position, velocity, acceleration and the virtual-work slider forces are
 all closed-form and cheap enough for a real-time co-simulation plant.
 
-Conventions (spec /work/shared/spec/mechanism-3t.md; SI inside: m, rad, kg, N)
+Conventions (docs/conventions/mechanism-3t.md; SI inside: m, rad, kg, N)
 - Frame O at the static-platform centre, y along the rails of A1 and A3, z up, gravity
   g = 9.8 m/s^2 along -z.  Actuator vector rho = (x_A2, y_A1, y_A3), always in that order.
 - A1 = (a, y_A1, 0), A2 = (x_A2, b, 0), A3 = (-a, y_A3, 0), B_i = A_i + (0, 0, l1).

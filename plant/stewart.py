@@ -1,6 +1,6 @@
 """The 6-UPS subreflector hexapod (Yao et al. 2018): kinematics and Kane dynamics.
 
-Conventions are those of shared/spec/stewart-6ups.md. Decisions the spec leaves open:
+Conventions are those of docs/conventions/stewart-6ups.md. Decisions the spec leaves open:
 
 * Generalised speeds u = (v, w): the velocity of o_P and the angular velocity of {P},
   both *relative to the base* and expressed in {B}. The public functions take and return

@@ -1,6 +1,6 @@
 """The telescope that moves the hexapod's base: axis profiles -> base and reference motion.
 
-Law: shared/spec/telescope.md; frames and poses: shared/spec/stewart-6ups.md. SI inside
+Law: docs/conventions/telescope.md; frames and poses: docs/conventions/stewart-6ups.md. SI inside
 (m, rad, s); angles are radians in every argument. All functions are vectorised over a
 1-D array of times and every derivative is analytic (chain rule), so a consumer never
 differences samples.

@@ -1,7 +1,7 @@
 """Command line: run scenario files (or shipped scenario names) and write their reports.
 
     movingbase run [SCENARIO ...] [--out DIR] [--ci] [--quiet] [--jobs N] [--dask tcp://HOST:PORT]
-                        [--implementation native|python]
+                        [--implementation native|python] [--csv]
     movingbase run SCENARIO --ssp FILE.ssp      (export for other FMI tools instead)
 
 Without a scenario it runs the main job: the telescope slew (FMUs built first) and the
@@ -12,6 +12,7 @@ import sys
 
 from .paper_forces import main as paper_charts
 from .runner import SHIPPED, prepare, resolve, run_scenario
+from .records import run_records
 from .spec import IMPLEMENTATIONS, ScenarioError, sweep_value
 from .ssp import export_ssp
 
@@ -36,6 +37,8 @@ def main(argv=None, prog="movingbase run"):
     parser.add_argument("--dask", metavar="ADDR", help="run the sweep values on the Dask cluster at ADDR")
     parser.add_argument("--implementation", choices=IMPLEMENTATIONS,
                         help="run every FMU as this implementation, whatever the file chooses")
+    parser.add_argument("--csv", action="store_true",
+                        help="also export each run's records as CSV (<label>.csv beside its <label>.npz)")
     parser.add_argument("--ssp", metavar="FILE", help="export the (one) scenario as an SSP file, first sweep value")
     args = parser.parse_args(argv)
     names = args.scenarios or ["telescope_slew"]
@@ -64,6 +67,10 @@ def main(argv=None, prog="movingbase run"):
             errors.append(f"scenario error: {exc}")
             continue
         print(f"{scenario.name}: report {report}")
+        if args.csv:
+            for run in runs:
+                if run.record_path:
+                    run_records(run).to_csv(run.record_path.with_suffix(".csv"))
         for run in runs:
             if run.failure:
                 print(f"  {run.label}: FAILED after {run.steps} steps ({run.sim_time:g} s); partial results kept")

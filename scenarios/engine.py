@@ -17,7 +17,7 @@ Why this shape:
   stepping them from threads is slower), and never raises for a failed run: the failure
   comes back as a result with its message, and the other runs go on.
 * Results come back to the client, which writes them (so workers need no shared disk):
-  ``<key>.npz`` (metric series), ``<key>.csv.gz`` (recorded variables, if kept), then
+  ``<key>.npz`` (metric series), ``<key>.records.npz`` (recorded variables, if kept), then
   ``<key>.json`` last, atomically: a run counts as done exactly when its JSON exists.
   An interrupted campaign (Ctrl-C, a killed worker or client) resumes by skipping the
   keys on disk. At most a few jobs per worker are in flight, so the client's memory
@@ -29,7 +29,6 @@ through JSON as their repr (exact) and series through npz.
 """
 import atexit
 import dataclasses
-import gzip
 import hashlib
 import json
 import logging
@@ -47,6 +46,8 @@ from tqdm import tqdm
 
 from . import master, metrics
 from .spec import Link
+
+RECORDS = ".records.npz"     # a kept run's recorded variables (scenarios.records), next to <key>.json
 
 # Dask's statistical profiler samples the worker's threads every 10 ms: it took ~13 % of a
 # run's CPU (benchmarks/bench_campaign.py). Off for local workers; for a cluster's workers
@@ -129,20 +130,19 @@ def execute(job, blobs):
     with _RUN_LOCK:
         began, cpu = time.perf_counter(), time.process_time()
         out = {"key": job.key, "label": job.label, "worker": f"{socket.gethostname()}:{os.getpid()}"}
-        with tempfile.TemporaryDirectory(prefix="movingbase-run-") as tmp:
-            csv_path = pathlib.Path(tmp) / "run.csv"
-            try:
-                paths = {inst: _local_fmu(digest, blobs) for inst, digest in job.fmus.items()}
-                out.update(status="ok", **_outcome(master.run(
-                    job.scenario, paths, job.parameters, pathlib.Path(tmp), "run",
-                    [metrics.make(m) for m in job.scenario.metrics])))
-            except Exception as exc:          # the run's failure is a result; others go on
-                partial = getattr(exc, "run", None)   # what a run that stopped early did
-                out.update(status="failed", error=getattr(partial, "failure", "") or f"{type(exc).__name__}: {exc}")
-                if partial is not None:
-                    out.update(_outcome(partial))
-            if job.keep_record and csv_path.exists():
-                out["record"] = gzip.compress(csv_path.read_bytes(), compresslevel=1)
+        partial = None
+        try:
+            paths = {inst: _local_fmu(digest, blobs) for inst, digest in job.fmus.items()}
+            partial = master.run(job.scenario, paths, job.parameters, None, "run",
+                                 [metrics.make(m) for m in job.scenario.metrics])
+            out.update(status="ok", **_outcome(partial))
+        except Exception as exc:          # the run's failure is a result; others go on
+            partial = getattr(exc, "run", None)   # what a run that stopped early did
+            out.update(status="failed", error=getattr(partial, "failure", "") or f"{type(exc).__name__}: {exc}")
+            if partial is not None:
+                out.update(_outcome(partial))
+        if job.keep_record and partial is not None and partial.records is not None:
+            out["record"] = partial.records     # in memory; no record kept: nothing written
         out["task_time_s"] = time.perf_counter() - began
         out["task_cpu_s"] = time.process_time() - cpu     # this process's CPU (the worker's own threads too)
         return out
@@ -151,7 +151,7 @@ def execute(job, blobs):
 # ------------------------------------------------------------------------ results on disk
 class Store:
     """One folder of run results keyed by run key: <key>.json (written last), <key>.npz,
-    <key>.csv.gz."""
+    <key>.records.npz (scenarios.records)."""
 
     def __init__(self, folder):
         self.folder = pathlib.Path(folder)
@@ -182,7 +182,9 @@ class Store:
     def write(self, job, result):
         key = job.key
         if "record" in result:
-            self._atomic(self.path(key, ".csv.gz"), result.pop("record"))
+            tmp = self.path(key, ".part.npz")
+            result.pop("record").save(tmp)
+            os.replace(tmp, self.path(key, RECORDS))
         if "series" in result:
             series = result.pop("series")
             with tempfile.NamedTemporaryFile(dir=self.folder, suffix=".npz", delete=False) as tmp:
@@ -355,7 +357,7 @@ def prepared_jobs(scenario, paths, values, cases, keep_record=True):
 
 def run_sweep(scenario, paths, descriptions, values, items, outdir, jobs=None, address=None, progress=True):
     """A scenario's sweep values through the engine: master.Run objects in sweep order,
-    CSVs as outdir/<label>.csv like the sequential runner; results under outdir/runs
+    records as outdir/<label>.npz like the sequential runner; results under outdir/runs
     (an interrupted sweep resumes)."""
     from .spec import sweep_value
     cases = []
@@ -372,11 +374,11 @@ def run_sweep(scenario, paths, descriptions, values, items, outdir, jobs=None, a
     for job in job_list:
         if store.status(job.key) is None:
             raise RuntimeError(f"run {job.label} of {scenario.name} was not run: {outcome.failed.get(job.key)}")
-        record, csv_path = store.read(job.key), None       # no CSV: refused before the first row
-        if store.path(job.key, ".csv.gz").exists():
-            csv_path = pathlib.Path(outdir) / f"{job.label}.csv"
-            csv_path.write_bytes(gzip.decompress(store.path(job.key, ".csv.gz").read_bytes()))
-        run = master.Run(job.label, csv_path, record.get("steps", 0), record.get("run_time_s", 0.0),
+        record, record_path = store.read(job.key), None    # no records: refused before the first row
+        if store.path(job.key, RECORDS).exists():
+            record_path = pathlib.Path(outdir) / f"{job.label}.npz"
+            shutil.copyfile(store.path(job.key, RECORDS), record_path)
+        run = master.Run(job.label, record_path, record.get("steps", 0), record.get("run_time_s", 0.0),
                          record.get("sim_time_s", 0.0), record.get("metrics", {}),
                          store.series(job.key) if store.path(job.key, ".npz").exists() else {})
         if record["status"] != "ok":

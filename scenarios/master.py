@@ -1,5 +1,5 @@
 """The co-simulation master: fixed-step Jacobi or Gauss-Seidel over fmpy FMU2Slave
-instances, optional linear input extrapolation, results streamed to CSV.
+instances, optional linear input extrapolation, results recorded into numpy arrays.
 
 Jacobi: every FMU gets the outputs of t_k, then all step to t_k+1 (a one-step delay on
 every connection; what fmpy.ssp.simulate_ssp does too). Gauss-Seidel: FMUs step one after
@@ -12,11 +12,12 @@ record points; Python sets up, records, feeds the metrics and reports.
 
 Every FMI call is status-checked (scenarios.fmi); a Discard/Error stops the run with
 RunFailed: one line naming the instance, the time and the FMU's error log line, and the
-run so far (the rows recorded stay in the CSV, the metrics cover them). Memory stays
-flat: rows go to disk as they come, metrics keep running sums.
+run so far (the rows recorded so far are kept and written, the metrics cover them).
+Records go into arrays preallocated for the record grid (scenarios.records), written once
+as npz; metrics keep running sums.
 """
-import csv
 import ctypes
+import pathlib
 import re
 import time
 from dataclasses import dataclass, field
@@ -25,6 +26,7 @@ import numpy as np
 
 from ._cosim import ffi, lib
 from .fmi import _LABELS, FmuError, Instance, RealPort
+from .records import Records
 from .spec import Link, expand
 
 
@@ -33,13 +35,14 @@ class Run:
     """What one run produced: where, how long, and its metrics."""
 
     label: str
-    csv_path: object
+    record_path: object     # the records' npz file (None: not written)
     steps: int
     wall_time: float
     sim_time: float
     metrics: dict = field(default_factory=dict)
     series: dict = field(default_factory=dict)
     failure: str = ""       # why the run stopped early ("" if it reached stop_time)
+    records: object = None  # scenarios.records.Records (None: the run failed before recording began)
 
     @property
     def real_time_factor(self):
@@ -210,37 +213,36 @@ class Loop:
 
 
 class Recorder:
-    """Recorded variables streamed to CSV with units in the header; metrics fed at each row."""
+    """Recorded variables into preallocated arrays (scenarios.records: one row per record
+    point, units with the names; no per-float formatting), read with one FMI call per
+    instance; metrics fed at each row."""
 
-    def __init__(self, path, scenario, instances, metrics):
+    def __init__(self, scenario, instances, metrics, rows):
         md = {inst: i.variables for inst, i in instances.items()}
         wanted = list(dict.fromkeys(scenario.record + [r for m in metrics for r in m.needs]))
-        self.columns, self.ports, self.slices = [], [], {}
-        offset = 0
+        names, units, columns, self.slices = [], [], {}, {}
         for reference in wanted:
             inst = reference.split(".", 1)[0]
-            names = expand(md[inst], reference)
-            self.ports.append((RealPort(instances[inst], names), slice(offset, offset + len(names))))
-            self.slices[reference] = slice(offset, offset + len(names))
-            self.columns += [f"{inst}.{n} [{md[inst][n].unit or '1'}]" for n in names]
-            offset += len(names)
-        self.row = np.zeros(offset)
+            expanded = expand(md[inst], reference)
+            self.slices[reference] = slice(len(names), len(names) + len(expanded))
+            for n in expanded:
+                columns.setdefault(inst, []).append((n, len(names)))
+                names.append(f"{inst}.{n}")
+                units.append(md[inst][n].unit or "1")
+        self.ports = [(RealPort(instances[inst], [n for n, _ in cols]), np.array([j for _, j in cols]))
+                      for inst, cols in columns.items()]
+        self.records = Records(names, units, rows)
+        self.row = np.zeros(len(names))
+        self.values = {ref: self.row[s] for ref, s in self.slices.items()}   # views of row
         self.metrics = metrics
-        self.file = open(path, "w", newline="")
-        csv.writer(self.file).writerow(["time [s]"] + self.columns)
 
     def record(self, t):
         for port, where in self.ports:
             self.row[where] = port.read()
-        # the bytes csv.writer gives (numbers need no quoting), a quarter cheaper: shortest repr, \r\n
-        self.file.write(",".join(map(repr, [t] + self.row.tolist())) + "\r\n")
-        values = {ref: self.row[s] for ref, s in self.slices.items()}
+        self.records.append(t, self.row)
         for metric in self.metrics:
             if t >= metric.start - 1e-12:
-                metric.update(t, values)
-
-    def close(self):
-        self.file.close()
+                metric.update(t, self.values)
 
 
 def start(scenario, fmu_paths, parameters, instances):
@@ -263,19 +265,22 @@ def start(scenario, fmu_paths, parameters, instances):
 CHUNK = 2048   # most macro steps per C call: Ctrl-C is seen within one (~10 ms native, ~0.1 s pythonfmu)
 
 
-def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progress=None):
+def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), progress=None):
     """Co-simulate ``scenario`` once. ``fmu_paths``: instance -> FMU file; ``parameters``:
-    instance -> {variable: value} (already converted, see spec.bind); results go to
-    outdir/<label>.csv. ``progress(done_fraction)`` is called about 200 times."""
+    instance -> {variable: value} (already converted, see spec.bind). The records stay in
+    memory (Run.records); with an ``outdir`` they are also written to outdir/<label>.npz
+    (also those of a run that fails or is interrupted). ``progress(done_fraction)`` is
+    called about 200 times."""
     instances = {}
     recorder = None
     h, t0 = scenario.step, scenario.start_time
     steps = int(round((scenario.stop_time - t0) / h))
+    every = int(round(scenario.record_interval / h))
+    path = None if outdir is None else pathlib.Path(outdir) / f"{label}.npz"
     done, failure, began = 0, None, time.perf_counter()
     try:
         exchange, _ = start(scenario, fmu_paths, parameters, instances)
-        recorder = Recorder(outdir / f"{label}.csv", scenario, instances, list(metrics))
-        every = int(round(scenario.record_interval / h))
+        recorder = Recorder(scenario, instances, list(metrics), steps // every + 1)
         order = step_order(scenario, parameters) if scenario.master == "gauss-seidel" else list(scenario.fmus)
         loop = Loop(exchange, instances, order, scenario.master == "gauss-seidel",
                     scenario.extrapolation == "linear", t0, h)
@@ -298,14 +303,14 @@ def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progre
         failure = error
     finally:
         wall = time.perf_counter() - began
-        if recorder:
-            recorder.close()
+        if recorder and path:
+            recorder.records.save(path)
         for instance in instances.values():
             instance.terminate()
     series = {m.name: m.series() for m in metrics}
     series.update({m.rotation.name: m.rotation.series() for m in metrics if hasattr(m, "rotation")})  # [rad]
-    result = Run(label, outdir / f"{label}.csv" if recorder else None, done, wall, done * h,
-                 {m.name: m.result() for m in metrics}, series)
+    result = Run(label, path if recorder else None, done, wall, done * h,
+                 {m.name: m.result() for m in metrics}, series, records=recorder.records if recorder else None)
     if failure is not None:
         result.failure = failure_line(failure, instances)
         raise RunFailed(str(failure), result) from None

@@ -6,13 +6,13 @@ what the base motion adds and why.
 The sentences and numbers comparing the runs come from ``compare`` and ``fmt``, which
 the README's generated headline (``scenarios.headline``) uses too: one source for each
 number."""
-import csv
-
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+
+from .records import run_records
 
 MARKS_UM = {"0.1 mm": 100.0, "10 µm": 10.0}
 TRACKING = ("leg_tracking", "pose_tracking", "tracking")
@@ -109,21 +109,21 @@ def _telescope(scenario):
 
 def base_motion(scenario, run):
     """Time, rates [deg/s] and accelerations [deg/s^2] (differenced from the recorded
-    rates) of the scenario's telescope axes, read from the run's CSV; None if the axis
-    rates were not recorded (or the run failed before writing any), or the plant holds its
+    rates) of the scenario's telescope axes, from the run's records; None if the axis
+    rates were not recorded (or the run failed before recording any), or the plant holds its
     base fixed (moving_base = 0)."""
     inst = _telescope(scenario)
     plants = [i for i, fmu in scenario.fmus.items() if fmu == "hexapod_plant"]
-    if inst is None or run.csv_path is None or (plants and all(str(scenario.parameters.get(i, {}).get("moving_base", 1)) == "0"
+    if inst is None or (plants and all(str(scenario.parameters.get(i, {}).get("moving_base", 1)) == "0"
                                        for i in plants)):
         return None     # no telescope, or its motion is not applied to the plant
-    with open(run.csv_path, newline="") as f:
-        header = next(csv.reader(f))
-    want = [f"{inst}.axis_rate[{k}] [rad/s]" for k in (1, 2)]
-    if not all(w in header for w in want):
+    records = run_records(run)
+    if records is None:
         return None
-    columns = [0] + [header.index(w) for w in want]
-    data = np.loadtxt(run.csv_path, delimiter=",", skiprows=1, usecols=columns, ndmin=2)
+    want = [f"{inst}.axis_rate[{k}]" for k in (1, 2)]
+    if not all(w in records.names for w in want):
+        return None
+    data = np.column_stack([records.time] + [records[w] for w in want])
     t, rate = data[:, 0], np.degrees(data[:, 1:])
     if len(t) < 3:
         return None
@@ -149,7 +149,7 @@ def _error_chart(scenario, runs, metric, path):
     floored at FLOOR, the settling cut-off marked; a pose metric gets a position and a
     rotation panel; the telescope's axis rates and accelerations underneath on the same
     time axis. Returns the figure's data panels {title: axes} (the figure is closed)."""
-    motion = base_motion(scenario, next((r for r in runs if r.csv_path), runs[0]))
+    motion = base_motion(scenario, next((r for r in runs if r.records is not None or r.record_path), runs[0]))
     rows = [("position", 1e0, "µm", MARKS_UM)]
     if metric.kind == "pose_tracking":
         rows = [("position", 1.0, "µm", MARKS_UM), ("rotation", 1e6, "µrad", None)]
@@ -334,8 +334,8 @@ def write(scenario, runs, outdir):
     if tracked and len(runs) > 1:
         _summary_chart(scenario, runs, tracked, outdir / "summary.png")
         lines += ["![summary](summary.png)", ""]
-    lines += [f"Results per run: {', '.join(f'`{r.csv_path.name}`' for r in runs if r.csv_path)} "
-              "(CSV, units in the header)."]
+    lines += [f"Results per run: {', '.join(f'`{r.record_path.name}`' for r in runs if r.record_path)} "
+              "(npz, one array per column named with its unit: `pandas.DataFrame(dict(numpy.load(file)))`)."]
     path = outdir / "report.md"
     path.write_text("\n".join(lines) + "\n")
     return path

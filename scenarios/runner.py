@@ -33,6 +33,11 @@ def prepare(path, ci=False, implementation=None):
     scenario = spec.load(path)
     if ci and scenario.ci:
         scenario = spec.load(path, overrides=scenario.ci)
+    return prepare_loaded(scenario, implementation)
+
+
+def prepare_loaded(scenario, implementation=None):
+    """prepare for a Scenario already loaded (and changed in Python, scenarios.api)."""
     if implementation is not None:
         if implementation not in spec.IMPLEMENTATIONS:
             raise ValueError(f"implementation must be one of {spec.IMPLEMENTATIONS}, got {implementation!r}")
@@ -82,7 +87,16 @@ def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None,
               "(a first build takes ~10 s)", file=sys.stderr, flush=True)
     scenario, paths, descriptions, values = prepare(resolve(path), ci, implementation)
     outdir = pathlib.Path(out) / scenario.name
-    outdir.mkdir(parents=True, exist_ok=True)
+    runs = run_prepared(scenario, paths, descriptions, values, outdir, progress, jobs, dask)
+    return scenario, runs, write_results(scenario, runs, outdir)
+
+
+def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=True, jobs=None, dask=None):
+    """Run every sweep value of a prepared scenario; returns the master.Run objects. Each
+    run's records go to outdir/<label>.npz; with no ``outdir`` nothing is written (runs in
+    this process only: the engine stores its results on disk)."""
+    if outdir is not None:
+        outdir.mkdir(parents=True, exist_ok=True)
     items = scenario.sweep[1] if scenario.sweep else [None]
     runs = []
     if jobs or dask:   # the values on worker processes or a Dask cluster (scenarios.engine)
@@ -112,11 +126,17 @@ def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None,
         finally:
             bar.update(100 - bar.n)
             bar.close()
+    return runs
+
+
+def write_results(scenario, runs, outdir):
+    """metrics.json, the charts and report.md of the runs into outdir; the report's path."""
     summary = {r.label: {"metrics": r.metrics, "wall_time_s": r.wall_time, "steps": r.steps,
                          "real_time_factor": r.real_time_factor, **({"failed": r.failure} if r.failure else {})}
                for r in runs}
+    outdir.mkdir(parents=True, exist_ok=True)
     (outdir / "metrics.json").write_text(json.dumps(_no_nan(summary), indent=2, default=float))
-    return scenario, runs, report.write(scenario, runs, outdir)
+    return report.write(scenario, runs, outdir)
 
 
 def _no_nan(value):

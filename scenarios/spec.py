@@ -4,7 +4,8 @@ A scenario names FMUs (by the kit's FMU names) with their parameters, the connec
 between them, the time grid, the master algorithm, what to record, the metrics to report
 and optionally one parameter to sweep. Every error points at the file, the key and the
 problem. Quantities may carry units ("1 ms", "30 deg"); they are converted to SI here,
-checked against the unit the FMU declares. The format is documented in the README's "Scenarios" section.
+checked against the unit the FMU declares. The format: docs/scenarios.md and the
+scenario-file reference generated from KEYS below (docs/generate.py).
 
 A parameter written "@inst.var" takes the value of that output of another FMU at the
 start time (e.g. the plant's initial pose from the telescope's reference pose).
@@ -52,6 +53,42 @@ METRIC_KINDS = {  # kind -> required keys
 }
 _TOP_KEYS = {"name", "description", "start_time", "stop_time", "step", "master", "extrapolation",
              "fmus", "connections", "record", "metrics", "sweep", "ci", "fidelity_tolerance"}
+_REQUIRED = "required"
+# Every key of a scenario file: key -> (what it takes, default, meaning), in the order the
+# reference lists them. The scenario-file reference is generated from this table and the
+# constants above (docs/generate.py); tests/test_docs.py holds it to what parse() accepts,
+# refuses and fills in, so a key added to the checker without a line here fails a test.
+KEYS = {
+    "name": ("string", "the file's name without .toml", "report title and output folder"),
+    "description": ("string", "empty", "text under the report's title"),
+    "start_time": ("time", "0 s", "start of the time grid"),
+    "stop_time": ("time", _REQUIRED, "end of the time grid: a whole number of steps after start_time"),
+    "step": ("time", _REQUIRED, "communication step of the master"),
+    "master": (" or ".join(f'"{m}"' for m in MASTERS), f'"{MASTERS[0]}"',
+               "Jacobi (every FMU steps on the others' outputs of the last step) or Gauss-Seidel "
+               "(in the order of the connection graph)"),
+    "extrapolation": (" or ".join(f'"{e}"' for e in EXTRAPOLATIONS), f'"{EXTRAPOLATIONS[0]}"',
+                      "inputs from FMUs not yet stepped: held, or extrapolated linearly"),
+    "fidelity_tolerance": ("force", "none", 'with a hexapod_plant fidelity = "auto": the cheapest fidelity '
+                           "level whose leg-force error along the scene stays within it"),
+    "fmus.<instance>.fmu": (", ".join(FMU_SCRIPTS), _REQUIRED, "which of the kit's FMUs this instance is"),
+    "fmus.<instance>.implementation": (" or ".join(f'"{i}"' for i in IMPLEMENTATIONS), f'"{IMPLEMENTATIONS[0]}"',
+                                       "the native C FMU (no Python in the host) or the pythonfmu one"),
+    "fmus.<instance>.parameters": ("table of values", "the FMU's start values",
+                                   'values with units ("30 deg"), enumeration names ("slew"), lists for '
+                                   'vectors, or "@instance.output" (that output at the start time)'),
+    "connections[].from": ('"instance.output"', _REQUIRED, "the output; a vector connects element-wise"),
+    "connections[].to": ('"instance.input" or a list of them', _REQUIRED,
+                         "the inputs it feeds; every input has exactly one source"),
+    "record.interval": ("time", "step", "recording interval: a whole multiple of step"),
+    "record.variables": ('list of "instance.variable"', "none", "what the CSV records"),
+    "metrics[].kind": (", ".join(METRIC_KINDS), _REQUIRED, "what the metric computes (table below)"),
+    "metrics[].name": ("string", "the kind", "the metric's name in the report and metrics.json"),
+    "metrics[].from": ("time", "0 s", "the metric counts from this time on (after settling)"),
+    "sweep.parameter": ('"instance.parameter"', _REQUIRED, "the parameter to sweep: one run per value"),
+    "sweep.values": ("non-empty list of values", _REQUIRED, "its values, written as in parameters"),
+    "ci": ("table of top-level keys", "none", "what replaces them in the short CI run (--ci)"),
+}
 
 
 class ScenarioError(ValueError):

@@ -13,7 +13,6 @@ import argparse
 import dataclasses
 import pathlib
 import statistics
-import tempfile
 import time
 
 import numpy as np
@@ -21,6 +20,7 @@ import numpy as np
 from movingbase.plant.stewart import FIDELITIES, HOME_POSE, StewartParams, inverse_dynamics
 from movingbase.scenarios import fidelity, master, runner
 from movingbase.scenarios.fmi import Instance, RealPort
+from movingbase.scenarios.records import run_records
 
 SCENES = ("paper_manoeuvre", "telescope_slew", "keyhole_tracking")
 OUT = pathlib.Path(__file__).resolve().parent.parent / "docs" / "fidelity.md"
@@ -51,12 +51,11 @@ def pose_deviation(name, ci):
     scenario, paths, _, values = runner.prepare(runner.resolve(name), ci=ci)
     scenario = dataclasses.replace(scenario, metrics=[], record=["plant.pose"])
     values["controller"]["feedforward"] = 2
-    out = pathlib.Path(tempfile.mkdtemp())
     poses = {}
     for level in FIDELITIES:
         values["plant"]["fidelity"] = FIDELITIES.index(level)
-        run = master.run(scenario, paths, values, out, level, [])
-        poses[level] = np.loadtxt(run.csv_path, delimiter=",", skiprows=1)[:, 1:4]
+        run = master.run(scenario, paths, values, None, level, [])   # records in memory only
+        poses[level] = run_records(run).values[:, :3]
     return {level: float(np.linalg.norm(poses[level] - poses["full"], axis=1).max() * 1e6) for level in FIDELITIES}
 
 

@@ -46,7 +46,6 @@ Run ``python -m studies.work_precision [--scenes ...] [--repeats N] [--quick]``;
 table per scene and writes docs/figures/work_precision_<scene>.png.
 """
 import argparse
-import csv
 import dataclasses
 import json
 import pathlib
@@ -61,6 +60,7 @@ from movingbase.plant.integrators import INTEGRATORS
 from movingbase.plant.stewart import FIDELITIES
 from movingbase.scenarios import master, runner, spec
 from movingbase.scenarios.fmi import FmuError
+from movingbase.scenarios.records import run_records
 
 from . import reference
 
@@ -217,12 +217,10 @@ def cosimulate(prep, config, outdir, stop_time=None):
         paths = runner.fmu_paths(dataclasses.replace(scenario, implementations={**scenario.implementations,
                                                                                 plant: "python"}))
     run = master.run(scenario, paths, params, pathlib.Path(outdir), "run")
-    with open(run.csv_path) as f:
-        header = next(csv.reader(f))
-    data = np.loadtxt(run.csv_path, delimiter=",", skiprows=1, ndmin=2)
-    pose = [k for k, c in enumerate(header) if c.startswith("plant.pose[")]
-    force = [k for k, c in enumerate(header) if c.startswith("controller.leg_force[")]
-    return run.wall_time, data[:, 0], data[:, pose], data[:, force]
+    records = run_records(run)
+    pose = [k for k, c in enumerate(records.names) if c.startswith("plant.pose[")]
+    force = [k for k, c in enumerate(records.names) if c.startswith("controller.leg_force[")]
+    return run.wall_time, records.time, records.values[:, pose], records.values[:, force]
 
 
 _PROBE = """

@@ -40,7 +40,7 @@ fictitious force appears: the base motion enters only through the absolute
 world trajectory of each body, the accelerations come from automatic
 differentiation, and the actuator forces come from the equilibrium of
 explicit reactions.  The geometry and mass tables are rebuilt here from the
-spec (/work/shared/spec/stewart-6ups.md) and nothing is imported from plant/.
+spec (docs/conventions/stewart-6ups.md) and nothing is imported from plant/.
 """
 from __future__ import annotations
 

@@ -327,7 +327,7 @@ def _cosim(tmp_path, gains, seconds=3.0):
     path = tmp_path / f"{data['name']}.toml"
     path.write_text(study.toml_text(data))
     [run] = runner.run_scenario(path, tmp_path / "out", ci=True, progress=False)[1]
-    rows = np.loadtxt(run.csv_path, delimiter=",", skiprows=1)
+    rows = np.column_stack([run.records.time, run.records.values])
     return run.metrics["leg error"]["rms"], rows[rows[:, 0] > 1.5, 1:]
 
 

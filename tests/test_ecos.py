@@ -15,7 +15,7 @@ import pytest
 from movingbase.scenarios import master, ssp
 from movingbase.scenarios.fmi import FmuError
 from tests.test_native_fmus import _scales, native  # noqa: F401 - native: the session fixture
-from tests.test_ssp import RECORD, columns, configure, read_csv
+from tests.test_ssp import RECORD, columns, configure, run_columns
 
 try:
     from ecospy import EcosLib, EcosSimulation
@@ -50,7 +50,7 @@ def test_ecos_runs_the_exported_ssp_as_our_master_does(request, implementation, 
     fmus = request.getfixturevalue("native" if implementation == "native" else "fmus")
     scenario, paths, descriptions, params = configure(fmus)
     path = ssp.export_ssp(scenario, paths, params, tmp_path / "slew.ssp")
-    ours = read_csv(master.run(scenario, paths, params, tmp_path, "ours").csv_path)
+    ours = run_columns(master.run(scenario, paths, params, tmp_path, "ours"))
     names = columns(scenario, descriptions, RECORD)
     theirs = run_ecos(path, scenario, names)
     assert theirs.shape == (round(scenario.stop_time / scenario.step), len(names))
@@ -66,7 +66,7 @@ def test_ecos_applies_a_choice_other_than_the_default(native, tmp_path):
     """feedforward = none (the default is moving_base): ecos must compute it, as ours does."""
     scenario, paths, descriptions, params = configure(native, "none", stop=0.05)
     path = ssp.export_ssp(scenario, paths, params, tmp_path / "none.ssp")
-    ours = read_csv(master.run(scenario, paths, params, tmp_path, "ours").csv_path)
+    ours = run_columns(master.run(scenario, paths, params, tmp_path, "ours"))
     names = columns(scenario, descriptions, ["controller.leg_force", "plant.pose"])
     assert _compare(run_ecos(path, scenario, names), ours, names) <= 1e-12
 
@@ -77,7 +77,7 @@ def test_the_old_naming_ran_on_defaults(native, tmp_path):
     defaults; the pose differs from the scenario's by the amount printed."""
     scenario, paths, descriptions, params = configure(native)
     path = ssp.export_ssp(scenario, paths, params, tmp_path / "slew.ssp")
-    ours = read_csv(master.run(scenario, paths, params, tmp_path, "ours").csv_path)
+    ours = run_columns(master.run(scenario, paths, params, tmp_path, "ours"))
     names = columns(scenario, descriptions, ["plant.pose"])
     unbound = run_ecos(path, scenario, names, parameter_set=None)
     bound = run_ecos(path, scenario, names)

@@ -25,7 +25,7 @@ from libcosimpy.CosimObserver import CosimObserver
 
 from movingbase.scenarios import master, ssp
 from tests.test_native_fmus import _scales, native  # noqa: F401 - native: the session fixture
-from tests.test_ssp import RECORD, columns, configure, read_csv
+from tests.test_ssp import RECORD, columns, configure, run_columns
 
 
 def run_libcosim(path, scenario, descriptions, names):
@@ -53,7 +53,7 @@ def test_libcosim_runs_the_exported_ssp_as_our_master_does(request, implementati
     scenario, paths, descriptions, params = configure(fmus)
     assert set(paths.values()) <= set(fmus.values()) and scenario.master == "jacobi"
     path = ssp.export_ssp(scenario, paths, params, tmp_path / "slew.ssp")
-    ours = read_csv(master.run(scenario, paths, params, tmp_path, "ours").csv_path)
+    ours = run_columns(master.run(scenario, paths, params, tmp_path, "ours"))
     names = columns(scenario, descriptions, RECORD)
     theirs = run_libcosim(path, scenario, descriptions, names)
     assert theirs.shape == (round(scenario.stop_time / scenario.step), len(names))

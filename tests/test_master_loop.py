@@ -1,9 +1,12 @@
-"""The master's stepping loop in C (scenarios/c/cosim.c) against the per-step numpy loop
-it replaced, kept here as the independent reference (a copy of that code driving the
-same FMUs through fmpy's ctypes functions): full CSVs byte for byte for every shipped
-scenario's [ci] version, Jacobi and Gauss-Seidel, with and without linear extrapolation,
-native and pythonfmu FMUs; and the same failure message and partial rows when an FMU
-call fails mid-run (doStep, setReal or getReal)."""
+"""The master's stepping loop in C (scenarios/c/cosim.c) and its recording into arrays
+(scenarios.records, written as npz) against the per-step numpy loop and the CSV recorder
+they replaced, kept here as the independent reference (a copy of that code driving the
+same FMUs through fmpy's ctypes functions): the npz file read back and exported as CSV is
+byte for byte the CSV the reference streamed, for every shipped scenario's [ci] version,
+Jacobi and Gauss-Seidel, with and without linear extrapolation, native and pythonfmu
+FMUs; and the same failure message and partial rows when an FMU call fails mid-run
+(doStep, setReal or getReal)."""
+import csv
 import ctypes
 import dataclasses
 import time
@@ -13,6 +16,7 @@ import pytest
 
 from movingbase.scenarios import master, metrics, runner, spec
 from movingbase.scenarios.fmi import FmuError, Instance, RealPort
+from movingbase.scenarios.records import read_records
 from movingbase.scenarios.spec import Link, expand
 
 MASTERS = [("jacobi", "none"), ("jacobi", "linear"), ("gauss-seidel", "none"), ("gauss-seidel", "linear")]
@@ -80,6 +84,43 @@ class ReferenceExchange:
         port.write(values)
 
 
+class ReferenceRecorder:
+    """The recorder before the arrays: every row formatted in Python (repr, CRLF) and
+    streamed to CSV, verbatim; its reads made as master.Recorder makes them (one getReal
+    per instance, so that the failing-call tests below count the same calls)."""
+
+    def __init__(self, path, scenario, instances, metrics):
+        md = {inst: i.variables for inst, i in instances.items()}
+        wanted = list(dict.fromkeys(scenario.record + [r for m in metrics for r in m.needs]))
+        self.columns, self.slices, per_instance = [], {}, {}
+        offset = 0
+        for reference in wanted:
+            inst = reference.split(".", 1)[0]
+            names = expand(md[inst], reference)
+            per_instance.setdefault(inst, []).extend((n, offset + k) for k, n in enumerate(names))
+            self.slices[reference] = slice(offset, offset + len(names))
+            self.columns += [f"{inst}.{n} [{md[inst][n].unit or '1'}]" for n in names]
+            offset += len(names)
+        self.ports = [(RealPort(instances[inst], [n for n, _ in cols]), [k for _, k in cols])
+                      for inst, cols in per_instance.items()]
+        self.row = np.zeros(offset)
+        self.metrics = metrics
+        self.file = open(path, "w", newline="")
+        csv.writer(self.file).writerow(["time [s]"] + self.columns)
+
+    def record(self, t):
+        for port, where in self.ports:
+            self.row[where] = port.read()
+        self.file.write(",".join(map(repr, [t] + self.row.tolist())) + "\r\n")
+        values = {ref: self.row[s] for ref, s in self.slices.items()}
+        for metric in self.metrics:
+            if t >= metric.start - 1e-12:
+                metric.update(t, values)
+
+    def close(self):
+        self.file.close()
+
+
 def reference_run(scenario, fmu_paths, parameters, outdir, label, metric_list):
     """Today's master.run with its per-step Python loop (start included: it initialises
     through the reference exchange)."""
@@ -97,7 +138,7 @@ def reference_run(scenario, fmu_paths, parameters, outdir, label, metric_list):
                         for name, v in parameters.get(inst, {}).items()}
             instances[inst].initialize(scenario.start_time, {**resolved, **exchange.initial_inputs(inst, ready)})
             ready.add(inst)
-        recorder = master.Recorder(outdir / f"{label}.csv", scenario, instances, list(metric_list))
+        recorder = ReferenceRecorder(outdir / f"{label}.csv", scenario, instances, list(metric_list))
         every = int(round(scenario.record_interval / h))
         order = master.step_order(scenario, parameters) if scenario.master == "gauss-seidel" else list(scenario.fmus)
         extrapolate = scenario.extrapolation == "linear"
@@ -150,9 +191,23 @@ def prepared(name, implementation, master_kind, extrapolation, item=0):
     return dataclasses.replace(scenario, master=master_kind, extrapolation=extrapolation), paths, values
 
 
+def csv_text(outdir):
+    """The CSV of a run in outdir: the reference's, or master.run's npz read back and exported."""
+    if not (outdir / "run.npz").exists():
+        return (outdir / "run.csv").read_text()
+    return read_records(outdir / "run.npz").to_csv(outdir / "export.csv").read_text()
+
+
+def same_records(a, b):
+    """Two records files hold the same columns, bit for bit (the zip's own timestamps aside)."""
+    a, b = read_records(a), read_records(b)
+    return a.header == b.header and a.time.tobytes() == b.time.tobytes() and a.values.tobytes() == b.values.tobytes()
+
+
 def both(scenario, paths, values, tmp_path):
     """(outcome, csv text) of the reference loop and of master.run; an outcome is the
-    run's steps and metrics, or the RunFailed message, failure line and steps."""
+    run's steps and metrics, or the RunFailed message, failure line and steps. The
+    records master.run keeps in memory are those of its file."""
     results = []
     for which, run in (("reference", reference_run), ("c", master.run)):
         outdir = tmp_path / which
@@ -161,8 +216,13 @@ def both(scenario, paths, values, tmp_path):
             done = run(scenario, paths, values, outdir, "run", [metrics.make(m) for m in scenario.metrics])
             outcome = ("ok", done.steps, repr(done.metrics))
         except master.RunFailed as failed:
+            done = failed.run
             outcome = ("failed", str(failed), failed.run.failure, failed.run.steps, repr(failed.run.metrics))
-        results.append((outcome, (outdir / "run.csv").read_text()))
+        if which == "c":
+            on_disk = read_records(done.record_path)
+            assert on_disk.names == done.records.names and on_disk.units == done.records.units
+            assert on_disk.values.tobytes() == done.records.values.tobytes()
+        results.append((outcome, csv_text(outdir)))
     return results
 
 
@@ -237,7 +297,7 @@ def test_a_failing_get_or_set_stops_both_loops_alike(master_kind, inst, function
 def test_progress_is_reported_as_the_python_loop_did_and_changes_nothing(tmp_path):
     """With a progress callback the C loop also stops at every progress point: the
     callback sees k / steps after each step k with k % tick == 0 (tick = steps // 200, as
-    the Python loop called it) and the CSV is the one of a run without progress."""
+    the Python loop called it) and the records are those of a run without progress."""
     scenario, paths, values = prepared("paper_manoeuvre", "native", "jacobi", "linear")
     seen = []
     for outdir, progress in ((tmp_path / "with", seen.append), (tmp_path / "without", None)):
@@ -246,13 +306,13 @@ def test_progress_is_reported_as_the_python_loop_did_and_changes_nothing(tmp_pat
     steps = round((scenario.stop_time - scenario.start_time) / scenario.step)
     tick = max(1, steps // 200)
     assert seen == [k / steps for k in range(steps) if k % tick == 0]
-    assert (tmp_path / "with" / "run.csv").read_text() == (tmp_path / "without" / "run.csv").read_text()
+    assert same_records(tmp_path / "with" / "run.npz", tmp_path / "without" / "run.npz")
 
 
 def test_a_long_unrecorded_run_returns_to_python_every_chunk(monkeypatch, tmp_path):
     """A run recording only its ends still leaves C every master.CHUNK steps (so Ctrl-C is
-    seen within one chunk), with the CSV of a run stepped in one call; an interrupt
-    between chunks propagates and leaves the CSV written so far, closed."""
+    seen within one chunk), with the records of a run stepped in one call; an interrupt
+    between chunks propagates and leaves the records made so far written."""
     scenario, paths, values = prepared("paper_manoeuvre", "native", "jacobi", "linear")
     scenario = dataclasses.replace(scenario, metrics=[], record_interval=scenario.stop_time - scenario.start_time)
     steps = round((scenario.stop_time - scenario.start_time) / scenario.step)
@@ -269,7 +329,7 @@ def test_a_long_unrecorded_run_returns_to_python_every_chunk(monkeypatch, tmp_pa
         counts.clear()
         master.run(scenario, paths, values, outdir, "run")
         assert sum(counts) == steps and max(counts) == min(chunk, steps)
-    assert (tmp_path / "chunked" / "run.csv").read_text() == (tmp_path / "whole" / "run.csv").read_text()
+    assert same_records(tmp_path / "chunked" / "run.npz", tmp_path / "whole" / "run.npz")
 
     def interrupted(self, k, count):
         if k > 0:
@@ -280,5 +340,5 @@ def test_a_long_unrecorded_run_returns_to_python_every_chunk(monkeypatch, tmp_pa
     (tmp_path / "stopped").mkdir()
     with pytest.raises(KeyboardInterrupt):
         master.run(scenario, paths, values, tmp_path / "stopped", "run")
-    rows = (tmp_path / "stopped" / "run.csv").read_text().splitlines()
-    assert len(rows) == 2 and rows[1].startswith("0.0,")   # header and the t0 row, on disk
+    stopped = read_records(tmp_path / "stopped" / "run.npz")
+    assert stopped.time.tolist() == [0.0]   # the t0 row, on disk

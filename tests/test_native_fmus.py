@@ -19,6 +19,7 @@ from fmpy.fmi2 import fmi2LastSuccessfulTime, fmi2Real
 from movingbase.fmu_src import builder, native_build
 from movingbase.scenarios import runner
 from movingbase.scenarios.fmi import Instance
+from movingbase.scenarios.records import read_records
 from tests.fmu_helpers import OPENED
 
 OK, DISCARD, ERROR = 0, 2, 3
@@ -96,11 +97,9 @@ def test_same_variables_as_the_pythonfmu_fmu(fmus, native, script):
 
 
 # ---------------------------------------------------------------------- scenarios
-def _csv(path):
-    """Columns of a run's CSV by header, e.g. "plant.pose[1] [m]"."""
-    with open(path) as f:
-        header = f.readline().rstrip("\n").split(",")
-    return dict(zip(header, np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2).T))
+def _columns(path):
+    """Columns of a run's records file by header, e.g. "plant.pose[1] [m]"."""
+    return read_records(path).columns
 
 
 def _scales(columns):
@@ -129,7 +128,7 @@ def test_shipped_scenario_same_native_and_python(name, tmp_path):
             for impl in ("python", "native")}
     assert len(runs["python"]) == len(runs["native"]) > 0
     for a_run, b_run in zip(runs["python"], runs["native"]):
-        a, b = _csv(a_run.csv_path), _csv(b_run.csv_path)
+        a, b = _columns(a_run.record_path), _columns(b_run.record_path)
         assert list(a) == list(b) and a["time [s]"].shape == b["time [s]"].shape
         for column, scale in _scales(a).items():
             assert np.max(np.abs(a[column] - b[column])) <= 1e-12 * scale, (a_run.label, column)

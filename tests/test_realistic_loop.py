@@ -1,13 +1,14 @@
 """The realistic-loop study (studies/realistic_loop.py) in its [ci] size: every variant
 runs; the ideal loop is today's (the golden metrics, and bit for bit the shipped
 scenario); each realistic effect moves the error the way its physics says; random
-effects repeat byte for byte from their seed; the README's section is generated from the
+effects repeat byte for byte from their seed; docs/realistic_loop.md is generated from the
 stored results."""
 import json
 
 import pytest
 
 from movingbase.scenarios import runner
+from movingbase.scenarios.records import run_records
 from studies import realistic_loop as study
 
 GOLDEN = runner.SHIPPED.parent.parent / "tests" / "golden"
@@ -121,23 +122,24 @@ def test_wind_error_grows_with_speed_and_calm_air_changes_nothing(tmp_path):
 
 
 def test_random_effects_repeat_byte_for_byte_from_their_seed(tmp_path):
-    """Leg sensor noise and wind: the same scenario and seeds give identical CSV bytes,
-    another seed another record."""
+    """Leg sensor noise and wind: the same scenario and seeds give identical records, bit
+    for bit, another seed another record."""
     def record(folder, seed):
         runs = _single(folder, "telescope_slew", ("leg_sensors", "wind"),
                        {"leg_sensors": {"seed": seed}, "wind": {"seed": seed}})
-        return runs[0].csv_path.read_bytes()
+        return run_records(runs[0]).values.tobytes()
     first, again, other = record(tmp_path / "a", 3), record(tmp_path / "b", 3), record(tmp_path / "c", 4)
     assert first == again and first != other
 
 
-def test_readme_section_is_generated_from_the_stored_results():
-    """No number in the README's section is typed by hand: it is what the study writes
-    from docs/realistic_loop.json, and docs/realistic_loop.md says the same sentences."""
+def test_docs_page_is_generated_from_the_stored_results(tmp_path, monkeypatch):
+    """No number in docs/realistic_loop.md is typed by hand: the page is what the study
+    writes from docs/realistic_loop.json, to the byte."""
     stored = json.loads(study.STORE.read_text())
-    text = study.README.read_text()
-    assert study.readme_section(stored) in text
-    assert study.statements(stored) in study.REPORT.read_text()
+    committed = study.REPORT.read_text()
+    monkeypatch.setattr(study, "REPORT", tmp_path / "realistic_loop.md")
+    study.report(stored, charts=False)
+    assert study.REPORT.read_text() == committed
 
 
 def test_gain_cases_are_distinct_scenarios_that_carry_their_gains_and_wind():

@@ -10,6 +10,7 @@ import pytest
 
 from movingbase.scenarios import headline, report, spec
 from movingbase.scenarios.master import Run
+from movingbase.scenarios.records import Records
 from movingbase.scenarios.runner import SHIPPED
 
 T0, T1, CUT = 0.0, 8.0, 5.0
@@ -31,13 +32,12 @@ def _acc(t):
 def _runs(tmp_path, scales=(1.0, 1.0 + 1e-4, 1e-2)):
     """Three runs whose error series are one shape times a scale; metrics from the series."""
     t = np.arange(0.0, T1 + 1e-9, 0.01)
-    header = "time [s],base.axis_rate[1] [rad/s],base.axis_rate[2] [rad/s]"
     te = t[t >= CUT]
     shape = 1e-6 * (1.5 + np.sin(3 * te)) * 50     # [m] 25-125 µm
     runs = []
     for label, scale in zip(("none", "fixed_base", "moving_base"), scales):
-        path = tmp_path / f"{label}.csv"
-        np.savetxt(path, np.column_stack([t, _rate(t)]), delimiter=",", header=header, comments="")
+        path = Records.of(t, ["base.axis_rate[1]", "base.axis_rate[2]"], ["rad/s"] * 2,
+                          _rate(t)).save(tmp_path / f"{label}.npz")
         leg, pos, rot = 0.4 * shape * scale, shape * scale, 0.05 * shape * scale
         series = {"leg error": (te, leg * 1e6), "pose error": (te, pos * 1e6), "pose error rotation": (te, rot)}
         rms = lambda v: float(np.sqrt(np.mean(v ** 2)))
@@ -118,8 +118,7 @@ def test_chart_without_a_telescope_has_no_base_panel(tmp_path):
     scenario = spec.load(SHIPPED / "mechanism3t_paper.toml")
     metric = next(m for m in scenario.metrics if m.kind in report.TRACKING)
     t = np.linspace(0.0, 1.0, 50)
-    path = tmp_path / "run.csv"
-    path.write_text("time [s]\n" + "\n".join(map(repr, t)) + "\n")
+    path = Records.of(t, [], [], np.empty((len(t), 0))).save(tmp_path / "run.npz")
     runs = [Run("run", path, 1000, 0.1, 1.0, {}, {metric.name: (t, 1.0 + t)})]
     panels = report._error_chart(scenario, runs, metric, tmp_path / "m.png")
     assert list(panels) == ["position"]

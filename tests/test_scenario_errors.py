@@ -16,6 +16,7 @@ import pytest
 
 from movingbase.scenarios import master, metrics, report, runner, spec
 from movingbase.scenarios.fmi import unpack
+from movingbase.scenarios.records import read_records
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 SLEW = runner.resolve("telescope_slew").read_text()
@@ -342,8 +343,7 @@ def test_a_run_failing_mid_way_is_one_line_and_the_sweep_and_report_go_on(tmp_pa
     assert "| fixed_base **failed at t = 1.264 s, partial: 1.264 of 8 s** | rms " in report
     assert (f"- **run fixed_base failed at t = 1.264 s, partial: 1.264 of 8 s**; its row covers the run up to then: "
             f"{summary['fixed_base']['failed']}") in report
-    rows = (folder / "fixed_base.csv").read_text().splitlines()
-    assert float(rows[-1].split(",")[0]) == pytest.approx(1.264)
+    assert read_records(folder / "fixed_base.npz").time[-1] == pytest.approx(1.264)
 
 
 def test_a_lever_arm_failing_mid_way_keeps_the_other_sweep_values(tmp_path):
@@ -376,7 +376,7 @@ def test_a_run_refused_at_initialisation_is_reported_with_no_rows(descriptions, 
     assert run.steps == 0 and "FMU instance 'plant' failed in" in run.failure
     assert "[ERROR] StrokeError in initialization: leg 1 length 1.882430 m outside its stroke" in run.failure
     assert "\n" not in run.failure
-    assert run.csv_path is None or len(run.csv_path.read_text().splitlines()) <= 2
+    assert run.record_path is None or len(read_records(run.record_path).time) <= 1
     assert math.isnan(run.metrics["leg error"]["rms"]) and math.isnan(run.metrics["pose error"]["rotation_peak"])
     text = report.write(scenario, [run], tmp_path).read_text()
     assert "| far **failed at t = 0 s, partial: 0 of 6 s** | rms n/a, peak n/a |" in text
@@ -400,10 +400,8 @@ def test_linear_extrapolation_against_a_ramp(descriptions, fmus, tmp_path):
     for label, changes in {"held": {"extrapolation": "none"}, "linear": {"extrapolation": "linear"},
                            "gauss-seidel": {"extrapolation": "linear", "master": "gauss-seidel"}}.items():
         run = master.run(dataclasses.replace(scenario, **changes), paths, values, tmp_path, label)
-        header = run.csv_path.read_text().splitlines()[0].split(",")
-        data = np.loadtxt(run.csv_path, delimiter=",", skiprows=1)
-        yaw[label] = data[:, [header.index("base.base_pose[6] [rad]"), header.index("controller.base_pose[6] [rad]")]]
-        t = data[:, 0]
+        yaw[label] = np.column_stack([run.records["base.base_pose[6]"], run.records["controller.base_pose[6]"]])
+        t = run.records.time
     h, rate = 1e-3, -math.radians(0.5)   # yaw = A = 180 deg - Az falls as the azimuth rises
     cruise = np.flatnonzero((t > 2.05) & (t < 2.95))
     out, held = yaw["held"][cruise - 1, 0], yaw["held"][cruise, 1]

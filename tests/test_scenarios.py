@@ -9,6 +9,7 @@ import pytest
 
 from movingbase.scenarios import fidelity, master, metrics, runner, spec
 from movingbase.scenarios.fmi import FmuError, unpack
+from movingbase.scenarios.records import read_records
 
 GOLDEN = pathlib.Path(__file__).parent / "golden"
 SHIPPED = sorted(p.stem for p in runner.SHIPPED.glob("*.toml"))
@@ -134,7 +135,7 @@ def _run(text, descriptions, tmp_path, label="run", **changes):
 def test_masters_agree_to_their_coupling_error(descriptions, tmp_path):
     runs = {m: _run(MINIMAL, descriptions, tmp_path, m, master=m) for m in ("jacobi", "gauss-seidel")}
     runs["extrapolated"] = _run(MINIMAL, descriptions, tmp_path, "extrapolated", extrapolation="linear")
-    data = {k: np.loadtxt(r.csv_path, delimiter=",", skiprows=1) for k, r in runs.items()}
+    data = {k: np.column_stack([r.records.time, r.records.values]) for k, r in runs.items()}
     assert data["jacobi"].shape == (51, 19)   # t0 and every step; time, pose and what the metric reads
     np.testing.assert_allclose(data["gauss-seidel"], data["jacobi"], atol=1e-6)
     np.testing.assert_allclose(data["extrapolated"], data["jacobi"], atol=1e-6)
@@ -145,7 +146,7 @@ def test_same_scenario_same_numbers(descriptions, tmp_path):
     a = _run(MINIMAL, descriptions, tmp_path / "a" if (tmp_path / "a").mkdir() is None else None)
     b = _run(MINIMAL, descriptions, tmp_path / "b" if (tmp_path / "b").mkdir() is None else None)
     assert a.metrics == b.metrics
-    assert a.csv_path.read_bytes() == b.csv_path.read_bytes()
+    assert a.records.header == b.records.header and a.records.values.tobytes() == b.records.values.tobytes()
 
 
 def test_a_failing_fmu_stops_the_run_naming_it_and_keeps_the_rows(descriptions, tmp_path):
@@ -155,8 +156,8 @@ def test_a_failing_fmu_stops_the_run_naming_it_and_keeps_the_rows(descriptions, 
         "parameters = { kp = 0.0, ki = 0.0, kd = 0.0, feedforward = \"none\" }")
     with pytest.raises(FmuError, match=r"(?s)FMU instance 'plant' failed in doStep at t = 0\.\d+ s.*StrokeError.*leg \d"):
         _run(text, descriptions, tmp_path)
-    rows = (tmp_path / "run.csv").read_text().splitlines()
-    assert rows[0].startswith("time [s],plant.pose[1] [m]") and len(rows) > 2
+    kept = read_records(tmp_path / "run.npz")
+    assert kept.header[:2] == ["time [s]", "plant.pose[1] [m]"] and len(kept.time) > 1
 
 
 def test_metric_series_stay_bounded_on_long_runs():
@@ -209,8 +210,9 @@ def test_auto_fidelity_keeps_the_plant_within_its_tolerance(tmp_path):
         path.write_text(text.replace('fidelity = "full"', f'fidelity = "{level}"').replace(
             'name = "keyhole_tracking"', f'name = "{level}"\nfidelity_tolerance = "1 N"'))
         scenario, ran, _ = runner.run_scenario(path, tmp_path, ci=True, progress=False)
-        runs[level] = np.loadtxt(ran[0].csv_path, delimiter=",", skiprows=1)
-        header = ran[0].csv_path.read_text().splitlines()[0].split(",")
+        records = read_records(ran[0].record_path)
+        runs[level] = np.column_stack([records.time, records.values])
+        header = records.header
         if level == "auto":
             assert scenario.parameters["plant"]["fidelity"] == "base_gravity"
     force = [i for i, h in enumerate(header) if h.startswith("controller.leg_force")]
@@ -228,15 +230,18 @@ def test_pose_metric_resolves_sub_microradian_rotations():
     assert metric.result()["rotation_peak"] == pytest.approx(3e-3, rel=1e-6)   # µrad
 
 
-def test_memory_stays_flat_as_a_run_gets_longer(descriptions, tmp_path):
-    """Rows stream to disk and metrics keep running sums and a series capped at
-    metrics.MAX_POINTS: past that cap (4 s here) three times the steps take the same peak
-    memory (keeping the rows would add ~1.2 MB to a ~2 MB peak)."""
+def test_memory_grows_by_the_records_only_as_a_run_gets_longer(descriptions, tmp_path):
+    """The records are kept in memory (one float64 per recorded value, preallocated), the
+    metrics keep running sums and a series capped at metrics.MAX_POINTS: past that cap
+    (4 s here) three times the steps add to the peak memory the records' growth and
+    nothing else that grows (~1.2 MB on a ~2 MB peak)."""
     import tracemalloc
-    peaks = []
+    peaks, sizes = [], []
     for stop in (4.0, 12.0):
         tracemalloc.start()
-        _run(MINIMAL, descriptions, tmp_path, f"run{stop}", stop_time=stop)
+        run = _run(MINIMAL, descriptions, tmp_path, f"run{stop}", stop_time=stop)
         peaks.append(tracemalloc.get_traced_memory()[1])
         tracemalloc.stop()
-    assert peaks[1] < 1.1 * peaks[0], peaks
+        sizes.append(8 * (len(run.records.time) * (1 + len(run.records.names))))
+    assert sizes[1] - sizes[0] > 1e6
+    assert peaks[1] - peaks[0] < 1.1 * (sizes[1] - sizes[0]), (peaks, sizes)

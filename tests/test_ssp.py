@@ -7,7 +7,6 @@ initial exchange (first step with every connected input 0.0), which this kit's c
 cannot step from (singular reference pose), see test_fmpy_as_is_*; with our initial
 exchange added (scenarios.ssp._initial_exchange) fmpy's loop reproduces our master.
 """
-import csv
 import dataclasses
 import io
 import multiprocessing
@@ -61,12 +60,10 @@ def columns(scenario, descriptions, references):
     return names
 
 
-def read_csv(path):
-    with open(path) as f:
-        rows = list(csv.reader(f))
-    header = [h.rsplit(" [", 1)[0] for h in rows[0]]
-    data = np.array(rows[1:], dtype=float)
-    return {name: data[:, i] for i, name in enumerate(header)}
+def run_columns(run):
+    """Columns by name ("time", "inst.var") of one of our runs."""
+    records = run.records
+    return {"time": records.time, **{name: records[name] for name in records.names}}
 
 
 # ------------------------------------------------------------------------------- SSD
@@ -168,7 +165,7 @@ def test_ssd_is_valid_and_names_every_component_connection_and_parameter(case):
 def test_fmpy_with_initial_exchange_agrees_with_our_jacobi_master(case):
     scenario, paths, descriptions, params, path, folder = case
     assert scenario.master == "jacobi"
-    ours = read_csv(master.run(scenario, paths, params, folder, "ours").csv_path)
+    ours = run_columns(master.run(scenario, paths, params, folder, "ours"))
     theirs = ssp.simulate_exported(path, scenario, initial_exchange=True)
 
     steps = round(scenario.stop_time / scenario.step)
@@ -188,8 +185,8 @@ def test_fmpy_with_initial_exchange_agrees_with_our_jacobi_master(case):
     assert np.ptp(ours["base.base_pose[2]"]) > 1e-4 and np.max(np.abs(ours["controller.leg_force[1]"])) > 1e3
 
     # and the comparison can fail: Gauss-Seidel (a real semantic change) does not agree
-    gauss = read_csv(master.run(dataclasses.replace(scenario, master="gauss-seidel"), paths, params, folder,
-                                "gauss").csv_path)
+    gauss = run_columns(master.run(dataclasses.replace(scenario, master="gauss-seidel"), paths, params, folder,
+                                "gauss"))
     assert np.max(np.abs(gauss["controller.leg_force[1]"][1:] - theirs["controller.leg_force[1]"])) > 1.0
 
 

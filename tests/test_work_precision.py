@@ -60,7 +60,7 @@ def test_reference_sees_the_motion_the_telescope_fmu_outputs(name, tmp_path):
     scenario = dataclasses.replace(prep.scenario, step=1e-3, stop_time=start + 3.0, record=signals,
                                    record_interval=0.1)
     run = master.run(scenario, prep.paths, prep.values, tmp_path, "signals")
-    data = np.loadtxt(run.csv_path, delimiter=",", skiprows=1)
+    data = np.column_stack([run.records.time, run.records.values])
     expected = prep.scene().motion(data[:, 0])
     for k, name_ in enumerate(reference.SIGNALS):
         np.testing.assert_allclose(data[:, 1 + 6 * k: 7 + 6 * k], expected[name_], rtol=1e-13, atol=1e-13,

@@ -1,12 +1,12 @@
 #ifndef MB_TELESCOPE_H
 #define MB_TELESCOPE_H
 /* The telescope that moves the hexapod's base: axis profiles -> base and reference motion.
-   Law: shared/spec/telescope.md. SI (m, rad, s), every derivative analytic. The Python API
+   Law: docs/conventions/telescope.md. SI (m, rad, s), every derivative analytic. The Python API
    (plant/telescope.py, plant/trajectory.py) and the telescope FMUs call these functions.
 
    Arrays are row-major. "axes" is (n, 6) with columns A, A', A'', E, E', E'': A the mount's
    azimuth angle of R_WB = Rz(A) Rx(90 deg - E), A = 180 deg - Az with Az the astronomical
-   azimuth (north through east; shared/spec/telescope.md), E the elevation. Poses are (n, 6): x, y, z, roll, pitch, yaw. Times need not be
+   azimuth (north through east; docs/conventions/telescope.md), E the elevation. Poses are (n, 6): x, y, z, roll, pitch, yaw. Times need not be
    increasing for the C; the Python API still demands strictly increasing times. */
 
 /* Site, lever arm, axis limits, subreflector correction and home pose (TelescopeParams).

@@ -1,0 +1,321 @@
+"""The kit's Python API, for notebooks and scripts: ``movingbase.run`` and
+``movingbase.campaign`` return result objects holding the recorded time series (numpy
+arrays with units, or pandas DataFrames), the metrics, the flags of runs that went wrong,
+the report's charts as matplotlib figures and the report itself. Modelled on FMPy's
+``simulate_fmu`` (a scenario in, arrays out, nothing on disk unless asked) and on
+python-control's response objects (``.to_pandas()``, ``.plot()``; pandas optional).
+
+    >>> import movingbase
+    >>> result = movingbase.run("telescope_slew", ci=True, set={"base.start_elevation": "60 deg"})
+    >>> result.metrics["moving_base"]["leg error"]["rms"]      # µm
+    >>> result["moving_base"]["plant.pose"]                    # (rows, 6) array, SI units
+    >>> result.to_pandas()                                     # every run's series, by run and time
+
+The runs are those of the command line (``movingbase run``): the same checks, the same
+FMUs and master, the same numbers bit for bit; ``out=`` writes the same files.
+"""
+from __future__ import annotations
+
+import copy
+import dataclasses
+import io
+import os
+import pathlib
+from collections.abc import Iterator, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Union
+
+import numpy as np
+
+from . import campaign as campaigns
+from . import engine, master, report, runner, spec
+from .records import Records, read_records, run_records
+
+if TYPE_CHECKING:   # pandas and matplotlib are imported where they are used
+    import pandas
+    from matplotlib.figure import Figure
+
+ScenarioLike = Union[str, "os.PathLike[str]", spec.Scenario]
+
+
+@dataclasses.dataclass(frozen=True)
+class Flag:
+    """Why a run's numbers should not be read as they stand (scenarios.flags.Flag once
+    that module lands: the same two fields)."""
+
+    kind: str
+    message: str
+
+
+def _flags(run: master.Run) -> list:
+    """The run's flags (Run.flags where the master sets them), else its failure as one."""
+    flags = getattr(run, "flags", None)
+    if flags is not None:
+        return list(flags)
+    return [Flag("cut_short", run.failure)] if run.failure else []
+
+
+def _pandas() -> Any:
+    try:
+        import pandas
+    except ModuleNotFoundError:
+        raise ModuleNotFoundError("to_pandas needs pandas, which movingbase does not install: "
+                                  "pip install pandas (or the arrays: .time, .values, .names, .units)") from None
+    return pandas
+
+
+# ------------------------------------------------------------------------ loading
+def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None,
+                  ci: bool = False) -> spec.Scenario:
+    """A checked Scenario from a shipped name, a file path or a Scenario (copied, the
+    argument is left as it is). ``set`` overrides values as the file would give them:
+    ``{"base.start_elevation": "60 deg"}`` sets an FMU instance's parameter,
+    ``{"stop_time": "10 s"}`` a top-level key (names and files only); every value goes
+    through the checks of a value written in the file (units, ranges, the model's own
+    refusals) when the scenario is bound (``run``). ``ci`` applies the file's [ci] section."""
+    set = dict(set or {})
+    top = {k: v for k, v in set.items() if "." not in k}
+    if isinstance(scenario, spec.Scenario):
+        if top or ci:
+            raise spec.ScenarioError(scenario.source, "set" if top else "ci",
+                                     f"{'top-level keys ' + ', '.join(top) if top else 'ci'} can be applied to a "
+                                     "scenario file only (load_scenario(path, set=..., ci=...)), not to a Scenario "
+                                     "object; change its fields with dataclasses.replace")
+        loaded = copy.deepcopy(scenario)
+    else:
+        path = runner.resolve(os.fspath(scenario))
+        loaded = spec.load(path)
+        overrides = {**(loaded.ci if ci else {}), **top}
+        if overrides:
+            loaded = spec.load(path, overrides=overrides)
+    for key, value in set.items():
+        if "." not in key:
+            continue
+        inst, name = key.split(".", 1)
+        if inst not in loaded.fmus:
+            raise spec.ScenarioError(loaded.source, f"set[{key!r}]", f"unknown FMU instance {inst!r}; "
+                                     f"declared: {', '.join(loaded.fmus)} (top-level keys: no dot)")
+        if loaded.sweep and loaded.sweep[0] == key:
+            raise spec.ScenarioError(loaded.source, f"set[{key!r}]", "is the swept parameter; every run sets it "
+                                     "from sweep.values")
+        loaded.parameters[inst][name] = value
+    return loaded
+
+
+# ------------------------------------------------------------------------ results
+class RunResult:
+    """One run: its recorded time series (SI units), metrics and flags.
+
+    ``time``, ``values`` (rows x columns), ``names`` ("inst.var[k]") and ``units`` are
+    numpy arrays and lists; ``result["plant.pose"]`` is one variable (a vector: rows x n),
+    ``to_pandas()`` the table, ``to_numpy()`` a structured array as FMPy's simulate_fmu
+    returns. A run that failed holds what it recorded up to then (``flags`` says why)."""
+
+    def __init__(self, run: master.Run):
+        self.run = run
+        self.label: str = run.label
+        self.metrics: dict = run.metrics
+        self.flags: list = _flags(run)
+        self.steps: int = run.steps
+        self.wall_time: float = run.wall_time
+        self.sim_time: float = run.sim_time
+        records = run_records(run)
+        self.records: Records = records if records is not None else Records([], [], 0)
+
+    @property
+    def ok(self) -> bool:
+        """True if nothing flagged the run."""
+        return not self.flags
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.records.time
+
+    @property
+    def values(self) -> np.ndarray:
+        return self.records.values
+
+    @property
+    def names(self) -> list[str]:
+        return self.records.names
+
+    @property
+    def units(self) -> dict[str, str]:
+        """{"inst.var[k]": unit} of every recorded column."""
+        return dict(zip(self.records.names, self.records.units))
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """A recorded variable: a scalar's column, or a vector's (rows x n) array."""
+        if name == "time" or name in self.records.names:
+            return self.records[name]
+        parts = [n for n in self.records.names if n.startswith(name + "[")]
+        if not parts:
+            raise KeyError(f"run {self.label}: no recorded variable {name!r}; recorded: "
+                           f"{', '.join(self.records.names)}")
+        return np.column_stack([self.records[n] for n in parts])
+
+    def to_pandas(self) -> pandas.DataFrame:
+        """The recorded series as a DataFrame indexed by time [s], one column per
+        variable; the units in ``frame.attrs["units"]``."""
+        pd = _pandas()
+        frame = pd.DataFrame(self.values, columns=self.names, index=pd.Index(self.time, name="time"))
+        frame.attrs["units"] = self.units
+        return frame
+
+    def to_numpy(self) -> np.ndarray:
+        """A structured array with a "time" field and one field per variable (FMPy's shape)."""
+        table = np.empty(len(self.time), dtype=[(name, float) for name in ["time"] + self.names])
+        for name, column in zip(table.dtype.names or (), [self.time] + list(self.values.T)):
+            table[name] = column
+        return table
+
+    def to_csv(self, path: str | os.PathLike[str]) -> pathlib.Path:
+        """Export the records as CSV (header with units, each float exactly)."""
+        return self.records.to_csv(path)
+
+    def __repr__(self) -> str:
+        state = "ok" if self.ok else "flagged: " + "; ".join(f.kind for f in self.flags)
+        return (f"<RunResult {self.label!r}: {len(self.time)} rows x {len(self.names)} variables, "
+                f"{self.sim_time:g} s simulated, {state}>")
+
+
+class Result:
+    """What ``movingbase.run`` returns: one RunResult per run (per sweep value), in sweep
+    order, by label (``result["moving_base"]``) or by iteration; the metrics of every run;
+    the report's charts (``plot``) and the report itself (``report``)."""
+
+    def __init__(self, scenario: spec.Scenario, runs: Sequence[master.Run], report_path: pathlib.Path | None = None):
+        self.scenario = scenario
+        self._runs = list(runs)
+        self.runs: dict[str, RunResult] = {r.label: RunResult(r) for r in self._runs}
+        self.report_path = report_path     # where ``out`` wrote the report, if it was given
+
+    def __getitem__(self, label: str) -> RunResult:
+        if label not in self.runs:
+            raise KeyError(f"no run {label!r}; runs: {', '.join(self.runs)}")
+        return self.runs[label]
+
+    def __iter__(self) -> Iterator[RunResult]:
+        return iter(self.runs.values())
+
+    def __len__(self) -> int:
+        return len(self.runs)
+
+    @property
+    def metrics(self) -> dict[str, dict]:
+        """{run label: {metric: {key: value, "unit": ...}}}, as metrics.json holds them."""
+        return {label: r.metrics for label, r in self.runs.items()}
+
+    @property
+    def flags(self) -> dict[str, list]:
+        """{run label: its flags} of the runs that were flagged."""
+        return {label: r.flags for label, r in self.runs.items() if r.flags}
+
+    def metrics_table(self) -> pandas.DataFrame:
+        """One row per run, one column per (metric, key) number."""
+        pd = _pandas()
+        rows = {label: {(m, k): v for m, values in r.metrics.items() for k, v in values.items() if k != "unit"}
+                for label, r in self.runs.items()}
+        return pd.DataFrame.from_dict(rows, orient="index")
+
+    def to_pandas(self) -> pandas.DataFrame:
+        """Every run's recorded series in one DataFrame indexed by (run, time)."""
+        pd = _pandas()
+        return pd.concat({label: r.to_pandas() for label, r in self.runs.items()}, names=["run"])
+
+    def plot(self) -> list[Figure]:
+        """The report's charts as matplotlib figures: error against time per tracking
+        metric, and the summary bars when there are several runs."""
+        tracked = [m for m in self.scenario.metrics if m.kind in report.TRACKING]
+        panels = [report._error_chart(self.scenario, self._runs, m, io.BytesIO()) for m in tracked]
+        if tracked and len(self._runs) > 1:
+            panels.append(report._summary_chart(self.scenario, self._runs, tracked, io.BytesIO()))
+        return [next(iter(p.values())).figure for p in panels]
+
+    def report(self, path: str | os.PathLike[str]) -> pathlib.Path:
+        """Write into folder ``path`` what ``movingbase run --out`` writes into its
+        scenario folder (records as npz, metrics.json, charts, report.md); the report's path."""
+        folder = pathlib.Path(path)
+        folder.mkdir(parents=True, exist_ok=True)
+        runs = []
+        for run in self._runs:
+            kept = self.runs[run.label].records
+            target = folder / f"{run.label}.npz"
+            if run.record_path is None or pathlib.Path(str(run.record_path)).resolve() != target.resolve():
+                run = dataclasses.replace(run, record_path=kept.save(target))
+            runs.append(run)
+        return runner.write_results(self.scenario, runs, folder)
+
+    def __repr__(self) -> str:
+        flagged = f", flagged: {', '.join(self.flags)}" if self.flags else ""
+        return f"<Result {self.scenario.name!r}: runs {', '.join(self.runs)}{flagged}>"
+
+
+def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: bool = False,
+        implementation: str | None = None, out: str | os.PathLike[str] | None = None,
+        progress: bool = True) -> Result:
+    """Run a scenario (a shipped name, a file path or a Scenario) as ``movingbase run``
+    does, every sweep value; ``set`` and ``ci`` as in ``load_scenario``;
+    ``implementation`` ("native" or "python") for every FMU. Nothing is written to disk
+    unless ``out`` is given: then the files of ``movingbase run --out OUT`` (OUT/<name>/)."""
+    loaded = load_scenario(scenario, set=set, ci=ci)
+    if progress:
+        print(f"{loaded.name}: checking the scenario, building FMUs that are missing or stale", flush=True)
+    prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation)
+    outdir = None if out is None else pathlib.Path(out) / prepared.name
+    runs = runner.run_prepared(prepared, paths, descriptions, values, outdir, progress)
+    return Result(prepared, runs, runner.write_results(prepared, runs, outdir) if outdir else None)
+
+
+# ------------------------------------------------------------------------ campaigns
+class CampaignResult:
+    """What ``movingbase.campaign`` returns: the table of its runs (``table()``: one row
+    per run with its case values, status, error and metrics, the campaign's summary.csv
+    as a DataFrame), each run's metric series and, if the campaign keeps them, records."""
+
+    def __init__(self, campaign: campaigns.Campaign, jobs: list, store: Any, summary: pathlib.Path):
+        self.campaign = campaign
+        self.store = store            # scenarios.engine.Store: the runs' result files
+        self.summary_path = summary
+        self._keys = {job.label: job.key for job in jobs}
+
+    def table(self) -> pandas.DataFrame:
+        """One row per run: label, the case values, status, error, every metric number."""
+        return _pandas().read_csv(self.summary_path)   # floats exact: written as repr, read round-trip
+
+    to_pandas = table
+
+    @property
+    def labels(self) -> list[str]:
+        return list(self._keys)
+
+    def _key(self, label: str) -> str:
+        if label not in self._keys:
+            raise KeyError(f"no run {label!r} in campaign {self.campaign.name}")
+        return self._keys[label]
+
+    def series(self, label: str) -> dict:
+        """{metric: (t, values)} of one run (a failed one: as far as it got)."""
+        return self.store.series(self._key(label))
+
+    def records(self, label: str) -> Records:
+        """One run's recorded variables (the campaign must set keep_records = true)."""
+        path = self.store.path(self._key(label), engine.RECORDS)
+        if not path.exists():
+            raise FileNotFoundError(f"run {label!r} of campaign {self.campaign.name}: no records kept "
+                                    "(set keep_records = true in the campaign file)")
+        return read_records(path)
+
+    def __len__(self) -> int:
+        return len(self._keys)
+
+    def __repr__(self) -> str:
+        return f"<CampaignResult {self.campaign.name!r}: {len(self)} runs, table in {self.summary_path}>"
+
+
+def campaign(path: str | os.PathLike[str], *, out: str | os.PathLike[str] = "out", ci: bool = False,
+             jobs: int | None = None, progress: bool = True) -> CampaignResult:
+    """Run a campaign file as ``movingbase campaign`` does: on ``jobs`` worker processes,
+    results in a store under out/<name>/ (so a campaign always writes: an interrupted one
+    resumes, a finished one is read back)."""
+    ran, job_list, store, _, summary = campaigns.run_campaign(path, out, ci=ci, jobs_=jobs, progress=progress)
+    return CampaignResult(ran, job_list, store, summary)

@@ -1,0 +1,116 @@
+"""Recorded time series of one run: float64 columns in memory, written as one npz file.
+
+Why npz: numpy writes and reads it without a new dependency, with no per-float
+formatting (the master's CSV rows cost 43-48 % of a run, issue 21), and any tool that
+reads .npy reads it (a zip of one .npy per column: numpy, pandas through
+``pandas.DataFrame(dict(numpy.load(path)))``, Julia's NPZ.jl, MATLAB's npy-matlab).
+Parquet or HDF5 would add pyarrow or h5py for the same columns.
+
+Each column is one array in the file, keyed by the CSV's header cell, "time [s]" first,
+then "inst.var [unit]" in recording order: the CSV export (``to_csv``) is the same table
+with the same header and each float as its shortest repr (exact).
+"""
+from __future__ import annotations
+
+import os
+import pathlib
+import re
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+TIME = "time [s]"
+_HEADER = re.compile(r"(.*) \[(.*)\]")
+
+
+class Records:
+    """A run's recorded rows, preallocated for the record grid: ``time``, ``names``
+    ("inst.var"), ``units`` and ``values`` (rows x columns), rows filled so far only."""
+
+    def __init__(self, names: Sequence[str], units: Sequence[str], rows: int):
+        self.names, self.units = list(names), list(units)
+        self._data = np.empty((rows, 1 + len(self.names)))
+        self.count = 0
+
+    @classmethod
+    def of(cls, time: np.ndarray, names: Sequence[str], units: Sequence[str], values: np.ndarray) -> Records:
+        """Records holding arrays already made (``values``: rows x columns)."""
+        records = cls(names, units, 0)
+        records._data = np.column_stack([time, values]) if len(names) else np.asarray(time, float)[:, None]
+        records.count = len(records._data)
+        return records
+
+    def append(self, t: float, row: np.ndarray) -> None:
+        """Add one row (a full grid's worth of rows was preallocated)."""
+        self._data[self.count, 0] = t
+        self._data[self.count, 1:] = row
+        self.count += 1
+
+    @property
+    def time(self) -> np.ndarray:
+        return self._data[:self.count, 0]
+
+    @property
+    def values(self) -> np.ndarray:
+        return self._data[:self.count, 1:]
+
+    @property
+    def header(self) -> list[str]:
+        """The column titles, as in the CSV: "time [s]", "inst.var [unit]", ..."""
+        return [TIME] + [f"{n} [{u}]" for n, u in zip(self.names, self.units)]
+
+    @property
+    def columns(self) -> dict[str, np.ndarray]:
+        """{header cell: column}, the table as the file and the CSV hold it."""
+        data = self._data[:self.count]
+        return {title: data[:, j] for j, title in enumerate(self.header)}
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """One column by "inst.var" (or "time")."""
+        if name == "time":
+            return self.time
+        if name not in self.names:
+            raise KeyError(f"no recorded variable {name!r}; recorded: {', '.join(self.names)}")
+        return self._data[:self.count, 1 + self.names.index(name)]
+
+    def save(self, path: str | os.PathLike[str]) -> pathlib.Path:
+        """Write the npz file (one array per column, keyed by its header cell)."""
+        path = pathlib.Path(path)
+        columns: dict[str, Any] = self.columns
+        np.savez(path, **columns)
+        return path
+
+    def to_csv(self, path: str | os.PathLike[str]) -> pathlib.Path:
+        """Export as CSV: the header with units, each float as its shortest repr."""
+        path = pathlib.Path(path)
+        with open(path, "w", newline="") as f:
+            f.write(",".join(self.header) + "\r\n")
+            f.writelines(",".join(map(repr, row)) + "\r\n" for row in self._data[:self.count].tolist())
+        return path
+
+
+def read_records(path: str | os.PathLike[str]) -> Records:
+    """The one reader of a recorded run's file (what Records.save wrote)."""
+    path = pathlib.Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            titles = list(data.files)
+            columns = [data[t] for t in titles]
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path}: cannot read recorded data: {exc}") from None
+    matched = [_HEADER.fullmatch(t) for t in titles[1:]]
+    if not titles or titles[0] != TIME or not all(matched):
+        raise ValueError(f"{path}: not a run's records (expected {TIME!r}, then 'inst.var [unit]' columns; "
+                         f"found {', '.join(titles[:3]) or 'none'})")
+    parts = [m.groups() for m in matched if m]
+    return Records.of(columns[0], [n for n, _ in parts], [u for _, u in parts],
+                      np.column_stack(columns[1:]) if parts else np.empty((len(columns[0]), 0)))
+
+
+def run_records(run: Any) -> Records | None:
+    """A run's records: in memory if it ran in this process, else read from its file;
+    None if it stopped before its first row."""
+    if run.records is not None:
+        return run.records
+    return read_records(run.record_path) if run.record_path else None

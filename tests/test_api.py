@@ -1,0 +1,202 @@
+"""movingbase.run / campaign (scenarios/api.py) against the command line's own results:
+the same metrics and the same recorded series bit for bit, nothing written without
+``out``, ``set`` overrides checked and applied exactly as the same value written in the
+file, to_pandas against the arrays, and a failed run's flag and partial records."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import movingbase
+from movingbase.scenarios import runner, spec
+from movingbase.scenarios.records import read_records
+
+NAME = "paper_manoeuvre"      # [ci]: 3 runs of 4 s at 1 ms, the shortest shipped scene with a sweep
+
+
+@pytest.fixture(scope="module")
+def cli(tmp_path_factory):
+    """The CLI's output folder for the scene's [ci] version, CSV export included."""
+    out = tmp_path_factory.mktemp("cli")
+    subprocess.run([sys.executable, "-m", "movingbase", "run", NAME, "--ci", "--quiet", "--csv", "--out", str(out)],
+                   check=True, capture_output=True)
+    return out / NAME
+
+
+@pytest.fixture(scope="module")
+def result(tmp_path_factory):
+    return movingbase.run(NAME, ci=True, progress=False)
+
+
+def test_the_api_gives_the_cli_s_metrics_and_series_bit_for_bit(cli, result):
+    summary = json.loads((cli / "metrics.json").read_text())
+    assert list(result.runs) == list(summary) == ["none", "fixed_base", "moving_base"]
+    for run in result:
+        assert json.loads(json.dumps(run.metrics, default=float)) == summary[run.label]["metrics"]
+        on_disk = read_records(cli / f"{run.label}.npz")
+        assert on_disk.header == run.records.header and len(run.time) == 401
+        assert on_disk.time.tobytes() == run.time.tobytes()
+        assert on_disk.values.tobytes() == run.values.tobytes()
+        assert run.ok and run.flags == []
+
+
+def test_the_csv_export_is_the_records_exactly(cli, result, tmp_path):
+    """The CLI's --csv and RunResult.to_csv write the same bytes; parsed back, every float
+    is the recorded one (shortest repr round-trips)."""
+    run = result["moving_base"]
+    text = run.to_csv(tmp_path / "m.csv").read_text()
+    assert text == (cli / "moving_base.csv").read_text()
+    header, *rows = text.splitlines()
+    assert header.split(",") == run.records.header
+    parsed = np.array([row.split(",") for row in rows], dtype=float)
+    assert parsed.tobytes() == np.column_stack([run.time, run.values]).tobytes()
+
+
+def test_nothing_is_written_without_out_and_out_writes_the_cli_s_files(cli, monkeypatch, tmp_path):
+    monkeypatch.chdir(tmp_path)
+    movingbase.run(NAME, ci=True, progress=False, set={"stop_time": "2.1 s"})
+    assert list(tmp_path.iterdir()) == []
+    ran = movingbase.run(NAME, ci=True, progress=False, out=tmp_path / "out")
+    written = tmp_path / "out" / NAME
+    assert ran.report_path == written / "report.md"
+    assert sorted(p.name for p in written.iterdir()) == sorted(p.name for p in cli.iterdir() if p.suffix != ".csv")
+
+
+def test_set_is_the_value_written_in_the_file(tmp_path):
+    """An FMU parameter and a top-level key set from Python give the records of the file
+    with those values written in it, bit for bit."""
+    text = runner.resolve(NAME).read_text()
+    edited = text.replace('lever_arm = "0 m"', 'lever_arm = "3 m"').replace('stop_time = "4 s"', 'stop_time = "2.5 s"')
+    assert edited.count('"3 m"') == 1 and edited.count('"2.5 s"') == 1
+    (tmp_path / "edited.toml").write_text(edited)
+    from_file = movingbase.run(tmp_path / "edited.toml", ci=True, progress=False)
+    from_set = movingbase.run(NAME, ci=True, progress=False, set={"base.lever_arm": "3 m", "stop_time": "2.5 s"})
+    plain = movingbase.run(NAME, ci=True, progress=False, set={"stop_time": "2.5 s"})
+    for a, b, c in zip(from_file, from_set, plain):
+        assert a.values.tobytes() == b.values.tobytes() and a.metrics == b.metrics
+        assert a.time[-1] == 2.5 and not np.array_equal(a["plant.pose"], c["plant.pose"])   # it changed the run
+
+
+@pytest.mark.parametrize("key, value, written", [
+    ("base.lever_arm", "3 kg", ('lever_arm = "0 m"', 'lever_arm = "3 kg"')),
+    ("plant.max_step", "-1 ms", ('max_step = "1 ms"', 'max_step = "-1 ms"')),
+    ("stop_time", "1.0005 s", ('stop_time = "4 s"', 'stop_time = "1.0005 s"')),
+])
+def test_a_bad_set_value_is_refused_as_the_file_s_value_is(key, value, written, tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text(runner.resolve(NAME).read_text().replace(*written))
+    with pytest.raises(spec.ScenarioError) as in_file:
+        movingbase.run(path, ci=True, progress=False)
+    with pytest.raises(spec.ScenarioError) as from_set:
+        movingbase.run(NAME, ci=True, progress=False, set={key: value})
+    assert str(in_file.value).split(": ", 1)[1] == str(from_set.value).split(": ", 1)[1]
+
+
+@pytest.mark.parametrize("changes, problem", [
+    ({"nobody.lever_arm": "1 m"}, "set['nobody.lever_arm']: unknown FMU instance 'nobody'"),
+    ({"controller.feedforward": "none"}, "is the swept parameter"),
+])
+def test_set_names_what_it_cannot_apply(changes, problem):
+    with pytest.raises(spec.ScenarioError, match=problem.replace("[", r"\[").replace("]", r"\]")):
+        movingbase.load_scenario(NAME, set=changes)
+
+
+def test_a_scenario_object_runs_as_its_file(result):
+    scenario = movingbase.load_scenario(NAME, ci=True)
+    ran = movingbase.run(scenario, progress=False)
+    assert scenario.parameters == spec.load(runner.resolve(NAME)).parameters   # the argument is left as it was
+    for a, b in zip(ran, result):
+        assert a.values.tobytes() == b.values.tobytes()
+    with pytest.raises(spec.ScenarioError, match="top-level keys stop_time can be applied to a scenario file only"):
+        movingbase.run(scenario, set={"stop_time": "1 s"})
+
+
+def test_to_pandas_holds_the_arrays(result, tmp_path):
+    pd = pytest.importorskip("pandas")
+    run = result["fixed_base"]
+    frame = run.to_pandas()
+    assert list(frame.columns) == run.names and frame.index.name == "time"
+    assert frame.to_numpy().tobytes() == run.values.tobytes() and frame.index.to_numpy().tobytes() == run.time.tobytes()
+    assert frame.attrs["units"]["plant.pose[1]"] == "m" and frame.attrs["units"]["plant.pose[4]"] == "rad"
+    every = result.to_pandas()
+    assert every.index.names == ["run", "time"] and len(every) == sum(len(r.time) for r in result)
+    assert every.loc["fixed_base"].to_numpy().tobytes() == run.values.tobytes()
+    table = result.metrics_table()
+    assert table.loc["moving_base", ("leg error", "rms")] == result.metrics["moving_base"]["leg error"]["rms"]
+    structured = run.to_numpy()
+    assert structured.dtype.names[:2] == ("time", "base.axis[1]")
+    assert structured["plant.pose[3]"].tobytes() == run["plant.pose"][:, 2].tobytes()
+    from_file = pd.DataFrame(dict(np.load(run.records.save(tmp_path / "r.npz"))))   # the file alone, for pandas
+    assert list(from_file.columns) == run.records.header and from_file.to_numpy()[:, 1:].tobytes() == run.values.tobytes()
+
+
+def test_to_pandas_without_pandas_says_what_to_install(result, monkeypatch):
+    monkeypatch.setitem(sys.modules, "pandas", None)
+    with pytest.raises(ModuleNotFoundError, match="to_pandas needs pandas.*pip install pandas"):
+        result["none"].to_pandas()
+
+
+def test_a_run_that_fails_is_flagged_with_its_partial_records():
+    """No feedback and no feedforward: the platform falls and a leg leaves its stroke
+    within the first second; the other sweep values still run, and a run is flagged
+    exactly when it stopped before the stop time."""
+    ran = movingbase.run(NAME, ci=True, progress=False,
+                         set={"controller.kp": 0.0, "controller.ki": 0.0, "controller.kd": 0.0})
+    failed = ran["none"]
+    assert [f.kind for f in failed.flags] == ["cut_short"] and "StrokeError" in failed.flags[0].message
+    assert not failed.ok and 0 < failed.sim_time < 1.0 and "none" in ran.flags
+    assert all(r.ok == (r.sim_time == pytest.approx(4.0)) for r in ran) and len(ran.flags) < len(ran)
+    assert failed.time[-1] <= failed.sim_time and len(failed.time) >= 2
+    assert "flagged: cut_short" in repr(failed)
+
+
+def test_plot_gives_the_report_s_charts_and_report_writes_them(result, tmp_path):
+    figures = result.plot()
+    tracked = [m for m in result.scenario.metrics if m.kind in ("leg_tracking", "pose_tracking", "tracking")]
+    assert len(figures) == len(tracked) + 1          # one per tracking metric, and the summary
+    assert [len(f.axes) for f in figures[:len(tracked)]] == [3, 4]   # error panels + the base motion underneath
+    line = next(l for l in figures[0].axes[0].get_lines() if l.get_label() == "moving_base")
+    t, values = result["moving_base"].run.series["leg error"]
+    np.testing.assert_array_equal(line.get_xdata(), t)
+    path = result.report(tmp_path / "rep")
+    assert path.read_text().startswith(f"# {NAME}")
+    assert read_records(tmp_path / "rep" / "none.npz").values.tobytes() == result["none"].values.tobytes()
+
+
+def test_a_campaign_s_table_holds_the_numbers_of_its_runs_run_one_by_one(tmp_path):
+    """Each row of movingbase.campaign's table has the metrics movingbase.run gives for
+    the same case; a campaign that keeps no records writes none (and says so)."""
+    pytest.importorskip("pandas")
+    path = tmp_path / "lever.toml"
+    path.write_text(f'name = "lever"\nscenario = "{NAME}"\nset = {{ stop_time = "2.5 s" }}\n'
+                    '[[grid]]\n"base.lever_arm" = ["5 m"]\n')
+    ran = movingbase.campaign(path, out=tmp_path / "out", jobs=1, progress=False)
+    table = ran.table()
+    assert len(ran) == len(table) == 3 and list(table["status"]) == ["ok"] * 3
+    alone = movingbase.run(NAME, progress=False, set={"stop_time": "2.5 s", "base.lever_arm": "5 m"})
+    for row in table.to_dict("records"):
+        run = alone[row["controller.feedforward"]]   # the scenario's sweep, crossed in by the campaign
+        assert row["leg error rms"] == run.metrics["leg error"]["rms"], row
+        assert row["pose error rotation_peak"] == run.metrics["pose error"]["rotation_peak"], row
+    assert not list((tmp_path / "out" / "lever" / "runs").glob("*.records.npz"))
+    with pytest.raises(FileNotFoundError, match="no records kept"):
+        ran.records(ran.labels[0])
+    t, _ = ran.series(ran.labels[0])["leg error"]
+    assert t[0] >= 2.0
+
+
+@pytest.mark.parametrize("content, problem", [
+    (b"time [s],x [m]\r\n0.0,1.0\r\n", "cannot read recorded data"),                  # a CSV, not npz
+    ({"t": np.zeros(2)}, "not a run's records .*found t"),                              # no time column
+    ({"time [s]": np.zeros(2), "plant.x": np.ones(2)}, "not a run's records .*plant.x"),  # no unit
+])
+def test_a_file_that_is_not_records_is_refused_naming_it(content, problem, tmp_path):
+    path = tmp_path / "bad.npz"
+    if isinstance(content, bytes):
+        path.write_bytes(content)
+    else:
+        np.savez(path, **content)
+    with pytest.raises(ValueError, match=f"{path}: {problem}"):
+        read_records(path)
