@@ -11,6 +11,7 @@ FMU compiles. Default values are assumed, from comparable instruments (README).
 """
 import numpy as np
 
+from movingbase.fmu_src.operating_point import AXIS, BASE_POSE
 from movingbase.fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
 from movingbase.plant import telescope
 from movingbase.plant._kernel import ffi, lib
@@ -47,7 +48,7 @@ class BaseSensor(GuardedSlave):
              "axis intersection to base along boresight (as TelescopeBase's; assumed)", (0.0, None)),
         ))
         self.truth = np.zeros(22)      # the inputs, INPUTS
-        self.truth[1] = np.radians(30.0)
+        self.truth[0:2], self.truth[4:10] = AXIS, BASE_POSE   # start: the operating point, at rest
         units_of = {"axis": "rad", "axis_rate": "rad/s", "true_base_pose": POSE_UNITS,
                     "true_base_rate": rate_units(POSE_UNITS), "true_base_acc": acc_units(POSE_UNITS)}
         for name, start, size in INPUTS:

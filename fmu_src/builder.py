@@ -2,8 +2,8 @@
 (the CLI is build.py at the top of the repository: python build.py [--out DIR] [names]).
 
 pythonfmu packs each script of fmu_src/ (class __init__ runs here, at build time); this
-script then adds what pythonfmu leaves out: SI units with mm/deg display units and the
-parameters' min/max in modelDescription.xml, and resources/requirements.txt naming the Python packages the FMU
+script then adds what pythonfmu leaves out: SI units with mm/deg display units, the
+parameters' min/max and the choice parameters as FMI Enumerations in modelDescription.xml, and resources/requirements.txt naming the Python packages the FMU
 needs at run time (pythonfmu's `deploy` installs from it). It puts fmu_src/pythonfmu_shim.c,
 compiled with the machine's cc, in front of pythonfmu's Linux wrapper (fmi2Error, not
 fmi2Fatal, for a failed initialization; a clean exit in a C host; see that file); the
@@ -105,6 +105,29 @@ def add_ranges(xml_text, ranges):
     return ET.tostring(root, encoding="unicode", xml_declaration=True)
 
 
+def add_enumerations(xml_text, enumerations):
+    """modelDescription.xml with a TypeDefinitions SimpleType per choice parameter (items
+    named as the scenario files name them, values 0..n-1 as the FMU counts) and that
+    parameter declared an Enumeration of it: ``fmpy simulate --start-values profile paper``."""
+    if not enumerations:
+        return xml_text
+    root = ET.fromstring(xml_text)
+    types = ET.Element("TypeDefinitions")
+    for name, labels in sorted(enumerations.items()):
+        simple = ET.SubElement(types, "SimpleType", name=name)
+        kind = ET.SubElement(simple, "Enumeration")
+        for value, label in enumerate(labels):
+            ET.SubElement(kind, "Item", name=label, value=str(value))
+    after = root.find("UnitDefinitions") if root.find("UnitDefinitions") is not None else root.find("CoSimulation")
+    root.insert(list(root).index(after) + 1, types)
+    for var in root.iter("ScalarVariable"):
+        if var.get("name") in enumerations:
+            integer = var.find("Integer")
+            integer.tag = "Enumeration"
+            integer.set("declaredType", var.get("name"))
+    return ET.tostring(root, encoding="unicode", xml_declaration=True)
+
+
 def slave_instance(fmu):
     """An instance of the FMU's slave class, made on the FMU's own resources (the units it
     recorded; the exact start values fmu_src/native_build.py compiles in)."""
@@ -119,9 +142,9 @@ def slave_instance(fmu):
 
 
 def _recorded(fmu):
-    """(units, ranges) the slave recorded."""
+    """(units, ranges, enumerations) the slave recorded."""
     slave = slave_instance(fmu)
-    return slave.units, slave.ranges
+    return slave.units, slave.ranges, slave.enumerations
 
 
 def compile_shim(folder):
@@ -141,12 +164,13 @@ def compile_shim(folder):
     return library
 
 
-def _rewrite(fmu, units, ranges, shim):
-    """Units and ranges into modelDescription.xml; the shim in front of the Linux wrapper,
+def _rewrite(fmu, units, ranges, enumerations, shim):
+    """Units, ranges and enumerations into modelDescription.xml; the shim in front of the Linux wrapper,
     which is kept beside it as <id>.pythonfmu.so."""
     with zipfile.ZipFile(fmu) as z:
         files = {name: z.read(name) for name in z.namelist()}
-    xml_text = add_ranges(add_units(files["modelDescription.xml"].decode(), units), ranges)
+    xml_text = add_enumerations(add_ranges(add_units(files["modelDescription.xml"].decode(), units), ranges),
+                                enumerations)
     files["modelDescription.xml"] = xml_text.encode()
     identifier = ET.fromstring(xml_text).find("CoSimulation").get("modelIdentifier")
     wrapper = f"binaries/linux64/{identifier}.so"

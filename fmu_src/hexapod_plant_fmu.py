@@ -11,9 +11,15 @@ appears in the leg at once, as before. Its defaults are 0 (off), not a real scre
 values; the realistic scenario (scenarios/files/telescope_slew_realistic.toml) sets them,
 with their sources. With a bandwidth the six motor forces are states, saved with the FMU
 state; they start at the commanded force at initialization (no start transient).
+
+The inputs start at the kit's operating point (fmu_src/operating_point.py): the base at
+the telescope's default start pointing, at rest, and the leg forces that hold the
+platform still at home there, so a host that steps before setting any input (a plain
+fmpy.simulate_fmu) sees the platform stay put instead of falling out of its stroke.
 """
 import numpy as np
 
+from movingbase.fmu_src.operating_point import BASE_POSE, STATIC_LEG_FORCES
 from movingbase.fmu_src.slave import (INPUT, OUTPUT, PARAMETER, POSE_UNITS, POSITIVE_TIME, GuardedSlave, acc_units,
                            rate_units)
 from movingbase.plant.hexapod_ode import Actuator, HexapodODE
@@ -24,6 +30,9 @@ POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 # half stroke: from 1 mm (less stops a run at the first mm of motion; no actuator has
 # less travel) to the shortest home leg length (more leaves a negative lowest length)
 STROKE_RANGE = (1e-3, float(StewartParams.paper().home_lengths.min()))
+# initial pose: within the largest stroke of home in translation, tilts within +-90 deg
+# (a wider range no hexapod reaches; the kernel refuses what its legs cannot hold)
+POSE_RANGE = [(h - STROKE_RANGE[1], h + STROKE_RANGE[1]) for h in HOME_POSE[:3]] + [(-np.pi / 2, np.pi / 2)] * 3
 
 
 class HexapodPlant(GuardedSlave):
@@ -55,8 +64,9 @@ class HexapodPlant(GuardedSlave):
         ))
         self.initial_pose = self.vector("initial_pose", 6, PARAMETER,
                                         [f"initial platform {n} in {{B}}" for n in POSE_NAMES], POSE_UNITS,
-                                        HOME_POSE)
+                                        HOME_POSE, valid=POSE_RANGE)
         self.inputs, self.outputs = np.zeros((5, 6)), np.zeros((4, 6))   # shared with the ODE
+        self.inputs[0], self.inputs[1] = STATIC_LEG_FORCES, BASE_POSE   # start: the operating point
         self.vector("leg_force", 6, INPUT, "actuator force along the leg, + extends", "N", values=self.inputs[0])
         self.vector("base_pose", 6, INPUT, [f"base {n} in {{W}}" for n in POSE_NAMES], POSE_UNITS,
                     values=self.inputs[1])

@@ -14,6 +14,7 @@ from pythonfmu.enums import Fmi2Status
 
 from movingbase.controller.feedforward import FEEDFORWARD_MODES, Feedforward
 from movingbase.controller.pid import PIDGains, pid_update
+from movingbase.fmu_src.operating_point import BASE_POSE
 from movingbase.fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
 from movingbase.plant.errors import InvalidInputError
 from movingbase.plant.stewart import StewartParams
@@ -35,7 +36,8 @@ class LegController(GuardedSlave):
         pose_desc = lambda prefix: [f"{prefix} {n}" for n in POSE_NAMES]
         home = StewartParams.paper()
         self.inputs = np.zeros((8, 6))   # all inputs in one array: one NaN/inf check per step
-        self.inputs[0], self.inputs[3] = home.home_pose, home.home_lengths
+        # start: the operating point (fmu_src/operating_point.py), platform at home, base at rest
+        self.inputs[0], self.inputs[3], self.inputs[5] = home.home_pose, home.home_lengths, BASE_POSE
         self.input_rows = tuple(self.inputs)   # the same row views every step: the model keeps their C pointers
         for row, (name, desc, units) in enumerate((
             (INPUTS[0], pose_desc("platform reference, in {B},"), POSE_UNITS),

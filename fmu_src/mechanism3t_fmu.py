@@ -27,6 +27,7 @@ import math
 
 import numpy as np
 
+from movingbase.fmu_src.operating_point import STATIC_SLIDER_FORCES
 from movingbase.fmu_src.slave import INPUT, OUTPUT, PARAMETER, POSITIVE_TIME, GuardedSlave
 from movingbase.plant import mechanism3t_kernel as kernel
 from movingbase.plant.errors import ConvergenceError, InvalidInputError
@@ -35,6 +36,9 @@ from movingbase.plant.mechanism3t import MM, PAPER_REFERENCE_RHO_MM, Mechanism1P
 
 SLIDERS = ("x_A2", "y_A1", "y_A3")
 AXES = ("x", "y", "z")
+# the sliders' actuator ranges (paper 3.4); rates up to 1 m/s (assumed: a screw-driven slider)
+POSITION_RANGE = list(zip(Mechanism1Params.paper().rho_min, Mechanism1Params.paper().rho_max))
+RATE_RANGE = (-1.0, 1.0)
 
 
 class Mechanism3TPlant(GuardedSlave):
@@ -50,12 +54,15 @@ class Mechanism3TPlant(GuardedSlave):
                   valid=(POSITIVE_TIME, None))
         rho0 = np.array(PAPER_REFERENCE_RHO_MM) * MM
         self.initial_position = self.vector("initial_position", 3, PARAMETER,
-                                            [f"initial slider position {s}" for s in SLIDERS], "m", rho0)
+                                            [f"initial slider position {s}" for s in SLIDERS], "m", rho0,
+                                            valid=POSITION_RANGE)
         self.initial_rate = self.vector("initial_rate", 3, PARAMETER,
-                                        [f"initial slider rate d/dt {s}" for s in SLIDERS], "m/s")
+                                        [f"initial slider rate d/dt {s}" for s in SLIDERS], "m/s",
+                                        valid=RATE_RANGE)
         self.force = self.vector("slider_force", 3, INPUT,
                                  ["actuator force on slider x_A2 along +x", "actuator force on slider y_A1 along +y",
-                                  "actuator force on slider y_A3 along +y"], "N")
+                                  "actuator force on slider y_A3 along +y"], "N",
+                                 start=STATIC_SLIDER_FORCES)   # holding it still at rho0 (operating point)
         self.x = np.r_[rho0, np.zeros(3)]
         self.vector("slider_position", 3, OUTPUT, [f"slider position {s}" for s in SLIDERS], "m",
                     values=self.x[:3])

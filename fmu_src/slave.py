@@ -11,8 +11,10 @@ out NaN or inf is such an error (check_outputs), as in the native layer.
 
 Units and ranges: pythonfmu writes neither, so each variable's unit and each parameter's
 valid range (``valid=(min, max)``, either side None for open; FMI's min/max are inclusive,
-so "> 0" is written as a tiny positive min) are recorded here, and build.py writes them into
-modelDescription.xml (fmu_src/builder.py). At fmi2ExitInitializationMode every parameter
+so "> 0" is written as a tiny positive min) are recorded here, with the choice parameters'
+item names (``enumerations``) and the DefaultExperiment, and build.py writes them into
+modelDescription.xml (fmu_src/builder.py): one description of each FMU that every
+modelDescription writer reads from an instance of its slave class. At fmi2ExitInitializationMode every parameter
 is checked against its range (and enumerations with gaps against their values), every
 input must be finite, and a violation is logged naming variable, value and range.
 
@@ -59,7 +61,7 @@ import zlib
 from xml.etree import ElementTree
 
 import numpy as np
-from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability
+from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability
 from pythonfmu.enums import Fmi2Status
 from pythonfmu.variables import Integer, Real
 
@@ -157,12 +159,17 @@ class GuardedSlave(Fmi2Slave):
 
     author = "movingbase"
     license = "MIT"
+    # what a plain importer runs without arguments (fmpy.simulate_fmu): one second at 1 ms,
+    # the communication step every controller's gains were designed for
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=1.0, step_size=1e-3)
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
+        self.default_experiment = type(self).default_experiment   # pythonfmu's __init__ sets None
         self.units = {}
         self.ranges = {}    # parameter name -> (min, max), None for an open side
         self.allowed = {}   # integer parameter name -> the values it may take (gaps min/max cannot say)
+        self.enumerations = {}   # parameter name -> item names, values 0..n-1 (FMI Enumerations, builder.py)
         self.input_names = []
         self._step_saves = []   # (root of output arrays, its copy before the step): put back on Discard
         self.failure = ""
@@ -311,7 +318,9 @@ class GuardedSlave(Fmi2Slave):
             self.allowed[name] = tuple(allowed)
 
     def enumeration(self, name, what, labels, start):
-        """An Integer parameter choosing one of ``labels`` by index 0..n-1."""
+        """A parameter choosing one of ``labels`` by index 0..n-1: an FMI Enumeration whose
+        items are the labels (builder.py writes it; set through fmi2SetInteger)."""
+        self.enumerations[name] = tuple(labels)
         self.integer(name, f"{what}: " + ", ".join(f"{i} {m}" for i, m in enumerate(labels)), start,
                      (0, len(labels) - 1))
 

@@ -36,6 +36,7 @@ about 6x the largest force of the paper example (173.5 N on x_A2 in this model).
 import numpy as np
 
 from movingbase.controller.pid import PIDGains, pid_update
+from movingbase.fmu_src.mechanism3t_fmu import POSITION_RANGE
 from movingbase.fmu_src.slave import INPUT, OUTPUT, PARAMETER, GuardedSlave
 from movingbase.plant import mechanism3t_kernel as kernel
 from movingbase.plant.errors import InvalidInputError
@@ -61,7 +62,8 @@ class SliderController(GuardedSlave):
                   valid=(0.0, None))
         rho0 = np.array(PAPER_REFERENCE_RHO_MM) * MM
         self.initial_position = self.vector("initial_position", 3, PARAMETER,
-                                            [f"centre of the reference of slider {s}" for s in SLIDERS], "m", rho0)
+                                            [f"centre of the reference of slider {s}" for s in SLIDERS], "m", rho0,
+                                            valid=POSITION_RANGE)
         self.gains = self.pid_gains(DEFAULT_GAINS, "slider position", DESIGN)
         self.measured = np.zeros((2, 3))
         self.measured[0] = rho0

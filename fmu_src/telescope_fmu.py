@@ -20,6 +20,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from movingbase.fmu_src.operating_point import START_AZ_EL
 from movingbase.fmu_src.slave import (OUTPUT, POSE_UNITS, POSITIVE_RATE, POSITIVE_TIME, GuardedSlave, acc_units,
                            rate_units)
 from movingbase.plant import telescope
@@ -39,8 +40,8 @@ class TelescopeBase(GuardedSlave):
         self.enumeration("profile", "motion profile", PROFILES, 0)
         turn, quarter, positive = (-2 * np.pi, 2 * np.pi), (0.0, np.pi / 2), (POSITIVE_RATE, None)
         self.settings = self.parameters((
-            ("start_azimuth", "rad", 0.0, "slew start azimuth, astronomical (north through east; within one turn either way)", turn),
-            ("start_elevation", "rad", np.radians(30.0), "slew start elevation", quarter),
+            ("start_azimuth", "rad", START_AZ_EL[0], "slew start azimuth, astronomical (north through east; within one turn either way)", turn),
+            ("start_elevation", "rad", START_AZ_EL[1], "slew start elevation", quarter),
             ("target_azimuth", "rad", np.radians(90.0), "slew target azimuth, astronomical (north through east; within one turn either way)", turn),
             ("target_elevation", "rad", np.radians(60.0), "slew target elevation", quarter),
             ("az_rate_max", "rad/s", tianma.az_rate_max, "azimuth rate limit (assumed); > 0", positive),

@@ -18,6 +18,7 @@ height); the centre of pressure 1 m from the platform's origin along z.
 """
 import numpy as np
 
+from movingbase.fmu_src.operating_point import BASE_POSE
 from movingbase.fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave
 from movingbase.plant._kernel import ffi, lib
 from movingbase.plant.errors import InvalidInputError
@@ -82,7 +83,8 @@ class Wind(GuardedSlave):
         self.enumeration("spectrum", "gust spectrum", SPECTRA, 0)
         self.integer("seed", "seed of the gust's random phases and frequencies", 0, (0, 2 ** 31 - 1))
         self.base_pose = self.vector("base_pose", 6, INPUT, [f"base, in {{W}}, {n}" for n in
-                                                           ("x", "y", "z", "roll", "pitch", "yaw")], POSE_UNITS)
+                                                           ("x", "y", "z", "roll", "pitch", "yaw")], POSE_UNITS,
+                                     start=BASE_POSE)   # the operating point
         self.out = np.zeros(7)   # wrench (6), gust
         self.vector("platform_wrench", 6, OUTPUT,
                     [f"wind {n} on the platform at {{P}}'s origin, in {{B}}" for n in

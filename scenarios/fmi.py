@@ -148,7 +148,7 @@ class Instance:
         """Set one variable by name, with the FMI type its description says."""
         self.vr(name)
         kind = self.variables[name].type
-        if kind == "Integer":
+        if kind in ("Integer", "Enumeration"):   # FMI 2.0 sets an Enumeration as an Integer
             self.call("setInteger", [self.vr(name)], [int(value)])
         elif kind == "Boolean":
             self.call("setBoolean", [self.vr(name)], [bool(value)])

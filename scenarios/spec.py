@@ -730,7 +730,7 @@ def _check_telescope(src, key, scenario, inst, md_variables, values, written):
         if name in values:
             return values[name]
         var = md_variables[name]
-        return int(var.start) if var.type == "Integer" else float(var.start)
+        return int(var.start) if var.type in ("Integer", "Enumeration") else float(var.start)
 
     def shown(names):
         raws = {**scenario.parameters[inst], **{n: r for (i, n), r in written.items() if i == inst}}
@@ -778,7 +778,7 @@ def metric_variables(metric):
 
 def _value(source, key, var, raw):
     """raw converted for var (SI float or integer index), within the FMU's declared range."""
-    if var.type == "Integer":
+    if var.type in ("Integer", "Enumeration"):
         choices = _enumeration(var.description)
         if isinstance(raw, str) and raw in choices:
             return choices[raw]
@@ -817,7 +817,7 @@ def _range_text(var, raw=None):
         return f"{text} {unit}".rstrip()
 
     si = interval(1.0, var.unit or "")
-    user = split(raw)[1] if isinstance(raw, str) and var.type != "Integer" else None
+    user = split(raw)[1] if isinstance(raw, str) and var.type not in ("Integer", "Enumeration") else None
     return f"{interval(UNITS[user][0], user)} = {si}" if user in UNITS and user != var.unit else si
 
 

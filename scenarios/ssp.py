@@ -13,10 +13,13 @@ it, tests/test_libcosim.py; the pythonfmu FMUs too, with Python in the tool). Th
   connector; SSP requires connectors only for connected variables);
 - every scalar connection (vector connections expanded with spec.expand);
 - the parameter values as an inline ParameterSet in a ParameterBinding per Component,
-  named by the FMU's variable names, in the FMU's units (SI): other FMI/SSP tools
+  every set named PARAMETER_SET (ecos: ``init(parameter_set="scenario")``), its
+  parameters named by the FMU's variable names, in the FMU's units (SI): other FMI/SSP tools
   apply them. "@inst.var" links are resolved to numbers (the source FMU is initialised
   as master.run does and its output read at the start time), enumeration Integers are
   written as their numbers;
+- the FMUs under resources/ with their Enumeration parameters declared as Integers
+  (``integer_choices``: the SSP hosts set no FMI 2 Enumeration), everything else as built;
 - Units from the FMUs' unit definitions, DefaultExperiment start/stop, and an
   annotation with our master settings (algorithm, step, extrapolation).
 
@@ -49,6 +52,7 @@ and from our master in these ways; ``simulate_exported`` deals with each:
   every declared connector; inputs show the value they get for the next step.
 """
 import contextlib
+import io
 import math
 import pathlib
 import xml.etree.ElementTree as ET
@@ -68,6 +72,10 @@ MB = "urn:movingbase:scenario"
 for _prefix, _uri in (("ssd", SSD), ("ssc", SSC), ("ssv", SSV), ("mb", MB)):
     ET.register_namespace(_prefix, _uri)
 FMU_TYPE = "application/x-fmu-sharedlibrary"
+# the one name of every Component's inline parameter set: ecos applies only the sets named
+# at its init (each Component's set named after its instance, it applied none and ran on
+# the FMUs' defaults); libcosim and fmpy apply them whatever their name
+PARAMETER_SET = "scenario"
 _BASE_UNIT = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 
 
@@ -169,7 +177,7 @@ def build_ssd(scenario, fmu_paths, parameters, sources):
             binding = ET.SubElement(ET.SubElement(component, _q(SSD, "ParameterBindings")),
                                     _q(SSD, "ParameterBinding"))
             holder = ET.SubElement(binding, _q(SSD, "ParameterValues"))
-            pset = ET.SubElement(holder, _q(SSV, "ParameterSet"), {"version": "1.0", "name": inst})
+            pset = ET.SubElement(holder, _q(SSV, "ParameterSet"), {"version": "1.0", "name": PARAMETER_SET})
             plist = ET.SubElement(pset, _q(SSV, "Parameters"))
             for name, value in values.items():
                 if isinstance(value, Link):
@@ -229,8 +237,29 @@ def export_ssp(scenario, fmu_paths, parameters, path):
     with zipfile.ZipFile(path, "w") as z:
         z.writestr("SystemStructure.ssd", text, compress_type=zipfile.ZIP_DEFLATED)
         for name, fmu in files.items():
-            z.write(fmu, name, compress_type=zipfile.ZIP_STORED)   # an FMU is a zip already
+            z.writestr(name, integer_choices(fmu), compress_type=zipfile.ZIP_STORED)   # an FMU is a zip already
     return path
+
+
+def integer_choices(fmu):
+    """The FMU's bytes with its Enumeration parameters declared as the Integers they are
+    in FMI 2.0 (same value reference, fmi2SetInteger, start, min, max; the item names stay
+    in the description and TypeDefinitions): libcosim 0.0.6 ignores an ssv:Integer binding
+    on an Enumeration without a word and aborts on an ssv:Enumeration, ecos 0.7.2 registers
+    no Enumeration variable, so an SSP of Enumerations ran on the FMUs' default choices."""
+    with zipfile.ZipFile(fmu) as z:
+        entries = [(info, z.read(info)) for info in z.infolist()]
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w") as z:
+        for info, data in entries:
+            if info.filename == "modelDescription.xml":
+                root = ET.fromstring(data)
+                for kind in root.iterfind("ModelVariables/ScalarVariable/Enumeration"):
+                    kind.tag = "Integer"
+                    del kind.attrib["declaredType"]
+                data = ET.tostring(root, encoding="utf-8", xml_declaration=True)
+            z.writestr(info, data)
+    return out.getvalue()
 
 
 # ------------------------------------------------------------------------ fmpy's run

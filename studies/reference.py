@@ -66,7 +66,7 @@ def _defaults(description):
     out = {}
     for v in description.modelVariables:
         if v.causality == "parameter" and v.start is not None:
-            out[v.name] = int(v.start) if v.type == "Integer" else float(v.start)
+            out[v.name] = int(v.start) if v.type in ("Integer", "Enumeration") else float(v.start)
     return out
 
 

@@ -374,8 +374,8 @@ def test_parameters_outside_their_range_are_refused(fmus, native):
                 if bound is None:
                     continue
                 ranged += 1
-                value = int(bound) if var.type == "Integer" else float(bound)
-                bad = value + outside if var.type == "Integer" else value + outside * max(1.0, abs(value)) * 1e-3
+                value = int(bound) if var.type in ("Integer", "Enumeration") else float(bound)
+                bad = value + outside if var.type in ("Integer", "Enumeration") else value + outside * max(1.0, abs(value)) * 1e-3
                 texts = []
                 for paths in (fmus, native):
                     inst, status = opened(paths[script], **{var.name: bad})

@@ -82,7 +82,18 @@ def test_ssd_is_valid_and_names_every_component_connection_and_parameter(case):
     assert list(components) == master.step_order(scenario, params)   # fmpy initialises in document order
     for inst, component in components.items():
         source = component.get("source")
-        assert fmu_bytes[source] == paths[inst].read_bytes()
+        assert fmu_bytes[source] == ssp.integer_choices(paths[inst])
+        # the FMU as built, but for its choice parameters, declared as the Integers they are in FMI
+        with zipfile.ZipFile(paths[inst]) as built, zipfile.ZipFile(io.BytesIO(fmu_bytes[source])) as inside:
+            assert built.namelist() == inside.namelist()
+            assert all(built.read(n) == inside.read(n) for n in built.namelist() if n != "modelDescription.xml")
+            before, after = (etree.fromstring(z.read("modelDescription.xml")) for z in (built, inside))
+        choices = [v.get("name") for v in before.iterfind("ModelVariables/ScalarVariable") if v.find("Enumeration") is not None]
+        assert choices and not after.findall("ModelVariables/ScalarVariable/Enumeration")
+        for name in choices:
+            (was,) = before.findall(f"ModelVariables/ScalarVariable[@name='{name}']/Enumeration")
+            (now,) = after.findall(f"ModelVariables/ScalarVariable[@name='{name}']/Integer")
+            assert {k: v for k, v in was.attrib.items() if k != "declaredType"} == dict(now.attrib)
 
     # every scalar connection, each end a declared connector of the right kind
     expected = set()
@@ -112,7 +123,8 @@ def test_ssd_is_valid_and_names_every_component_connection_and_parameter(case):
     used = {r.get("unit") for r in root.iterfind(".//ssd:Connector/ssc:Real", NS) if r.get("unit")}
     assert used and used <= defined
 
-    # parameters: inline SSV parameter sets, Integers as Integers, the link resolved
+    # parameters: inline SSV parameter sets, all of one name (ecos applies the set named
+    # at its init), Integers and Enumerations as Integers, the link resolved
     reference = Instance(paths["base"], "reference")
     try:
         reference.initialize(0.0, params["base"])
@@ -125,6 +137,7 @@ def test_ssd_is_valid_and_names_every_component_connection_and_parameter(case):
             assert not sets
             continue
         (parameter_set,) = sets
+        assert parameter_set.get("name") == ssp.PARAMETER_SET
         validate_tree(parameter_set, "SystemStructureParameterValues.xsd")
         written = {}
         for p in parameter_set.iterfind("ssv:Parameters/ssv:Parameter", NS):
@@ -134,7 +147,7 @@ def test_ssd_is_valid_and_names_every_component_connection_and_parameter(case):
         types = {v.name: v.type for v in descriptions[inst].modelVariables}
         for name, value in params[inst].items():
             kind, literal = written[name]
-            assert kind == types[name]
+            assert kind == {"Enumeration": "Integer"}.get(types[name], types[name])
             if isinstance(value, spec.Link):
                 value = pose[int(name[-2]) - 1]
             assert (int(literal) if kind == "Integer" else float(literal)) == value, name
@@ -224,6 +237,29 @@ def test_fmpy_as_is_steps_first_with_zero_inputs_and_the_controller_refuses(case
             controller.do_step(scenario.start_time, scenario.step)
     finally:
         controller.terminate()
+
+
+def _fmpy_itself(path, stop, step):
+    """fmpy.ssp.simulate_ssp with no project code between (no parameter set, no initial
+    exchange): (error message or "no error", rows)."""
+    from fmpy.ssp.simulation import simulate_ssp
+    try:
+        return "no error", len(simulate_ssp(str(path), stop_time=stop, step_size=step))
+    except FMICallException as exc:
+        return str(exc), 0
+
+
+def test_plain_fmpy_simulate_ssp_stops_at_the_first_step(case):
+    """The plain host: fmpy 0.3.32 writes its connectors' initial 0.0 into every connected
+    input before the first doStep (fmpy/ssp/simulation.py: ``connector.value = 0.0``, then
+    do_step's set_value), so the FMUs' start values (the operating point, which a host that
+    steps without setting inputs does use: tests/test_defaults.py) never reach that step,
+    and the controller refuses the zero reference pose. What a plain fmpy user meets, kept
+    as a regression: it must fail at t = 0 with the controller's Discard, never run on."""
+    scenario, paths, descriptions, params, path, _ = case
+    with multiprocessing.get_context("spawn").Pool(1) as pool:
+        error, rows = pool.apply(_fmpy_itself, (path, 5 * scenario.step, scenario.step))
+    assert "fmi2DoStep failed with status 2" in error and rows == 0
 
 
 def test_export_refuses_what_it_cannot_write(case):
