@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# CI: the exported SSP under the other masters (fmpy.ssp, libcosim, ecos) and every FMU
-# under a plain fmpy.simulate_fmu. ecos (pip ecospy: dev extra, pinned in constraints.txt) loads only
-# with Debian's libtbb12; without it tests/test_ecos.py skips, so install it here.
+# CI, before the test suite: what the other masters need (fmpy.ssp, libcosim, ecos). ecos
+# (pip ecospy: dev extra, pinned in constraints.txt) loads only with Debian's libtbb12;
+# without it tests/test_ecos.py skips, so it is installed here and ecos must load.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if ! ldconfig -p | grep -q 'libtbb\.so\.12'; then
@@ -11,4 +11,3 @@ fi
 [ -x .venv/bin/python ] || python3 -m venv .venv
 .venv/bin/pip install -q -c constraints.txt -e '.[dev]'
 .venv/bin/python -c 'import ecospy; print("ecos", ecospy.EcosLib.version())'   # fails loudly if it cannot load
-.venv/bin/python -m pytest -q -rs tests/test_ecos.py tests/test_libcosim.py tests/test_ssp.py tests/test_defaults.py

@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 [ -x .venv/bin/python ] || python3 -m venv .venv
-.venv/bin/pip install -q -e '.[notebooks]'
+.venv/bin/pip install -q -c constraints.txt -e '.[notebooks]'
 for notebook in examples/*.ipynb; do
     echo "executing $notebook"
     .venv/bin/python - "$notebook" <<'PY'

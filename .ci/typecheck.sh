@@ -6,13 +6,13 @@
 # API imports are followed silently (their own hints are not yet checked).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-[ -x .venv/bin/mypy ] || { python3 -m venv .venv && .venv/bin/pip install -q -e '.[dev]'; }
+[ -x .venv/bin/mypy ] || { python3 -m venv .venv && .venv/bin/pip install -q -c constraints.txt -e '.[dev]'; }
 mirror=$(mktemp -d)
 trap 'rm -rf "$mirror"' EXIT
 mkdir "$mirror/movingbase"
 ln -s "$PWD/movingbase/__init__.py" "$PWD/movingbase/__main__.py" "$mirror/movingbase/"
 for folder in plant controller fmu_src scenarios; do ln -s "$PWD/$folder" "$mirror/movingbase/$folder"; done
 cd "$mirror"
-"$OLDPWD/.venv/bin/mypy" --python-version 3.10 --follow-imports=silent --ignore-missing-imports \
+"$OLDPWD/.venv/bin/mypy" --python-version 3.11 --follow-imports=silent --ignore-missing-imports \
     --disallow-untyped-defs --disallow-incomplete-defs --warn-unused-ignores --no-incremental \
     -m movingbase -m movingbase.scenarios.api -m movingbase.scenarios.records
