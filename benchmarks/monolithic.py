@@ -73,6 +73,7 @@ class Pair:
             raise ValueError(f"the monolithic loop mirrors a Jacobi telescope + hexapod_plant + leg_controller "
                              f"scenario, not {scenario.name}")
         self.scenario, self.instances = scenario, {}
+        self._lib = library()   # compiled before anything is timed
         try:
             self.exchange, _ = master.start(scenario, paths, values, self.instances)
             self.loop = master.Loop(self.exchange, self.instances, list(scenario.fmus), False,
@@ -134,7 +135,7 @@ class Pair:
         step, or None): the C loop from the initial state."""
         hexapod, plant_data, plant_modes, gains, ctrl_modes, tel, tel_modes = self._args
         out = np.full((steps + 1, 6), np.nan) if lengths else None
-        done = library().mb_monolithic(
+        done = self._lib.mb_monolithic(
             _ptr(hexapod, ctypes.c_double), _ptr(plant_data, ctypes.c_double), _ptr(plant_modes, ctypes.c_int),
             _ptr(gains, ctypes.c_double), _ptr(ctrl_modes, ctypes.c_int), _ptr(tel, ctypes.c_double),
             _ptr(tel_modes, ctypes.c_int), self._singular, self.scenario.step, steps,
