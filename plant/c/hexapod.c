@@ -177,12 +177,13 @@ static inline w3 wtransport(w3 aB, w3 g, w3 eB, w3 wB, w3 r, w3 v_rel)
                 wadd(wcross(eB, r), wcross(wB, wlin(splat(1.0), wcross(wB, r), splat(2.0), v_rel))));
 }
 
-void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joints, const double *data,
-                         int n_states, const double *pose_all, const double *rate_all, const double *arg_all,
-                         const double *base_pose, const double *base_rate, const double *base_acc,
-                         int base_mode, int legs, int twist_speeds, int solve, double m_r,
-                         const double *wrench_all, double *M_all, double *h_all, double *J_all, double *ldot,
-                         double *length, double *out_all, double *det)
+/* mb_hexapod_kane_ext, and (pose_trig not NULL) the cos and sin of the last state's
+   angles, so that mb_hexapod_rhs_actuated does not take them again. */
+static void kane(const double *base_joints, const double *platform_joints, const double *data, int n_states,
+                 const double *pose_all, const double *rate_all, const double *arg_all, const double *base_pose,
+                 const double *base_rate, const double *base_acc, int base_mode, int legs, int twist_speeds,
+                 int solve, double m_r, const double *wrench_all, double *M_all, double *h_all, double *J_all,
+                 double *ldot, double *length, double *out_all, double *det, trig *pose_trig)
 {
     const double m_p = data[0], g0 = data[10];
     const double Ip[3] = {data[1], data[2], data[3]};
@@ -194,6 +195,7 @@ void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joint
         const double *pose = pose_all + 6 * n, *rate = rate_all + 6 * n;
         double M[36], h[6], J[36];   /* built here, copied out at the end: no aliasing */
         const trig tp = angles(pose + 3);
+        if (pose_trig) *pose_trig = tp;
         rotation(&tp, R);
         v3 p = load(pose), v = load(rate);
         v3 w = twist_speeds ? load(rate + 3) : omega(&tp, rate + 3);
@@ -380,6 +382,17 @@ void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joint
     }
 }
 
+void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joints, const double *data,
+                         int n_states, const double *pose_all, const double *rate_all, const double *arg_all,
+                         const double *base_pose, const double *base_rate, const double *base_acc,
+                         int base_mode, int legs, int twist_speeds, int solve, double m_r,
+                         const double *wrench_all, double *M_all, double *h_all, double *J_all, double *ldot,
+                         double *length, double *out_all, double *det)
+{
+    kane(base_joints, platform_joints, data, n_states, pose_all, rate_all, arg_all, base_pose, base_rate, base_acc,
+         base_mode, legs, twist_speeds, solve, m_r, wrench_all, M_all, h_all, J_all, ldot, length, out_all, det, NULL);
+}
+
 void mb_hexapod_kane(const double *base_joints, const double *platform_joints, const double *data,
                      int n_states, const double *pose, const double *rate, const double *arg,
                      const double *base_pose, const double *base_rate, const double *base_acc,
@@ -463,10 +476,9 @@ double mb_hexapod_rhs_actuated(const double *bj, const double *pj, const double 
             base[6 + k] = base0[6 + k] + tau * base0[12 + k];
             base[12 + k] = base0[12 + k];
         }
-    mb_hexapod_kane_ext(bj, pj, data, 1, x, x + 6, forces, base, base + 6, base + 12, base_mode, legs, 1,
-                        MB_HEXAPOD_FD, act ? act[MB_ACT_REFLECTED_MASS] : 0.0, wrench, M, h, J, ldot, length, out,
-                        &det);
-    const trig tx = angles(x + 3);
+    trig tx;
+    kane(bj, pj, data, 1, x, x + 6, forces, base, base + 6, base + 12, base_mode, legs, 1, MB_HEXAPOD_FD,
+         act ? act[MB_ACT_REFLECTED_MASS] : 0.0, wrench, M, h, J, ldot, length, out, &det, &tx);
     v3 rr = rpy_rate(&tx, load(x + 9));
     for (int k = 0; k < 3; k++) {
         dx[k] = x[6 + k];
