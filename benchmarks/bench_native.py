@@ -13,6 +13,9 @@
    empty=True) doing the same exchange through the same master. The master steps in C
    (scenarios/c/cosim.c); Python records every 10 ms and feeds the metrics. Also shown:
    the same with no recording and no metrics (the stepping alone).
+3. The same paper manoeuvre stepped by the master's C loop alone (all steps in one call)
+   against the monolithic C loop of the same kernels without FMI (benchmarks/monolithic.c,
+   the same leg lengths bit for bit: tests/test_monolithic.py): what FMI costs.
 Repeats interleave the implementations (median), so machine load hits both alike.
 
     python benchmarks/bench_native.py [--repeats N]
@@ -29,6 +32,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))   # the checkout: tests.c_host
+from benchmarks.monolithic import Pair  # noqa: E402
 from tests.c_host import HostFmu  # noqa: E402
 
 from movingbase.fmu_src import builder, native_build
@@ -143,6 +147,22 @@ def main(argv=None):
               f"(RTF {1e6 * scenario.step / nat:.1f}) -> {py / nat:.1f}x")
         print(f"    floor (three empty native FMUs, same exchange) {floor:.2f} us/step: native = {nat / floor:.1f}x "
               f"floor, pythonfmu = {py / floor:.1f}x floor")
+
+    loops = {"cosim": [], "monolithic": []}
+    for _ in range(args.repeats):
+        for side in loops:
+            pair = Pair(scenario, by_impl["native"], values)
+            try:
+                start = time.perf_counter()
+                done, _ = getattr(pair, side)(steps, lengths=False)
+                loops[side].append((time.perf_counter() - start) / steps * 1e6)
+            finally:
+                pair.close()
+            if done != steps:
+                raise RuntimeError(f"the {side} run of the paper manoeuvre stopped at step {done} of {steps}")
+    cosim, mono = (statistics.median(loops[k]) for k in ("cosim", "monolithic"))
+    print(f"  co-simulation (native FMUs, the master's C loop alone) {cosim:.2f} us/step, monolithic C loop of the "
+          f"same kernels without FMI {mono:.2f} us/step -> co-simulation = {cosim / mono:.3f}x monolithic")
 
 if __name__ == "__main__":
     main()

@@ -3,7 +3,8 @@
    A port, term by term and in the same operation order, of the numba kernel it replaced
    (git 73017ff:plant/kane.py), so that both round alike (tests/test_kernel_c.py holds them
    equal). Vectors are 3-element structs passed by value and all scratch lives on the
-   stack: nothing is allocated. Equations: M du/dt + h = J^T F with u = (v, w) of {P}
+   stack: nothing is allocated. The legs are computed two at a time, one per lane of a
+   2-double vector, with each lane's operations those of one leg: the same bits. Equations: M du/dt + h = J^T F with u = (v, w) of {P}
    relative to {B} in {B}; a leg reduces to the 3x3 joint mass
    K = m_m s s^T + k_t (1 - s s^T) acting on its platform-joint velocity v_a = v + w x rho. */
 #include <math.h>
@@ -102,12 +103,87 @@ static inline v3 transport(v3 aB, v3 g, v3 eB, v3 wB, v3 r, v3 v_rel)
     return add(lin(1.0, aB, -1.0, g), add(cross(eB, r), cross(wB, lin(1.0, cross(wB, r), 2.0, v_rel))));
 }
 
-void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joints, const double *data,
-                         int n_states, const double *pose_all, const double *rate_all, const double *arg_all,
-                         const double *base_pose, const double *base_rate, const double *base_acc,
-                         int base_mode, int legs, int twist_speeds, int solve, double m_r,
-                         const double *wrench_all, double *M_all, double *h_all, double *J_all, double *ldot,
-                         double *length, double *out_all, double *det)
+/* Two legs at a time: d2 holds one double per leg, and every operation below acts on
+   each lane alone, as the scalar operation would (IEEE results per lane: the same bits).
+   GCC and clang keep a pair in one SSE2 / NEON register; other compilers get the pair
+   as two doubles. */
+#if defined(__GNUC__)
+typedef double d2 __attribute__((vector_size(16)));
+static inline d2 dadd(d2 a, d2 b) { return a + b; }
+static inline d2 dsub(d2 a, d2 b) { return a - b; }
+static inline d2 dmul(d2 a, d2 b) { return a * b; }
+static inline d2 ddiv(d2 a, d2 b) { return a / b; }
+static inline d2 dneg(d2 a) { return -a; }
+static inline double lane(d2 a, int i) { return a[i]; }
+static inline d2 pair(double a, double b) { d2 r = {a, b}; return r; }
+#else
+typedef struct { double v[2]; } d2;
+static inline d2 dadd(d2 a, d2 b) { d2 r = {{a.v[0] + b.v[0], a.v[1] + b.v[1]}}; return r; }
+static inline d2 dsub(d2 a, d2 b) { d2 r = {{a.v[0] - b.v[0], a.v[1] - b.v[1]}}; return r; }
+static inline d2 dmul(d2 a, d2 b) { d2 r = {{a.v[0] * b.v[0], a.v[1] * b.v[1]}}; return r; }
+static inline d2 ddiv(d2 a, d2 b) { d2 r = {{a.v[0] / b.v[0], a.v[1] / b.v[1]}}; return r; }
+static inline d2 dneg(d2 a) { d2 r = {{-a.v[0], -a.v[1]}}; return r; }
+static inline double lane(d2 a, int i) { return a.v[i]; }
+static inline d2 pair(double a, double b) { d2 r = {{a, b}}; return r; }
+#endif
+
+static inline d2 splat(double a) { return pair(a, a); }
+
+static inline d2 dsqrt(d2 a) { return pair(sqrt(lane(a, 0)), sqrt(lane(a, 1))); }
+
+/* A 3-vector per lane: v3 of two legs. */
+typedef struct { d2 x, y, z; } w3;
+
+static inline w3 wvec(d2 a, d2 b, d2 c) { w3 r = {a, b, c}; return r; }
+
+static inline w3 wsplat(v3 a) { return wvec(splat(a.e[0]), splat(a.e[1]), splat(a.e[2])); }
+
+/* rows j and j + 1 of a (6, 3) array */
+static inline w3 wload(const double *x, int j)
+{
+    return wvec(pair(x[3 * j], x[3 * j + 3]), pair(x[3 * j + 1], x[3 * j + 4]), pair(x[3 * j + 2], x[3 * j + 5]));
+}
+
+static inline w3 wcross(w3 a, w3 b)
+{
+    return wvec(dsub(dmul(a.y, b.z), dmul(a.z, b.y)), dsub(dmul(a.z, b.x), dmul(a.x, b.z)),
+                dsub(dmul(a.x, b.y), dmul(a.y, b.x)));
+}
+
+static inline d2 wdot(w3 a, w3 b) { return dadd(dadd(dmul(a.x, b.x), dmul(a.y, b.y)), dmul(a.z, b.z)); }
+
+/* ca * a + cb * b */
+static inline w3 wlin(d2 ca, w3 a, d2 cb, w3 b)
+{
+    return wvec(dadd(dmul(ca, a.x), dmul(cb, b.x)), dadd(dmul(ca, a.y), dmul(cb, b.y)),
+                dadd(dmul(ca, a.z), dmul(cb, b.z)));
+}
+
+static inline w3 wadd(w3 a, w3 b) { return wvec(dadd(a.x, b.x), dadd(a.y, b.y), dadd(a.z, b.z)); }
+
+static inline w3 wmul(const double *R, w3 x)
+{
+    return wvec(dadd(dadd(dmul(splat(R[0]), x.x), dmul(splat(R[1]), x.y)), dmul(splat(R[2]), x.z)),
+                dadd(dadd(dmul(splat(R[3]), x.x), dmul(splat(R[4]), x.y)), dmul(splat(R[5]), x.z)),
+                dadd(dadd(dmul(splat(R[6]), x.x), dmul(splat(R[7]), x.y)), dmul(splat(R[8]), x.z)));
+}
+
+static inline v3 pick(w3 a, int i) { return vec(lane(a.x, i), lane(a.y, i), lane(a.z, i)); }
+
+/* transport of two points (aB - g and the base vectors are splat) */
+static inline w3 wtransport(w3 aB, w3 g, w3 eB, w3 wB, w3 r, w3 v_rel)
+{
+    return wadd(wlin(splat(1.0), aB, splat(-1.0), g),
+                wadd(wcross(eB, r), wcross(wB, wlin(splat(1.0), wcross(wB, r), splat(2.0), v_rel))));
+}
+
+/* mb_hexapod_kane_ext, and (pose_trig not NULL) the cos and sin of the last state's
+   angles, so that mb_hexapod_rhs_actuated does not take them again. */
+static void kane(const double *base_joints, const double *platform_joints, const double *data, int n_states,
+                 const double *pose_all, const double *rate_all, const double *arg_all, const double *base_pose,
+                 const double *base_rate, const double *base_acc, int base_mode, int legs, int twist_speeds,
+                 int solve, double m_r, const double *wrench_all, double *M_all, double *h_all, double *J_all,
+                 double *ldot, double *length, double *out_all, double *det, trig *pose_trig)
 {
     const double m_p = data[0], g0 = data[10];
     const double Ip[3] = {data[1], data[2], data[3]};
@@ -119,6 +195,7 @@ void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joint
         const double *pose = pose_all + 6 * n, *rate = rate_all + 6 * n;
         double M[36], h[6], J[36];   /* built here, copied out at the end: no aliasing */
         const trig tp = angles(pose + 3);
+        if (pose_trig) *pose_trig = tp;
         rotation(&tp, R);
         v3 p = load(pose), v = load(rate);
         v3 w = twist_speeds ? load(rate + 3) : omega(&tp, rate + 3);
@@ -157,77 +234,96 @@ void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joint
             h[3 + i] = torque.e[i];
         }
 
-        /* legs */
-        for (int j = 0; j < 6; j++) {
-            v3 rho = mul(R, load(platform_joints + 3 * j));
-            v3 Bj = load(base_joints + 3 * j);
-            v3 L = vec(p.e[0] + rho.e[0] - Bj.e[0], p.e[1] + rho.e[1] - Bj.e[1], p.e[2] + rho.e[2] - Bj.e[2]);
-            double l = sqrt(dot(L, L));
-            v3 s = lin(1.0 / l, L, 0.0, L);
-            v3 va = add(v, cross(w, rho));
-            double ld = dot(s, va);
-            v3 sd = lin(1.0 / l, va, -ld / l, s);
-            v3 rs = cross(rho, s);
-            ldot[6 * n + j] = ld;
-            length[6 * n + j] = l;
-            for (int k = 0; k < 3; k++) {
-                J[6 * j + k] = s.e[k];
-                J[6 * j + 3 + k] = rs.e[k];
+        /* legs, two at a time (the lanes of d2); each leg's terms then enter M and h in
+           leg order, as one leg at a time would add them */
+        const w3 p2 = wsplat(p), v2 = wsplat(v), w2 = wsplat(w), g2 = wsplat(g), aB2 = wsplat(aB);
+        const w3 eB2 = wsplat(eB), wB2 = wsplat(wB);
+        const d2 one = splat(1.0), zero2 = splat(0.0), lf2 = splat(lf), mf2 = splat(mf), mm2 = splat(mm);
+        const d2 It2 = splat(It), IaIt = splat(Ia - It);
+        for (int j0 = 0; j0 < 6; j0 += 2) {
+            w3 rho = wmul(R, wload(platform_joints, j0));
+            w3 Bj = wload(base_joints, j0);
+            w3 L = wvec(dsub(dadd(p2.x, rho.x), Bj.x), dsub(dadd(p2.y, rho.y), Bj.y), dsub(dadd(p2.z, rho.z), Bj.z));
+            d2 l = dsqrt(wdot(L, L));
+            w3 s = wlin(ddiv(one, l), L, zero2, L);
+            w3 va = wadd(v2, wcross(w2, rho));
+            d2 ld = wdot(s, va);
+            w3 sd = wlin(ddiv(one, l), va, ddiv(dneg(ld), l), s);
+            w3 rs = wcross(rho, s);
+            w3 aa0 = wcross(w2, wcross(w2, rho));
+            d2 ldd0 = dadd(wdot(s, aa0), dmul(l, wdot(sd, sd)));
+            w3 f = s, rf = s;
+            d2 kt = l, rr = l;
+            if (legs) {
+                w3 sdd0 = wlin(ddiv(one, l), aa0, ddiv(dneg(ldd0), l), s);
+                sdd0 = wlin(one, sdd0, ddiv(dmul(splat(-2.0), ld), l), sd);
+                d2 lr = dsub(l, splat(lm));
+                w3 r_c = wlin(one, Bj, lf2, s);
+                w3 r_m = wlin(one, Bj, lr, s);
+                w3 v_c = wlin(lf2, sd, zero2, sd);
+                w3 v_m = wlin(ld, s, lr, sd);
+                w3 tr_c = wtransport(aB2, g2, eB2, wB2, r_c, v_c);
+                w3 tr_m = wtransport(aB2, g2, eB2, wB2, r_m, v_m);
+                w3 f_c = wlin(splat(mf * lf), sdd0, mf2, tr_c);
+                w3 f_m = wadd(wlin(dmul(mm2, ldd0), s, dmul(splat(2.0 * mm), ld), sd), wlin(dmul(mm2, lr), sdd0, mm2, tr_m));
+                w3 w_rel = wcross(s, sd);
+                w3 w_leg = wadd(w_rel, wB2);
+                w3 alpha = wadd(wcross(s, sdd0), wadd(eB2, wcross(wB2, w_rel)));
+                w3 I_alpha = wlin(It2, alpha, dmul(IaIt, wdot(s, alpha)), s);
+                w3 I_w = wlin(It2, w_leg, dmul(IaIt, wdot(s, w_leg)), s);
+                w3 tau = wadd(I_alpha, wcross(w_leg, I_w));
+                d2 fcs = wdot(s, f_c), fms = wdot(s, f_m);
+                d2 lfl = ddiv(lf2, l), lrl = ddiv(lr, l);
+                f = wadd(wlin(lfl, f_c, dmul(ddiv(dneg(lf2), l), fcs), s), wlin(lrl, f_m, dmul(fms, dsub(one, lrl)), s));
+                f = wlin(one, f, ddiv(one, l), wcross(tau, s));
+                rf = wcross(rho, f);
+                kt = ddiv(dadd(dadd(splat(mf * lf * lf), dmul(dmul(mm2, lr), lr)), It2), dmul(l, l));
+                rr = wdot(rho, rho);
             }
-            if (m_r != 0.0) {   /* reflected mass: T += m_r ld^2 / 2, ld = J_j u, ldd = J_j du + ldd0 */
-                v3 aa = cross(w, cross(w, rho));
-                double ldd_v = dot(s, aa) + l * dot(sd, sd);
+            for (int i = 0; i < 2; i++) {
+                const int j = j0 + i;
+                v3 si = pick(s, i), rsi = pick(rs, i), rhoi = pick(rho, i);
+                ldot[6 * n + j] = lane(ld, i);
+                length[6 * n + j] = lane(l, i);
+                for (int k = 0; k < 3; k++) {
+                    J[6 * j + k] = si.e[k];
+                    J[6 * j + 3 + k] = rsi.e[k];
+                }
+                if (m_r != 0.0) {   /* reflected mass: T += m_r ld^2 / 2, ld = J_j u, ldd = J_j du + ldd0 */
+                    double ldd_v = lane(ldd0, i);
+                    for (int a = 0; a < 6; a++) {
+                        double mj = m_r * J[6 * j + a];
+                        h[a] += mj * ldd_v;
+                        for (int c = 0; c < 6; c++) M[6 * a + c] += mj * J[6 * j + c];
+                    }
+                }
+                if (!legs) continue;
+                v3 fi = pick(f, i), rfi = pick(rf, i);
+                for (int k = 0; k < 3; k++) {
+                    h[k] += fi.e[k];
+                    h[3 + k] += rfi.e[k];
+                }
+                /* joint mass: k_t A^T A + (m_m - k_t) j j^T with A = [1, -[rho]x] */
+                double kti = lane(kt, i), rri = lane(rr, i);
+                for (int a = 0; a < 3; a++) {
+                    double kr = kti * rhoi.e[a];
+                    M[7 * a] += kti;
+                    M[7 * (3 + a)] += kti * rri;
+                    for (int c = 0; c < 3; c++) M[6 * (3 + a) + 3 + c] -= kr * rhoi.e[c];
+                }
+                /* -kt [rho]x in the upper-right block, +kt [rho]x in the lower-left */
+                static const int skew_a[6] = {0, 0, 1, 1, 2, 2}, skew_c[6] = {1, 2, 0, 2, 0, 1};
+                const double skew[6] = {-rhoi.e[2], rhoi.e[1], rhoi.e[2], -rhoi.e[0], -rhoi.e[1], rhoi.e[0]};
+                for (int q = 0; q < 6; q++) {
+                    M[6 * skew_a[q] + 3 + skew_c[q]] -= kti * skew[q];
+                    M[6 * (3 + skew_a[q]) + skew_c[q]] += kti * skew[q];
+                }
+                double cm = mm - kti;
                 for (int a = 0; a < 6; a++) {
-                    h[a] += m_r * J[6 * j + a] * ldd_v;
-                    for (int c = 0; c < 6; c++) M[6 * a + c] += m_r * J[6 * j + a] * J[6 * j + c];
+                    double cj = cm * J[6 * j + a];
+                    for (int c = 0; c < 6; c++) M[6 * a + c] += cj * J[6 * j + c];
                 }
             }
-            if (!legs) continue;
-            v3 aa0 = cross(w, cross(w, rho));
-            double ldd0 = dot(s, aa0) + l * dot(sd, sd);
-            v3 sdd0 = lin(1.0 / l, aa0, -ldd0 / l, s);
-            sdd0 = lin(1.0, sdd0, -2.0 * ld / l, sd);
-            double lr = l - lm;
-            v3 r_c = lin(1.0, Bj, lf, s);
-            v3 r_m = lin(1.0, Bj, lr, s);
-            v3 v_c = lin(lf, sd, 0.0, sd);
-            v3 v_m = lin(ld, s, lr, sd);
-            v3 tr_c = transport(aB, g, eB, wB, r_c, v_c);
-            v3 tr_m = transport(aB, g, eB, wB, r_m, v_m);
-            v3 f_c = lin(mf * lf, sdd0, mf, tr_c);
-            v3 f_m = add(lin(mm * ldd0, s, 2.0 * mm * ld, sd), lin(mm * lr, sdd0, mm, tr_m));
-            v3 w_rel = cross(s, sd);
-            v3 w_leg = add(w_rel, wB);
-            v3 alpha = add(cross(s, sdd0), add(eB, cross(wB, w_rel)));
-            v3 I_alpha = lin(It, alpha, (Ia - It) * dot(s, alpha), s);
-            v3 I_w = lin(It, w_leg, (Ia - It) * dot(s, w_leg), s);
-            v3 tau = add(I_alpha, cross(w_leg, I_w));
-            double fcs = dot(s, f_c), fms = dot(s, f_m);
-            v3 f = add(lin(lf / l, f_c, -lf / l * fcs, s), lin(lr / l, f_m, fms * (1.0 - lr / l), s));
-            f = lin(1.0, f, 1.0 / l, cross(tau, s));
-            v3 rf = cross(rho, f);
-            for (int k = 0; k < 3; k++) {
-                h[k] += f.e[k];
-                h[3 + k] += rf.e[k];
-            }
-            /* joint mass: k_t A^T A + (m_m - k_t) j j^T with A = [1, -[rho]x] */
-            double kt = (mf * lf * lf + mm * lr * lr + It) / (l * l);
-            double rr = dot(rho, rho);
-            for (int a = 0; a < 3; a++) {
-                M[7 * a] += kt;
-                M[7 * (3 + a)] += kt * rr;
-                for (int c = 0; c < 3; c++) M[6 * (3 + a) + 3 + c] -= kt * rho.e[a] * rho.e[c];
-            }
-            /* -kt [rho]x in the upper-right block, +kt [rho]x in the lower-left */
-            static const int skew_a[6] = {0, 0, 1, 1, 2, 2}, skew_c[6] = {1, 2, 0, 2, 0, 1};
-            const double skew[6] = {-rho.e[2], rho.e[1], rho.e[2], -rho.e[0], -rho.e[1], rho.e[0]};
-            for (int q = 0; q < 6; q++) {
-                M[6 * skew_a[q] + 3 + skew_c[q]] -= kt * skew[q];
-                M[6 * (3 + skew_a[q]) + skew_c[q]] += kt * skew[q];
-            }
-            double cm = mm - kt;
-            for (int a = 0; a < 6; a++)
-                for (int c = 0; c < 6; c++) M[6 * a + c] += cm * J[6 * j + a] * J[6 * j + c];
         }
 
         if (wrench_all)   /* an external wrench W: M du + (h - W) = J^T F */
@@ -284,6 +380,17 @@ void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joint
             }
         }
     }
+}
+
+void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joints, const double *data,
+                         int n_states, const double *pose_all, const double *rate_all, const double *arg_all,
+                         const double *base_pose, const double *base_rate, const double *base_acc,
+                         int base_mode, int legs, int twist_speeds, int solve, double m_r,
+                         const double *wrench_all, double *M_all, double *h_all, double *J_all, double *ldot,
+                         double *length, double *out_all, double *det)
+{
+    kane(base_joints, platform_joints, data, n_states, pose_all, rate_all, arg_all, base_pose, base_rate, base_acc,
+         base_mode, legs, twist_speeds, solve, m_r, wrench_all, M_all, h_all, J_all, ldot, length, out_all, det, NULL);
 }
 
 void mb_hexapod_kane(const double *base_joints, const double *platform_joints, const double *data,
@@ -369,10 +476,9 @@ double mb_hexapod_rhs_actuated(const double *bj, const double *pj, const double 
             base[6 + k] = base0[6 + k] + tau * base0[12 + k];
             base[12 + k] = base0[12 + k];
         }
-    mb_hexapod_kane_ext(bj, pj, data, 1, x, x + 6, forces, base, base + 6, base + 12, base_mode, legs, 1,
-                        MB_HEXAPOD_FD, act ? act[MB_ACT_REFLECTED_MASS] : 0.0, wrench, M, h, J, ldot, length, out,
-                        &det);
-    const trig tx = angles(x + 3);
+    trig tx;
+    kane(bj, pj, data, 1, x, x + 6, forces, base, base + 6, base + 12, base_mode, legs, 1, MB_HEXAPOD_FD,
+         act ? act[MB_ACT_REFLECTED_MASS] : 0.0, wrench, M, h, J, ldot, length, out, &det, &tx);
     v3 rr = rpy_rate(&tx, load(x + 9));
     for (int k = 0; k < 3; k++) {
         dx[k] = x[6 + k];
