@@ -1,7 +1,7 @@
 """Command line: run scenario files (or shipped scenario names) and write their reports.
 
     movingbase run [SCENARIO ...] [--out DIR] [--ci] [--quiet] [--jobs N] [--dask tcp://HOST:PORT]
-                        [--implementation native|python]
+                        [--implementation native|python] [--allow-unstable]
     movingbase run SCENARIO --ssp FILE.ssp      (export for other FMI tools instead)
 
 Without a scenario it runs the main job: the telescope slew (FMUs built first) and the
@@ -36,6 +36,8 @@ def main(argv=None, prog="movingbase run"):
     parser.add_argument("--dask", metavar="ADDR", help="run the sweep values on the Dask cluster at ADDR")
     parser.add_argument("--implementation", choices=IMPLEMENTATIONS,
                         help="run every FMU as this implementation, whatever the file chooses")
+    parser.add_argument("--allow-unstable", action="store_true",
+                        help="run a communication step beyond the predicted stability limit anyway (flagged)")
     parser.add_argument("--ssp", metavar="FILE", help="export the (one) scenario as an SSP file, first sweep value")
     args = parser.parse_args(argv)
     names = args.scenarios or ["telescope_slew"]
@@ -46,7 +48,8 @@ def main(argv=None, prog="movingbase run"):
     if args.ssp:
         try:
             scenario, paths, descriptions, values = prepare(resolve(names[0]), ci=args.ci,
-                                                             implementation=args.implementation)
+                                                             implementation=args.implementation,
+                                                  allow_unstable=args.allow_unstable)
         except ScenarioError as exc:
             sys.exit(f"scenario error: {exc}")
         if scenario.sweep:
@@ -59,7 +62,8 @@ def main(argv=None, prog="movingbase run"):
         try:
             scenario, runs, report = run_scenario(name, args.out, ci=args.ci, progress=not args.quiet,
                                                   jobs=args.jobs, dask=args.dask,
-                                                  implementation=args.implementation)
+                                                  implementation=args.implementation,
+                                                  allow_unstable=args.allow_unstable)
         except ScenarioError as exc:
             errors.append(f"scenario error: {exc}")
             continue
@@ -71,6 +75,9 @@ def main(argv=None, prog="movingbase run"):
             else:
                 print(f"  {run.label}: {run.steps} steps in {run.wall_time:.1f} s of stepping "
                       f"(real-time factor {run.real_time_factor:.1f}; FMU loading and initialisation not counted)")
+            for flag in run.flags:
+                if flag.kind != "cut_short":   # a failed run says so above
+                    print(f"    FLAGGED {flag.kind}: {flag.message}")
     if errors:
         sys.exit("\n".join(errors))
     if not args.scenarios:

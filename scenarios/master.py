@@ -25,6 +25,7 @@ import numpy as np
 
 from ._cosim import ffi, lib
 from .fmi import _LABELS, FmuError, Instance, RealPort
+from . import flags as run_flags
 from .spec import Link, expand
 
 
@@ -40,6 +41,7 @@ class Run:
     metrics: dict = field(default_factory=dict)
     series: dict = field(default_factory=dict)
     failure: str = ""       # why the run stopped early ("" if it reached stop_time)
+    flags: list = field(default_factory=list)   # scenarios.flags.Flag: what went wrong ([]: nothing seen)
 
     @property
     def real_time_factor(self):
@@ -212,9 +214,10 @@ class Loop:
 class Recorder:
     """Recorded variables streamed to CSV with units in the header; metrics fed at each row."""
 
-    def __init__(self, path, scenario, instances, metrics):
+    def __init__(self, path, scenario, instances, metrics, watch=None):
         md = {inst: i.variables for inst, i in instances.items()}
-        wanted = list(dict.fromkeys(scenario.record + [r for m in metrics for r in m.needs]))
+        watched = list(watch.needs) if watch else []
+        wanted = list(dict.fromkeys(scenario.record + [r for m in metrics for r in m.needs] + watched))
         self.columns, self.ports, self.slices = [], [], {}
         offset = 0
         for reference in wanted:
@@ -226,6 +229,9 @@ class Recorder:
             offset += len(names)
         self.row = np.zeros(offset)
         self.metrics = metrics
+        self.watch = watch
+        if watch:
+            watch.bind(self.slices)
         self.file = open(path, "w", newline="")
         csv.writer(self.file).writerow(["time [s]"] + self.columns)
 
@@ -238,6 +244,8 @@ class Recorder:
         for metric in self.metrics:
             if t >= metric.start - 1e-12:
                 metric.update(t, values)
+        if self.watch:
+            self.watch.feed(t, self.row)
 
     def close(self):
         self.file.close()
@@ -263,18 +271,21 @@ def start(scenario, fmu_paths, parameters, instances):
 CHUNK = 2048   # most macro steps per C call: Ctrl-C is seen within one (~10 ms native, ~0.1 s pythonfmu)
 
 
-def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progress=None):
+def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progress=None, flags=()):
     """Co-simulate ``scenario`` once. ``fmu_paths``: instance -> FMU file; ``parameters``:
     instance -> {variable: value} (already converted, see spec.bind); results go to
-    outdir/<label>.csv. ``progress(done_fraction)`` is called about 200 times."""
+    outdir/<label>.csv. ``progress(done_fraction)`` is called about 200 times. Run.flags:
+    ``flags`` known before the run, the detectors' (scenarios.flags.Watch, fed every
+    recorded row), the FMUs' warnings and a stop before stop_time."""
     instances = {}
     recorder = None
     h, t0 = scenario.step, scenario.start_time
     steps = int(round((scenario.stop_time - t0) / h))
-    done, failure, began = 0, None, time.perf_counter()
+    done, failure, began, watch = 0, None, time.perf_counter(), None
     try:
         exchange, _ = start(scenario, fmu_paths, parameters, instances)
-        recorder = Recorder(outdir / f"{label}.csv", scenario, instances, list(metrics))
+        watch = run_flags.Watch.for_scenario(scenario, {k: i.md for k, i in instances.items()}, parameters)
+        recorder = Recorder(outdir / f"{label}.csv", scenario, instances, list(metrics), watch)
         every = int(round(scenario.record_interval / h))
         order = step_order(scenario, parameters) if scenario.master == "gauss-seidel" else list(scenario.fmus)
         loop = Loop(exchange, instances, order, scenario.master == "gauss-seidel",
@@ -308,5 +319,7 @@ def run(scenario, fmu_paths, parameters, outdir, label="run", metrics=(), progre
                  {m.name: m.result() for m in metrics}, series)
     if failure is not None:
         result.failure = failure_line(failure, instances)
+    result.flags = run_flags.run_flags(watch, result, instances, flags)
+    if failure is not None:
         raise RunFailed(str(failure), result) from None
     return result
