@@ -27,6 +27,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.colors import LogNorm
+from matplotlib.patches import Rectangle
 
 from movingbase.plant import telescope
 from movingbase.scenarios import campaign as campaigns
@@ -71,7 +72,8 @@ def rows(camp, job_list, store):
             continue
         m = record["metrics"][METRIC]
         row = {"label": _short(camp.name, case), "key": record["key"], "mode": case.values["controller.feedforward"],
-               "peak": m["peak"], "rms": m["rms"], "rotation_peak": m["rotation_peak"], "values": case.values}
+               "peak": m["peak"], "rms": m["rms"], "rotation_peak": m["rotation_peak"], "values": case.values,
+               "flags": sorted({f["kind"] for f in record.get("flags") or []})}
         out.append(row)
     return out
 
@@ -98,10 +100,13 @@ def map_chart(rows_, path):
     az = sorted({_deg(r["values"]["base.start_azimuth"]) for r in rows_})
     el = sorted({_deg(r["values"]["base.start_elevation"]) for r in rows_})
     grids = {(q, mode): np.full((len(el), len(az)), np.nan) for q in ("peak", "rms") for mode in MODES}
+    flagged = {mode: set() for mode in MODES}   # (i, j) of the flagged runs' cells
     for r in rows_:
         i, j = el.index(_deg(r["values"]["base.start_elevation"])), az.index(_deg(r["values"]["base.start_azimuth"]))
         for q in ("peak", "rms"):
             grids[(q, r["mode"])][i, j] = r[q]
+        if r["flags"]:
+            flagged[r["mode"]].add((i, j))
     values = np.concatenate([g[np.isfinite(g)] for g in grids.values()])
     norm = LogNorm(max(values.min(), 1e-3), values.max())
 
@@ -125,6 +130,8 @@ def map_chart(rows_, path):
             ax.contour(az, el, grid, levels=list(MARKS), colors="k", linestyles=["-", "--"], linewidths=1.2)
         above = [f"{(grid > m).sum()} of {np.isfinite(grid).sum()} above {t}"
                  for m, t in zip(MARKS, ("10 µm", "0.1 mm"))]
+        above += [f"{len(flagged[mode])} FLAGGED (red frame, not results)"] if flagged[mode] else []
+        _mark_flagged_cells(ax, edges(az), np.clip(edges(el), 0, 90), flagged[mode])
         ax.set_title(f"{q} pose error, {mode.replace('_', '-')} feedforward\n{'; '.join(above)}", fontsize=10)
         if row == 1:
             ax.set_xlabel("start azimuth [deg] (astronomical, north through east)")
@@ -140,6 +147,15 @@ def map_chart(rows_, path):
     return path
 
 
+def _mark_flagged_cells(ax, az_edges, el_edges, cells):
+    """A red frame and a red F on each flagged run's cell (scenarios.flags)."""
+    for i, j in cells:
+        ax.add_patch(Rectangle((az_edges[j], el_edges[i]), az_edges[j + 1] - az_edges[j], el_edges[i + 1] - el_edges[i],
+                               fill=False, edgecolor="red", lw=2.2, zorder=3))
+        ax.text(az_edges[j + 1], el_edges[i + 1], "F ", ha="right", va="top", color="red", fontsize=8,
+                fontweight="bold", zorder=4)
+
+
 def size_chart(rows_, path):
     """Pose error against the size of a diagonal slew."""
     fig, ax = plt.subplots(figsize=(8, 5), constrained_layout=True)
@@ -148,6 +164,10 @@ def size_chart(rows_, path):
         size = [_deg(r["values"]["base.target_azimuth"]) - _deg(r["values"]["base.start_azimuth"]) for r in mine]
         ax.plot(size, [r["peak"] for r in mine], "o-", color=colour, label=f"{mode.replace('_', '-')}: peak")
         ax.plot(size, [r["rms"] for r in mine], "s--", color=colour, label=f"{mode.replace('_', '-')}: RMS")
+        bad = [k for k, r in enumerate(mine) if r["flags"]]
+        if bad:
+            ax.plot([size[k] for k in bad], [mine[k]["peak"] for k in bad], "x", color="red", ms=11, mew=2.5,
+                    label=f"{mode.replace('_', '-')}: FLAGGED run (not a result)")
     for mark, text in zip(MARKS, ("10 µm", "0.1 mm")):
         ax.axhline(mark, color="grey", lw=0.8, ls=":")
         ax.text(1.0, mark, text + " ", transform=ax.get_yaxis_transform(), ha="right", va="bottom", fontsize=8)
@@ -236,7 +256,8 @@ def worst_table(all_rows, n=6):
                       key=lambda nr: -nr[1]["peak"])[:n]
         for name, r in mine:
             past = "0.1 mm" if r["peak"] > 100 else "10 µm" if r["peak"] > 10 else "-"
-            lines.append(f"| {name} | {r['label']} | {mode} | {r['peak']:.3g} | {r['rms']:.3g} | "
+            flag = f" **FLAGGED: {', '.join(r['flags'])}**" if r["flags"] else ""
+            lines.append(f"| {name} | {r['label']}{flag} | {mode} | {r['peak']:.3g} | {r['rms']:.3g} | "
                          f"{r['rotation_peak']:.3g} | {past} |")
     return lines
 
@@ -254,7 +275,10 @@ def report(results, outdir, figures=None, name="report.md"):
     failed = {name: o.failed for name, (_, _, _, o) in results.items() if o.failed}
     lines = ["# Sky coverage", "", __doc__.split("\n\n")[0].replace("\n", " "), "",
              f"Runs: {', '.join(f'{n} {len(r)}' for n, r in all_rows.items())} (ok)."
-             + (f" Failed: {failed}." if failed else ""), "",
+             + (f" Failed: {failed}." if failed else "")
+             + "".join(f" Flagged (numbers not results, marked in the charts and table): {name} "
+                       f"{', '.join(r['label'] + ' ' + r['mode'] for r in rs if r['flags'])}."
+                       for name, rs in all_rows.items() if any(r["flags"] for r in rs)), "",
              "## Worst cases", "", *worst_table(all_rows), ""]
     lines += [f"![{c.stem}]({os.path.relpath(c, outdir)})" for c in charts]
     path = outdir / name
