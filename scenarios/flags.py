@@ -34,7 +34,7 @@ from . import fidelity as scene_fidelity
 from .spec import ScenarioError
 
 POSES = 9             # poses along the reference motion at which the leg-space masses are taken
-WINDOW = 1.0          # s: the detectors' envelope window
+WINDOW = 1.0          # s: the detectors' envelope window (shorter for short runs, see Watch.window)
 GROWTH = 10.0         # an envelope that grows by this factor ...
 GROWTH_WINDOWS = 6    # ... steadily over at least this many windows is unstable
 FLOORS = (50.0, 1e-7)     # N, m: oscillation envelopes below these are noise, not growth
@@ -210,15 +210,15 @@ def check(scenario, prediction, allow_unstable=False):
 # ------------------------------------------------------------------ during the run
 class Watch:
     """Detectors fed every recorded row (``feed``; rows buffered and evaluated BLOCK at a
-    time, as the metrics do), per WINDOW of time: the envelope of the leg forces' and
+    time, as the metrics do), per ``window`` of time: the envelope of the leg forces' and
     lengths' second difference (an oscillation; a smooth motion keeps it small), rows
     with a force at its limit, the legs' extent into their stroke, non-finite values.
     Memory: a few numbers per window."""
 
     BLOCK = 256
 
-    def __init__(self, force_limit=None, home_lengths=None, stroke=None, forces=None, lengths=None):
-        self.force_limit, self.home, self.stroke = force_limit, home_lengths, stroke
+    def __init__(self, force_limit=None, home_lengths=None, stroke=None, forces=None, lengths=None, window=WINDOW):
+        self.force_limit, self.home, self.stroke, self.window = force_limit, home_lengths, stroke, window
         self.forces, self.lengths = forces, lengths
         self.needs = [r for r in (forces, lengths) if r]
         self.t0 = None
@@ -238,8 +238,10 @@ class Watch:
             return cls()
         plant, controller, _, gains = found
         params = plant_params(values, descriptions, plant)
+        # WINDOW, or for a short run 1/40 of it but at least 20 recorded rows: enough windows to see a trend
+        window = min(WINDOW, max(20 * scenario.record_interval, (scenario.stop_time - scenario.start_time) / 40))
         return cls(gains.force_limit, params.home_lengths, params.stroke[1], f"{controller}.leg_force",
-                   f"{plant}.leg_length")
+                   f"{plant}.leg_length", window)
 
     def bind(self, slices):
         """The recorder's columns of each recorded reference."""
@@ -263,7 +265,7 @@ class Watch:
         self.rows += n
         if self.non_finite is None and not np.isfinite(rows).all():
             self.non_finite = float(t[np.argmin(np.isfinite(rows).all(axis=1))])
-        window = ((t - self.t0) // WINDOW).astype(int)
+        window = ((t - self.t0) // self.window).astype(int)
         size = window[-1] + 1
         for ref in self.needs:
             if len(self.env[ref]) < size:
@@ -291,7 +293,7 @@ class Watch:
             out.append(Flag("non_finite", f"non-finite values recorded from t = {self.non_finite:g} s"))
         for ref, what, unit, scale, floor in ((self.forces, "leg-force oscillation", "kN", 1e-3, FLOORS[0]),
                                               (self.lengths, "leg-length oscillation", "µm", 1e6, FLOORS[1])):
-            grown = ref and growth(self.t0 + WINDOW * np.arange(len(self.env[ref])), self.env[ref], floor)
+            grown = ref and growth(self.t0 + self.window * np.arange(len(self.env[ref])), self.env[ref], floor)
             if grown:
                 t0, t1, e0, e1 = grown
                 out.append(Flag("unstable", f"the {what} (second difference of the recorded values) grows from "
@@ -299,7 +301,7 @@ class Watch:
                                             f"{t0:g} s and {t1:g} s"))
                 break
         if self.held.sum():
-            first = self.t0 + WINDOW * np.flatnonzero(self.held)[0]
+            first = self.t0 + self.window * np.flatnonzero(self.held)[0]
             out.append(Flag("saturated", f"leg forces at the +-{self.force_limit * 1e-3:g} kN limit "
                                          f"{100 * self.held.sum() / max(1, self.rows):.3g} % of the recorded time "
                                          f"(from t ~ {first:g} s)"))
