@@ -1,8 +1,10 @@
 """Wall time and real-time factor of every shipped scenario, and the master's own cost
 per macro step (its stepping loop is C, scenarios/c/cosim.c) against a Python loop making
-the same FMI calls and against fmpy's list-based calls. Prints figures; asserts nothing.
+the same FMI calls and against fmpy's list-based calls; the checks before a run (the
+stability prediction along the motion, scenarios.flags) against the run. Prints
+figures; asserts nothing.
 
-    python -m benchmarks.bench_scenarios [--ci]     (--ci: the short [ci] versions)
+    python -m benchmarks.bench_scenarios [--ci] [--checks-only]     (--ci: the short [ci] versions)
 """
 import argparse
 import dataclasses
@@ -79,12 +81,39 @@ def master_overhead(steps=4000):
     print(f"  Python loop, fmpy list calls    {fmpy_lists:7.1f} us/step  ({fmpy_lists / bare:.2f}x the ctypes path)")
 
 
+def check_cost(ci, names=("telescope_slew", "telescope_slew_realistic", "keyhole_tracking"), repeats=3):
+    """The pre-run checks (runner.pre_run_flags: the step-limit prediction along the motion
+    and the scene's checks; best of ``repeats``) against the whole run of the scenario
+    (run_scenario: checks, runs, report) and against its stepping alone, side by side."""
+    out = pathlib.Path(tempfile.mkdtemp())
+    print(f"\npre-run checks against the run ({'[ci]' if ci else 'full'} versions):")
+    print(f"{'scenario':26s} {'checks [ms]':>11s} {'run [s]':>8s} {'checks/run':>11s} {'stepping [s]':>13s} "
+          f"{'checks/stepping':>16s}")
+    for name in names:
+        began = time.perf_counter()
+        _, runs, _ = runner.run_scenario(name, out, ci=ci, progress=False)
+        whole = time.perf_counter() - began
+        stepping = sum(r.wall_time for r in runs)
+        prepared = runner.prepare(runner.resolve(name), ci)
+        checks = []
+        for _ in range(repeats):
+            began = time.perf_counter()
+            runner.pre_run_flags(*prepared, ci=ci)
+            checks.append(time.perf_counter() - began)
+        best = min(checks)
+        print(f"{name:26s} {best * 1e3:11.1f} {whole:8.2f} {100 * best / whole:10.2f}% {stepping:13.2f} "
+              f"{100 * best / stepping:15.2f}%")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ci", action="store_true", help="run the short [ci] versions")
+    parser.add_argument("--checks-only", action="store_true", help="only the pre-run checks against the run")
     args = parser.parse_args()
-    scenario_table(args.ci)
-    master_overhead()
+    if not args.checks_only:
+        scenario_table(args.ci)
+        master_overhead()
+    check_cost(args.ci)
 
 
 if __name__ == "__main__":

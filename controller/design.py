@@ -362,6 +362,20 @@ def _expm(m, terms=18):
     return result
 
 
+def _mul(a, b):
+    return np.convolve(a, b)
+
+
+def _add(a, b):
+    """Sum of two polynomials (highest power first) of any lengths."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if len(a) < len(b):
+        a, b = b, a
+    out = a.copy()
+    out[len(a) - len(b):] += b
+    return out
+
+
 def closed_loop_polynomial(mass, gains, comm_step, loop=IDEAL):
     """Characteristic polynomial of the closed loop of mode_loop (the same loop, as the
     numerator + denominator of its transfer function) in w = (z - 1) / h, highest power
@@ -390,46 +404,55 @@ def closed_loop_polynomial(mass, gains, comm_step, loop=IDEAL):
     if loop.leg_sensor:
         a = 1 - np.exp(-2 * np.pi * loop.rate_cutoff * h) if loop.rate_cutoff > 0 else 1.0
         fil = [h * h, h * a]                                  # h (z - (1 - a))
-        num = np.polymul(length, np.polyadd(np.polymul(integral, fil), gains.kd * a * np.array([h * h, 0, 0])))
-        den = np.polymul(den, np.polymul(z1, fil))
+        num = _mul(length, _add(_mul(integral, fil), gains.kd * a * np.array([h * h, 0, 0])))
+        den = _mul(den, _mul(z1, fil))
         delay += loop.delay_steps
     else:
-        num = np.polyadd(np.polymul(integral, length), gains.kd * np.polymul(z1, rate))
-        den = np.polymul(z1, den)
+        num = _add(_mul(integral, length), gains.kd * _mul(z1, rate))
+        den = _mul(z1, den)
     if loop.extrapolate:
         for _ in range(stale):   # (1.5 z - 0.5) / z
-            num, den = np.polymul(num, [1.5 * h, 1.0]), np.polymul(den, z)
+            num, den = _mul(num, [1.5 * h, 1.0]), _mul(den, z)
     for _ in range(delay):
-        den = np.polymul(den, z)
-    return np.polyadd(den, num)
+        den = _mul(den, z)
+    return _add(den, num)
 
 
 def spectral_radius(masses, gains, comm_step, loop=IDEAL):
     """Largest |closed-loop pole| over the leg-space modes ``masses`` [kg]: < 1 is stable."""
-    return max(np.abs(1 + comm_step * np.roots(closed_loop_polynomial(m, gains, comm_step, loop))).max()
-               for m in masses)
+    return max(_radius(m, gains, comm_step, loop) for m in masses)
+
+
+def _radius(mass, gains, comm_step, loop):
+    return float(np.abs(1 + comm_step * np.roots(closed_loop_polynomial(mass, gains, comm_step, loop))).max())
 
 
 def step_limit(masses, gains, loop=IDEAL, low=1e-5, high=0.2, rtol=1e-3):
-    """The communication step [s] at which the first mode of ``masses`` goes unstable,
-    from ``low`` up: a geometric scan (factor 1.25: the loops here are stable below one
-    step and unstable above it, but a scan does not rely on that) and bisection to
-    ``rtol``. 0.0 if unstable already at ``low``, inf if stable up to ``high``."""
+    """The communication step [s] at which the first mode of ``masses`` goes unstable
+    (each mode taken to be stable below a step and unstable above it, as the loops here
+    are): the lightest mode's boundary by a geometric scan (factor 1.5) from ``low`` and
+    bisection to ``rtol``, then every mode checked just below it; a mode unstable there
+    is bisected next. 0.0 if unstable already at ``low``, inf if stable up to ``high``."""
     masses = _distinct(np.sort(np.asarray(masses, dtype=float)))
-    stable = lambda h: spectral_radius(masses, gains, h, loop) < 1
-    if not stable(low):
-        return 0.0
-    good = low
-    for bad in np.geomspace(low, high, int(np.ceil(np.log(high / low) / np.log(1.25))) + 1)[1:]:
-        if not stable(bad):
-            break
-        good = bad
-    else:
-        return float("inf")
-    while bad / good > 1 + rtol:
-        mid = np.sqrt(good * bad)
-        good, bad = (mid, bad) if stable(mid) else (good, mid)
-    return float(good)
+    stable = lambda m, h: _radius(m, gains, h, loop) < 1
+    good, bad, mode = low, None, masses[0]
+    while True:
+        if not stable(mode, good):
+            return 0.0
+        if bad is None:   # scan up for this mode's first unstable step
+            for bad in np.geomspace(good, high, int(np.ceil(np.log(high / good) / np.log(1.5))) + 1)[1:]:
+                if not stable(mode, bad):
+                    break
+                good = bad
+            else:
+                bad = None
+        while bad is not None and bad / good > 1 + rtol:
+            mid = np.sqrt(good * bad)
+            good, bad = (mid, bad) if stable(mode, mid) else (good, mid)
+        worse = next((m for m in masses if not stable(m, good)), None)
+        if worse is None:
+            return float(good) if bad is not None else float("inf")
+        mode, bad, good = worse, good, low   # a mode unstable below: its boundary lies lower
 
 
 def _closed_loop_matrix(plant, gains, comm_step):
