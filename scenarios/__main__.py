@@ -78,6 +78,10 @@ def main(argv=None, prog="movingbase run"):
             for flag in run.flags:
                 if flag.kind != "cut_short":   # a failed run says so above
                     print(f"    FLAGGED {flag.kind}: {flag.message}")
+        flagged = [run.label for run in runs if run.flags]
+        if flagged:
+            print(f"  {len(flagged)} of {len(runs)} runs FLAGGED ({', '.join(flagged)}): their numbers are not "
+                  f"results; see {report}")
     if errors:
         sys.exit("\n".join(errors))
     if not args.scenarios:
