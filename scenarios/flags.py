@@ -163,7 +163,7 @@ def predict(scenario, paths, descriptions, values, ci=False):
             flags.append(Flag("motion_unfinished", f"the {profile} of {teles[0]!r} has not ended at the stop time "
                                                    f"{scenario.stop_time:g} s: the base still turns at "
                                                    f"{math.degrees(turning):.3g} deg/s"))
-    level = values[plant].get("fidelity", _value(values, descriptions, plant, "fidelity"))
+    level = values.get(plant, {}).get("fidelity", _value(values, descriptions, plant, "fidelity"))
     fidelity = FIDELITIES[level] if isinstance(level, int) else level
     masses = _merge(leg_masses(plant_params(values, descriptions, plant), poses, loop, fidelity))
     limit = design.step_limit(masses, gains, loop)

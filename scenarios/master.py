@@ -212,22 +212,26 @@ class Loop:
 
 
 class Recorder:
-    """Recorded variables streamed to CSV with units in the header; metrics fed at each row."""
+    """Recorded variables streamed to CSV with units in the header; metrics and the
+    watch (scenarios.flags.Watch) fed at each row. What only the watch needs is read at
+    the row's end but not written."""
 
     def __init__(self, path, scenario, instances, metrics, watch=None):
         md = {inst: i.variables for inst, i in instances.items()}
-        watched = list(watch.needs) if watch else []
-        wanted = list(dict.fromkeys(scenario.record + [r for m in metrics for r in m.needs] + watched))
+        wanted = list(dict.fromkeys(scenario.record + [r for m in metrics for r in m.needs]))
+        watched = [r for r in dict.fromkeys(watch.needs if watch else []) if r not in wanted]
         self.columns, self.ports, self.slices = [], [], {}
         offset = 0
-        for reference in wanted:
+        for reference in wanted + watched:
             inst = reference.split(".", 1)[0]
             names = expand(md[inst], reference)
             self.ports.append((RealPort(instances[inst], names), slice(offset, offset + len(names))))
             self.slices[reference] = slice(offset, offset + len(names))
-            self.columns += [f"{inst}.{n} [{md[inst][n].unit or '1'}]" for n in names]
+            if reference in wanted:
+                self.columns += [f"{inst}.{n} [{md[inst][n].unit or '1'}]" for n in names]
             offset += len(names)
         self.row = np.zeros(offset)
+        self.written = self.row[:len(self.columns)]
         self.metrics = metrics
         self.watch = watch
         if watch:
@@ -239,7 +243,7 @@ class Recorder:
         for port, where in self.ports:
             self.row[where] = port.read()
         # the bytes csv.writer gives (numbers need no quoting), a quarter cheaper: shortest repr, \r\n
-        self.file.write(",".join(map(repr, [t] + self.row.tolist())) + "\r\n")
+        self.file.write(",".join(map(repr, [t] + self.written.tolist())) + "\r\n")
         values = {ref: self.row[s] for ref, s in self.slices.items()}
         for metric in self.metrics:
             if t >= metric.start - 1e-12:
