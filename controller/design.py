@@ -24,6 +24,13 @@ latency and computation delay, and the master's linear extrapolation, each as th
 and the master implement it. margins() gives any gains' margins on it, design_pid the
 shipped method on it, stiffest_pid the largest integral gain within phase and gain
 margin bounds on every mode.
+
+The step limit of any master (step_limit): under Jacobi every connection of the loop
+is one step stale, under Gauss-Seidel only the one into the FMU that steps first
+(LoopModel.gauss_seidel; the linear extrapolation acts on the stale connections only).
+The limit is where the first mode's closed loop (closed_loop_polynomial, the
+characteristic polynomial of mode_loop in w = (z - 1) / h) gets a pole outside the unit
+circle; scenarios.flags takes it over the modes along a scenario's motion before it runs.
 """
 from dataclasses import dataclass
 
