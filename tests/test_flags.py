@@ -254,3 +254,18 @@ def test_the_issues_high_slew_at_2_ms_grows_in_the_fixed_base_run(tmp_path):
                                             'extrapolation = "linear"': 'extrapolation = "none"'})):
         _, runs, _ = runner.run_scenario(copied(tmp_path, name, **targets, **extra), tmp_path / "out", progress=False)
         assert [r.flags for r in runs] == [[]] * len(runs)
+
+
+def test_a_campaigns_summary_has_a_flags_column(tmp_path):
+    """A step of 5 ms in a campaign (no pre-run refusal there): the detectors flag it in
+    summary.csv; the 1 ms case has an empty flags cell."""
+    import csv
+    from movingbase.scenarios import campaign
+    path = tmp_path / "c.toml"
+    path.write_text('name = "t"\nscenario = "telescope_slew"\nset = { stop_time = "6 s", '
+                    '"controller.feedforward" = "moving_base" }\n[grid]\nstep = ["1 ms", "5 ms"]\n')
+    summary = campaign.run_campaign(path, tmp_path / "out", jobs_=1, progress=False)[4]
+    with open(summary) as f:
+        table = {row["step"]: row for row in csv.DictReader(f)}
+    assert table["1 ms"]["flags"] == ""
+    assert "saturated" in table["5 ms"]["flags"]
