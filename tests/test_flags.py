@@ -69,7 +69,8 @@ def probe(fmus, tmp_path, step, master_, extrapolation, pose, force_limit=1e9, d
     gains = dataclasses.replace(GAINS, force_limit=force_limit)
     steps = max(6, int(round(duration / step)))
     text = scenario_text(step, steps * step, gains, pose + offset, pose).replace(
-        'master = "jacobi"', f'master = "{master_}"\nextrapolation = "{extrapolation}"')
+        'master = "jacobi"', f'master = "{master_}"\nextrapolation = "{extrapolation}"') + \
+        '\n[record]\nvariables = ["plant.leg_length"]\n'
     scenario = spec.parse(text, "probe")
     paths = {"plant": fmus["hexapod_plant_fmu"], "controller": fmus["leg_controller_fmu"]}
     values = spec.bind(scenario, {inst: unpack(p)[0] for inst, p in paths.items()})
