@@ -327,21 +327,23 @@ def warning_flags(warnings):
 
 def growth(times, envelope, floor):
     """(t0, t1, e0, e1) if the envelope (floored at ``floor``) grows GROWTH-fold with a
-    steady exponential trend (least squares on its log, R^2 >= 0.8) over the last
-    GROWTH_WINDOWS or more windows, else None. Steady: a slew's transients raise the
+    steady exponential trend (least squares on its log, R^2 >= 0.8) over GROWTH_WINDOWS
+    or more windows that end at the last window or at the envelope's peak (where a growth
+    stops at the force limit), else None. Steady: a slew's transients raise the
     envelope for a window or two, an unstable loop every window."""
     env = np.maximum(np.asarray(envelope[1:-1], dtype=float), floor)   # first and last window: partial
     t = np.asarray(times[1:-1], dtype=float)
-    if len(env) < GROWTH_WINDOWS:
-        return None
-    for n in np.unique(np.geomspace(len(env), GROWTH_WINDOWS, 16).round().astype(int))[::-1]:   # longest first
-        x, y = t[-n:], np.log(env[-n:])
-        slope, icept = np.polyfit(x, y, 1)
-        fit = slope * x + icept
-        total = np.sum((y - y.mean()) ** 2)
-        r2 = 1 - np.sum((y - fit) ** 2) / total if total > 0 else 0.0
-        if slope > 0 and math.exp(slope * (x[-1] - x[0])) >= GROWTH and r2 >= 0.8 and env[-1] >= GROWTH * floor:
-            return float(x[0]), float(x[-1]), float(env[-n]), float(env[-1])
+    for end in dict.fromkeys((len(env), int(np.argmax(env)) + 1 if len(env) else 0)):   # to the end, to the peak
+        if end < GROWTH_WINDOWS:
+            continue
+        for n in np.unique(np.geomspace(end, GROWTH_WINDOWS, 16).round().astype(int))[::-1]:   # longest first
+            x, y = t[end - n:end], np.log(env[end - n:end])
+            slope, icept = np.polyfit(x, y, 1)
+            fit = slope * x + icept
+            total = np.sum((y - y.mean()) ** 2)
+            r2 = 1 - np.sum((y - fit) ** 2) / total if total > 0 else 0.0
+            if slope > 0 and math.exp(slope * (x[-1] - x[0])) >= GROWTH and r2 >= 0.8 and env[end - 1] >= GROWTH * floor:
+                return float(x[0]), float(x[-1]), float(env[end - n]), float(env[end - 1])
     return None
 
 

@@ -161,6 +161,7 @@ def test_watch_sees_non_finite_values_and_steady_growth_only():
         return {f.kind for f in watch.flags()}
     wiggle = 1e3 * (-1.0) ** np.arange(len(t))
     assert fed(wiggle * np.exp(0.3 * t)) == {"unstable"}
+    assert fed(wiggle * np.minimum(np.exp(0.4 * t), math.exp(4.0))) == {"unstable"}   # grows, then held (a limit)
     assert fed(wiggle * np.exp(-0.3 * t)) == set()
     assert fed(wiggle * (np.abs(t - 10) < 0.3) + 2e4 * np.tanh(t - 5)) == set()   # one transient
     assert fed(np.where(t > 12, np.nan, 0.0)) == {"non_finite"}
