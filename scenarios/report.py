@@ -361,7 +361,7 @@ def write(scenario, runs, outdir):
     for run in runs:
         cells = [_cell(run.metrics[m.name]) for m in per_run]
         label = f"{run.label} **{_stopped(scenario, run)}**" if run.failure else run.label
-        label += " **FLAGGED**" if run.flags else ""
+        label += " **FLAGGED**" if any(f.kind != "cut_short" for f in run.flags) else ""   # a stop: said above
         lines.append(f"| {label} | " + " | ".join(cells) + f" | {run.wall_time:.2f} | {run.real_time_factor:.1f} |")
     lines.append("")
     lines += [f"- **run {r.label} {_stopped(scenario, r)}**; its row covers the run up to then: {r.failure}"
