@@ -1,9 +1,11 @@
 """Wall time and real-time factor of every shipped scenario, the master's own cost
 per macro step (its stepping loop is C, scenarios/c/cosim.c) against a Python loop making
-the same FMI calls and against fmpy's list-based calls, and a recorded run against the
-bare stepping (issue 21's goal: <= 1.25x). Prints figures; asserts nothing.
+the same FMI calls and against fmpy's list-based calls, a recorded run against the bare
+stepping (issue 21's goal: <= 1.25x), and the checks before a run (the stability
+prediction along the motion, scenarios.flags) against the run. Prints figures; asserts
+nothing.
 
-    python -m benchmarks.bench_scenarios [--ci] [--only recording]
+    python -m benchmarks.bench_scenarios [--ci] [--only recording|checks]   (--ci: the [ci] versions)
 """
 import argparse
 import dataclasses
@@ -110,15 +112,42 @@ def recording_cost(repeats=5):
               f"+ {save[kind] * 1e3:5.1f} ms writing the npz once")
 
 
+def check_cost(ci, names=("telescope_slew", "telescope_slew_realistic", "keyhole_tracking"), repeats=3):
+    """The pre-run checks (runner.pre_run_flags: the step-limit prediction along the motion
+    and the scene's checks; best of ``repeats``) against the whole run of the scenario
+    (run_scenario: checks, runs, report) and against its stepping alone, side by side."""
+    out = pathlib.Path(tempfile.mkdtemp())
+    print(f"\npre-run checks against the run ({'[ci]' if ci else 'full'} versions):")
+    print(f"{'scenario':26s} {'checks [ms]':>11s} {'run [s]':>8s} {'checks/run':>11s} {'stepping [s]':>13s} "
+          f"{'checks/stepping':>16s}")
+    for name in names:
+        began = time.perf_counter()
+        _, runs, _ = runner.run_scenario(name, out, ci=ci, progress=False)
+        whole = time.perf_counter() - began
+        stepping = sum(r.wall_time for r in runs)
+        prepared = runner.prepare(runner.resolve(name), ci)
+        checks = []
+        for _ in range(repeats):
+            began = time.perf_counter()
+            runner.pre_run_flags(*prepared, ci=ci)
+            checks.append(time.perf_counter() - began)
+        best = min(checks)
+        print(f"{name:26s} {best * 1e3:11.1f} {whole:8.2f} {100 * best / whole:10.2f}% {stepping:13.2f} "
+              f"{100 * best / stepping:15.2f}%")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ci", action="store_true", help="run the short [ci] versions")
-    parser.add_argument("--only", choices=["recording"], help="only this part")
+    parser.add_argument("--only", choices=["recording", "checks"], help="only this part")
     args = parser.parse_args()
-    if args.only != "recording":
+    if args.only is None:
         scenario_table(args.ci)
         master_overhead()
-    recording_cost()
+    if args.only in (None, "recording"):
+        recording_cost()
+    if args.only in (None, "checks"):
+        check_cost(args.ci)
 
 
 if __name__ == "__main__":

@@ -24,6 +24,13 @@ latency and computation delay, and the master's linear extrapolation, each as th
 and the master implement it. margins() gives any gains' margins on it, design_pid the
 shipped method on it, stiffest_pid the largest integral gain within phase and gain
 margin bounds on every mode.
+
+The step limit of any master (step_limit): under Jacobi every connection of the loop
+is one step stale, under Gauss-Seidel only the one into the FMU that steps first
+(LoopModel.gauss_seidel; the linear extrapolation acts on the stale connections only).
+The limit is where the first mode's closed loop (closed_loop_polynomial, the
+characteristic polynomial of mode_loop in w = (z - 1) / h) gets a pole outside the unit
+circle; scenarios.flags takes it over the modes along a scenario's motion before it runs.
 """
 from dataclasses import dataclass
 
@@ -137,7 +144,10 @@ class LoopModel:
     ``rate_cutoff`` h), read out ``delay_steps`` samples late and one communication step
     later under Jacobi) instead of the plant's exact length and rate; ``extrapolate``: the
     master's linear input extrapolation (scenarios/master.py, Jacobi: every input
-    u_k + (u_k - u_k-1) / 2, a lead of about half a step that doubles the gain at Nyquist).
+    u_k + (u_k - u_k-1) / 2, a lead of about half a step that doubles the gain at Nyquist);
+    ``gauss_seidel``: the master steps the FMUs one after the other, so of the loop's
+    connections only the one into the FMU that steps first is stale (its source has not
+    stepped yet: one step of delay, and the only input extrapolated); Jacobi: all stale.
     Coulomb friction is left out (nonlinear: below its smoothing velocity it is a stiff
     damper, above it a constant force, a disturbance), and so are quantisation and noise."""
 
@@ -148,6 +158,7 @@ class LoopModel:
     rate_cutoff: float = 0.0
     delay_steps: int = 0
     extrapolate: bool = False
+    gauss_seidel: bool = False
 
     def __post_init__(self):
         for name in ("reflected_mass", "actuator_bandwidth", "viscous_friction", "rate_cutoff"):
@@ -192,17 +203,27 @@ def mode_loop(mass, gains, comm_step, loop=IDEAL):
     plant = control.c2d(control.ss(A, B, C, 0), h, "zoh")   # outputs: length, exact rate
     pid = control.ss([[1.0]], [[h, 0.0]], [[gains.ki]], [[gains.kp + gains.ki * h, gains.kd]], h)
     z = control.tf([1, 0], [1], h)
+    stale = _stale_connections(loop)
+    lead = ((1.5 * z - 0.5) / z) ** stale if loop.extrapolate else 1
     if loop.leg_sensor:   # length only into the sensor; out: measured length and rate
         a = 1 - np.exp(-2 * np.pi * loop.rate_cutoff * h) if loop.rate_cutoff > 0 else 1.0
-        late = z ** -(1 + loop.delay_steps)
+        late = z ** -(stale - 2 + loop.delay_steps) if stale > 1 else (1 / z) ** loop.delay_steps
         rate = late * a * (z - 1) / (h * (z - (1 - a)))
         split = control.ss([], [], [], [[1.0], [1.0]], h)
         sensor = control.append(control.ss(late), control.ss(rate)) * split
-        feedback, connections = sensor * plant[0, 0], 3   # plant -> sensor -> controller -> plant
+        feedback = sensor * plant[0, 0]   # plant -> sensor -> controller -> plant
     else:
-        feedback, connections = plant, 2
-    outer = 1 / z * ((1.5 * z - 0.5) / z) ** connections if loop.extrapolate else 1 / z
+        feedback = plant
+    outer = 1 / z * lead if stale > 1 else lead * control.tf([1], [1], h)
     return control.ss(outer) * pid * feedback
+
+
+def _stale_connections(loop):
+    """Connections of the loop whose target reads its source's output of t_k: all of
+    them (2, or 3 through the leg sensor) under Jacobi, one under Gauss-Seidel. The
+    loop's delay is one step less than their number (an FMU's output at t_k+1 depends
+    on its inputs at t_k), each of them carries the extrapolation."""
+    return 1 if loop.gauss_seidel else (3 if loop.leg_sensor else 2)
 
 
 def _distinct(masses):
@@ -322,6 +343,123 @@ def default_gains(params, comm_step=1e-3):
     controller at ``comm_step`` (see design_pid; at 1 ms every mode keeps >= 60 deg and
     >= 10 dB)."""
     return design_pid(params, DEFAULT_CROSSOVER_HZ, DEFAULT_PHASE_MARGIN_DEG, comm_step).gains
+
+
+# ------------------------------------------- the step limit of any master and loop
+def _charpoly(a):
+    """Characteristic polynomial of a 2x2 or 3x3 matrix from its invariants."""
+    tr = np.trace(a)
+    if len(a) == 2:
+        return np.array([1.0, -tr, np.linalg.det(a)])
+    return np.array([1.0, -tr, 0.5 * (tr * tr - np.trace(a @ a)), -np.linalg.det(a)])
+
+
+def _expm(m, terms=18):
+    """exp(m) of a small matrix: Taylor series after scaling to norm <= 1/2, then squaring
+    (scipy's expm costs ~10 ms a call here, this ~20 us)."""
+    norm = np.abs(m).sum(axis=1).max()
+    squarings = max(0, int(np.ceil(np.log2(norm))) + 1) if norm > 0 else 0
+    x = m / 2.0 ** squarings
+    term = result = np.eye(len(m))
+    for k in range(1, terms):
+        term = term @ x / k
+        result = result + term
+    for _ in range(squarings):
+        result = result @ result
+    return result
+
+
+def _mul(a, b):
+    return np.convolve(a, b)
+
+
+def _add(a, b):
+    """Sum of two polynomials (highest power first) of any lengths."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if len(a) < len(b):
+        a, b = b, a
+    out = a.copy()
+    out[len(a) - len(b):] += b
+    return out
+
+
+def closed_loop_polynomial(mass, gains, comm_step, loop=IDEAL):
+    """Characteristic polynomial of the closed loop of mode_loop (the same loop, as the
+    numerator + denominator of its transfer function) in w = (z - 1) / h, highest power
+    first: the loop's poles are z = 1 + h w. In z the poles crowd about z = 1 at small
+    steps and root-finding scatters them by ~1e-3; in w they stay apart. ~100x cheaper
+    than python-control's, for the step-limit search before every run."""
+    h = comm_step
+    w_a = 2 * np.pi * loop.actuator_bandwidth
+    if w_a > 0:   # states (F, l, dl/dt), input F_cmd, as mode_loop
+        A = np.array([[-w_a, 0, 0], [0, 0, 1], [1 / mass, 0, -loop.viscous_friction / mass]])
+        B, rows = np.array([w_a, 0, 0]), (np.array([0, 1.0, 0]), np.array([0, 0, 1.0]))
+    else:
+        A = np.array([[0, 1.0], [0, -loop.viscous_friction / mass]])
+        B, rows = np.array([0, 1 / mass]), (np.array([1.0, 0]), np.array([0, 1.0]))
+    n = len(A)
+    block = np.zeros((n + 1, n + 1))
+    block[:n, :n], block[:n, n] = A * h, B * h
+    zoh = _expm(block)
+    M, Bw = (zoh[:n, :n] - np.eye(n)) / h, zoh[:n, n] / h    # z I - Ad = h (w I - M)
+    den = _charpoly(M)
+    length, rate = (_charpoly(M - np.outer(Bw, c)) - den for c in rows)   # numerators (D = 0)
+    z, z1 = [h, 1.0], [h, 0.0]                                # z and z - 1 in w
+    integral = [(gains.kp + gains.ki * h) * h, gains.ki * h]  # (kp + ki h) z - kp: PID on the length, / (z - 1)
+    stale = _stale_connections(loop)
+    delay = stale - 1
+    if loop.leg_sensor:
+        a = 1 - np.exp(-2 * np.pi * loop.rate_cutoff * h) if loop.rate_cutoff > 0 else 1.0
+        fil = [h * h, h * a]                                  # h (z - (1 - a))
+        num = _mul(length, _add(_mul(integral, fil), gains.kd * a * np.array([h * h, 0, 0])))
+        den = _mul(den, _mul(z1, fil))
+        delay += loop.delay_steps
+    else:
+        num = _add(_mul(integral, length), gains.kd * _mul(z1, rate))
+        den = _mul(z1, den)
+    if loop.extrapolate:
+        for _ in range(stale):   # (1.5 z - 0.5) / z
+            num, den = _mul(num, [1.5 * h, 1.0]), _mul(den, z)
+    for _ in range(delay):
+        den = _mul(den, z)
+    return _add(den, num)
+
+
+def spectral_radius(masses, gains, comm_step, loop=IDEAL):
+    """Largest |closed-loop pole| over the leg-space modes ``masses`` [kg]: < 1 is stable."""
+    return max(_radius(m, gains, comm_step, loop) for m in masses)
+
+
+def _radius(mass, gains, comm_step, loop):
+    return float(np.abs(1 + comm_step * np.roots(closed_loop_polynomial(mass, gains, comm_step, loop))).max())
+
+
+def step_limit(masses, gains, loop=IDEAL, low=1e-5, high=0.2, rtol=1e-3):
+    """The communication step [s] at which the first mode of ``masses`` goes unstable
+    (each mode taken to be stable below a step and unstable above it, as the loops here
+    are): the lightest mode's boundary by a geometric scan (factor 1.5) from ``low`` and
+    bisection to ``rtol``, then every mode checked just below it; a mode unstable there
+    is bisected next. 0.0 if unstable already at ``low``, inf if stable up to ``high``."""
+    masses = _distinct(np.sort(np.asarray(masses, dtype=float)))
+    stable = lambda m, h: _radius(m, gains, h, loop) < 1
+    good, bad, mode = low, None, masses[0]
+    while True:
+        if not stable(mode, good):
+            return 0.0
+        if bad is None:   # scan up for this mode's first unstable step
+            for bad in np.geomspace(good, high, int(np.ceil(np.log(high / good) / np.log(1.5))) + 1)[1:]:
+                if not stable(mode, bad):
+                    break
+                good = bad
+            else:
+                bad = None
+        while bad is not None and bad / good > 1 + rtol:
+            mid = np.sqrt(good * bad)
+            good, bad = (mid, bad) if stable(mode, mid) else (good, mid)
+        worse = next((m for m in masses if not stable(m, good)), None)
+        if worse is None:
+            return float(good) if bad is not None else float("inf")
+        mode, bad, good = worse, good, low   # a mode unstable below: its boundary lies lower
 
 
 def _closed_loop_matrix(plant, gains, comm_step):

@@ -1,7 +1,7 @@
 """Command line: run scenario files (or shipped scenario names) and write their reports.
 
     movingbase run [SCENARIO ...] [--out DIR] [--ci] [--quiet] [--jobs N] [--dask tcp://HOST:PORT]
-                        [--implementation native|python] [--csv]
+                        [--implementation native|python] [--csv] [--allow-unstable]
     movingbase run SCENARIO --ssp FILE.ssp      (export for other FMI tools instead)
 
 Without a scenario it runs the main job: the telescope slew (FMUs built first) and the
@@ -43,6 +43,8 @@ def main(argv=None, prog="movingbase run"):
                         help="run every FMU as this implementation, whatever the file chooses")
     parser.add_argument("--csv", action="store_true",
                         help="also export each run's records as CSV (<label>.csv beside its <label>.npz)")
+    parser.add_argument("--allow-unstable", action="store_true",
+                        help="run a communication step beyond the predicted stability limit anyway (flagged)")
     parser.add_argument("--ssp", metavar="FILE", help="export the (one) scenario as an SSP file, first sweep value")
     args = parser.parse_args(argv)
     try:
@@ -85,7 +87,8 @@ def _run(args, shipped):
         try:
             scenario, runs, report = run_scenario(name, args.out, ci=args.ci, progress=not args.quiet,
                                                   jobs=args.jobs, dask=args.dask,
-                                                  implementation=args.implementation)
+                                                  implementation=args.implementation,
+                                                  allow_unstable=args.allow_unstable)
         except ScenarioError as exc:
             errors.append(f"scenario error: {exc}")
             continue
@@ -107,6 +110,13 @@ def _run(args, shipped):
             else:
                 print(f"  {run.label}: {run.steps} steps in {run.wall_time:.1f} s of stepping "
                       f"(real-time factor {run.real_time_factor:.1f}; FMU loading and initialisation not counted)")
+            for flag in run.flags:
+                if flag.kind != "cut_short":   # a failed run says so above
+                    print(f"    FLAGGED {flag.kind}: {flag.message}")
+        flagged = [run.label for run in runs if run.flags]
+        if flagged:
+            print(f"  {len(flagged)} of {len(runs)} runs FLAGGED ({', '.join(flagged)}): their numbers are not "
+                  f"results; see {report}")
     if errors:
         sys.exit("\n".join(errors))
     if not args.scenarios:

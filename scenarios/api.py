@@ -28,6 +28,7 @@ import numpy as np
 
 from . import campaign as campaigns
 from . import engine, master, report, runner, spec
+from .flags import Flag
 from .records import Records, read_records, run_records
 
 if TYPE_CHECKING:   # pandas and matplotlib are imported where they are used
@@ -35,23 +36,6 @@ if TYPE_CHECKING:   # pandas and matplotlib are imported where they are used
     from matplotlib.figure import Figure
 
 ScenarioLike = Union[str, "os.PathLike[str]", spec.Scenario]
-
-
-@dataclasses.dataclass(frozen=True)
-class Flag:
-    """Why a run's numbers should not be read as they stand (scenarios.flags.Flag once
-    that module lands: the same two fields)."""
-
-    kind: str
-    message: str
-
-
-def _flags(run: master.Run) -> list:
-    """The run's flags (Run.flags where the master sets them), else its failure as one."""
-    flags = getattr(run, "flags", None)
-    if flags is not None:
-        return list(flags)
-    return [Flag("cut_short", run.failure)] if run.failure else []
 
 
 def _pandas() -> Any:
@@ -114,7 +98,7 @@ class RunResult:
         self.run = run
         self.label: str = run.label
         self.metrics: dict = run.metrics
-        self.flags: list = _flags(run)
+        self.flags: list[Flag] = list(run.flags)
         self.steps: int = run.steps
         self.wall_time: float = run.wall_time
         self.sim_time: float = run.sim_time
@@ -252,19 +236,22 @@ class Result:
 
 def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: bool = False,
         implementation: str | None = None, out: str | os.PathLike[str] | None = None,
-        progress: bool = True) -> Result:
+        progress: bool = True, allow_unstable: bool = False) -> Result:
     """Run a scenario (a shipped name, a file path or a Scenario) as ``movingbase run``
     does, every sweep value; ``set`` and ``ci`` as in ``load_scenario``;
-    ``implementation`` ("native" or "python") for every FMU. Nothing is written to disk
-    unless ``out`` is given: then the files of ``movingbase run --out OUT`` (OUT/<file stem>/)."""
+    ``implementation`` ("native" or "python") for every FMU. A communication step beyond
+    the predicted stability limit is refused (ScenarioError) unless ``allow_unstable``;
+    then every run is flagged. Nothing is written to disk unless ``out`` is given: then
+    the files of ``movingbase run --out OUT`` (OUT/<file stem>/)."""
     loaded = load_scenario(scenario, set=set, ci=ci)
     if progress:
         print(f"{loaded.name}: checking the scenario, building FMUs that are missing or stale", flush=True)
     prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation, out)
+    before = runner.pre_run_flags(prepared, paths, descriptions, values, ci, allow_unstable)
     outdir = None if out is None else runner.output_folder(out, prepared.source)
     if outdir is not None and runner.replaced(outdir):
         print(runner.replaced(outdir), flush=True)
-    runs = runner.run_prepared(prepared, paths, descriptions, values, outdir, progress)
+    runs = runner.run_prepared(prepared, paths, descriptions, values, outdir, progress, before=before)
     return Result(prepared, runs, runner.write_results(prepared, runs, outdir) if outdir else None)
 
 

@@ -35,7 +35,7 @@ import pathlib
 import sys
 from dataclasses import dataclass
 
-from . import engine, resources, spec
+from . import engine, flags, resources, spec
 from .fmi import FmuFileError, unpack
 from .runner import OutputError, fmu_paths, output_folder, resolve
 
@@ -342,13 +342,15 @@ def results(campaign, store, job_list):
 
 
 def write_summary(campaign, store, job_list, path):
-    """summary.csv streamed from the result files: case values, status, every metric."""
+    """summary.csv streamed from the result files: case values, status, flags (scenarios.flags:
+    '' for a run nothing was seen wrong in), every metric."""
     with open(path, "w", newline="") as file:
         writer = None
         for case, record in results(campaign, store, job_list):
             row = {"label": case.label, **{k: case.values.get(k) for k in campaign.varying}}
             row["status"] = record["status"] if record else "not run"
             row["error"] = record.get("error", "") if record else ""
+            row["flags"] = flags.summary(flags.from_dicts((record or {}).get("flags")))
             for name, values in ((record or {}).get("metrics") or {}).items():
                 row.update({f"{name} {k}": v for k, v in values.items() if k != "unit"})
             row["run_time_s"] = (record or {}).get("run_time_s", "")

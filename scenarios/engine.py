@@ -50,7 +50,7 @@ from itertools import islice
 import numpy as np
 from tqdm import tqdm
 
-from . import master, metrics
+from . import flags, master, metrics
 from .fmi import content_digest
 from .resources import cores
 from .spec import Link, file_label
@@ -145,6 +145,7 @@ def _local_fmu(digest, blobs):
 
 def _outcome(run):
     return {"metrics": run.metrics, "steps": run.steps, "run_time_s": run.wall_time, "sim_time_s": run.sim_time,
+            "flags": flags.as_dicts(run.flags),
             "series": {name: (np.asarray(t), np.asarray(v)) for name, (t, v) in run.series.items()}}
 
 
@@ -448,6 +449,7 @@ def run_sweep(scenario, paths, descriptions, values, items, outdir, jobs=None, a
         run = master.Run(job.label, record_path, record.get("steps", 0), record.get("run_time_s", 0.0),
                          record.get("sim_time_s", 0.0), record.get("metrics", {}),
                          store.series(job.key) if store.path(job.key, ".npz").exists() else {})
+        run.flags = flags.from_dicts(record.get("flags"))
         if record["status"] != "ok":
             run.failure = f"{scenario.source}: scene {scenario.name}, run {job.label}: {record['error']}"
         runs.append(run)

@@ -27,10 +27,22 @@ MODES = {"none": "none", "fixed_base": "fixed-base model", "moving_base": "movin
 CHART = ("telescope_slew", "pose_error_vs_time.png", ROOT / "docs" / "figures" / "slew_pose_error.png")
 
 
+class Flagged(ValueError):
+    """A run of a headline scene is flagged: no headline is written from it."""
+
+
 def collect(out):
-    """{scene: {run: metrics}} from the full runs' out/<scene>/metrics.json."""
-    return {scene: {run: entry["metrics"] for run, entry in json.loads((out / scene / "metrics.json").read_text()).items()}
-            for scene in SCENES}
+    """{scene: {run: metrics}} from the full runs' out/<scene>/metrics.json; Flagged if
+    any of those runs is flagged (its numbers are not results, and the headline compares)."""
+    store, flagged = {}, []
+    for scene in SCENES:
+        entries = json.loads((out / scene / "metrics.json").read_text())
+        store[scene] = {run: entry["metrics"] for run, entry in entries.items()}
+        flagged += [f"{scene} run {run}: " + "; ".join(f"{f['kind']}: {f['message']}" for f in entry["flags"])
+                    for run, entry in entries.items() if entry.get("flags")]
+    if flagged:
+        raise Flagged("no headline from flagged runs: " + " | ".join(flagged))
+    return store
 
 
 def render(store):
@@ -70,7 +82,11 @@ def main(argv=None):
     args = parser.parse_args(argv)
     if args.out:
         out = pathlib.Path(args.out)
-        STORE.write_text(json.dumps(collect(out), indent=1, ensure_ascii=False) + "\n")
+        try:
+            store = collect(out)
+        except Flagged as exc:
+            raise SystemExit(f"headline error: {exc}") from None
+        STORE.write_text(json.dumps(store, indent=1, ensure_ascii=False) + "\n")
         shutil.copyfile(out / CHART[0] / CHART[1], CHART[2])
     rewrite_readme(json.loads(STORE.read_text()))
     print(f"{README.name}: headline rewritten from {STORE.relative_to(ROOT)}")

@@ -26,6 +26,7 @@ import numpy as np
 
 from ._cosim import ffi, lib
 from .fmi import _LABELS, FmuError, Instance, RealPort
+from . import flags as run_flags
 from .records import Records
 from .spec import Link, expand
 
@@ -43,6 +44,7 @@ class Run:
     series: dict = field(default_factory=dict)
     failure: str = ""       # why the run stopped early ("" if it reached stop_time)
     records: object = None  # scenarios.records.Records (None: the run failed before recording began)
+    flags: list = field(default_factory=list)   # scenarios.flags.Flag: what went wrong ([]: nothing seen)
 
     @property
     def real_time_factor(self):
@@ -215,13 +217,15 @@ class Loop:
 class Recorder:
     """Recorded variables into preallocated arrays (scenarios.records: one row per record
     point, units with the names; no per-float formatting), read with one FMI call per
-    instance; metrics fed at each row."""
+    instance; metrics and the watch (scenarios.flags.Watch) fed at each row. What only the
+    watch needs is read but not recorded."""
 
-    def __init__(self, scenario, instances, metrics, rows):
+    def __init__(self, scenario, instances, metrics, rows, watch=None):
         md = {inst: i.variables for inst, i in instances.items()}
         wanted = list(dict.fromkeys(scenario.record + [r for m in metrics for r in m.needs]))
+        watched = [r for r in dict.fromkeys(watch.needs if watch else []) if r not in wanted]
         names, units, columns, self.slices = [], [], {}, {}
-        for reference in wanted:
+        for reference in wanted + watched:
             inst = reference.split(".", 1)[0]
             expanded = expand(md[inst], reference)
             self.slices[reference] = slice(len(names), len(names) + len(expanded))
@@ -229,20 +233,27 @@ class Recorder:
                 columns.setdefault(inst, []).append((n, len(names)))
                 names.append(f"{inst}.{n}")
                 units.append(md[inst][n].unit or "1")
+        kept = self.slices[wanted[-1]].stop if wanted else 0
         self.ports = [(RealPort(instances[inst], [n for n, _ in cols]), np.array([j for _, j in cols]))
                       for inst, cols in columns.items()]
-        self.records = Records(names, units, rows)
+        self.records = Records(names[:kept], units[:kept], rows)
         self.row = np.zeros(len(names))
+        self.written = self.row[:kept]
         self.values = {ref: self.row[s] for ref, s in self.slices.items()}   # views of row
         self.metrics = metrics
+        self.watch = watch
+        if watch:
+            watch.bind(self.slices)
 
     def record(self, t):
         for port, where in self.ports:
             self.row[where] = port.read()
-        self.records.append(t, self.row)
+        self.records.append(t, self.written)
         for metric in self.metrics:
             if t >= metric.start - 1e-12:
                 metric.update(t, self.values)
+        if self.watch:
+            self.watch.feed(t, self.row)
 
 
 def start(scenario, fmu_paths, parameters, instances):
@@ -265,22 +276,25 @@ def start(scenario, fmu_paths, parameters, instances):
 CHUNK = 2048   # most macro steps per C call: Ctrl-C is seen within one (~10 ms native, ~0.1 s pythonfmu)
 
 
-def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), progress=None):
+def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), progress=None, flags=()):
     """Co-simulate ``scenario`` once. ``fmu_paths``: instance -> FMU file; ``parameters``:
     instance -> {variable: value} (already converted, see spec.bind). The records stay in
     memory (Run.records); with an ``outdir`` they are also written to outdir/<label>.npz
     (also those of a run that fails or is interrupted). ``progress(done_fraction)`` is
-    called about 200 times."""
+    called about 200 times. Run.flags: ``flags`` known before the run, the detectors'
+    (scenarios.flags.Watch, fed every recorded row), the FMUs' warnings and a stop before
+    stop_time."""
     instances = {}
     recorder = None
     h, t0 = scenario.step, scenario.start_time
     steps = int(round((scenario.stop_time - t0) / h))
     every = int(round(scenario.record_interval / h))
     path = None if outdir is None else pathlib.Path(outdir) / f"{label}.npz"
-    done, failure, began = 0, None, time.perf_counter()
+    done, failure, began, watch = 0, None, time.perf_counter(), None
     try:
         exchange, _ = start(scenario, fmu_paths, parameters, instances)
-        recorder = Recorder(scenario, instances, list(metrics), steps // every + 1)
+        watch = run_flags.Watch.for_scenario(scenario, {k: i.md for k, i in instances.items()}, parameters)
+        recorder = Recorder(scenario, instances, list(metrics), steps // every + 1, watch)
         order = step_order(scenario, parameters) if scenario.master == "gauss-seidel" else list(scenario.fmus)
         loop = Loop(exchange, instances, order, scenario.master == "gauss-seidel",
                     scenario.extrapolation == "linear", t0, h)
@@ -313,5 +327,7 @@ def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), p
                  {m.name: m.result() for m in metrics}, series, records=recorder.records if recorder else None)
     if failure is not None:
         result.failure = failure_line(failure, instances)
+    result.flags = run_flags.run_flags(watch, result, instances, flags)
+    if failure is not None:
         raise RunFailed(str(failure), result) from None
     return result

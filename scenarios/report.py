@@ -26,10 +26,16 @@ RUN_MEANING = {"none": "PID alone, no feedforward",
                "moving_base": "PID + feedforward from the moving-base model"}
 
 
-def compare(metrics_by_run, metric, unit="µm"):
-    """The fixed- against moving-base sentence for one tracking metric, or None."""
+def compare(metrics_by_run, metric, unit="µm", flagged=None):
+    """The fixed- against moving-base sentence for one tracking metric, or None. ``flagged``
+    {run: [Flag]}: if either run is flagged, only the sentence that says no comparison
+    is made (a flagged run's numbers are not results)."""
     if not {"fixed_base", "moving_base"} <= set(metrics_by_run):
         return None
+    bad = {k: v for k, v in (flagged or {}).items() if k in ("fixed_base", "moving_base") and v}
+    if bad:
+        return "no fixed- against moving-base comparison: " + "; ".join(
+            f"run `{k}` is flagged ({', '.join(dict.fromkeys(f.kind for f in v))})" for k, v in bad.items()) + "."
     fixed, moving = metrics_by_run["fixed_base"][metric], metrics_by_run["moving_base"][metric]
     text = (f"ignoring the base motion (run `fixed_base`: the feedforward uses the fixed-base model) gives "
             f"RMS {fmt(fixed['rms'])} {unit} and peak {fmt(fixed['peak'])} {unit}, against "
@@ -161,6 +167,7 @@ def _error_chart(scenario, runs, metric, path):
         axes[0].text(0.5 * (scenario.start_time + metric.start), 0.5,
                      f"settling {scenario.start_time:g}-{metric.start:g} s: not measured", rotation=90,
                      transform=axes[0].get_xaxis_transform(), ha="center", va="center", fontsize=7.5, color="0.3")
+    mark_flagged(axes[:len(rows)], runs)
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, title=(scenario.sweep[0] if scenario.sweep else None), fontsize=8.5,
                title_fontsize=8.5, loc="outside lower left", ncol=len(runs))
@@ -172,6 +179,38 @@ def _error_chart(scenario, runs, metric, path):
                  fontsize=10)
     save(fig, path)
     return panels
+
+
+FLAG_COLOR = "red"
+
+
+def mark_flagged(axes, runs, bars=False):
+    """Mark a flagged run where a chart shows it: its curves get red crosses and
+    "(FLAGGED)" in the legend, its bars a red hatched band and a red tick label; a red
+    note in the first panel says which runs and why (their numbers are not results)."""
+    flagged = {r.label: r for r in runs if r.flags}
+    if not flagged:
+        return
+    for ax in axes:
+        if bars:
+            ticks = ax.get_xticklabels()
+            for k, run in enumerate(runs):
+                if run.label in flagged:
+                    ax.axvspan(k - 0.45, k + 0.45, facecolor="none", edgecolor=FLAG_COLOR, hatch="//", lw=0,
+                               alpha=0.35, zorder=0)
+                    ticks[k].set_text(f"{run.label}\nFLAGGED")
+                    ticks[k].set_color(FLAG_COLOR)
+            ax.set_xticks(ax.get_xticks(), ticks)
+        else:
+            for line in ax.get_lines():
+                if line.get_label() in flagged:
+                    line.set(marker="x", markevery=0.04, markeredgecolor=FLAG_COLOR, markersize=6,
+                             label=f"{line.get_label()} (FLAGGED)")
+    why = "\n".join(f"{label}: {', '.join(dict.fromkeys(f.kind for f in run.flags))}" for label, run in flagged.items())
+    note = axes[0].text(0.01, 0.97, f"FLAGGED, not results (why: report.md)\n{why}", transform=axes[0].transAxes,
+                        fontsize=7.5, color=FLAG_COLOR, va="top", ha="left",
+                        bbox={"facecolor": "white", "edgecolor": FLAG_COLOR, "alpha": 0.85, "pad": 2})
+    note.set_in_layout(False)
 
 
 def _summary_quantities(tracked):
@@ -225,6 +264,7 @@ def _summary_chart(scenario, runs, tracked, path):
         ax.grid(True, axis="y", which="major", alpha=0.3)
         ax.set_title(title, fontsize=10)
         panels[title] = ax
+    mark_flagged(axes[0], runs, bars=True)
     start = max(m.start for m in tracked)
     fig.suptitle(f"{scenario.name}: tracking error after the {start:g} s settling, by "
                  f"{scenario.sweep[0] if scenario.sweep else 'run'}", fontsize=10)
@@ -293,7 +333,7 @@ def write(scenario, runs, outdir):
     """Write charts and report.md into outdir; return the report's path."""
     tracked = [m for m in scenario.metrics if m.kind in TRACKING]
     per_run = [m for m in scenario.metrics if m.kind != "base_effect"]   # base effect: same for every run
-    lines = [f"# {scenario.name}", "", scenario.description, ""] + settings(scenario)
+    lines = [f"# {scenario.name}", "", scenario.description, ""] + flag_lines(runs) + settings(scenario)
     lines += ["## Results", "",
               "| run | " + " | ".join(f"{m.name} ({runs[0].metrics[m.name]['unit']})" for m in per_run)
               + " | wall time [s] | real-time factor |",
@@ -301,6 +341,7 @@ def write(scenario, runs, outdir):
     for run in runs:
         cells = [_cell(run.metrics[m.name]) for m in per_run]
         label = f"{run.label} **{_stopped(scenario, run)}**" if run.failure else run.label
+        label += " **FLAGGED**" if any(f.kind != "cut_short" for f in run.flags) else ""   # a stop: said above
         lines.append(f"| {label} | " + " | ".join(cells) + f" | {run.wall_time:.2f} | {run.real_time_factor:.1f} |")
     lines.append("")
     lines += [f"- **run {r.label} {_stopped(scenario, r)}**; its row covers the run up to then: {r.failure}"
@@ -321,6 +362,17 @@ def write(scenario, runs, outdir):
     return path
 
 
+def flag_lines(runs):
+    """Markdown: each flagged run and why, first in the report ([] if none)."""
+    flagged = [r for r in runs if r.flags]
+    if not flagged:
+        return []
+    lines = ["## Flagged runs: their numbers are not results", ""]
+    for run in flagged:
+        lines += [f"- **{run.label}** {flag.kind}: {flag.message}" for flag in run.flags]
+    return lines + [""]
+
+
 def base_effect_text(result):
     """The 'why' sentence of a base_effect metric (one value: it depends on the motion only)."""
     return (f"along this motion the base changes the leg forces by up to {fmt(result['peak'])} kN; gravity turning "
@@ -335,6 +387,7 @@ def _findings(scenario, runs, tracked):
     lines = []
     by_label = {r.label: r.metrics for r in runs}
     by_label_run = {r.label: r for r in runs}
+    flagged = {r.label: r.flags for r in runs if r.flags}
     for metric in tracked:
         failed = [by_label_run[k] for k in ("fixed_base", "moving_base") if k in by_label_run and by_label_run[k].failure]
         partial = "".join(f" (run {r.label} {_stopped(scenario, r)})" for r in failed)
@@ -342,11 +395,15 @@ def _findings(scenario, runs, tracked):
             lines.append(f"- **{metric.name}**: no fixed- against moving-base comparison: the metric counted "
                          f"nothing before the run stopped{partial}.")
             continue
-        sentence = compare(by_label, metric.name)
+        sentence = compare(by_label, metric.name, flagged=flagged)
         if sentence:
             lines.append(f"- **{metric.name}**: {sentence}{partial}")
+    source = next((r for r in runs if not r.flags), None)   # the motion's terms, from a run that is not flagged
     for metric in scenario.metrics:
         if metric.kind == "base_effect":
-            partial = f" (run {runs[0].label} {_stopped(scenario, runs[0])})" if runs[0].failure else ""
-            lines.append(f"- **why**: {base_effect_text(runs[0].metrics[metric.name])}{partial}.")
+            if source is None:
+                lines.append("- **why**: not written: every run is flagged.")
+                continue
+            partial = f" (run {source.label} {_stopped(scenario, source)})" if source.failure else ""
+            lines.append(f"- **why**: {base_effect_text(source.metrics[metric.name])}{partial}.")
     return lines + [""] if lines else []

@@ -12,7 +12,7 @@ from tqdm import tqdm
 from movingbase.fmu_src.builder import ensure_built
 from movingbase.fmu_src.native_build import ensure_native
 from movingbase.plant.stewart import FIDELITIES
-from . import engine, fidelity, master, metrics, report, resources, spec
+from . import engine, fidelity, flags, master, metrics, report, resources, spec
 from .fmi import unpack
 
 SHIPPED = pathlib.Path(__file__).resolve().parent / "files"
@@ -118,32 +118,39 @@ def _choose_fidelity(scenario, paths, values, plant):
                           f"largest leg-force error of each level along this scene: {listed})")
 
 
-def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None, implementation=None):
+def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None, implementation=None,
+                 allow_unstable=False):
     """Run every sweep value of a scenario; returns (scenario, runs, report path).
     ``jobs`` worker processes or the Dask cluster at ``dask`` run the values in parallel;
-    ``implementation`` as in prepare."""
+    ``implementation`` as in prepare. A step beyond the predicted stability limit is
+    refused (ScenarioError) unless ``allow_unstable``; then every run is flagged."""
     if progress:
         print(f"{pathlib.Path(str(path)).stem}: checking the scenario, building FMUs that are missing or stale "
               "(a first build takes ~10 s)", file=sys.stderr, flush=True)
     scenario, paths, descriptions, values = prepare(resolve(path), ci, implementation, out)
+    before = pre_run_flags(scenario, paths, descriptions, values, ci, allow_unstable)
     outdir = output_folder(out, scenario.source)
     earlier = replaced(outdir)
     if earlier:
         print(earlier, file=sys.stderr)
-    runs = run_prepared(scenario, paths, descriptions, values, outdir, progress, jobs, dask)
+    runs = run_prepared(scenario, paths, descriptions, values, outdir, progress, jobs, dask, before)
     return scenario, runs, write_results(scenario, runs, outdir)
 
 
-def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=True, jobs=None, dask=None):
+def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=True, jobs=None, dask=None,
+                 before=()):
     """Run every sweep value of a prepared scenario; returns the master.Run objects. Each
     run's records go to outdir/<label>.npz; with no ``outdir`` nothing is written (runs in
-    this process only: the engine stores its results on disk)."""
+    this process only: the engine stores its results on disk). ``before``: the flags
+    every run gets (pre_run_flags)."""
     if outdir is not None:
         outdir.mkdir(parents=True, exist_ok=True)
     items = scenario.sweep[1] if scenario.sweep else [None]
     runs = []
     if jobs or dask:   # the values on worker processes or a Dask cluster (scenarios.engine)
         runs, items = engine.run_sweep(scenario, paths, descriptions, values, items, outdir, jobs, dask, progress), []
+        for run in runs:
+            run.flags[:0] = before
     for item in items:
         params = {inst: dict(v) for inst, v in values.items()}
         label = "run"
@@ -162,7 +169,7 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
             bar.update(round(100 * fraction) - bar.n)
         try:
             runs.append(master.run(scenario, paths, params, outdir, label,
-                                   [metrics.make(m) for m in scenario.metrics], update))
+                                   [metrics.make(m) for m in scenario.metrics], update, before))
         except master.RunFailed as failed:   # keep what it did; the other runs still run
             failed.run.failure = f"{scenario.source}: scene {scenario.name}, run {label}: {failed.run.failure}"
             runs.append(failed.run)
@@ -177,11 +184,19 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
 def write_results(scenario, runs, outdir):
     """metrics.json, the charts and report.md of the runs into outdir; the report's path."""
     summary = {r.label: {"metrics": r.metrics, "wall_time_s": r.wall_time, "steps": r.steps,
-                         "real_time_factor": r.real_time_factor, **({"failed": r.failure} if r.failure else {})}
+                         "real_time_factor": r.real_time_factor, **({"failed": r.failure} if r.failure else {}),
+                         "flags": flags.as_dicts(r.flags)}
                for r in runs}
     outdir.mkdir(parents=True, exist_ok=True)
     (outdir / "metrics.json").write_text(json.dumps(_no_nan(summary), indent=2, default=float))
     return report.write(scenario, runs, outdir)
+
+
+def pre_run_flags(scenario, paths, descriptions, values, ci=False, allow_unstable=False):
+    """The stability prediction and the scene's own checks (scenarios.flags): raises
+    ScenarioError for a step beyond the predicted limit unless ``allow_unstable``;
+    returns the flags every run of the scenario gets."""
+    return flags.check(scenario, flags.predict(scenario, paths, descriptions, values, ci), allow_unstable)
 
 
 def _no_nan(value):

@@ -27,6 +27,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.colors import LogNorm
+from matplotlib.patches import Rectangle
 
 from movingbase.plant import telescope
 from movingbase.scenarios import campaign as campaigns
@@ -71,7 +72,8 @@ def rows(camp, job_list, store):
             continue
         m = record["metrics"][METRIC]
         row = {"label": _short(camp.name, case), "key": record["key"], "mode": case.values["controller.feedforward"],
-               "peak": m["peak"], "rms": m["rms"], "rotation_peak": m["rotation_peak"], "values": case.values}
+               "peak": m["peak"], "rms": m["rms"], "rotation_peak": m["rotation_peak"], "values": case.values,
+               "flags": sorted({f["kind"] for f in record.get("flags") or []})}
         out.append(row)
     return out
 
@@ -98,10 +100,13 @@ def map_chart(rows_, path):
     az = sorted({_deg(r["values"]["base.start_azimuth"]) for r in rows_})
     el = sorted({_deg(r["values"]["base.start_elevation"]) for r in rows_})
     grids = {(q, mode): np.full((len(el), len(az)), np.nan) for q in ("peak", "rms") for mode in MODES}
+    flagged = {mode: set() for mode in MODES}   # (i, j) of the flagged runs' cells
     for r in rows_:
         i, j = el.index(_deg(r["values"]["base.start_elevation"])), az.index(_deg(r["values"]["base.start_azimuth"]))
         for q in ("peak", "rms"):
             grids[(q, r["mode"])][i, j] = r[q]
+        if r["flags"]:
+            flagged[r["mode"]].add((i, j))
     values = np.concatenate([g[np.isfinite(g)] for g in grids.values()])
     norm = LogNorm(max(values.min(), FLOOR), values.max())
 
@@ -125,6 +130,8 @@ def map_chart(rows_, path):
             ax.contour(az, el, grid, levels=list(MARKS), colors="k", linestyles=["-", "--"], linewidths=1.2)
         above = [f"{(grid > m).sum()} of {np.isfinite(grid).sum()} above {t}"
                  for m, t in zip(MARKS, ("10 µm", "0.1 mm"))]
+        above += [f"{len(flagged[mode])} FLAGGED (red frame, not results)"] if flagged[mode] else []
+        _mark_flagged_cells(ax, edges(az), np.clip(edges(el), 0, 90), flagged[mode])
         ax.set_title(f"{q} pose error, {mode.replace('_', '-')} feedforward\n{'; '.join(above)}", fontsize=10)
         ax.set_xticks(az, [f"{a:g}" for a in az])         # a tick at every grid column and row
         ax.set_yticks(el, [f"{e:g}" for e in el])
@@ -145,6 +152,15 @@ def map_chart(rows_, path):
     return path
 
 
+def _mark_flagged_cells(ax, az_edges, el_edges, cells):
+    """A red frame and a red F on each flagged run's cell (scenarios.flags)."""
+    for i, j in cells:
+        ax.add_patch(Rectangle((az_edges[j], el_edges[i]), az_edges[j + 1] - az_edges[j], el_edges[i + 1] - el_edges[i],
+                               fill=False, edgecolor="red", lw=2.2, zorder=3))
+        ax.text(az_edges[j + 1], el_edges[i + 1], "F ", ha="right", va="top", color="red", fontsize=8,
+                fontweight="bold", zorder=4)
+
+
 def size_chart(rows_, path):
     """Pose error against the size of a diagonal slew, a tick at every size run; values
     under 1 nm drawn on the floor."""
@@ -157,6 +173,10 @@ def size_chart(rows_, path):
         for key, style in (("peak", {"marker": "o", "ls": "-"}), ("rms", {"marker": "s", "ls": "--", "mfc": "white"})):
             ax.plot(size, [max(r[key], FLOOR) for r in mine], color=RUN_COLOURS[mode], **style,
                     label=f"{RUN_NAMES[mode]}: {'peak' if key == 'peak' else 'RMS'}")
+        bad = [k for k, r in enumerate(mine) if r["flags"]]
+        if bad:
+            ax.plot([size[k] for k in bad], [max(mine[k]["peak"], FLOOR) for k in bad], "x", color="red", ms=11,
+                    mew=2.5, label=f"{RUN_NAMES[mode]}: FLAGGED run (not a result)")
     draw_marks(ax)
     ax.set_xscale("log")
     ax.set_yscale("log")
@@ -251,7 +271,8 @@ def worst_table(all_rows, n=6):
                       key=lambda nr: -nr[1]["peak"])[:n]
         for name, r in mine:
             past = "0.1 mm" if r["peak"] > 100 else "10 µm" if r["peak"] > 10 else "-"
-            lines.append(f"| {name} | {r['label']} | {mode} | {r['peak']:.3g} | {r['rms']:.3g} | "
+            flag = f" **FLAGGED: {', '.join(r['flags'])}**" if r["flags"] else ""
+            lines.append(f"| {name} | {r['label']}{flag} | {mode} | {r['peak']:.3g} | {r['rms']:.3g} | "
                          f"{r['rotation_peak']:.3g} | {past} |")
     return lines
 
@@ -269,7 +290,10 @@ def report(results, outdir, figures=None, name="report.md"):
     failed = {name: o.failed for name, (_, _, _, o) in results.items() if o.failed}
     lines = ["# Sky coverage", "", __doc__.split("\n\n")[0].replace("\n", " "), "",
              f"Runs: {', '.join(f'{n} {len(r)}' for n, r in all_rows.items())} (ok)."
-             + (f" Failed: {failed}." if failed else ""), "",
+             + (f" Failed: {failed}." if failed else "")
+             + "".join(f" Flagged (numbers not results, marked in the charts and table): {name} "
+                       f"{', '.join(r['label'] + ' ' + r['mode'] for r in rs if r['flags'])}."
+                       for name, rs in all_rows.items() if any(r["flags"] for r in rs)), "",
              "## Worst cases", "", *worst_table(all_rows), ""]
     lines += [f"![{c.stem}]({os.path.relpath(c, outdir)})" for c in charts]
     path = outdir / name

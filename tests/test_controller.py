@@ -326,7 +326,8 @@ def _cosim(tmp_path, gains, seconds=3.0):
     tmp_path.mkdir(parents=True, exist_ok=True)
     path = tmp_path / f"{data['name']}.toml"
     path.write_text(study.toml_text(data))
-    [run] = runner.run_scenario(path, tmp_path / "out", ci=True, progress=False)[1]
+    [run] = runner.run_scenario(path, tmp_path / "out", ci=True, progress=False,
+                                 allow_unstable=True)[1]   # the 1.25x gains: beyond the predicted limit, on purpose
     rows = np.column_stack([run.records.time, run.records.values])
     return run.metrics["leg error"]["rms"], rows[rows[:, 0] > 1.5, 1:]
 

@@ -1,0 +1,272 @@
+"""A run that went wrong says so (issue 17, section 1): the predicted step limit of every
+master and extrapolation against co-simulation, the refusal beyond it, the detectors
+against runs known to be stable, growing, saturated, near the stroke or stopped, and the
+flags in the CLI, report.md, metrics.json, the comparison sentences and the headline."""
+import dataclasses
+import json
+import math
+
+import control
+import numpy as np
+import pytest
+
+from movingbase.controller import design
+from movingbase.plant import telescope
+from movingbase.plant.stewart import HOME_POSE, StewartParams, inverse_kinematics
+from movingbase.scenarios import flags, headline, master, report, runner, spec
+from movingbase.scenarios.__main__ import main as cli
+from movingbase.scenarios.fmi import unpack
+from movingbase.scenarios.records import run_records
+from studies.stability import GAINS, OFFSET, scenario_text, scaled
+
+PARAMS = StewartParams.paper()
+MASTERS = [("jacobi", "none"), ("jacobi", "linear"), ("gauss-seidel", "none"), ("gauss-seidel", "linear")]
+
+
+def loop_of(master_, extrapolation, base=design.IDEAL):
+    return dataclasses.replace(base, gauss_seidel=master_ == "gauss-seidel", extrapolate=extrapolation == "linear")
+
+
+def elevation_pose(elevation_deg):
+    """The subreflector pose the hexapod holds at an elevation (telescope model)."""
+    zero = np.zeros(1)
+    axes = telescope.AxisMotion(zero, zero, zero, zero, np.radians([elevation_deg]), zero, zero)
+    return telescope.reference_pose(telescope.TelescopeParams.tianma(), axes)[0][0]
+
+
+# ------------------------------------------------------------------ the prediction
+@pytest.mark.parametrize("master_, extrapolation", MASTERS)
+@pytest.mark.parametrize("base", [design.IDEAL, design.REALISTIC], ids=["ideal", "realistic"])
+def test_fast_closed_loop_poles_are_python_controls(master_, extrapolation, base):
+    """The polynomial the search uses has the poles python-control finds for mode_loop."""
+    loop = loop_of(master_, extrapolation, base)
+    for mass in design.modal_masses(PARAMS, loop)[[0, -1]]:
+        for h in (2e-4, 1e-3, 4e-3):
+            want = np.sort(np.abs(control.feedback(design.mode_loop(mass, GAINS, h, loop)).poles()))[::-1]
+            got = np.abs(1 + h * np.roots(design.closed_loop_polynomial(mass, GAINS, h, loop)))
+            assert np.sort(got)[::-1][:3] == pytest.approx(want[:3], abs=1e-9)
+
+
+def test_the_modal_jacobi_limit_is_the_full_linearised_plants():
+    """Jacobi without extrapolation: the decoupled leg-space modes give the limit of the
+    12-state linearised plant with gravity (controller.design.max_stable_step)."""
+    masses = flags.leg_masses(PARAMS, HOME_POSE[None], design.IDEAL)
+    assert design.step_limit(masses, GAINS) == pytest.approx(design.max_stable_step(PARAMS, GAINS), rel=2e-3)
+
+
+def test_the_master_and_extrapolation_move_the_limit_as_their_delays_say():
+    """Gauss-Seidel removes the loop's step of delay, extrapolation adds a lead that
+    lowers the limit; the issue's 2 ms with Jacobi + linear is just beyond it."""
+    masses = flags.leg_masses(PARAMS, HOME_POSE[None], design.IDEAL)
+    limits = {m: design.step_limit(masses, GAINS, loop_of(*m)) for m in MASTERS}
+    assert limits[("gauss-seidel", "none")] > 1.8 * limits[("jacobi", "none")]
+    assert limits[("jacobi", "linear")] < limits[("jacobi", "none")]
+    assert 1.9e-3 < limits[("jacobi", "linear")] < 2.05e-3
+
+
+def probe(fmus, tmp_path, step, master_, extrapolation, pose, force_limit=1e9, duration=2.0, offset=OFFSET):
+    """The plant + leg controller probe of studies.stability (fixed base, started off its
+    reference) under a given master and extrapolation; returns the master's Run."""
+    gains = dataclasses.replace(GAINS, force_limit=force_limit)
+    steps = max(6, int(round(duration / step)))
+    text = scenario_text(step, steps * step, gains, pose + offset, pose).replace(
+        'master = "jacobi"', f'master = "{master_}"\nextrapolation = "{extrapolation}"') + \
+        '\n[record]\nvariables = ["plant.leg_length"]\n'
+    scenario = spec.parse(text, "probe")
+    paths = {"plant": fmus["hexapod_plant_fmu"], "controller": fmus["leg_controller_fmu"]}
+    values = spec.bind(scenario, {inst: unpack(p)[0] for inst, p in paths.items()})
+    try:
+        return master.run(scenario, paths, values, tmp_path, f"probe_{step:.6f}")
+    except master.RunFailed as failed:
+        return failed.run
+
+
+def predicted_limit(master_, extrapolation, pose):
+    masses = flags.leg_masses(PARAMS, pose[None], design.IDEAL)
+    return design.step_limit(masses, GAINS, loop_of(master_, extrapolation))
+
+
+def kinds(run):
+    return {f.kind for f in run.flags}
+
+
+def leg_error(run, pose):
+    """|leg length - reference| (max over legs) per recorded row, from the run's records."""
+    records = run_records(run)
+    columns = [k for k, name in enumerate(records.names) if name.startswith("plant.leg_length")]
+    return np.abs(records.values[:, columns] - inverse_kinematics(PARAMS, pose)).max(axis=1)
+
+
+def _check_limit(fmus, tmp_path, master_, extrapolation, elevation):
+    """0.9x the limit: the error decays and nothing is flagged; 1.1x: it grows (no force
+    limit: until a leg leaves its stroke, when the plant stops the run) and is flagged."""
+    pose = elevation_pose(elevation)
+    limit = predicted_limit(master_, extrapolation, pose)
+    inside = probe(fmus, tmp_path, 0.9 * limit, master_, extrapolation, pose)
+    beyond = probe(fmus, tmp_path, 1.1 * limit, master_, extrapolation, pose)
+    error_in, error_out = leg_error(inside, pose), leg_error(beyond, pose)
+    assert error_in[-1] < 0.1 * error_in[0] and not inside.flags, inside.flags
+    assert error_out.max() > 100 * error_out[0]
+    assert "unstable" in kinds(beyond) or ("cut_short" in kinds(beyond) and "StrokeError" in beyond.failure), \
+        beyond.flags
+
+
+@pytest.mark.parametrize("master_, extrapolation", MASTERS)
+def test_prediction_holds_in_co_simulation_at_0_9_and_1_1_of_the_limit(fmus, tmp_path, master_, extrapolation):
+    _check_limit(fmus, tmp_path, master_, extrapolation, 75.0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("elevation", [5.0, 45.0, 88.0])
+@pytest.mark.parametrize("master_, extrapolation", MASTERS)
+def test_prediction_holds_at_every_elevation(fmus, tmp_path, master_, extrapolation, elevation):
+    _check_limit(fmus, tmp_path, master_, extrapolation, elevation)
+
+
+# ------------------------------------------------------------------ the detectors
+def test_a_saturated_run_is_flagged_with_its_fraction_and_the_controllers_warning(fmus, tmp_path):
+    pose = elevation_pose(75.0)
+    run = probe(fmus, tmp_path, 1.3 * predicted_limit("jacobi", "none", pose), "jacobi", "none", pose,
+                force_limit=GAINS.force_limit, duration=3.0)
+    saturated = [f for f in run.flags if f.kind == "saturated"]
+    assert any("% of the recorded time" in f.message for f in saturated)
+    assert any("'controller' logged" in f.message and "saturated" in f.message for f in saturated)
+
+
+def test_a_leg_near_its_stroke_is_flagged(fmus, tmp_path):
+    """Started 165 mm up (a leg at ~94 % of its +-150 mm stroke): the stable loop pulls
+    it back, but the leg was there."""
+    offset = np.array([0, 0, 0.165, 0, 0, 0])
+    run = probe(fmus, tmp_path, 1e-3, "jacobi", "none", HOME_POSE, duration=0.2, offset=offset)
+    assert "stroke" in kinds(run)
+    assert "unstable" not in kinds(run)
+
+
+def test_a_run_an_fmu_stops_is_flagged_cut_short(fmus, tmp_path):
+    singular = np.r_[np.zeros(5), np.pi / 2 - HOME_POSE[5]]   # yaw 90 deg: the legs' Jacobian is singular
+    run = probe(fmus, tmp_path, 1e-3, "jacobi", "none", HOME_POSE, duration=0.01, offset=singular)
+    assert run.failure and "cut_short" in kinds(run)
+
+
+def test_watch_sees_non_finite_values_and_steady_growth_only():
+    """Unit truth for the rules: a NaN row; a decaying, a transient and a growing
+    oscillation of the same size (only the last is growth)."""
+    t = np.arange(0, 20, 0.01)
+    def fed(force):
+        watch = flags.Watch(1e9, np.zeros(6), 0.15, "f", "l", window=0.5)
+        watch.bind({"f": slice(0, 6), "l": slice(6, 12)})
+        for ti, fi in zip(t, force):
+            watch.feed(ti, np.r_[np.full(6, fi), np.zeros(6)])
+        return {f.kind for f in watch.flags()}
+    wiggle = 1e3 * (-1.0) ** np.arange(len(t))
+    assert fed(wiggle * np.exp(0.3 * t)) == {"unstable"}
+    assert fed(wiggle * np.minimum(np.exp(0.4 * t), math.exp(4.0))) == {"unstable"}   # grows, then held (a limit)
+    assert fed(wiggle * np.exp(-0.3 * t)) == set()
+    assert fed(wiggle * (np.abs(t - 10) < 0.3) + 2e4 * np.tanh(t - 5)) == set()   # one transient
+    assert fed(np.where(t > 12, np.nan, 0.0)) == {"non_finite"}
+
+
+# ------------------------------------------------------------------ the issue's examples
+SHIPPED = runner.SHIPPED / "telescope_slew.toml"
+
+
+def copied(tmp_path, name, **changes):
+    """The shipped slew copied, with top-level keys and telescope parameters changed."""
+    text = SHIPPED.read_text().replace('name = "telescope_slew"', f'name = "{name}"')
+    for old, new in changes.items():
+        text = text.replace(old, new)
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    return path
+
+
+def test_the_shipped_slew_at_4_ms_is_refused_with_the_limit_and_what_runs(tmp_path):
+    path = copied(tmp_path, "slew_4ms", **{'step = "1 ms"': 'step = "4 ms"', 'interval = "10 ms"': 'interval = "20 ms"'})
+    with pytest.raises(spec.ScenarioError) as refused:
+        runner.run_scenario(path, tmp_path / "out", ci=True, progress=False)
+    text = str(refused.value)
+    assert "beyond the predicted stability limit 2" in text and "--allow-unstable" in text
+    assert "master gauss-seidel, extrapolation none" in text      # what would run at 4 ms
+    assert not (tmp_path / "out" / "slew_4ms").exists()
+
+
+def test_run_anyway_the_4_ms_slew_is_flagged_everywhere(tmp_path, capsys):
+    path = copied(tmp_path, "slew_4ms", **{'step = "1 ms"': 'step = "4 ms"', 'interval = "10 ms"': 'interval = "20 ms"'})
+    cli([str(path), "--ci", "--quiet", "--allow-unstable", "--out", str(tmp_path / "out")])
+    printed = capsys.readouterr().out
+    assert printed.count("FLAGGED step_beyond_limit") == 3 and "FLAGGED saturated" in printed
+    assert "'controller' logged" in printed                     # the FMU's warning, surfaced
+    out = tmp_path / "out" / "slew_4ms"
+    summary = json.loads((out / "metrics.json").read_text())
+    assert all({"step_beyond_limit", "saturated"} <= {f["kind"] for f in run["flags"]} for run in summary.values())
+    text = (out / "report.md").read_text()
+    assert "## Flagged runs" in text and "**FLAGGED**" in text
+    assert "no fixed- against moving-base comparison" in text and "x the RMS" not in text
+    assert "**why**: not written" in text
+    with pytest.raises(headline.Flagged):
+        for scene in headline.SCENES:      # the headline refuses the flagged metrics
+            (tmp_path / "h" / scene).mkdir(parents=True)
+            (tmp_path / "h" / scene / "metrics.json").write_text(json.dumps(summary))
+        headline.collect(tmp_path / "h")
+
+
+def test_a_slew_cut_before_its_end_is_flagged_before_it_runs(tmp_path):
+    path = copied(tmp_path, "slew_short", **{'stop_time = "60 s"': 'stop_time = "20 s"'})
+    scenario, paths, descriptions, values = runner.prepare(path)
+    found = runner.pre_run_flags(scenario, paths, descriptions, values)
+    assert [f.kind for f in found] == ["motion_unfinished"] and "deg/s" in found[0].message
+
+
+def test_compare_writes_no_ratio_when_either_run_is_flagged():
+    metrics = {"fixed_base": {"e": {"rms": 10.0, "peak": 20.0}}, "moving_base": {"e": {"rms": 1.0, "peak": 2.0}}}
+    assert "10x the RMS" in report.compare(metrics, "e")
+    sentence = report.compare(metrics, "e", flagged={"fixed_base": [flags.Flag("unstable", "grows")]})
+    assert sentence.startswith("no fixed- against moving-base comparison") and "x the" not in sentence
+
+
+def test_the_shipped_slews_ci_run_is_not_flagged(tmp_path):
+    _, runs, _ = runner.run_scenario("telescope_slew", tmp_path, ci=True, progress=False)
+    assert [r.flags for r in runs] == [[]] * len(runs)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(p.stem for p in runner.SHIPPED.glob("*.toml")))
+@pytest.mark.parametrize("ci", [True, False], ids=["ci", "full"])
+def test_no_shipped_scene_is_flagged(tmp_path, name, ci):
+    _, runs, _ = runner.run_scenario(name, tmp_path, ci=ci, progress=False)
+    assert [r.flags for r in runs] == [[]] * len(runs)
+
+
+@pytest.mark.slow
+def test_the_issues_high_slew_at_2_ms_grows_in_the_fixed_base_run(tmp_path):
+    """az 100 -> 130, el 60 -> 75 deg at 2 ms (Jacobi + linear): refused; run anyway, the
+    growing oscillation is seen; the same at 1 ms and at 2 ms without extrapolation run clean."""
+    targets = {'start_azimuth = "0 deg", start_elevation = "30 deg", target_azimuth = "20 deg", '
+               'target_elevation = "45 deg"': 'start_azimuth = "100 deg", start_elevation = "60 deg", '
+                                              'target_azimuth = "130 deg", target_elevation = "75 deg"',
+               'stop_time = "60 s"': 'stop_time = "90 s"'}
+    fast = copied(tmp_path, "slew_high", **targets, **{'step = "1 ms"': 'step = "2 ms"'})
+    with pytest.raises(spec.ScenarioError):
+        runner.run_scenario(fast, tmp_path / "out", progress=False)
+    _, runs, _ = runner.run_scenario(fast, tmp_path / "out", progress=False, allow_unstable=True)
+    assert "unstable" in kinds(runs[1])
+    for name, extra in (("slew_high_1ms", {}),
+                        ("slew_high_none", {'step = "1 ms"': 'step = "2 ms"',
+                                            'extrapolation = "linear"': 'extrapolation = "none"'})):
+        _, runs, _ = runner.run_scenario(copied(tmp_path, name, **targets, **extra), tmp_path / "out", progress=False)
+        assert [r.flags for r in runs] == [[]] * len(runs)
+
+
+def test_a_campaigns_summary_has_a_flags_column(tmp_path):
+    """A step of 5 ms in a campaign (no pre-run refusal there): the detectors flag it in
+    summary.csv; the 1 ms case has an empty flags cell."""
+    import csv
+    from movingbase.scenarios import campaign
+    path = tmp_path / "c.toml"
+    path.write_text('name = "t"\nscenario = "telescope_slew"\nset = { stop_time = "6 s", '
+                    '"controller.feedforward" = "moving_base" }\n[grid]\nstep = ["1 ms", "5 ms"]\n')
+    summary = campaign.run_campaign(path, tmp_path / "out", jobs_=1, progress=False)[4]
+    with open(summary) as f:
+        table = {row["step"]: row for row in csv.DictReader(f)}
+    assert table["1 ms"]["flags"] == ""
+    assert "saturated" in table["5 ms"]["flags"]
