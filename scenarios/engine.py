@@ -296,7 +296,7 @@ class Engine:
             else:
                 with dask.config.set(WORKER_CONFIG), _workers_ignore_ctrl_c():
                     self.cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
-                                                dashboard_address=None, silence_logs=logging.ERROR)
+                                                dashboard_address=None, silence_logs=logging.CRITICAL)
                 self._client = Client(self.cluster)
             self._client.wait_for_workers(1 if self.address else self.jobs, timeout=120)
             self.start_time = time.perf_counter() - began

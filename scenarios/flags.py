@@ -195,11 +195,16 @@ def check(scenario, prediction, allow_unstable=False):
                 other = design.step_limit(prediction.masses, prediction.gains, loop)
                 if other >= scenario.step:
                     others.append(f"{_describe(loop)} (limit {_ms(other)})")
-    text = (f"{scenario.step * 1e3:g} ms is beyond the predicted stability limit {_ms(prediction.limit)} of this "
-            f"loop ({_describe(prediction.loop)}, its gains and plant, along the motion): the leg loop would "
-            f"oscillate and grow")
-    if not allow_unstable:
+    if prediction.limit > 0:
+        text = (f"{scenario.step * 1e3:g} ms is beyond the predicted stability limit {_ms(prediction.limit)} of "
+                f"this loop ({_describe(prediction.loop)}, its gains and plant, along the motion): the leg loop "
+                f"would oscillate and grow")
         hint = f"use a step below {_ms(prediction.limit)}"
+    else:
+        text = (f"no step is stable with these gains ({_describe(prediction.loop)}, along the motion): the leg "
+                f"loop would drift or grow at {scenario.step * 1e3:g} ms as at any step")
+        hint = "choose gains that stabilise the loop (controller.design)"
+    if not allow_unstable:
         if others:
             hint += " or " + " or ".join(others)
         raise ScenarioError(scenario.source, "step", f"{text}. {hint[0].upper() + hint[1:]}; or run it anyway "

@@ -145,7 +145,7 @@ def test_work_precision_chart_floor_front_labels_and_ratios(tmp_path, monkeypatc
 
 
 def _sky_rows(azimuths, elevations, peak):
-    return [{"mode": mode, "peak": peak(a, e, mode), "rms": peak(a, e, mode) / 5, "values": {
+    return [{"mode": mode, "peak": peak(a, e, mode), "rms": peak(a, e, mode) / 5, "flags": "", "values": {
         "base.start_azimuth": f"{a} deg", "base.target_azimuth": f"{a + 10} deg",
         "base.start_elevation": f"{e} deg", "base.target_elevation": f"{e + 5} deg"}}
         for a in azimuths for e in elevations for mode in ("fixed_base", "moving_base")]
@@ -173,7 +173,7 @@ def test_sky_map_ticks_every_cell_and_keeps_its_legend_off_the_cells(tmp_path, m
 def test_slew_size_chart_ticks_at_the_sizes_run(tmp_path, monkeypatch):
     from studies import sky_coverage as sc
     sizes = (0.5, 1, 2, 5, 10, 20)
-    rows = [{"mode": mode, "peak": 3.0 * d, "rms": 0.5 * d, "values": {
+    rows = [{"mode": mode, "peak": 3.0 * d, "rms": 0.5 * d, "flags": "", "values": {
         "base.start_azimuth": "0 deg", "base.target_azimuth": f"{d} deg"}} for d in sizes
         for mode in ("fixed_base", "moving_base")]
     axes = []
