@@ -8,10 +8,10 @@ import sys
 from tqdm import tqdm
 
 from movingbase.fmu_src.builder import ensure_built
-from movingbase.fmu_src.native_build import ensure_native
+from movingbase.fmu_src.native_build import ensure_native, ensure_native3
 from movingbase.plant.stewart import FIDELITIES
 from . import engine, fidelity, master, metrics, report, spec
-from .fmi import unpack
+from .fmi import description
 
 SHIPPED = pathlib.Path(__file__).resolve().parent / "files"
 
@@ -26,10 +26,11 @@ def resolve(name):
     return next((c for c in candidates if c.is_file()), path)
 
 
-def prepare(path, ci=False, implementation=None):
+def prepare(path, ci=False, implementation=None, fmi_version=None):
     """Scenario, FMU paths per instance and checked parameter values: all checks done
     before anything runs. ``ci`` applies the file's [ci] overrides (a shorter run);
-    ``implementation`` ("native" or "python") overrides every instance's choice."""
+    ``implementation`` ("native" or "python") and ``fmi_version`` (2 or 3; 3 with the
+    native FMUs) override every instance's choice."""
     scenario = spec.load(path)
     if ci and scenario.ci:
         scenario = spec.load(path, overrides=scenario.ci)
@@ -37,8 +38,16 @@ def prepare(path, ci=False, implementation=None):
         if implementation not in spec.IMPLEMENTATIONS:
             raise ValueError(f"implementation must be one of {spec.IMPLEMENTATIONS}, got {implementation!r}")
         scenario.implementations = dict.fromkeys(scenario.fmus, implementation)
+        if implementation == "python":   # the pythonfmu FMUs are FMI 2.0
+            scenario.fmi_versions = dict.fromkeys(scenario.fmus, 2)
+    if fmi_version is not None:
+        if fmi_version not in spec.FMI_VERSIONS:
+            raise ValueError(f"fmi_version must be one of {spec.FMI_VERSIONS}, got {fmi_version!r}")
+        if fmi_version == 3 and "python" in scenario.implementations.values():
+            raise ValueError("fmi_version 3 needs the native FMUs: the pythonfmu FMUs are FMI 2.0")
+        scenario.fmi_versions = dict.fromkeys(scenario.fmus, fmi_version)
     paths = fmu_paths(scenario)
-    descriptions = {inst: unpack(p)[0] for inst, p in paths.items()}
+    descriptions = {inst: description(p) for inst, p in paths.items()}
     auto = [inst for inst, params in scenario.parameters.items() if params.get("fidelity") == "auto"]
     for inst in auto:
         scenario.parameters[inst]["fidelity"] = "full"    # bound as full, then chosen below
@@ -50,10 +59,12 @@ def prepare(path, ci=False, implementation=None):
 
 def fmu_paths(scenario):
     """instance -> FMU file of the implementation the scenario chose for it (built if stale)."""
-    chosen = {inst: (spec.FMU_SCRIPTS[fmu], scenario.implementations.get(inst, spec.IMPLEMENTATIONS[0]))
+    chosen = {inst: (spec.FMU_SCRIPTS[fmu], scenario.implementations.get(inst, spec.IMPLEMENTATIONS[0])
+                     + ("3" if scenario.fmi_versions.get(inst) == 3 else ""))
               for inst, fmu in scenario.fmus.items()}
     built = {"python": ensure_built(sorted({s for s, impl in chosen.values() if impl == "python"})),
-             "native": ensure_native(sorted({s for s, impl in chosen.values() if impl == "native"}))}
+             "native": ensure_native(sorted({s for s, impl in chosen.values() if impl == "native"})),
+             "native3": ensure_native3(sorted({s for s, impl in chosen.values() if impl == "native3"}))}
     return {inst: built[impl][script] for inst, (script, impl) in chosen.items()}
 
 
@@ -73,14 +84,15 @@ def _choose_fidelity(scenario, paths, values, plant):
                           f"largest leg-force error of each level along this scene: {listed})")
 
 
-def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None, implementation=None):
+def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None, implementation=None,
+                 fmi_version=None):
     """Run every sweep value of a scenario; returns (scenario, runs, report path).
     ``jobs`` worker processes or the Dask cluster at ``dask`` run the values in parallel;
-    ``implementation`` as in prepare."""
+    ``implementation`` and ``fmi_version`` as in prepare."""
     if progress:
         print(f"{pathlib.Path(str(path)).stem}: checking the scenario, building FMUs that are missing or stale "
               "(a first build takes ~10 s)", file=sys.stderr, flush=True)
-    scenario, paths, descriptions, values = prepare(resolve(path), ci, implementation)
+    scenario, paths, descriptions, values = prepare(resolve(path), ci, implementation, fmi_version)
     outdir = pathlib.Path(out) / scenario.name
     outdir.mkdir(parents=True, exist_ok=True)
     items = scenario.sweep[1] if scenario.sweep else [None]

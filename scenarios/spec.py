@@ -41,6 +41,8 @@ FMU_SCRIPTS = {"hexapod_plant": "hexapod_plant_fmu", "telescope": "telescope_fmu
 OPTIONAL_INPUTS = {"hexapod_plant": ("platform_wrench",)}
 # per instance: the native C FMU (no Python in the host) or the pythonfmu one; equal results
 IMPLEMENTATIONS = ("native", "python")
+# per instance: the FMI version of the FMU (3: the native FMU's FMI 3.0 build; equal results)
+FMI_VERSIONS = (2, 3)
 MASTERS = ("jacobi", "gauss-seidel")
 EXTRAPOLATIONS = ("none", "linear")
 METRIC_KINDS = {  # kind -> required keys
@@ -98,6 +100,7 @@ class Scenario:
     fidelity_tolerance: float = None         # [N], for a plant with fidelity = "auto"
     notes: list = field(default_factory=list)  # what the runner decided (shown in the report)
     implementations: dict = field(default_factory=dict)  # instance -> one of IMPLEMENTATIONS
+    fmi_versions: dict = field(default_factory=dict)     # instance -> one of FMI_VERSIONS
 
 
 def _quantity(source, key, value, dimension):
@@ -167,18 +170,25 @@ def parse(text, source="<string>", overrides=None):
     if extrapolation not in EXTRAPOLATIONS:
         raise ScenarioError(source, "extrapolation", f"unknown {extrapolation!r}; choose one of {EXTRAPOLATIONS}")
 
-    fmus, parameters, implementations = {}, {}, {}
+    fmus, parameters, implementations, versions = {}, {}, {}, {}
     for instance, table in _table(source, "fmus", data["fmus"]).items():
         key = f"fmus.{instance}"
         table = _table(source, key, table)
-        extra = set(table) - {"fmu", "implementation", "parameters"}
+        extra = set(table) - {"fmu", "implementation", "fmi_version", "parameters"}
         if extra:
             raise ScenarioError(source, f"{key}.{sorted(extra)[0]}",
-                                "unknown key; allowed: fmu, implementation, parameters")
+                                "unknown key; allowed: fmu, implementation, fmi_version, parameters")
         implementations[instance] = table.get("implementation", IMPLEMENTATIONS[0])
         if implementations[instance] not in IMPLEMENTATIONS:
             raise ScenarioError(source, f"{key}.implementation", f"unknown implementation "
                                 f"{implementations[instance]!r}; choose one of {', '.join(IMPLEMENTATIONS)}")
+        versions[instance] = table.get("fmi_version", FMI_VERSIONS[0])
+        if versions[instance] not in FMI_VERSIONS or isinstance(versions[instance], bool):
+            raise ScenarioError(source, f"{key}.fmi_version", f"unknown FMI version {versions[instance]!r}; "
+                                f"choose one of {', '.join(map(str, FMI_VERSIONS))}")
+        if versions[instance] == 3 and implementations[instance] != "native":
+            raise ScenarioError(source, f"{key}.fmi_version", "FMI 3.0 is built for the native FMUs only; "
+                                f"implementation {implementations[instance]!r} is FMI 2.0")
         if table.get("fmu") not in FMU_SCRIPTS:
             raise ScenarioError(source, f"{key}.fmu", f"unknown FMU {table.get('fmu')!r}; choose one of "
                                 f"{', '.join(FMU_SCRIPTS)}")
@@ -254,7 +264,7 @@ def parse(text, source="<string>", overrides=None):
     name = data.get("name", pathlib.Path(source).stem)
     return Scenario(source, name, data.get("description", ""), start, stop, step, master, extrapolation,
                     fmus, parameters, connections, interval, recorded, metrics, sweep, ci, tolerance,
-                    implementations=implementations)
+                    implementations=implementations, fmi_versions=versions)
 
 
 def load(path, overrides=None):

@@ -20,7 +20,7 @@
 #include "fmi2Functions.h"
 #include "fmi3Functions.h"
 #include "model.h"
-#include "fmi3_variables.h"   /* generated: MB3_ENUMERATIONS, the Integers declared Enumerations */
+#include "fmi3_variables.h"   /* generated: the FMI 3 variables (arrays, kinds) by FMI 2 value reference */
 
 enum phase3 { P_INSTANTIATED = 1, P_INITIALIZATION = 2, P_STEP = 4, P_STEP_DISCARDED = 8, P_TERMINATED = 16 };
 static const char *phase_name(int p)
@@ -34,7 +34,6 @@ static const char *phase_name(int p)
     }
 }
 
-enum { K_NONE = 0, K_FLOAT64, K_INT32, K_ENUM };
 
 typedef struct {
     fmi2Component inner;
@@ -51,29 +50,17 @@ typedef struct {
     fmi2FMUstate inner;
 } state3;
 
-/* The variable table of an instance: value reference -> FMI 3 kind (K_NONE: no FMI 3
-   variable, e.g. leg_force[2]) and element count, from the model's variable table; the
+/* The variable table of an instance: value reference -> FMI 3 kind and element count
+   (fmi3_variables.h; K_NONE: a later element of an array, e.g. leg_force[2]); the
    independent variable time takes the value reference one past the FMI 2 ones. */
 enum { VR_TIME = MB3_NVARS };
 
 static void build_tables(instance3 *inst)
 {
     for (int vr = 0; vr < MB3_NVARS; vr++) {
-        const mb_var *v = &MB_MODEL.vars[vr];
-        const char *bracket = strchr(v->name, '[');
         inst->vr2[vr] = (fmi2ValueReference)vr;
-        if (bracket && strcmp(bracket, "[1]") != 0) continue;   /* a later element of an array */
-        int n = 1;
-        if (bracket) {
-            size_t base = (size_t)(bracket - v->name);
-            while (vr + n < MB3_NVARS && strncmp(MB_MODEL.vars[vr + n].name, v->name, base) == 0 &&
-                   MB_MODEL.vars[vr + n].name[base] == '[')
-                n++;
-        }
-        inst->count3[vr] = n;
-        inst->kind3[vr] = v->type == MB_REAL ? K_FLOAT64 : K_INT32;
-        for (int k = 0; k < MB3_N_ENUMERATIONS; k++)
-            if (MB3_ENUMERATIONS[k] == vr) inst->kind3[vr] = K_ENUM;
+        inst->count3[vr] = MB3_COUNT[vr];
+        inst->kind3[vr] = MB3_KIND[vr];
     }
     inst->kind3[VR_TIME] = K_FLOAT64;
     inst->count3[VR_TIME] = 1;
@@ -285,7 +272,7 @@ fmi3Status fmi3Reset(fmi3Instance instance)
 
 /* ---------------------------------------------------------------- get and set */
 enum { GETTABLE = P_INITIALIZATION | P_STEP | P_STEP_DISCARDED | P_TERMINATED,
-       SETTABLE = P_INSTANTIATED | P_INITIALIZATION | P_STEP | P_TERMINATED };
+       SETTABLE = P_INSTANTIATED | P_INITIALIZATION | P_STEP };
 
 /* Check the value references (each an FMI 3 variable of ``kind``) against nValues. */
 static int check_refs(instance3 *inst, const char *function, const fmi3ValueReference vr[], size_t nvr,
