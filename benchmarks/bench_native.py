@@ -13,11 +13,15 @@
    empty=True) doing the same exchange through the same master. The master steps in C
    (scenarios/c/cosim.c); Python records every 10 ms and feeds the metrics. Also shown:
    the same with no recording and no metrics (the stepping alone).
+3. The same HexapodPlant doStep as an FMI 3.0 FMU (fmu_src/native/fmi3_layer.c over the
+   FMI 2.0 layer) against the FMI 2.0 one, each called straight through ctypes, and the
+   empty FMUs of both (what each layer costs without the kernel).
 Repeats interleave the implementations (median), so machine load hits both alike.
 
     python benchmarks/bench_native.py [--repeats N]
 """
 import argparse
+import ctypes
 import dataclasses
 import pathlib
 import statistics
@@ -34,7 +38,7 @@ from tests.c_host import HostFmu  # noqa: E402
 from movingbase.fmu_src import builder, native_build
 from movingbase.plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
 from movingbase.scenarios import master, metrics, runner, spec
-from movingbase.scenarios.fmi import Instance, RealPort
+from movingbase.scenarios.fmi import Instance, Instance3, RealPort
 
 STEPS, H = 2000, 1e-3
 
@@ -60,6 +64,34 @@ def plant_step_us(path, parameters=None, steps=STEPS):
         return (time.perf_counter() - start) / steps * 1e6
     finally:
         inst.terminate()
+
+
+def direct_step_us(path, steps=STEPS):
+    """µs per doStep of a HexapodPlant at rest, the FMU's own doStep called through ctypes
+    (fmi2DoStep, or fmi3DoStep with its out arguments) with nothing else in the loop."""
+    inst = Instance(path, "plant")
+    try:
+        forces = rest_forces()
+        inst.initialize(0.0, {"moving_base": 0, **{f"leg_force[{i + 1}]": forces[i] for i in range(6)}})
+        component = inst.fmu.component
+        if isinstance(inst, Instance3):
+            step = _FMI3_DO_STEP(("fmi3DoStep", inst.fmu.dll))
+            outs = [ctypes.byref(ctypes.c_bool()) for _ in range(3)] + [ctypes.byref(ctypes.c_double())]
+            call = lambda t: step(component, t, H, True, *outs)  # noqa: E731
+        else:
+            step = inst.raw("fmi2DoStep")
+            call = lambda t: step(component, t, H, 1)  # noqa: E731
+        start = time.perf_counter()
+        for k in range(steps):
+            if call(k * H) != 0:
+                raise RuntimeError(f"{path}: doStep failed at step {k}: {inst.log[-3:]}")
+        return (time.perf_counter() - start) / steps * 1e6
+    finally:
+        inst.terminate()
+
+
+_FMI3_DO_STEP = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_bool,
+                                 *[ctypes.POINTER(ctypes.c_bool)] * 3, ctypes.POINTER(ctypes.c_double))
 
 
 def c_host_step_us(path, folder, steps):
@@ -143,6 +175,19 @@ def main(argv=None):
               f"(RTF {1e6 * scenario.step / nat:.1f}) -> {py / nat:.1f}x")
         print(f"    floor (three empty native FMUs, same exchange) {floor:.2f} us/step: native = {nat / floor:.1f}x "
               f"floor, pythonfmu = {py / floor:.1f}x floor")
+
+    fmi3 = native_build.ensure_native3(["hexapod_plant_fmu"])["hexapod_plant_fmu"]
+    empty3 = native_build.build_native3(empty["hexapod_plant_fmu"], out / "empty3", empty=True)
+    kinds = {"fmi2": native["hexapod_plant_fmu"], "fmi3": fmi3, "empty2": empty["hexapod_plant_fmu"], "empty3": empty3}
+    direct = {k: [] for k in kinds}
+    for _ in range(args.repeats):
+        for kind, path in kinds.items():
+            direct[kind].append(direct_step_us(path, 5 * STEPS))
+    f2, f3, e2, e3 = (statistics.median(direct[k]) for k in kinds)
+    spread = {k: (min(v), max(v)) for k, v in direct.items()}
+    print(f"HexapodPlant doStep called straight through ctypes: FMI 3.0 {f3:.2f} us, FMI 2.0 {f2:.2f} us "
+          f"-> FMI 3 / FMI 2 = {f3 / f2:.3f} (runs {spread['fmi3'][0]:.2f}-{spread['fmi3'][1]:.2f} and "
+          f"{spread['fmi2'][0]:.2f}-{spread['fmi2'][1]:.2f} us); empty FMUs: FMI 3.0 {e3:.3f} us, FMI 2.0 {e2:.3f} us")
 
 if __name__ == "__main__":
     main()

@@ -47,12 +47,12 @@ def main(argv=None, prog="movingbase run"):
         try:
             scenario, paths, descriptions, values = prepare(resolve(names[0]), ci=args.ci,
                                                              implementation=args.implementation)
+            if scenario.sweep:
+                inst, name, value = sweep_value(scenario, descriptions, scenario.sweep[1][0])
+                values[inst][name] = value
+            print(f"SSP written to {export_ssp(scenario, paths, values, args.ssp)}")
         except ScenarioError as exc:
             sys.exit(f"scenario error: {exc}")
-        if scenario.sweep:
-            inst, name, value = sweep_value(scenario, descriptions, scenario.sweep[1][0])
-            values[inst][name] = value
-        print(f"SSP written to {export_ssp(scenario, paths, values, args.ssp)}")
         return
     errors = []   # one line each; every scenario and every run is still tried
     for name in names:
