@@ -14,23 +14,27 @@
    (scenarios/c/cosim.c); Python records every 10 ms and feeds the metrics. Also shown:
    the same with no recording and no metrics (the stepping alone).
 3. The same HexapodPlant doStep as an FMI 3.0 FMU (fmu_src/native/fmi3_layer.c over the
-   FMI 2.0 layer) against the FMI 2.0 one, each called straight through ctypes, and the
-   empty FMUs of both (what each layer costs without the kernel).
+   FMI 2.0 layer) against the FMI 2.0 one, timed in one C process (fmi_step_timer.c:
+   through ctypes, fmi3DoStep's eight arguments cost Python more than the FMU's work),
+   and the empty FMUs of both (what each layer costs without the kernel).
 Repeats interleave the implementations (median), so machine load hits both alike.
 
     python benchmarks/bench_native.py [--repeats N]
 """
 import argparse
-import ctypes
 import dataclasses
+import os
 import pathlib
 import statistics
+import subprocess
 import tempfile
 import time
+import zipfile
 
 import sys
 
 import numpy as np
+from fmpy import read_model_description
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))   # the checkout: tests.c_host
 from tests.c_host import HostFmu  # noqa: E402
@@ -38,7 +42,7 @@ from tests.c_host import HostFmu  # noqa: E402
 from movingbase.fmu_src import builder, native_build
 from movingbase.plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
 from movingbase.scenarios import master, metrics, runner, spec
-from movingbase.scenarios.fmi import Instance, Instance3, RealPort
+from movingbase.scenarios.fmi import Instance, RealPort
 
 STEPS, H = 2000, 1e-3
 
@@ -66,32 +70,35 @@ def plant_step_us(path, parameters=None, steps=STEPS):
         inst.terminate()
 
 
-def direct_step_us(path, steps=STEPS):
-    """µs per doStep of a HexapodPlant at rest, the FMU's own doStep called through ctypes
-    (fmi2DoStep, or fmi3DoStep with its out arguments) with nothing else in the loop."""
-    inst = Instance(path, "plant")
-    try:
-        forces = rest_forces()
-        inst.initialize(0.0, {"moving_base": 0, **{f"leg_force[{i + 1}]": forces[i] for i in range(6)}})
-        component = inst.fmu.component
-        if isinstance(inst, Instance3):
-            step = _FMI3_DO_STEP(("fmi3DoStep", inst.fmu.dll))
-            outs = [ctypes.byref(ctypes.c_bool()) for _ in range(3)] + [ctypes.byref(ctypes.c_double())]
-            call = lambda t: step(component, t, H, True, *outs)  # noqa: E731
-        else:
-            step = inst.raw("fmi2DoStep")
-            call = lambda t: step(component, t, H, 1)  # noqa: E731
-        start = time.perf_counter()
-        for k in range(steps):
-            if call(k * H) != 0:
-                raise RuntimeError(f"{path}: doStep failed at step {k}: {inst.log[-3:]}")
-        return (time.perf_counter() - start) / steps * 1e6
-    finally:
-        inst.terminate()
-
-
-_FMI3_DO_STEP = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_bool,
-                                 *[ctypes.POINTER(ctypes.c_bool)] * 3, ctypes.POINTER(ctypes.c_double))
+def fmi3_vs_fmi2_us(fmu2, fmu3, folder, steps, repeats):
+    """Medians of µs per doStep of the FMI 2.0 and FMI 3.0 builds of one HexapodPlant at
+    rest, timed in one C process (benchmarks/fmi_step_timer.c), interleaved."""
+    folder = pathlib.Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    timer = folder / "fmi_step_timer"
+    compile_run = subprocess.run([os.environ.get("CC", "cc"), "-O2", f"-I{native_build.FMI_HEADERS}",
+                                  str(pathlib.Path(__file__).with_name("fmi_step_timer.c")), "-o", str(timer), "-ldl"],
+                                 capture_output=True, text=True)
+    if compile_run.returncode:
+        raise RuntimeError(f"compiling fmi_step_timer.c failed:\n{compile_run.stderr}")
+    libraries = []
+    for fmu, name in ((fmu2, "fmi2"), (fmu3, "fmi3")):
+        with zipfile.ZipFile(fmu) as z:
+            z.extractall(folder / name)
+        libraries.append(next((folder / name / "binaries").rglob("*.so")))
+    md = read_model_description(str(fmu2))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    forces = ",".join(repr(float(f)) for f in rest_forces())
+    run = subprocess.run([str(timer), *map(str, libraries), md.guid, str(steps), str(repeats),
+                          f"i:{vr['moving_base']}:0", f"r:{vr['leg_force[1]']}:{forces}"], capture_output=True, text=True)
+    if run.returncode:
+        raise RuntimeError(f"fmi_step_timer failed on {fmu2.name}:\n{run.stderr[-2000:]}")
+    times = {"fmi2": [], "fmi3": []}
+    for line in run.stdout.split("\n"):
+        if line:
+            kind, value = line.split()
+            times[kind].append(float(value))
+    return statistics.median(times["fmi2"]), statistics.median(times["fmi3"]), times
 
 
 def c_host_step_us(path, folder, steps):
@@ -178,16 +185,15 @@ def main(argv=None):
 
     fmi3 = native_build.ensure_native3(["hexapod_plant_fmu"])["hexapod_plant_fmu"]
     empty3 = native_build.build_native3(empty["hexapod_plant_fmu"], out / "empty3", empty=True)
-    kinds = {"fmi2": native["hexapod_plant_fmu"], "fmi3": fmi3, "empty2": empty["hexapod_plant_fmu"], "empty3": empty3}
-    direct = {k: [] for k in kinds}
-    for _ in range(args.repeats):
-        for kind, path in kinds.items():
-            direct[kind].append(direct_step_us(path, 5 * STEPS))
-    f2, f3, e2, e3 = (statistics.median(direct[k]) for k in kinds)
-    spread = {k: (min(v), max(v)) for k, v in direct.items()}
-    print(f"HexapodPlant doStep called straight through ctypes: FMI 3.0 {f3:.2f} us, FMI 2.0 {f2:.2f} us "
-          f"-> FMI 3 / FMI 2 = {f3 / f2:.3f} (runs {spread['fmi3'][0]:.2f}-{spread['fmi3'][1]:.2f} and "
-          f"{spread['fmi2'][0]:.2f}-{spread['fmi2'][1]:.2f} us); empty FMUs: FMI 3.0 {e3:.3f} us, FMI 2.0 {e2:.3f} us")
+    print("HexapodPlant doStep (RK4, 1 ms, at rest) as FMI 3.0 and FMI 2.0 FMUs of the same build, timed in C "
+          "(benchmarks/fmi_step_timer.c, interleaved, median):")
+    for what, fmu2, fmu3 in (("model", native["hexapod_plant_fmu"], fmi3),
+                             ("empty (the layers alone)", empty["hexapod_plant_fmu"], empty3)):
+        f2, f3, runs = fmi3_vs_fmi2_us(fmu2, fmu3, out / f"timer-{len(what)}", 5 * STEPS, max(3, args.repeats))
+        print(f"  {what}: FMI 3.0 {f3:.3f} us, FMI 2.0 {f2:.3f} us -> FMI 3 / FMI 2 = {f3 / f2:.3f} "
+              f"(runs FMI 3 {min(runs['fmi3']):.3f}-{max(runs['fmi3']):.3f}, FMI 2 "
+              f"{min(runs['fmi2']):.3f}-{max(runs['fmi2']):.3f} us)")
+
 
 if __name__ == "__main__":
     main()
