@@ -245,7 +245,7 @@ def pack(folder, fmu):
 
 def _inputs():
     """Files a native FMU is made from: its C, and the Python its numbers come from."""
-    files = list(NATIVE.glob("*")) + [p for folder in KERNELS for p in folder.glob("*")]
+    files = [p for p in NATIVE.glob("*") if p.name != "fmi3_layer.c"] + [p for folder in KERNELS for p in folder.glob("*")]
     files += [p for folder in ("plant", "controller", "fmu_src") for p in (ROOT / folder).glob("*.py")]
     return files
 

@@ -274,11 +274,16 @@ fmi3Status fmi3Reset(fmi3Instance instance)
 enum { GETTABLE = P_INITIALIZATION | P_STEP | P_STEP_DISCARDED | P_TERMINATED,
        SETTABLE = P_INSTANTIATED | P_INITIALIZATION | P_STEP };
 
-/* Check the value references (each an FMI 3 variable of ``kind``) against nValues. */
+/* Check the value references (each an FMI 3 variable of ``kind``) and the values
+   buffer against nValues. */
 static int check_refs(instance3 *inst, const char *function, const fmi3ValueReference vr[], size_t nvr,
-                      size_t nValues, int kind)
+                      const void *values, size_t nValues, int kind)
 {
     size_t total = 0;
+    if (nvr && !vr) {
+        say(inst, fmi3Error, "logStatusError", "%s: valueReferences is NULL", function);
+        return 0;
+    }
     for (size_t k = 0; k < nvr; k++) {
         if (vr[k] > (fmi3ValueReference)VR_TIME || inst->kind3[vr[k]] != kind) {
             say(inst, fmi3Error, "logStatusError", "%s: no %s variable has value reference %u", function,
@@ -286,6 +291,10 @@ static int check_refs(instance3 *inst, const char *function, const fmi3ValueRefe
             return 0;
         }
         total += (size_t)inst->count3[vr[k]];
+    }
+    if (total && !values) {
+        say(inst, fmi3Error, "logStatusError", "%s: values is NULL", function);
+        return 0;
     }
     if (total != nValues) {
         say(inst, fmi3Error, "logStatusError", "%s: the value references cover %zu values, nValues is %zu", function, total, nValues);
@@ -298,7 +307,7 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
                           size_t nValues)
 {
     INSTANCE("fmi3GetFloat64", GETTABLE)
-    if (!check_refs(inst, "fmi3GetFloat64", vr, nvr, nValues, K_FLOAT64)) return fmi3Error;
+    if (!check_refs(inst, "fmi3GetFloat64", vr, nvr, values, nValues, K_FLOAT64)) return fmi3Error;
     for (size_t k = 0; k < nvr; k++) {
         if (vr[k] == VR_TIME) {
             fmi2GetRealStatus(inst->inner, fmi2LastSuccessfulTime, values++);
@@ -315,7 +324,7 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
                           const fmi3Float64 values[], size_t nValues)
 {
     INSTANCE("fmi3SetFloat64", SETTABLE)
-    if (!check_refs(inst, "fmi3SetFloat64", vr, nvr, nValues, K_FLOAT64)) return fmi3Error;
+    if (!check_refs(inst, "fmi3SetFloat64", vr, nvr, values, nValues, K_FLOAT64)) return fmi3Error;
     for (size_t k = 0; k < nvr; k++) {
         if (vr[k] == VR_TIME) return FAIL(inst, "fmi3SetFloat64: time is the independent variable, it cannot be set");
         fmi2Status s = fmi2SetReal(inst->inner, &inst->vr2[vr[k]], (size_t)inst->count3[vr[k]], values);
@@ -331,7 +340,7 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
                              size_t nValues)                                                                     \
     {                                                                                                            \
         INSTANCE("fmi3Get" #NAME, GETTABLE)                                                                      \
-        if (!check_refs(inst, "fmi3Get" #NAME, vr, nvr, nValues, KIND)) return fmi3Error;                        \
+        if (!check_refs(inst, "fmi3Get" #NAME, vr, nvr, values, nValues, KIND)) return fmi3Error;                        \
         size_t at = 0;                                                                                           \
         for (size_t k = 0; k < nvr; k++)                                                                         \
             for (int e = 0; e < inst->count3[vr[k]]; e++) {                                                            \
@@ -346,7 +355,7 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
                              const TYPE values[], size_t nValues)                                                \
     {                                                                                                            \
         INSTANCE("fmi3Set" #NAME, SETTABLE)                                                                      \
-        if (!check_refs(inst, "fmi3Set" #NAME, vr, nvr, nValues, KIND)) return fmi3Error;                        \
+        if (!check_refs(inst, "fmi3Set" #NAME, vr, nvr, values, nValues, KIND)) return fmi3Error;                        \
         size_t at = 0;                                                                                           \
         for (size_t k = 0; k < nvr; k++)                                                                         \
             for (int e = 0; e < inst->count3[vr[k]]; e++) {                                                            \
