@@ -13,6 +13,15 @@ if [ ! -x "$ROOT/bin/fmi-sim" ]; then
         echo "fmi3_host.sh: cargo is needed to build fmi-sim $VERSION (Debian: apt-get install cargo)" >&2
         exit 1
     fi
+    if ! ls /usr/lib/llvm-*/lib/libclang*.so* >/dev/null 2>&1 && [ -z "${LIBCLANG_PATH:-}" ]; then
+        # fmi-sys generates its FMI bindings with bindgen, which needs libclang
+        if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+            apt-get install -y -q libclang-dev >/dev/null || { apt-get update -q >/dev/null && apt-get install -y -q libclang-dev >/dev/null; }
+        else
+            echo "fmi3_host.sh: fmi-sim's build needs libclang (Debian: apt-get install libclang-dev)" >&2
+            exit 1
+        fi
+    fi
     echo "fmi3_host.sh: building fmi-sim $VERSION from crates.io into $ROOT" >&2
     cargo install fmi-sim --version "$VERSION" --locked --root "$ROOT"
 fi
