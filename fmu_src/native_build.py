@@ -321,12 +321,26 @@ def _fmi3_variable(parent, name, elements):
     for attribute in _FMI3_ATTRIBUTES:
         if kind.get(attribute) is not None:
             var.set(attribute, kind.get(attribute))
+    if var.get("unit") is not None:   # the unit through a Float64Type (see _unit_types)
+        var.set("declaredType", _unit_type_name(var.attrib.pop("unit"), var.attrib.pop("displayUnit", None)))
     starts = [e[0].get("start") for e in elements]
     if all(s is not None for s in starts):
         var.set("start", " ".join(starts))
     if first.get("name") != name:
         ET.SubElement(var, "Dimension", start=str(len(elements)))
     return var
+
+
+def _unit_type_name(unit, display):
+    return unit if display is None else f"{unit} in {display}"
+
+
+def _unit_types(root2):
+    """Float64Types carrying the Reals' units: a variable declares its unit through one
+    (valid FMI 3, as the Reference FMUs do), since an importer's strict schema (fmi-sim
+    0.7) refuses unit on the variable itself."""
+    pairs = {(real.get("unit"), real.get("displayUnit")) for real in root2.iter("Real") if real.get("unit")}
+    return [(_unit_type_name(u, d), u, d) for u, d in sorted(pairs, key=lambda p: (p[0], p[1] or ""))]
 
 
 def model_description3(root2):
@@ -346,8 +360,10 @@ def model_description3(root2):
     if units is not None:
         root.append(units)    # Unit / BaseUnit / DisplayUnit: the same shape in FMI 3
     types2 = root2.find("TypeDefinitions")
+    types = ET.SubElement(root, "TypeDefinitions")
+    for name, unit, display in _unit_types(root2):
+        ET.SubElement(types, "Float64Type", name=name, unit=unit, **({"displayUnit": display} if display else {}))
     if types2 is not None:
-        types = ET.SubElement(root, "TypeDefinitions")
         for simple in types2.iter("SimpleType"):
             enum = simple.find("Enumeration")
             if enum is None:
@@ -356,6 +372,8 @@ def model_description3(root2):
             for item in enum.iter("Item"):
                 ET.SubElement(kind, "Item", **{k: item.get(k) for k in ("name", "value", "description")
                                                if item.get(k) is not None})
+    if not len(types):
+        root.remove(types)
     categories = ET.SubElement(root, "LogCategories")
     for category in root2.find("LogCategories"):
         ET.SubElement(categories, "Category", name=category.get("name"),

@@ -184,6 +184,9 @@ def _elements(md3):
             element.name = f"{var.name}[{k + 1}]" if var.dimensions else var.name
             element.valueReference = var.valueReference + k
             element.type = _TYPES3[var.type]
+            element.unit = var.unit or getattr(var.declaredType, "unit", None)   # a unit by Float64Type
+            element.displayUnit = var.displayUnit or getattr(var.declaredType, "displayUnit", None)
+            element.declaredType = var.declaredType if var.type == "Enumeration" else None
             element.start = starts[k]
             element.dimensions = []
             md.modelVariables.append(element)
