@@ -241,12 +241,15 @@ def test_call_sequence_and_bad_references_answer_error_with_a_log_line(pairs):
 
 
 def test_a_refused_step_ends_stepping(pairs):
-    """With its default start values the unheld platform falls and a leg leaves its
-    stroke: fmi3DoStep answers Discard with terminateSimulation; a further doStep is an
-    error (StepDiscarded), the outputs still read, terminate is allowed."""
+    """With no leg forces the platform falls and a leg leaves its stroke: fmi3DoStep
+    answers Discard with terminateSimulation; a further doStep is an error
+    (StepDiscarded), the outputs still read, terminate is allowed."""
     inst = open3(pairs["hexapod_plant_fmu"][1])
     f = inst.fmu
     f.enterInitializationMode(startTime=0.0)
+    force = next(v for v in read_model_description(str(pairs["hexapod_plant_fmu"][1])).modelVariables
+                 if v.name == "leg_force")
+    f.setFloat64([force.valueReference], [0.0] * 6)
     f.exitInitializationMode()
     step = CFUNCTYPE(c_int, c_void_p, c_double, c_double, c_bool, POINTER(c_bool), POINTER(c_bool), POINTER(c_bool),
                      POINTER(c_double))(("fmi3DoStep", f.dll))
