@@ -26,10 +26,7 @@ import re
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib
+import tomllib
 
 import numpy as np
 
