@@ -16,20 +16,28 @@
 3. The same paper manoeuvre stepped by the master's C loop alone (all steps in one call)
    against the monolithic C loop of the same kernels without FMI (benchmarks/monolithic.c,
    the same leg lengths bit for bit: tests/test_monolithic.py): what FMI costs.
+4. The same HexapodPlant doStep as an FMI 3.0 FMU (fmu_src/native/fmi3_layer.c over the
+   FMI 2.0 layer) against the FMI 2.0 one, timed in one C process (fmi_step_timer.c:
+   through ctypes, fmi3DoStep's eight arguments cost Python more than the FMU's work),
+   and the empty FMUs of both (what each layer costs without the kernel).
 Repeats interleave the implementations (median), so machine load hits both alike.
 
     python benchmarks/bench_native.py [--repeats N]
 """
 import argparse
 import dataclasses
+import os
 import pathlib
 import statistics
+import subprocess
 import tempfile
 import time
+import zipfile
 
 import sys
 
 import numpy as np
+from fmpy import read_model_description
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))   # the checkout: tests.c_host
 from benchmarks.monolithic import Pair  # noqa: E402
@@ -64,6 +72,37 @@ def plant_step_us(path, parameters=None, steps=STEPS):
         return (time.perf_counter() - start) / steps * 1e6
     finally:
         inst.terminate()
+
+
+def fmi3_vs_fmi2_us(fmu2, fmu3, folder, steps, repeats):
+    """Medians of µs per doStep of the FMI 2.0 and FMI 3.0 builds of one HexapodPlant at
+    rest, timed in one C process (benchmarks/fmi_step_timer.c), interleaved."""
+    folder = pathlib.Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    timer = folder / "fmi_step_timer"
+    compile_run = subprocess.run([os.environ.get("CC", "cc"), "-O2", f"-I{native_build.FMI_HEADERS}",
+                                  str(pathlib.Path(__file__).with_name("fmi_step_timer.c")), "-o", str(timer), "-ldl"],
+                                 capture_output=True, text=True)
+    if compile_run.returncode:
+        raise RuntimeError(f"compiling fmi_step_timer.c failed:\n{compile_run.stderr}")
+    libraries = []
+    for fmu, name in ((fmu2, "fmi2"), (fmu3, "fmi3")):
+        with zipfile.ZipFile(fmu) as z:
+            z.extractall(folder / name)
+        libraries.append(next((folder / name / "binaries").rglob("*.so")))
+    md = read_model_description(str(fmu2))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    forces = ",".join(repr(float(f)) for f in rest_forces())
+    run = subprocess.run([str(timer), *map(str, libraries), md.guid, str(steps), str(repeats),
+                          f"i:{vr['moving_base']}:0", f"r:{vr['leg_force[1]']}:{forces}"], capture_output=True, text=True)
+    if run.returncode:
+        raise RuntimeError(f"fmi_step_timer failed on {fmu2.name}:\n{run.stderr[-2000:]}")
+    times = {"fmi2": [], "fmi3": []}
+    for line in run.stdout.split("\n"):
+        if line:
+            kind, value = line.split()
+            times[kind].append(float(value))
+    return statistics.median(times["fmi2"]), statistics.median(times["fmi3"]), times
 
 
 def c_host_step_us(path, folder, steps):
@@ -163,6 +202,18 @@ def main(argv=None):
     cosim, mono = (statistics.median(loops[k]) for k in ("cosim", "monolithic"))
     print(f"  co-simulation (native FMUs, the master's C loop alone) {cosim:.2f} us/step, monolithic C loop of the "
           f"same kernels without FMI {mono:.2f} us/step -> co-simulation = {cosim / mono:.3f}x monolithic")
+
+    fmi3 = native_build.ensure_native3(["hexapod_plant_fmu"])["hexapod_plant_fmu"]
+    empty3 = native_build.build_native3(empty["hexapod_plant_fmu"], out / "empty3", empty=True)
+    print("HexapodPlant doStep (RK4, 1 ms, at rest) as FMI 3.0 and FMI 2.0 FMUs of the same build, timed in C "
+          "(benchmarks/fmi_step_timer.c, interleaved, median):")
+    for what, fmu2, fmu3 in (("model", native["hexapod_plant_fmu"], fmi3),
+                             ("empty (the layers alone)", empty["hexapod_plant_fmu"], empty3)):
+        f2, f3, runs = fmi3_vs_fmi2_us(fmu2, fmu3, out / f"timer-{len(what)}", 5 * STEPS, max(3, args.repeats))
+        print(f"  {what}: FMI 3.0 {f3:.3f} us, FMI 2.0 {f2:.3f} us -> FMI 3 / FMI 2 = {f3 / f2:.3f} "
+              f"(runs FMI 3 {min(runs['fmi3']):.3f}-{max(runs['fmi3']):.3f}, FMI 2 "
+              f"{min(runs['fmi2']):.3f}-{max(runs['fmi2']):.3f} us)")
+
 
 if __name__ == "__main__":
     main()

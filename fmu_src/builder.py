@@ -22,10 +22,7 @@ import zipfile
 from importlib import metadata
 import xml.etree.ElementTree as ET
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib
+import tomllib
 
 import fmpy
 from fmpy.validation import validate_fmu

@@ -1,5 +1,5 @@
-"""Native FMI 2.0 co-simulation FMUs of the kit: the same variables as the pythonfmu FMUs,
-compiled from C (fmu_src/native/: one FMI layer and one model file per FMU, over the
+"""Native FMI 2.0 and FMI 3.0 co-simulation FMUs of the kit: the same variables as the
+pythonfmu FMUs, compiled from C (fmu_src/native/: one FMI layer and one model file per FMU, over the
 plant/controller C kernels), so that a host needs no Python.
 
 Nothing is typed twice. From the pythonfmu FMU (after fmu_src/builder.py has added units
@@ -189,11 +189,11 @@ def _sources(identifier):
     return files
 
 
-def compile_binary(source_dir, c_files, target, defines=()):
+def compile_binary(source_dir, c_files, target, defines=(), link=()):
     """cc the sources into one shared library; raises with the compiler's output on failure."""
     cc = os.environ.get("CC", "cc")
     cmd = [cc, *CFLAGS, *(f"-D{d}" for d in defines), f"-I{FMI_HEADERS}", f"-I{source_dir}",
-           *(str(source_dir / f) for f in c_files), "-o", str(target), "-lm"]
+           *(str(source_dir / f) for f in c_files), "-o", str(target), "-lm", *link]
     run = subprocess.run(cmd, capture_output=True, text=True)
     if run.returncode:
         raise RuntimeError(f"compiling {target.name} failed:\n{' '.join(cmd)}\n{run.stderr}")
@@ -228,11 +228,15 @@ def build_native(python_fmu, out, empty=False):
                        ["MB_EMPTY_MODEL"] if empty else [])
         md = model_description(xml_text, guid, names, starts(slave))
         (tmp / "modelDescription.xml").write_text(ET.tostring(md, encoding="unicode", xml_declaration=True))
-        fmu = out / python_fmu.name
-        with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as z:
-            for path in sorted(tmp.rglob("*")):
-                if path.is_file():
-                    z.write(path, path.relative_to(tmp).as_posix())
+        return pack(tmp, out / python_fmu.name)
+
+
+def pack(folder, fmu):
+    """Zip the FMU's ``folder`` into ``fmu`` and validate it with fmpy; returns ``fmu``."""
+    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as z:
+        for path in sorted(folder.rglob("*")):
+            if path.is_file():
+                z.write(path, path.relative_to(folder).as_posix())
     problems = validate_fmu(str(fmu))
     if problems:
         raise RuntimeError(f"native {fmu.name} fails fmpy validation:\n" + "\n".join(problems))
@@ -241,7 +245,7 @@ def build_native(python_fmu, out, empty=False):
 
 def _inputs():
     """Files a native FMU is made from: its C, and the Python its numbers come from."""
-    files = list(NATIVE.glob("*")) + [p for folder in KERNELS for p in folder.glob("*")]
+    files = [p for p in NATIVE.glob("*") if p.name != "fmi3_layer.c"] + [p for folder in KERNELS for p in folder.glob("*")]
     files += [p for folder in ("plant", "controller", "fmu_src") for p in (ROOT / folder).glob("*.py")]
     return files
 
@@ -263,6 +267,228 @@ def ensure_native(scripts, out=None):
     return paths
 
 
-if __name__ == "__main__":   # python -m movingbase.fmu_src.native_build [scripts]: build into build/fmu/native
-    for path in ensure_native(sys.argv[1:] or __import__("movingbase.fmu_src.builder").fmu_src.builder.available()).values():
+# ------------------------------------------------------------------------- FMI 3.0
+# The FMI 3.0 FMU of a native model is made from its FMI 2.0 FMU: the same sources/ (the
+# model file, the kernels, the generated <id>_vars.h and fmi2_layer.c, whose functions a
+# linker version script keeps inside the binary) plus fmi3_layer.c, and a modelDescription translated from the FMI 2 one,
+# so names, units, ranges, starts, enumerations and the default experiment have one source.
+FMI3_EXPORTS = "{ global: fmi3*; local: *; };\n"   # fmpy's fmi2Functions.h ignores FMI2_FUNCTION_PREFIX
+_FMI2_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
+_FMI3_KIND = {"Real": "Float64", "Integer": "Int32", "Enumeration": "Enumeration"}
+_FMI3_ATTRIBUTES = ("declaredType", "unit", "displayUnit", "min", "max", "nominal")
+
+
+def fmi3_platform():
+    """This platform's FMI 3.0 binaries folder (x86_64-linux, aarch64-linux)."""
+    import platform
+    return f"{platform.machine()}-linux"
+
+
+def _groups(root):
+    """The FMI 2 ScalarVariables grouped into FMI 3 variables: (name, [elements]). The
+    elements of a vector name[1..n] (consecutive value references) form one array where
+    they agree in everything but their start values; a vector whose elements differ (the
+    pose: metres and radians; FMI 3 gives an array one unit) stays n scalars named as in
+    FMI 2."""
+    groups = {}
+    for var in root.iter("ScalarVariable"):
+        groups.setdefault(_c_name(var.get("name")), []).append(var)
+    result = []
+    for name, elements in groups.items():
+        vrs = [int(e.get("valueReference")) for e in elements]
+        if vrs != list(range(vrs[0], vrs[0] + len(vrs))):
+            raise RuntimeError(f"{name}: the elements do not have consecutive value references")
+        alike = {(tuple(sorted((k, v) for k, v in e.attrib.items() if k not in ("name", "valueReference"))),
+                  e[0].tag, tuple(sorted((k, v) for k, v in e[0].attrib.items() if k != "start"))) for e in elements}
+        if len(alike) == 1 or len(elements) == 1:
+            result.append((name, elements))
+        else:
+            result += [(e.get("name"), [e]) for e in elements]
+    return result
+
+
+def _fmi3_variable(parent, name, elements):
+    first = elements[0]
+    kind = first[0]
+    if kind.tag not in _FMI3_KIND:
+        raise RuntimeError(f"{name}: no FMI 3 translation of an FMI 2 {kind.tag} variable")
+    var = ET.SubElement(parent, _FMI3_KIND[kind.tag], name=name, valueReference=first.get("valueReference"))
+    for attribute in ("description", "causality", "variability", "initial"):
+        if first.get(attribute) is not None:
+            var.set(attribute, first.get(attribute))
+    if kind.tag != "Real" and var.get("variability") == "continuous":
+        var.set("variability", "discrete")    # FMI 3: only floats are continuous
+    for attribute in _FMI3_ATTRIBUTES:
+        if kind.get(attribute) is not None:
+            var.set(attribute, kind.get(attribute))
+    if var.get("unit") is not None:   # the unit through a Float64Type (see _unit_types)
+        var.set("declaredType", _unit_type_name(var.attrib.pop("unit"), var.attrib.pop("displayUnit", None)))
+    starts = [e[0].get("start") for e in elements]
+    if all(s is not None for s in starts):
+        var.set("start", " ".join(starts))
+    if first.get("name") != name:
+        ET.SubElement(var, "Dimension", start=str(len(elements)))
+    return var
+
+
+def _unit_type_name(unit, display):
+    return unit if display is None else f"{unit} in {display}"
+
+
+def _unit_types(root2):
+    """Float64Types carrying the Reals' units: a variable declares its unit through one
+    (valid FMI 3, as the Reference FMUs do), since an importer's strict schema (fmi-sim
+    0.7) refuses unit on the variable itself."""
+    pairs = {(real.get("unit"), real.get("displayUnit")) for real in root2.iter("Real") if real.get("unit")}
+    return [(_unit_type_name(u, d), u, d) for u, d in sorted(pairs, key=lambda p: (p[0], p[1] or ""))]
+
+
+def model_description3(root2):
+    """The FMI 3.0 modelDescription of the native FMI 2.0 one ``root2`` (an Element)."""
+    cs2 = root2.find("CoSimulation")
+    keep = ("modelName", "description", "author", "version", "copyright", "license", "generationDateAndTime")
+    root = ET.Element("fmiModelDescription", fmiVersion="3.0",
+                      **{k: root2.get(k) for k in keep if root2.get(k) is not None})
+    root.set("instantiationToken", root2.get("guid"))
+    root.set("generationTool", "movingbase fmu_src/native_build.py (FMI 3.0 C, no Python at run time)")
+    root.set("variableNamingConvention", "structured")
+    ET.SubElement(root, "CoSimulation", modelIdentifier=cs2.get("modelIdentifier"), needsExecutionTool="false",
+                  canBeInstantiatedOnlyOncePerProcess="false", canGetAndSetFMUState="true",
+                  canSerializeFMUState="true", canHandleVariableCommunicationStepSize="true",
+                  hasEventMode="false", providesIntermediateUpdate="false")
+    units = root2.find("UnitDefinitions")
+    if units is not None:
+        root.append(units)    # Unit / BaseUnit / DisplayUnit: the same shape in FMI 3
+    types2 = root2.find("TypeDefinitions")
+    types = ET.SubElement(root, "TypeDefinitions")
+    for name, unit, display in _unit_types(root2):
+        ET.SubElement(types, "Float64Type", name=name, unit=unit, **({"displayUnit": display} if display else {}))
+    if types2 is not None:
+        for simple in types2.iter("SimpleType"):
+            enum = simple.find("Enumeration")
+            if enum is None:
+                raise RuntimeError(f"type {simple.get('name')}: only Enumerations are translated to FMI 3")
+            kind = ET.SubElement(types, "EnumerationType", name=simple.get("name"))
+            for item in enum.iter("Item"):
+                ET.SubElement(kind, "Item", **{k: item.get(k) for k in ("name", "value", "description")
+                                               if item.get(k) is not None})
+    if not len(types):
+        root.remove(types)
+    categories = ET.SubElement(root, "LogCategories")
+    for category in root2.find("LogCategories"):
+        ET.SubElement(categories, "Category", name=category.get("name"),
+                      description=category.get("description", "").replace("fmi2", "fmi3"))
+    if root2.find("DefaultExperiment") is not None:
+        root.append(root2.find("DefaultExperiment"))
+    variables = ET.SubElement(root, "ModelVariables")
+    ET.SubElement(variables, "Float64", name="time", valueReference=str(len(list(root2.iter("ScalarVariable")))),
+                  causality="independent", variability="continuous",
+                  description="simulation time (value reference: one past the FMI 2 variables)")
+    structure_outputs, initial_unknowns = [], []
+    for name, elements in _groups(root2):
+        var = _fmi3_variable(variables, name, elements)
+        if var.get("causality") == "output":
+            structure_outputs.append(var.get("valueReference"))
+            if var.get("initial", "calculated") != "exact":
+                initial_unknowns.append(var.get("valueReference"))
+        elif var.get("causality") == "calculatedParameter":
+            initial_unknowns.append(var.get("valueReference"))
+    structure = ET.SubElement(root, "ModelStructure")
+    for vr in structure_outputs:
+        ET.SubElement(structure, "Output", valueReference=vr)
+    for vr in initial_unknowns:
+        ET.SubElement(structure, "InitialUnknown", valueReference=vr)
+    ET.indent(root)
+    return root
+
+
+def fmi3_variables_header(root2):
+    """fmi3_variables.h: per FMI 2 value reference, the FMI 3 variable that starts there
+    (its element count and kind: Float64, Int32, or an Enumeration set as Int64; count 0:
+    a later element of an array), as model_description3 declares them."""
+    variables = list(root2.iter("ScalarVariable"))
+    kinds = {"Real": "K_FLOAT64", "Integer": "K_INT32", "Enumeration": "K_ENUM"}
+    counts, kind = [0] * len(variables), ["K_NONE"] * len(variables)
+    for _, elements in _groups(root2):
+        vr = int(elements[0].get("valueReference"))
+        counts[vr], kind[vr] = len(elements), kinds[elements[0][0].tag]
+    return "\n".join([
+        "/* Generated by fmu_src/native_build.py from the FMI 2.0 modelDescription: do not edit. */",
+        "#ifndef MB3_VARIABLES_H", "#define MB3_VARIABLES_H", f"#define MB3_NVARS {len(variables)}",
+        "enum { K_NONE = 0, K_FLOAT64, K_INT32, K_ENUM };",
+        f"static const int MB3_COUNT[MB3_NVARS] = {{{', '.join(map(str, counts))}}};",
+        f"static const unsigned char MB3_KIND[MB3_NVARS] = {{{', '.join(kind)}}};",
+        "#endif", ""])
+
+
+def build_description3(identifier, c_files):
+    """buildDescription.xml: the sources a tool compiles into the FMU (its binary then
+    also exports the inner layer's fmi2 functions, which an FMI 3 host does not look up)."""
+    root = ET.Element("fmiBuildDescription", fmiVersion="3.0")
+    config = ET.SubElement(root, "BuildConfiguration", modelIdentifier=identifier)
+    files = ET.SubElement(config, "SourceFileSet", language="C99")
+    for name in c_files:
+        ET.SubElement(files, "SourceFile", name=name)
+    ET.SubElement(files, "IncludeDirectory", name=".")
+    ET.SubElement(config, "Library", name="m")
+    ET.indent(root)
+    return root
+
+
+def build_native3(native_fmu, out, empty=False):
+    """The FMI 3.0 FMU of the native FMI 2.0 FMU ``native_fmu`` in ``out`` (same file
+    name); ``empty`` as in build_native."""
+    native_fmu, out = pathlib.Path(native_fmu), pathlib.Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(native_fmu) as z:
+        root2 = ET.fromstring(z.read("modelDescription.xml"))
+        sources2 = {n.split("/", 1)[1]: z.read(n) for n in z.namelist() if n.startswith("sources/")}
+    identifier = root2.find("CoSimulation").get("modelIdentifier")
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = pathlib.Path(tmp)
+        sources = tmp / "sources"
+        sources.mkdir()
+        for name, data in sources2.items():
+            (sources / name).write_bytes(data)
+        shutil.copy(NATIVE / "fmi3_layer.c", sources / "fmi3_layer.c")
+        for header in _FMI2_HEADERS:    # the inner FMI 2 layer's: an FMI 3 tool brings only the FMI 3 headers
+            shutil.copy(FMI_HEADERS / header, sources / header)
+        (sources / "fmi3_variables.h").write_text(fmi3_variables_header(root2))
+        c_files = sorted(p.name for p in sources.glob("*.c"))
+        binaries = tmp / "binaries" / fmi3_platform()
+        binaries.mkdir(parents=True)
+        exports = tmp / "exports.map"
+        exports.write_text(FMI3_EXPORTS)
+        compile_binary(sources, c_files, binaries / f"{identifier}.so", ["MB_EMPTY_MODEL"] if empty else [],
+                       [f"-Wl,--version-script={exports}"])
+        exports.unlink()
+        for name, root in (("modelDescription.xml", model_description3(root2)),
+                           ("sources/buildDescription.xml", build_description3(identifier, c_files))):
+            (tmp / name).write_text(ET.tostring(root, encoding="unicode", xml_declaration=True))
+        return pack(tmp, out / native_fmu.name)
+
+
+def ensure_native3(scripts, out=None):
+    """Paths of the FMI 3.0 native FMUs of ``scripts``, rebuilt when missing or older than
+    their FMI 2.0 native FMU (itself rebuilt when any file it is made from changed, this
+    one included) or fmi3_layer.c."""
+    from movingbase.fmu_src import builder
+    out = pathlib.Path(out) if out is not None else builder.OUT / "native3"
+    native = ensure_native(scripts)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {}
+    for script in scripts:
+        target = out / native[script].name
+        newest = max(native[script].stat().st_mtime, (NATIVE / "fmi3_layer.c").stat().st_mtime)
+        if not (target.exists() and target.stat().st_mtime >= newest):
+            build_native3(native[script], out)
+        paths[script] = target
+    return paths
+
+
+if __name__ == "__main__":   # python -m movingbase.fmu_src.native_build [--fmi3] [scripts]: into build/fmu/native[3]
+    args = sys.argv[1:]
+    ensure = ensure_native3 if "--fmi3" in args else ensure_native
+    args = [a for a in args if a != "--fmi3"]
+    for path in ensure(args or __import__("movingbase.fmu_src.builder").fmu_src.builder.available()).values():
         print(f"built {path}")

@@ -6,11 +6,13 @@ The per-step calls (doStep, getReal, setReal) go to fmpy's loaded C functions di
 and check the returned status here: fmpy's Python wrapper around each call costs more
 than the call itself at a 1 ms step (benchmarks/bench_scenarios.py)."""
 import atexit
+import copy
 import hashlib
 import pathlib
 import re
 import shutil
 import zipfile
+from ctypes import CFUNCTYPE, POINTER, byref, c_bool, c_double, c_int, c_size_t, c_uint, c_void_p
 from functools import lru_cache
 
 import numpy as np
@@ -19,6 +21,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Real, fmi2ValueReference)
 from fmpy import calloc, free
+from fmpy.fmi3 import FMU3Slave
 
 _LABELS = ("OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING")
 
@@ -102,6 +105,12 @@ def content_digest(path):
 
 class Instance:
     """One FMU instance: instantiate, set parameters, initialise, step, read/write."""
+
+    def __new__(cls, path, name):
+        """An FMI 3.0 FMU file opens as an Instance3."""
+        if cls is Instance and unpack(path)[0].fmiVersion.startswith("3"):
+            cls = Instance3
+        return super().__new__(cls)
 
     def __init__(self, path, name):
         self.name = name
@@ -215,3 +224,182 @@ class RealPort:
         status = self._set(self.instance.fmu.component, self._vr, self.n, self._buf)
         if status > 1:
             self.instance.fail("setReal", f"status {_LABELS[status]}")
+
+
+# ------------------------------------------------------------------------- FMI 3.0
+# An FMI 3.0 FMU (fmu_src/native_build.build_native3) runs in the same master: Instance3
+# shows its variables as the FMI 2.0 FMU names them (leg_force[1..6] for the array
+# leg_force, each element's value reference the array's plus its offset, as
+# native_build numbers them) and answers the FMI 2.0 calls the master makes, so the
+# checks, the exchange and the C stepping loop are the same code for both.
+_TYPES3 = {"Float64": "Real", "Int32": "Integer", "Enumeration": "Enumeration"}
+_GET3 = CFUNCTYPE(c_int, c_void_p, POINTER(c_uint), c_size_t, POINTER(c_double), c_size_t)
+_DO_STEP3 = CFUNCTYPE(c_int, c_void_p, c_double, c_double, c_int, POINTER(c_bool), POINTER(c_bool),
+                      POINTER(c_bool), POINTER(c_double))
+_GET2 = CFUNCTYPE(c_int, c_void_p, POINTER(c_uint), c_size_t, POINTER(c_double))
+_DO_STEP2 = CFUNCTYPE(c_int, c_void_p, c_double, c_double, c_int)
+
+
+def _elements(md3):
+    """The FMI 3.0 model description ``md3`` with its variables as FMI 2.0 elements: an
+    array name of n elements becomes name[1] .. name[n]; the independent time is left out."""
+    md = copy.copy(md3)
+    md.modelVariables = []
+    for var in md3.modelVariables:
+        if var.causality == "independent":
+            continue
+        if var.type not in _TYPES3:
+            raise FmuError(f"{md3.modelName}: variable {var.name} is an FMI 3 {var.type}, which the master does not exchange")
+        count = int(np.prod([int(d.start) for d in var.dimensions])) if var.dimensions else 1
+        starts = var.start.split() if var.start is not None else [None] * count
+        for k in range(count):
+            element = copy.copy(var)
+            element.name = f"{var.name}[{k + 1}]" if var.dimensions else var.name
+            element.valueReference = var.valueReference + k
+            element.type = _TYPES3[var.type]
+            element.unit = var.unit or getattr(var.declaredType, "unit", None)   # a unit by Float64Type
+            element.displayUnit = var.displayUnit or getattr(var.declaredType, "displayUnit", None)
+            element.declaredType = var.declaredType if var.type == "Enumeration" else None
+            element.start = starts[k]
+            element.dimensions = []
+            md.modelVariables.append(element)
+    return md
+
+
+def description(path):
+    """The model description a scenario is checked against: an FMI 3.0 FMU's variables as
+    FMI 2.0 elements (see _elements), an FMI 2.0 FMU's as they are."""
+    md = unpack(path)[0]
+    return _elements(md) if md.fmiVersion.startswith("3") else md
+
+
+class Instance3(Instance):
+    """An FMI 3.0 instance behind Instance's interface (fmpy's FMU3Slave): variables by
+    their FMI 2.0 element names; ``raw`` gives FMI 2.0-shaped fmi2DoStep/fmi2GetReal/
+    fmi2SetReal that make the FMI 3.0 calls (so the C loop steps it). Those are ctypes
+    callbacks: a Python call per exchange, slower than an FMI 2.0 FMU's direct calls,
+    with the same numbers."""
+
+    def __init__(self, path, name):
+        self.name = name
+        md3, folder = unpack(path)
+        self.md = _elements(md3)
+        self.variables = {v.name: v for v in self.md.modelVariables}
+        self.arrays = {}   # element value reference -> (FMI 3 value reference, offset, element count)
+        for var in md3.modelVariables:
+            count = int(np.prod([int(d.start) for d in var.dimensions])) if var.dimensions else 1
+            for k in range(count):
+                self.arrays[var.valueReference + k] = (var.valueReference, k, count)
+        self.starts = {v.valueReference: v.start for v in self.md.modelVariables}
+        self.log = []
+        self.fmu = FMU3Slave(guid=md3.guid, unzipDirectory=folder, instanceName=name,
+                             modelIdentifier=md3.coSimulation.modelIdentifier)
+        self.time = 0.0
+        self.freed = False
+        self.call("instantiate", loggingOn=True, logMessage=self._on_log3)
+        dll = self.fmu.dll
+        self._get3, self._set3 = _GET3(("fmi3GetFloat64", dll)), _GET3(("fmi3SetFloat64", dll))
+        self._step3 = _DO_STEP3(("fmi3DoStep", dll))
+        self._plans = {}
+        self._thunks = {"fmi2GetReal": _GET2(self._guard(self._get_elements)),
+                        "fmi2SetReal": _GET2(self._guard(self._set_elements)),
+                        "fmi2DoStep": _DO_STEP2(self._guard(self._do_step3))}
+
+    def _on_log3(self, environment, status, category, message):
+        self.log.append(f"[{_LABELS[status]}] {message.decode(errors='replace')}")
+
+    def _guard(self, function):
+        """A callback never raises into C: an exception is logged and answered Error."""
+        def guarded(*args):
+            try:
+                return function(*args)
+            except Exception as exc:   # noqa: BLE001 - reported through the FMI status and the log
+                self.log.append(f"[ERROR] master's FMI 3 adapter: {type(exc).__name__}: {exc}")
+                return 3
+        return guarded
+
+    def raw(self, function):
+        return self._thunks[function]
+
+    def _plan(self, vrs):
+        """For element value references: the FMI 3 arrays they lie in (as ctypes values)
+        and where each element is in the values of those arrays."""
+        plan = self._plans.get(vrs)
+        if plan is None:
+            arrays, at = [], {}
+            for vr in vrs:
+                if vr not in self.arrays:
+                    raise KeyError(f"no Float64 element has value reference {vr}")
+                array, _, count = self.arrays[vr]
+                if array not in at:
+                    at[array] = sum(self.arrays[a][2] for a in arrays)
+                    arrays.append(array)
+            total = sum(self.arrays[a][2] for a in arrays)
+            index = np.array([at[self.arrays[vr][0]] + self.arrays[vr][1] for vr in vrs], dtype=np.intp)
+            buffer = (c_double * total)()
+            plan = ((c_uint * len(arrays))(*arrays), len(arrays), buffer, np.ctypeslib.as_array(buffer), total, index)
+            self._plans[vrs] = plan
+        return plan
+
+    def _get_elements(self, component, vr, n, values):
+        arrays, narrays, buffer, view, total, index = self._plan(tuple(vr[:n]))
+        status = self._get3(self.fmu.component, arrays, narrays, buffer, total)
+        if status <= 1:
+            np.ctypeslib.as_array(values, (n,))[:] = view[index]
+        return status
+
+    def _set_elements(self, component, vr, n, values):
+        """Whole arrays are set: elements not written keep the values the FMU holds."""
+        arrays, narrays, buffer, view, total, index = self._plan(tuple(vr[:n]))
+        if index.size != total:
+            status = self._get3(self.fmu.component, arrays, narrays, buffer, total)
+            if status > 1:
+                return status
+        view[index] = np.ctypeslib.as_array(values, (n,))
+        return self._set3(self.fmu.component, arrays, narrays, buffer, total)
+
+    def _do_step3(self, component, t, h, no_set_prior):
+        event, terminate, early, last = c_bool(), c_bool(), c_bool(), c_double()
+        return self._step3(self.fmu.component, t, h, no_set_prior, byref(event), byref(terminate), byref(early),
+                           byref(last))
+
+    def _check(self, function, status):
+        if status > 1:
+            self.fail(function, f"status {_LABELS[status]}")
+
+    def set(self, name, value):
+        self.vr(name)
+        var = self.variables[name]
+        if var.type == "Integer":
+            self.call("setInt32", [var.valueReference], [int(value)])
+        elif var.type == "Enumeration":
+            self.call("setInt64", [var.valueReference], [int(value)])
+        else:
+            self._check("setReal", self.raw("fmi2SetReal")(None, (c_uint * 1)(var.valueReference), 1,
+                                                          (c_double * 1)(float(value))))
+
+    def get_real(self, name):
+        out = (c_double * 1)()
+        self._check("getReal", self.raw("fmi2GetReal")(None, (c_uint * 1)(self.vr(name)), 1, out))
+        return out[0]
+
+    def initialize(self, start_time, values=None):
+        """Enter initialization mode at ``start_time``, set ``values``, exit. An array's
+        elements are set in one call: those not given keep their start values."""
+        self.time = start_time
+        self.call("enterInitializationMode", startTime=start_time)
+        reals = {}
+        for name, value in (values or {}).items():
+            self.vr(name)
+            var = self.variables[name]
+            if var.type == "Real":
+                array, offset, count = self.arrays[var.valueReference]
+                if array not in reals:
+                    reals[array] = [float(self.starts[array + k]) for k in range(count)]
+                reals[array][offset] = float(value)
+            else:
+                self.set(name, value)
+        for array, elements in reals.items():
+            self.call("setFloat64", [array], elements)
+        self.call("exitInitializationMode")
+        self._do_step = self.raw("fmi2DoStep")

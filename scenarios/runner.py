@@ -10,10 +10,10 @@ import time
 from tqdm import tqdm
 
 from movingbase.fmu_src.builder import ensure_built
-from movingbase.fmu_src.native_build import ensure_native
+from movingbase.fmu_src.native_build import ensure_native, ensure_native3
 from movingbase.plant.stewart import FIDELITIES
 from . import engine, fidelity, flags, master, metrics, report, resources, spec
-from .fmi import unpack
+from .fmi import description
 
 SHIPPED = pathlib.Path(__file__).resolve().parent / "files"
 
@@ -61,25 +61,34 @@ def replaced(folder):
             f"{time.strftime('%Y-%m-%d %H:%M', time.localtime(when))}): {shown}; this run replaces them")
 
 
-def prepare(path, ci=False, implementation=None, out=None):
+def prepare(path, ci=False, implementation=None, out=None, fmi_version=None):
     """Scenario, FMU paths per instance and checked parameter values: all checks done
     before anything runs. ``ci`` applies the file's [ci] overrides (a shorter run);
-    ``implementation`` ("native" or "python") overrides every instance's choice; ``out``
-    (a folder) is checked to hold the records (scenarios.resources), warnings printed."""
+    ``implementation`` ("native" or "python") and ``fmi_version`` (2 or 3; 3 with the
+    native FMUs) override every instance's choice; ``out`` (a folder) is checked to hold
+    the records (scenarios.resources), warnings printed."""
     scenario = spec.load(path)
     if ci and scenario.ci:
         scenario = spec.load(path, overrides=scenario.ci)
-    return prepare_loaded(scenario, implementation, out)
+    return prepare_loaded(scenario, implementation, out, fmi_version)
 
 
-def prepare_loaded(scenario, implementation=None, out=None):
+def prepare_loaded(scenario, implementation=None, out=None, fmi_version=None):
     """prepare for a Scenario already loaded (and changed in Python, scenarios.api)."""
     if implementation is not None:
         if implementation not in spec.IMPLEMENTATIONS:
             raise ValueError(f"implementation must be one of {spec.IMPLEMENTATIONS}, got {implementation!r}")
         scenario.implementations = dict.fromkeys(scenario.fmus, implementation)
+        if implementation == "python":   # the pythonfmu FMUs are FMI 2.0
+            scenario.fmi_versions = dict.fromkeys(scenario.fmus, 2)
+    if fmi_version is not None:
+        if fmi_version not in spec.FMI_VERSIONS:
+            raise ValueError(f"fmi_version must be one of {spec.FMI_VERSIONS}, got {fmi_version!r}")
+        if fmi_version == 3 and "python" in scenario.implementations.values():
+            raise ValueError("fmi_version 3 needs the native FMUs: the pythonfmu FMUs are FMI 2.0")
+        scenario.fmi_versions = dict.fromkeys(scenario.fmus, fmi_version)
     paths = fmu_paths(scenario)
-    descriptions = {inst: unpack(p)[0] for inst, p in paths.items()}
+    descriptions = {inst: description(p) for inst, p in paths.items()}
     runs = len(scenario.sweep[1]) if scenario.sweep else 1
     warning = resources.check(resources.estimate(scenario, descriptions, runs), out or ".", scenario.source)
     if warning:
@@ -95,10 +104,12 @@ def prepare_loaded(scenario, implementation=None, out=None):
 
 def fmu_paths(scenario):
     """instance -> FMU file of the implementation the scenario chose for it (built if stale)."""
-    chosen = {inst: (spec.FMU_SCRIPTS[fmu], scenario.implementations.get(inst, spec.IMPLEMENTATIONS[0]))
+    chosen = {inst: (spec.FMU_SCRIPTS[fmu], scenario.implementations.get(inst, spec.IMPLEMENTATIONS[0])
+                     + ("3" if scenario.fmi_versions.get(inst) == 3 else ""))
               for inst, fmu in scenario.fmus.items()}
     built = {"python": ensure_built(sorted({s for s, impl in chosen.values() if impl == "python"})),
-             "native": ensure_native(sorted({s for s, impl in chosen.values() if impl == "native"}))}
+             "native": ensure_native(sorted({s for s, impl in chosen.values() if impl == "native"})),
+             "native3": ensure_native3(sorted({s for s, impl in chosen.values() if impl == "native3"}))}
     return {inst: built[impl][script] for inst, (script, impl) in chosen.items()}
 
 
@@ -119,15 +130,15 @@ def _choose_fidelity(scenario, paths, values, plant):
 
 
 def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None, implementation=None,
-                 allow_unstable=False):
+                 allow_unstable=False, fmi_version=None):
     """Run every sweep value of a scenario; returns (scenario, runs, report path).
     ``jobs`` worker processes or the Dask cluster at ``dask`` run the values in parallel;
-    ``implementation`` as in prepare. A step beyond the predicted stability limit is
+    ``implementation`` and ``fmi_version`` as in prepare. A step beyond the predicted stability limit is
     refused (ScenarioError) unless ``allow_unstable``; then every run is flagged."""
     if progress:
         print(f"{pathlib.Path(str(path)).stem}: checking the scenario, building FMUs that are missing or stale "
               "(a first build takes ~10 s)", file=sys.stderr, flush=True)
-    scenario, paths, descriptions, values = prepare(resolve(path), ci, implementation, out)
+    scenario, paths, descriptions, values = prepare(resolve(path), ci, implementation, out, fmi_version)
     before = pre_run_flags(scenario, paths, descriptions, values, ci, allow_unstable)
     outdir = output_folder(out, scenario.source)
     earlier = replaced(outdir)

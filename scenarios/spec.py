@@ -26,10 +26,7 @@ import re
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib
+import tomllib
 
 import numpy as np
 
@@ -45,6 +42,8 @@ FMU_SCRIPTS = {"hexapod_plant": "hexapod_plant_fmu", "telescope": "telescope_fmu
 OPTIONAL_INPUTS = {"hexapod_plant": ("platform_wrench",)}
 # per instance: the native C FMU (no Python in the host) or the pythonfmu one; equal results
 IMPLEMENTATIONS = ("native", "python")
+# per instance: the FMI version of the FMU (3: the native FMU's FMI 3.0 build; equal results)
+FMI_VERSIONS = (2, 3)
 MASTERS = ("jacobi", "gauss-seidel")
 EXTRAPOLATIONS = ("none", "linear")
 METRIC_KINDS = {  # kind -> required keys
@@ -290,6 +289,7 @@ class Scenario:
     fidelity_tolerance: float = None         # [N], for a plant with fidelity = "auto"
     notes: list = field(default_factory=list)  # what the runner decided (shown in the report)
     implementations: dict = field(default_factory=dict)  # instance -> one of IMPLEMENTATIONS
+    fmi_versions: dict = field(default_factory=dict)     # instance -> one of FMI_VERSIONS
 
 
 def _quantity(source, key, value, dimension):
@@ -386,7 +386,7 @@ def parse(text, source="<string>", overrides=None):
     with problems.part():
         check_name(source, "name" if "name" in data else "file name", name)
 
-    fmus, parameters, implementations = {}, {}, {}
+    fmus, parameters, implementations, versions = {}, {}, {}, {}
     for instance, table in data["fmus"].items():
         key = f"fmus.{instance}"
         with problems.part():
@@ -398,14 +398,21 @@ def parse(text, source="<string>", overrides=None):
         fmus[instance] = None        # declared: references to it are not also reported as unknown
         with problems.part():
             table = _table(source, key, table)
-            for extra, problem in unknown_keys(set(table) - {"fmu", "implementation", "parameters"},
-                                               ["fmu", "implementation", "parameters"]):
+            for extra, problem in unknown_keys(set(table) - {"fmu", "implementation", "fmi_version", "parameters"},
+                                               ["fmu", "implementation", "fmi_version", "parameters"]):
                 problems.errors.append(ScenarioError(source, f"{key}.{extra}", problem))
             implementations[instance] = _text(source, f"{key}.implementation", table.get("implementation"),
                                               IMPLEMENTATIONS[0])
             if implementations[instance] not in IMPLEMENTATIONS:
                 raise ScenarioError(source, f"{key}.implementation", f"unknown implementation "
                                     f"{implementations[instance]!r}; choose one of {', '.join(IMPLEMENTATIONS)}")
+            versions[instance] = table.get("fmi_version", FMI_VERSIONS[0])
+            if versions[instance] not in FMI_VERSIONS or isinstance(versions[instance], bool):
+                raise ScenarioError(source, f"{key}.fmi_version", f"unknown FMI version {versions[instance]!r}; "
+                                    f"choose one of {', '.join(map(str, FMI_VERSIONS))}")
+            if versions[instance] == 3 and implementations[instance] != "native":
+                raise ScenarioError(source, f"{key}.fmi_version", "FMI 3.0 is built for the native FMUs only; "
+                                    f"implementation {implementations[instance]!r} is FMI 2.0")
             fmu = _text(source, f"{key}.fmu", table.get("fmu"), "")
             if fmu not in FMU_SCRIPTS:
                 near = difflib.get_close_matches(fmu, list(FMU_SCRIPTS), 1, 0.6)
@@ -509,7 +516,7 @@ def parse(text, source="<string>", overrides=None):
     problems.raise_any()
     return Scenario(source, name, data.get("description", ""), start, stop, step, master, extrapolation,
                     fmus, parameters, connections, interval, recorded, metrics, sweep, ci, tolerance,
-                    implementations=implementations)
+                    implementations=implementations, fmi_versions=versions)
 
 
 def load(path, overrides=None):

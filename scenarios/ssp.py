@@ -221,6 +221,11 @@ def export_ssp(scenario, fmu_paths, parameters, path):
     Component), which SSP tools apply; fmpy.ssp.simulate_ssp ignores them: run the file
     with ``simulate_exported``, which passes them to fmpy as ``parameter_set``."""
     path = pathlib.Path(path)
+    for inst in scenario.fmus:
+        if not unpack(fmu_paths[inst])[0].fmiVersion.startswith("2"):
+            raise spec.ScenarioError(scenario.source, f"fmus.{inst}.fmi_version",
+                                     "the SSP export writes SSP 1.0 with FMI 2.0 FMUs; FMI 3.0 FMUs "
+                                     "(SSP 2.0, array connectors) are not exported yet: use fmi_version = 2")
     files, sources = {}, {}
     for inst in scenario.fmus:
         fmu = pathlib.Path(fmu_paths[inst]).resolve()

@@ -35,10 +35,7 @@ import math
 import pathlib
 import sys
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib
+import tomllib
 
 import matplotlib
 

@@ -119,7 +119,7 @@ def test_choice_parameters_are_enumerations_named_as_the_scenarios_name_them(kit
 
 def test_an_enumeration_is_set_by_its_value_from_fmpys_command_line(kit, tmp_path):
     """fmpy 0.3.32's command line sets an Enumeration by its item's value (it converts
-    every start value with int(), names included: see docs/notes/defaults.md)."""
+    every start value with int(), names included: see docs/defaults-and-masters.md)."""
     out = tmp_path / "paper.csv"
     run = subprocess.run([sys.executable, "-m", "fmpy.cli", "simulate", str(kit["telescope_fmu"]), "--stop-time", "0.01",
                           "--start-values", "profile", "2", "--output-file", str(out)], capture_output=True, text=True)

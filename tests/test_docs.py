@@ -9,10 +9,7 @@ import re
 import pytest
 from packaging.requirements import Requirement
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib
+import tomllib
 
 from movingbase.scenarios import spec
 

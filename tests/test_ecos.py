@@ -93,7 +93,7 @@ def test_ecos_steps_on_past_a_discard(native, tmp_path):
     """An unheld platform (no feedforward, zero gains) leaves its stroke at ~0.2 s and the
     plant answers fmi2Discard. Our master stops there, naming it; ecos 0.7.2 steps on to the
     stop time with no error, the plant's outputs frozen at its last accepted state (a
-    host's behaviour to know: docs/notes/defaults.md)."""
+    host's behaviour to know: docs/defaults-and-masters.md)."""
     scenario, paths, descriptions, params = configure(native, "none", stop=0.5)
     params["controller"].update(kp=0.0, ki=0.0, kd=0.0)
     with pytest.raises(FmuError, match="status DISCARD"):
