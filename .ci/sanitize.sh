@@ -47,4 +47,4 @@ printf '%s\0' "$WORK"/fmus/*/ | xargs -0 -n 1 -P "$(nproc)" bash -c 'build "$0"'
 
 export MOVINGBASE_MISUSE_FMUS="$WORK/fmus" MOVINGBASE_HOST_CFLAGS="$SAN"
 export ASAN_OPTIONS="detect_leaks=1:halt_on_error=1" UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
-"$PY" -m pytest -q tests/test_fmu_misuse.py -k "not pythonfmu" -p no:cacheprovider
+"$PY" -m pytest -q tests/test_fmu_misuse.py -k "not pythonfmu" -m "slow or not slow" -p no:cacheprovider

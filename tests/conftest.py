@@ -1,7 +1,7 @@
 """Shared fixtures: the FMUs are built once per test session into a temporary folder."""
 import pytest
 
-from movingbase.fmu_src import builder
+from movingbase.fmu_src import builder, native_build
 from tests.fmu_helpers import free_all
 
 
@@ -15,3 +15,11 @@ def _free_fmu_instances():
 def fmus(tmp_path_factory):
     """Paths of every FMU, built once per session into a temporary folder, by script name."""
     return builder.ensure_built(builder.available(), tmp_path_factory.mktemp("fmu"))
+
+
+@pytest.fixture(scope="session")
+def native_fmus(fmus, tmp_path_factory):
+    """The native twin of every FMU by script name, built once per session from the
+    session's pythonfmu FMUs (each build compiles the kernels: seconds a file)."""
+    out = tmp_path_factory.mktemp("native")
+    return {script: native_build.build_native(path, out) for script, path in fmus.items()}

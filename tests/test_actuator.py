@@ -20,7 +20,6 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from movingbase.fmu_src import native_build
 from movingbase.plant import kane
 from movingbase.plant.errors import InvalidInputError
 from movingbase.plant.hexapod_ode import Actuator, HexapodODE
@@ -233,10 +232,10 @@ ON = dict(actuator_bandwidth=40.0, reflected_mass=300.0, coulomb_friction=80.0, 
           friction_velocity=1e-3, actuator_force_limit=9000.0, moving_base=0)
 
 
-def test_native_plant_equals_python_with_the_actuator_on(fmus, tmp_path):
+def test_native_plant_equals_python_with_the_actuator_on(fmus, native_fmus):
     """Both FMUs with every effect on and a wrench: the same bytes, and a saved FMU state
     (the motor forces with it) replays."""
-    native = native_build.build_native(fmus["hexapod_plant_fmu"], tmp_path)
+    native = native_fmus["hexapod_plant_fmu"]
     runs = []
     for path in (fmus["hexapod_plant_fmu"], native):
         plant = open_fmu(path, **ON, **{f"leg_force[{i + 1}]": STATIC[i] for i in range(6)})
@@ -282,9 +281,9 @@ def test_radau_follows_rk4_with_every_effect_on():
     assert (results[0][0][12:] - STATIC > 90.0).all()   # the force loop followed the 100 N step
 
 
-def test_native_plant_refuses_a_force_loop_too_fast_as_python_does(fmus, tmp_path):
+def test_native_plant_refuses_a_force_loop_too_fast_as_python_does(fmus, native_fmus):
     from tests.test_native_fmus import failure_lines, opened
-    native = native_build.build_native(fmus["hexapod_plant_fmu"], tmp_path)
+    native = native_fmus["hexapod_plant_fmu"]
     lines = []
     for path in (fmus["hexapod_plant_fmu"], native):
         inst, status = opened(path, actuator_bandwidth=1000.0)

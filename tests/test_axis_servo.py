@@ -6,7 +6,7 @@ import control
 import numpy as np
 import pytest
 
-from movingbase.fmu_src import native_build, telescope_fmu
+from movingbase.fmu_src import telescope_fmu
 from movingbase.plant import telescope
 from tests.test_native_fmus import opened, outputs, reals, step
 
@@ -105,8 +105,8 @@ def test_servo_on_lags_the_command_and_follows_axis_servo():
 
 
 @pytest.fixture(scope="module")
-def native(fmus, tmp_path_factory):
-    return native_build.build_native(fmus["telescope_fmu"], tmp_path_factory.mktemp("native_servo"))
+def native(native_fmus):
+    return native_fmus["telescope_fmu"]
 
 
 @pytest.mark.parametrize("settings", [dict(profile=0, start_delay=0.5, servo_bandwidth=0.8),

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import signal, stats
 
-from movingbase.fmu_src import base_sensor_fmu, native_build
+from movingbase.fmu_src import base_sensor_fmu
 from movingbase.plant import telescope
 from tests.test_native_fmus import opened, outputs, reals, step
 
@@ -127,8 +127,8 @@ def test_same_seed_identical_bytes_other_seed_differs():
 
 
 @pytest.fixture(scope="module")
-def native(fmus, tmp_path_factory):
-    return native_build.build_native(fmus["base_sensor_fmu"], tmp_path_factory.mktemp("native_sensor"))
+def native(native_fmus):
+    return native_fmus["base_sensor_fmu"]
 
 
 @pytest.mark.parametrize("source", [0, 1])

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from movingbase.fmu_src import native_build
 from movingbase.plant._kernel import ffi, lib
 from movingbase.plant.stewart import StewartParams
 from tests.fmu_helpers import open_fmu
@@ -122,8 +121,8 @@ def _fmu_run(path, steps=80, save_at=40):
     return np.array(rows), np.array(replay)
 
 
-def test_native_sensor_equals_python_bit_for_bit_and_replays(fmus, tmp_path):
-    native = native_build.build_native(fmus["leg_sensor_fmu"], tmp_path)
+def test_native_sensor_equals_python_bit_for_bit_and_replays(fmus, native_fmus):
+    native = native_fmus["leg_sensor_fmu"]
     python_rows, python_replay = _fmu_run(fmus["leg_sensor_fmu"])
     native_rows, native_replay = _fmu_run(native)
     assert python_rows.tobytes() == native_rows.tobytes()

@@ -16,7 +16,7 @@ from fmpy.build import build_platform_binary
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import fmi2LastSuccessfulTime, fmi2Real
 
-from movingbase.fmu_src import builder, native_build
+from movingbase.fmu_src import builder
 from movingbase.scenarios import runner
 from movingbase.scenarios.fmi import Instance
 from movingbase.scenarios.records import read_records
@@ -26,10 +26,9 @@ OK, DISCARD, ERROR = 0, 2, 3
 
 
 @pytest.fixture(scope="session")
-def native(fmus, tmp_path_factory):
+def native(native_fmus):
     """Native FMU paths by script name, built from the session's pythonfmu FMUs."""
-    out = tmp_path_factory.mktemp("native")
-    return {script: native_build.build_native(path, out) for script, path in fmus.items()}
+    return native_fmus
 
 
 def opened(path, **values):

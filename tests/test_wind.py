@@ -8,7 +8,6 @@ import pytest
 from fmpy import simulate_fmu
 from scipy import integrate, signal
 
-from movingbase.fmu_src import native_build
 from movingbase.fmu_src.wind_fmu import DEFAULTS, gust_model, gusts
 from movingbase.plant._kernel import ffi, lib
 from movingbase.plant.rotations import rpy_matrix
@@ -43,8 +42,8 @@ def band_power(x, fs, edges):
 
 
 @pytest.fixture(scope="module")
-def native(fmus, tmp_path_factory):
-    return native_build.build_native(fmus["wind_fmu"], tmp_path_factory.mktemp("native_wind"))
+def native(native_fmus):
+    return native_fmus["wind_fmu"]
 
 
 @pytest.mark.parametrize("spectrum, index, length", [("kaimal", 0, 8.1 * 0.7 * 60.0), ("davenport", 1, 1200.0)])

@@ -40,6 +40,7 @@ typedef struct {
     fmi3InstanceEnvironment env;
     fmi3LogMessageCallback log;
     int phase;
+    double start_time;   /* time before the first step (the FMI 2 layer reports the last step's) */
     unsigned char kind3[MB3_NVARS + 1];
     int count3[MB3_NVARS + 1];
     fmi2ValueReference vr2[MB3_NVARS];   /* vr2[k] = k: the FMI 2 element value references */
@@ -240,6 +241,7 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
     fmi2Status s = fmi2SetupExperiment(inst->inner, toleranceDefined, tolerance, startTime, stopTimeDefined,
                                            stopTime);
     if (s > fmi2Warning) return (fmi3Status)s;
+    inst->start_time = startTime;
     s = fmi2EnterInitializationMode(inst->inner);
     if (s <= fmi2Warning) inst->phase = P_INITIALIZATION;
     return (fmi3Status)s;
@@ -309,8 +311,9 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
     INSTANCE("fmi3GetFloat64", GETTABLE)
     if (!check_refs(inst, "fmi3GetFloat64", vr, nvr, values, nValues, K_FLOAT64)) return fmi3Error;
     for (size_t k = 0; k < nvr; k++) {
-        if (vr[k] == VR_TIME) {
-            fmi2GetRealStatus(inst->inner, fmi2LastSuccessfulTime, values++);
+        if (vr[k] == VR_TIME) {   /* fmi2GetRealStatus answers only after initialization */
+            if (inst->phase == P_INSTANTIATED || inst->phase == P_INITIALIZATION) *values++ = inst->start_time;
+            else fmi2GetRealStatus(inst->inner, fmi2LastSuccessfulTime, values++);
             continue;
         }
         fmi2Status s = fmi2GetReal(inst->inner, &inst->vr2[vr[k]], (size_t)inst->count3[vr[k]], values);
