@@ -23,7 +23,6 @@ the chosen mode (UnreachableError, also for unreachable initial positions), an o
 singularity or a stretched passive limb (SingularConfigurationError), a non-finite state
 (ConvergenceError).
 """
-import math
 
 import numpy as np
 
@@ -31,7 +30,7 @@ from movingbase.fmu_src.operating_point import STATIC_SLIDER_FORCES
 from movingbase.fmu_src.slave import INPUT, OUTPUT, PARAMETER, POSITIVE_TIME, GuardedSlave
 from movingbase.plant import mechanism3t_kernel as kernel
 from movingbase.plant.errors import ConvergenceError, InvalidInputError
-from movingbase.plant.integrators import INTEGRATORS, advance
+from movingbase.plant.integrators import INTEGRATORS, advance, substep_count
 from movingbase.plant.mechanism3t import MM, PAPER_REFERENCE_RHO_MM, Mechanism1Params, _check_mode
 
 SLIDERS = ("x_A2", "y_A1", "y_A3")
@@ -101,7 +100,7 @@ class Mechanism3TPlant(GuardedSlave):
         if self.method == "radau":
             self.x[:] = advance(self.method, self._rhs, t, self.x, h, self.max_step)
         else:   # plant.integrators._substeps and advance's divergence check, compiled stages
-            n = max(1, math.ceil(h / self.max_step - 1e-9))
+            n = substep_count(h, self.max_step)
             status, x = kernel.advance_fixed(self.packed, self.x, self.force, self.mode, self.method == "rk4", n, h / n)
             kernel.raise_status(status, self.mode)
             if not np.all(np.isfinite(x)):

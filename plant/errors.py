@@ -24,3 +24,8 @@ class ConvergenceError(PlantError):
 
 class StrokeError(PlantError):
     """A leg left its stroke (actuator length range)."""
+
+
+class WorkBoundError(PlantError):
+    """A step would take more substeps than one call may (integrators.MAX_SUBSTEPS): it is
+    refused at once rather than run for hours or overflow a count."""

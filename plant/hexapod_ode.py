@@ -143,7 +143,7 @@ class HexapodODE:
         stroke."""
         if self.method == "radau":
             return self._advance_radau(x, h)
-        substeps = max(1, math.ceil(h / self.max_step - 1e-9))
+        substeps = integrators.substep_count(h, self.max_step)
         det, status = self._kernel.advance_actuated(self.method == "rk4", substeps, self._actuator, x, self._inputs,
                                                     self.t0, h, self.base_mode, self.legs, self._bounds,
                                                     self._outputs)

@@ -11,13 +11,29 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .errors import ConvergenceError
+from .errors import ConvergenceError, WorkBoundError
 
 INTEGRATORS = ("rk4", "euler", "radau")
 
 
+# The most substeps one step may take: a bound on the work of one call, the same as the
+# native FMUs' MB_MAX_SUBSTEPS (fmu_src/native/model.h); ~5 s of RK4 at the most here.
+MAX_SUBSTEPS = 1_000_000
+
+
+def substep_count(h, max_step):
+    """ceil(h / max_step) (at least 1); WorkBoundError past MAX_SUBSTEPS (worded as the
+    native FMUs word it)."""
+    ratio = h / max_step
+    n = math.ceil(ratio - 1e-9) if math.isfinite(ratio) else math.inf
+    if not n <= MAX_SUBSTEPS:
+        raise WorkBoundError(f"a step of {h!r} s needs {float(n):.3g} substeps of at most {max_step!r} s, more "
+                             f"than the {MAX_SUBSTEPS} a doStep may take: take shorter communication steps")
+    return max(1, n)
+
+
 def _substeps(h, max_step):
-    n = max(1, math.ceil(h / max_step - 1e-9))
+    n = substep_count(h, max_step)
     return n, h / n
 
 

@@ -27,6 +27,7 @@ Modelling assumptions (beyond the values labelled "assumed" in ``TelescopeParams
   telescope FMU's ``axis`` output is Az again (``AxisMotion.azimuth`` here). The
   paper's manoeuvre is given as base yaw = A directly.
 """
+import math
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from functools import lru_cache
@@ -35,6 +36,7 @@ import numpy as np
 
 from ._kernel import ffi, lib
 from .errors import InvalidInputError
+from .integrators import substep_count
 
 EARTH_RATE = lib.mb_tel_earth_rate()   # rad/s, the rate at which the hour angle advances
 _UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
@@ -404,10 +406,15 @@ def check_servo(bandwidth, damping):
             raise InvalidInputError(f"{name} must be finite and > 0, got {value!r}")
 
 
+SERVO_MAX_WH = 0.05   # w h of one servo RK4 substep, as plant/c/telescope.c takes it
+
+
 def servo_advance(bandwidth, damping, h, command0, command1, state):
     """Advance the servo state (A, A', E, E') in place over a step h [s] from the command
     axes row ``command0`` to ``command1`` (mb_tel_servo_advance: RK4 with the command's
-    cubic Hermite interpolant between the samples)."""
+    cubic Hermite interpolant between the samples). WorkBoundError if the step takes more
+    than MAX_SUBSTEPS substeps (the C counts them in an int)."""
+    substep_count(h, SERVO_MAX_WH / (2 * math.pi * bandwidth))
     lib.mb_tel_servo_advance(bandwidth, damping, h, _doubles(command0), _doubles(command1), _doubles(state))
 
 
@@ -426,6 +433,8 @@ def axis_servo(axes, bandwidth, damping):
     integrated between the samples as the telescope FMU does (servo_advance)."""
     check_servo(bandwidth, damping)
     command = _axis_rows(axes)
+    if len(axes.t) > 1:
+        substep_count(float(np.max(np.diff(axes.t))), SERVO_MAX_WH / (2 * math.pi * bandwidth))
     state = np.ascontiguousarray(command[0, [0, 1, 3, 4]])
     actual = np.empty_like(command)
     cmd_c, state_c, out = _doubles(command), _doubles(state), _doubles(actual)

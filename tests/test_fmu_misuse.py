@@ -208,6 +208,18 @@ def test_a_step_past_the_work_bound_is_refused_at_once(native, model, name, valu
     assert len(set(answers.lines[k] for k, line in enumerate(answers.lines) if line.startswith("value "))) == 1
 
 
+@pytest.mark.parametrize("model, name, value, h", [
+    ("HexapodPlant", "max_step", 1e-9, 10.0),
+    ("HexapodPlant", None, None, 1e6),
+    ("Mechanism3TPlant", "max_step", 1e-9, 10.0),
+    ("TelescopeBase", "servo_bandwidth", 10.0, 1e8),
+])
+def test_pythonfmu_step_past_the_work_bound_is_refused_at_once(python_fmus, model, name, value, h):
+    """The same bound in the pythonfmu FMUs (plant.integrators.MAX_SUBSTEPS): refused at
+    once, not hours of substeps or an overflowed servo count."""
+    test_a_step_past_the_work_bound_is_refused_at_once(python_fmus, model, name, value, h)
+
+
 @pytest.mark.parametrize("substeps, status", [(MAX_SUBSTEPS + 1, "Discard"),
                                                pytest.param(MAX_SUBSTEPS, "OK", marks=pytest.mark.slow)])
 def test_the_work_bound_is_exact(native, substeps, status):
