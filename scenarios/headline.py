@@ -11,7 +11,7 @@ import json
 import pathlib
 import shutil
 
-from . import report
+from . import report, style
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 STORE = ROOT / "docs" / "headline.json"
@@ -51,14 +51,14 @@ def render(store):
              "| scene (full run) | feedforward | pose position error RMS / peak [µm] | pose rotation error RMS / "
              "peak [µrad] | leg error RMS / peak [µm] | peak leg force [kN] |",
              "|---|---|---|---|---|---|"]
-    f = report.fmt
+    f, r = style.cell, lambda v: style.cell(v, "µrad")      # '< 1 nm' under what the model resolves
     for scene, runs in store.items():
         for k, (run, m) in enumerate(runs.items()):
             pose, leg = m["pose error"], m["leg error"]
             first = f"`{scene}`: {SCENES[scene]}" if k == 0 else ""
             lines.append(f"| {first} | {MODES.get(run, run)} | {f(pose['rms'])} / {f(pose['peak'])} | "
-                         f"{f(pose['rotation_rms'])} / {f(pose['rotation_peak'])} | {f(leg['rms'])} / "
-                         f"{f(leg['peak'])} | {f(m['leg force']['peak'])} |")
+                         f"{r(pose['rotation_rms'])} / {r(pose['rotation_peak'])} | {f(leg['rms'])} / "
+                         f"{f(leg['peak'])} | {report.fmt(m['leg force']['peak'])} |")
     lines.append("")
     for scene, runs in store.items():
         effect = next(iter(runs.values()))["base effect"]

@@ -38,15 +38,16 @@ def compare(metrics_by_run, metric, unit="µm", flagged=None):
             f"run `{k}` is flagged ({', '.join(dict.fromkeys(f.kind for f in v))})" for k, v in bad.items()) + "."
     fixed, moving = metrics_by_run["fixed_base"][metric], metrics_by_run["moving_base"][metric]
     text = (f"ignoring the base motion (run `fixed_base`: the feedforward uses the fixed-base model) gives "
-            f"RMS {fmt(fixed['rms'])} {unit} and peak {fmt(fixed['peak'])} {unit}, against "
-            f"{fmt(moving['rms'])} {unit} and {fmt(moving['peak'])} {unit} with the moving-base model "
+            f"RMS {length(fixed['rms'], unit)} and peak {length(fixed['peak'], unit)}, against "
+            f"{length(moving['rms'], unit)} and {length(moving['peak'], unit)} with the moving-base model "
             f"(run `moving_base`)")
     if moving["peak"] < FLOOR:
-        return text + (f"; the moving-base error stays under the {FLOOR:g} {unit} the model resolves, so its "
-                       "ratio to the fixed-base error means nothing.")
+        return text + ("; the moving-base error stays under the 1 nm the model resolves, so its ratio to the "
+                       "fixed-base error means nothing.")
     text += f": {ratio(fixed['rms'], moving['rms'])} the RMS, {ratio(fixed['peak'], moving['peak'])} the peak"
     if "rotation_rms" in fixed:
-        text += (f"; rotation error RMS {fmt(fixed['rotation_rms'])} µrad against {fmt(moving['rotation_rms'])} µrad "
+        text += (f"; rotation error RMS {length(fixed['rotation_rms'], 'µrad')} against "
+                 f"{length(moving['rotation_rms'], 'µrad')} "
                  f"({ratio(fixed['rotation_rms'], moving['rotation_rms'])})")
     return text + "."
 

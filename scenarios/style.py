@@ -46,6 +46,13 @@ def length(value_um, unit="µm"):
     return f"{fmt(float(value_um))} {unit}"
 
 
+def cell(value_um, unit="µm"):
+    """A table cell of an error whose unit the column names: the number, or '< 1 nm'
+    ('< 1 nrad') under the floor."""
+    text = length(value_um, unit)
+    return text[:-len(unit) - 1] if text.endswith(" " + unit) else text
+
+
 def ratio(a, b):
     """a / b as 'Nx', 3 significant digits, no exponent (the same text wherever a ratio is printed)."""
     x = float(f"{a / max(b, 1e-300):.3g}")
