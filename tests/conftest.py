@@ -23,3 +23,22 @@ def native_fmus(fmus, tmp_path_factory):
     session's pythonfmu FMUs (each build compiles the kernels: seconds a file)."""
     out = tmp_path_factory.mktemp("native")
     return {script: native_build.build_native(path, out) for script, path in fmus.items()}
+
+
+def pytest_sessionfinish(session, exitstatus):
+    session.config.movingbase_status = int(exitstatus)
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_unconfigure(config):
+    """End the test process without the interpreter's teardown, after the exit handlers
+    (our temp folders) ran: with pythonfmu FMUs loaded into this interpreter (fmpy runs
+    them in-process), Py_Finalize ended in SIGSEGV in 2 of 6 full runs after every test had
+    passed and the summary was printed; the cause is not found yet (docs/development.md)."""
+    import atexit
+    import os
+    import sys
+    atexit._run_exitfuncs()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(getattr(config, "movingbase_status", 0))
