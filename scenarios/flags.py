@@ -313,7 +313,18 @@ class Watch:
         if self.lengths and self.extent >= NEAR_STROKE:
             out.append(Flag("stroke", f"a leg reaches {100 * self.extent:.3g} % of its +-{self.stroke * 1e3:g} mm "
                                       "stroke"))
-        return out + warning_flags(warnings)
+        return merged(out + warning_flags(warnings))
+
+
+def merged(flags):
+    """One flag per kind: a second one of a kind (the detector's and the controller's
+    warnings both say 'saturated') joins the first one's message."""
+    by_kind = {}
+    for flag in flags:
+        first = by_kind.setdefault(flag.kind, flag)
+        if first is not flag:
+            by_kind[flag.kind] = Flag(flag.kind, f"{first.message}; {flag.message}")
+    return list(by_kind.values())
 
 
 def warning_flags(warnings):

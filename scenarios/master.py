@@ -45,6 +45,7 @@ class Run:
     failure: str = ""       # why the run stopped early ("" if it reached stop_time)
     records: object = None  # scenarios.records.Records (None: the run failed before recording began)
     flags: list = field(default_factory=list)   # scenarios.flags.Flag: what went wrong ([]: nothing seen)
+    cpu_time: float = float("nan")   # this thread's CPU time over the stepping: what a cost comparison on a shared machine uses
 
     @property
     def real_time_factor(self):
@@ -290,7 +291,7 @@ def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), p
     steps = int(round((scenario.stop_time - t0) / h))
     every = int(round(scenario.record_interval / h))
     path = None if outdir is None else pathlib.Path(outdir) / f"{label}.npz"
-    done, failure, began, watch = 0, None, time.perf_counter(), None
+    done, failure, began, cpu_began, watch = 0, None, time.perf_counter(), time.thread_time(), None
     try:
         exchange, _ = start(scenario, fmu_paths, parameters, instances)
         watch = run_flags.Watch.for_scenario(scenario, {k: i.md for k, i in instances.items()}, parameters)
@@ -302,7 +303,7 @@ def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), p
         exchange.read()
         exchange.y_prev[:] = exchange.y
         recorder.record(t0)
-        began = time.perf_counter()
+        began, cpu_began = time.perf_counter(), time.thread_time()
         while done < steps:   # C runs the steps up to the next record (or progress) point
             stop = min(steps, (done // every + 1) * every, done + CHUNK)
             if progress:
@@ -316,7 +317,7 @@ def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), p
     except FmuError as error:
         failure = error
     finally:
-        wall = time.perf_counter() - began
+        wall, cpu = time.perf_counter() - began, time.thread_time() - cpu_began
         if recorder and path:
             recorder.records.save(path)
         for instance in instances.values():
@@ -324,7 +325,8 @@ def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), p
     series = {m.name: m.series() for m in metrics}
     series.update({m.rotation.name: m.rotation.series() for m in metrics if hasattr(m, "rotation")})  # [rad]
     result = Run(label, path if recorder else None, done, wall, done * h,
-                 {m.name: m.result() for m in metrics}, series, records=recorder.records if recorder else None)
+                 {m.name: m.result() for m in metrics}, series, records=recorder.records if recorder else None,
+                 cpu_time=cpu)
     if failure is not None:
         result.failure = failure_line(failure, instances)
     result.flags = run_flags.run_flags(watch, result, instances, flags)

@@ -599,8 +599,10 @@ def bind(scenario, model_descriptions):
         with problems.part():
             _check_metric(src, f"metrics[{i}]", metric, scalars)
     problems.raise_any()     # the checks below need every value bound
-    check_rates(src, "fmus", scenario, variables, values)
-    _check_models(src, "fmus", scenario, variables, values)
+    with problems.part():
+        check_rates(src, "fmus", scenario, variables, values)
+    with problems.part():
+        _check_models(src, "fmus", scenario, variables, values)
     if scenario.sweep:
         inst, (var, *_) = scalars("sweep.parameter", scenario.sweep[0])
         seen = {}
@@ -614,7 +616,8 @@ def bind(scenario, model_descriptions):
                     raise ScenarioError(src, key, f"{item!r} is the same value as sweep.values[{j}] "
                                         f"({scenario.sweep[1][j]!r}): each value runs once")
                 seen[swept[inst][var.name]] = i
-                check_rates(src, key, scenario, variables, swept)
+                with problems.part():
+                    check_rates(src, key, scenario, variables, swept)
                 _check_models(src, key, scenario, variables, swept, {(inst, var.name): item})
     problems.raise_any()
     return values
@@ -670,14 +673,17 @@ def check_rates(src, key, scenario, variables, values):
     """A cut-off frequency (a parameter named *cutoff in 1/s) above the Nyquist frequency
     of the communication step, 1/(2 step), is no filter the FMU can run: refused."""
     nyquist = 0.5 / scenario.step
+    problems = _Problems()
     for inst, params in values.items():
         for name, value in params.items():
             var = variables[inst].get(name)
             if var is not None and name.endswith("cutoff") and var.unit == "1/s" and \
                     isinstance(value, float) and value > nyquist:
                 where = f"fmus.{inst}.parameters.{name}" if key == "fmus" else key
-                raise ScenarioError(src, where, f"{value:g} Hz is above the Nyquist frequency of the step "
-                                    f"({scenario.step:g} s: {nyquist:g} Hz); lower it or the step")
+                problems.errors.append(ScenarioError(src, where, f"{value:g} Hz is above the Nyquist frequency of "
+                                                     f"the step ({scenario.step:g} s: {nyquist:g} Hz); lower it or "
+                                                     "the step"))
+    problems.raise_any()
 
 
 def _feed_once(src, key, index, written, source, target, feeders, fed):
@@ -721,10 +727,14 @@ def _check_metric(src, key, metric, scalars):
 def _check_models(src, key, scenario, variables, values, written=None):
     """Checks that need several parameters at once, as the models themselves make them
     (today: the telescope's profile over the run), so the FMU does not refuse them at
-    t = 0. ``written`` maps (instance, name) to the value as the file wrote it."""
+    t = 0. ``written`` maps (instance, name) to the value as the file wrote it. Every
+    instance is checked; their problems are told together."""
+    problems = _Problems()
     for inst, fmu in scenario.fmus.items():
         if fmu == "telescope":
-            _check_telescope(src, key, scenario, inst, variables[inst], values[inst], written or {})
+            with problems.part():
+                _check_telescope(src, key, scenario, inst, variables[inst], values[inst], written or {})
+    problems.raise_any()
 
 
 def _check_telescope(src, key, scenario, inst, md_variables, values, written):
