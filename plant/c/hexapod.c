@@ -116,6 +116,7 @@ static inline d2 ddiv(d2 a, d2 b) { return a / b; }
 static inline d2 dneg(d2 a) { return -a; }
 static inline double lane(d2 a, int i) { return a[i]; }
 static inline d2 pair(double a, double b) { d2 r = {a, b}; return r; }
+#define ALWAYS_INLINE static inline __attribute__((always_inline))
 #else
 typedef struct { double v[2]; } d2;
 static inline d2 dadd(d2 a, d2 b) { d2 r = {{a.v[0] + b.v[0], a.v[1] + b.v[1]}}; return r; }
@@ -125,6 +126,7 @@ static inline d2 ddiv(d2 a, d2 b) { d2 r = {{a.v[0] / b.v[0], a.v[1] / b.v[1]}};
 static inline d2 dneg(d2 a) { d2 r = {{-a.v[0], -a.v[1]}}; return r; }
 static inline double lane(d2 a, int i) { return a.v[i]; }
 static inline d2 pair(double a, double b) { d2 r = {{a, b}}; return r; }
+#define ALWAYS_INLINE static inline
 #endif
 
 static inline d2 splat(double a) { return pair(a, a); }
@@ -177,6 +179,65 @@ static inline w3 wtransport(w3 aB, w3 g, w3 eB, w3 wB, w3 r, w3 v_rel)
                 wadd(wcross(eB, r), wcross(wB, wlin(splat(1.0), wcross(wB, r), splat(2.0), v_rel))));
 }
 
+/* The legs' terms of M added to it: for each leg in turn its reflected mass m_r J_j^T J_j
+   (m_r != 0), and with massive legs its joint mass k_t A^T A + (m_m - k_t) J_j^T J_j with
+   A = [1, -[rho]x] (k_t on the upper-left diagonal, k_t (rho.rho - rho rho^T) lower right,
+   -k_t [rho]x upper right, +k_t [rho]x lower left). Entry by entry the additions of one
+   leg after another, as a leg at a time adds them; but each pair of columns of M is held
+   in a register over all six legs (one load and store instead of one per term), and a
+   lane without a term adds -0.0 or subtracts +0.0, which leave every number as it is. */
+ALWAYS_INLINE void leg_mass_of(double *M, const double *J, int reflected, double m_r, int legs, double mm,
+                               const double *kt, const double *rr, const double *rho)
+{
+    const double m0 = -0.0, p0 = 0.0;
+#pragma GCC unroll 6
+    for (int a = 0; a < 6; a++) {
+#pragma GCC unroll 3
+        for (int k = 0; k < 6; k += 2) {
+            d2 acc = pair(M[6 * a + k], M[6 * a + k + 1]);
+#pragma GCC unroll 6
+            for (int j = 0; j < 6; j++) {
+                const double *Jj = J + 6 * j;
+                const d2 Jp = pair(Jj[k], Jj[k + 1]);
+                if (reflected) acc = dadd(acc, dmul(splat(m_r * Jj[a]), Jp));
+                if (!legs) continue;
+                const double t = kt[j], r0 = rho[3 * j], r1 = rho[3 * j + 1], r2 = rho[3 * j + 2];
+                switch (6 * a + k) {   /* the joint mass of row a, columns k and k + 1 */
+                case 0: acc = dadd(acc, pair(t, m0)); break;
+                case 4: acc = dsub(acc, pair(t * -r2, t * r1)); break;
+                case 6: acc = dadd(acc, pair(m0, t)); break;
+                case 8: acc = dsub(acc, pair(p0, t * r2)); break;
+                case 10: acc = dsub(acc, pair(p0, t * -r0)); break;
+                case 14: acc = dsub(dadd(acc, pair(t, m0)), pair(p0, t * -r1)); break;
+                case 16: acc = dsub(acc, pair(t * r0, p0)); break;
+                case 18: acc = dadd(acc, pair(m0, t * -r2)); break;
+                case 20: acc = dsub(dadd(acc, pair(t * r1, t * rr[j])), pair(p0, t * r0 * r0)); break;
+                case 22: acc = dsub(acc, pair(t * r0 * r1, t * r0 * r2)); break;
+                case 24: acc = dadd(acc, pair(t * r2, m0)); break;
+                case 26: acc = dsub(dadd(acc, pair(t * -r0, m0)), pair(p0, t * r1 * r0)); break;
+                case 28: acc = dsub(dadd(acc, pair(t * rr[j], m0)), pair(t * r1 * r1, t * r1 * r2)); break;
+                case 30: acc = dadd(acc, pair(t * -r1, t * r0)); break;
+                case 32: acc = dsub(acc, pair(p0, t * r2 * r0)); break;
+                case 34: acc = dsub(dadd(acc, pair(m0, t * rr[j])), pair(t * r2 * r1, t * r2 * r2)); break;
+                default: break;
+                }
+                acc = dadd(acc, dmul(splat((mm - t) * Jj[a]), Jp));
+            }
+            M[6 * a + k] = lane(acc, 0);
+            M[6 * a + k + 1] = lane(acc, 1);
+        }
+    }
+}
+
+/* leg_mass_of compiled for each case that occurs, so that no case is tested per term. */
+static void leg_mass(double *M, const double *J, double m_r, int legs, double mm, const double *kt, const double *rr,
+                     const double *rho)
+{
+    if (m_r == 0.0 && legs) leg_mass_of(M, J, 0, m_r, 1, mm, kt, rr, rho);
+    else if (legs) leg_mass_of(M, J, 1, m_r, 1, mm, kt, rr, rho);
+    else if (m_r != 0.0) leg_mass_of(M, J, 1, m_r, 0, mm, kt, rr, rho);
+}
+
 /* mb_hexapod_kane_ext, and (pose_trig not NULL) the cos and sin of the last state's
    angles, so that mb_hexapod_rhs_actuated does not take them again. */
 static void kane(const double *base_joints, const double *platform_joints, const double *data, int n_states,
@@ -194,6 +255,7 @@ static void kane(const double *base_joints, const double *platform_joints, const
     for (int n = 0; n < n_states; n++) {
         const double *pose = pose_all + 6 * n, *rate = rate_all + 6 * n;
         double M[36], h[6], J[36];   /* built here, copied out at the end: no aliasing */
+        double kt_j[6], rr_j[6], rho_j[18];   /* each leg's k_t, rho.rho and rho, for leg_mass */
         const trig tp = angles(pose + 3);
         if (pose_trig) *pose_trig = tp;
         rotation(&tp, R);
@@ -291,40 +353,20 @@ static void kane(const double *base_joints, const double *platform_joints, const
                 }
                 if (m_r != 0.0) {   /* reflected mass: T += m_r ld^2 / 2, ld = J_j u, ldd = J_j du + ldd0 */
                     double ldd_v = lane(ldd0, i);
-                    for (int a = 0; a < 6; a++) {
-                        double mj = m_r * J[6 * j + a];
-                        h[a] += mj * ldd_v;
-                        for (int c = 0; c < 6; c++) M[6 * a + c] += mj * J[6 * j + c];
-                    }
+                    for (int a = 0; a < 6; a++) h[a] += m_r * J[6 * j + a] * ldd_v;
                 }
                 if (!legs) continue;
                 v3 fi = pick(f, i), rfi = pick(rf, i);
                 for (int k = 0; k < 3; k++) {
                     h[k] += fi.e[k];
                     h[3 + k] += rfi.e[k];
+                    rho_j[3 * j + k] = rhoi.e[k];
                 }
-                /* joint mass: k_t A^T A + (m_m - k_t) j j^T with A = [1, -[rho]x] */
-                double kti = lane(kt, i), rri = lane(rr, i);
-                for (int a = 0; a < 3; a++) {
-                    double kr = kti * rhoi.e[a];
-                    M[7 * a] += kti;
-                    M[7 * (3 + a)] += kti * rri;
-                    for (int c = 0; c < 3; c++) M[6 * (3 + a) + 3 + c] -= kr * rhoi.e[c];
-                }
-                /* -kt [rho]x in the upper-right block, +kt [rho]x in the lower-left */
-                static const int skew_a[6] = {0, 0, 1, 1, 2, 2}, skew_c[6] = {1, 2, 0, 2, 0, 1};
-                const double skew[6] = {-rhoi.e[2], rhoi.e[1], rhoi.e[2], -rhoi.e[0], -rhoi.e[1], rhoi.e[0]};
-                for (int q = 0; q < 6; q++) {
-                    M[6 * skew_a[q] + 3 + skew_c[q]] -= kti * skew[q];
-                    M[6 * (3 + skew_a[q]) + skew_c[q]] += kti * skew[q];
-                }
-                double cm = mm - kti;
-                for (int a = 0; a < 6; a++) {
-                    double cj = cm * J[6 * j + a];
-                    for (int c = 0; c < 6; c++) M[6 * a + c] += cj * J[6 * j + c];
-                }
+                kt_j[j] = lane(kt, i);
+                rr_j[j] = lane(rr, i);
             }
         }
+        leg_mass(M, J, m_r, legs, mm, kt_j, rr_j, rho_j);
 
         if (wrench_all)   /* an external wrench W: M du + (h - W) = J^T F */
             for (int i = 0; i < 6; i++) h[i] -= wrench_all[6 * n + i];
@@ -356,20 +398,16 @@ static void kane(const double *base_joints, const double *platform_joints, const
             for (int k = 0; k < 6; k++) out_all[6 * n + k] = x[k];
             continue;
         }
-        for (int i = 0; i < 36; i++) A[i] = J[i];
-        det[n] = mb_det6(A);
+        det[n] = mb_det6(J);
         if (solve == MB_HEXAPOD_FD) {
             const double *arg = arg_all + 6 * n;
             double *out = out_all + 6 * n;
             for (int i = 0; i < 6; i++) {
                 double acc = -h[i];
-                for (int k = 0; k < 6; k++) {
-                    acc += J[6 * k + i] * arg[k];
-                    A[6 * i + k] = M[6 * i + k];
-                }
+                for (int k = 0; k < 6; k++) acc += J[6 * k + i] * arg[k];
                 b[i] = acc;
             }
-            mb_solve6(A, b, x);
+            mb_solve6(M, b, x);
             if (twist_speeds) {
                 for (int k = 0; k < 6; k++) out[k] = x[k];
             } else {

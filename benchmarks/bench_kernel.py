@@ -1,0 +1,116 @@
+"""The hexapod kernel's forward dynamics against its throughput floor (issue 21's kernel goal).
+
+One forward-dynamics evaluation (what RK4 calls four times a step: mb_hexapod_rhs_actuated,
+full base motion, massive legs) timed next to a loop doing only the operations that bound
+it from below at their throughput: its divides (7 per leg, 15 in det J's elimination, 21 in
+the solve of M, 1 in the RPY rates), its 6 square roots (the leg lengths) and its 6 sincos
+(the pose's and the base's angles), each independent of the others. Both come from
+benchmarks/kernel_floor.c, compiled with the native FMUs' flags; runs alternate, the
+medians are printed. ``--against REV`` compiles the kernel of git revision REV too and
+times it in the same run (before / after); ``--digest`` prints a hash of every output bit
+of both over random states of every mode (equal hashes: the same bits).
+Prints figures; it asserts nothing (speed is not a test).
+
+    python benchmarks/bench_kernel.py [--against REV] [--digest] [--repeats 9]
+"""
+import argparse
+import ctypes
+import os
+import pathlib
+import statistics
+import subprocess
+import tempfile
+
+import numpy as np
+
+from movingbase.fmu_src.native_build import CFLAGS
+from movingbase.plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+KERNEL_FILES = ("hexapod.c", "hexapod.h", "linalg.c", "linalg.h")
+DIVIDES, SQRTS, SINCOS = 7 * 6 + 15 + 21 + 1, 6, 6   # per evaluation, counted in plant/c
+STEPS = 20_000
+
+
+def build(folder, source):
+    """kernel_floor.c over the kernel files in ``source`` (a folder), compiled into ``folder``."""
+    target = pathlib.Path(folder) / f"kernel_{abs(hash(str(source)))}.so"
+    sources = [ROOT / "benchmarks" / "kernel_floor.c", source / "hexapod.c", source / "linalg.c"]
+    cmd = [os.environ.get("CC", "cc"), *(f for f in CFLAGS if not f.startswith("-fvisibility")), f"-I{source}",
+           *map(str, sources), "-o", str(target), "-lm"]
+    run = subprocess.run(cmd, capture_output=True, text=True)
+    if run.returncode:
+        raise RuntimeError(f"compiling the kernel benchmark failed:\n{' '.join(cmd)}\n{run.stderr}")
+    lib = ctypes.CDLL(str(target))
+    dp = ctypes.POINTER(ctypes.c_double)
+    lib.kernel_time.argtypes = [dp, dp, dp, dp, ctypes.c_long]
+    lib.kernel_time.restype = ctypes.c_double
+    lib.floor_time.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_long, dp]
+    lib.floor_time.restype = ctypes.c_double
+    lib.digest.argtypes = [dp, dp, ctypes.c_long]
+    lib.digest.restype = ctypes.c_uint64
+    return lib
+
+
+def revision_sources(folder, rev):
+    """The kernel files of git revision ``rev`` written into ``folder``."""
+    out = pathlib.Path(folder) / f"rev_{rev}"
+    out.mkdir()
+    for name in KERNEL_FILES:
+        text = subprocess.run(["git", "show", f"{rev}:plant/c/{name}"], cwd=ROOT, check=True, capture_output=True,
+                              text=True).stdout
+        (out / name).write_text(text)
+    return out
+
+
+def ptr(a):
+    return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--against", help="git revision whose kernel is timed alongside")
+    parser.add_argument("--digest", action="store_true", help="print a hash of every output bit")
+    parser.add_argument("--repeats", type=int, default=9)
+    args = parser.parse_args()
+
+    p = StewartParams.paper()
+    params = np.ascontiguousarray(np.r_[p.base_joints.ravel(), p.platform_joints.ravel(), p.kernel_data])
+    base = [np.array([3.0, -2.0, 25.0, 0.7, 0.2, 0.5]), np.array([0.1, -0.2, 0.05, 0.02, -0.03, 0.04]),
+            np.array([0.3, 0.1, -0.2, 0.05, 0.01, -0.02])]
+    pose = HOME_POSE + np.array([0.01, -0.02, 0.03, 0.02, -0.01, 0.03])
+    x0 = np.r_[pose, 0.01, -0.02, 0.01, 0.05, -0.03, 0.02, np.zeros(6)]
+    forces = inverse_dynamics(p, pose, np.zeros(6), np.zeros(6), *base)
+    inputs = np.ascontiguousarray(np.r_[forces, *base, np.zeros(6)])
+    act = np.zeros(6)
+    home = np.ascontiguousarray(HOME_POSE, dtype=float)
+    sink = np.zeros(1)
+
+    with tempfile.TemporaryDirectory() as folder:
+        kernels = {"this tree": build(folder, ROOT / "plant" / "c")}
+        if args.against:
+            kernels[args.against] = build(folder, revision_sources(folder, args.against))
+        if args.digest:
+            for name, lib in kernels.items():
+                print(f"digest of the kernel's output bits ({name}): {lib.digest(ptr(params), ptr(home), 2000):016x}")
+        lib0 = kernels["this tree"]
+        times = {name: [] for name in kernels}
+        floor = []
+        for lib in kernels.values():   # warm up
+            lib.kernel_time(ptr(params), ptr(x0), ptr(inputs), ptr(act), STEPS // 10)
+        for _ in range(args.repeats):
+            for name, lib in kernels.items():
+                times[name].append(lib.kernel_time(ptr(params), ptr(x0), ptr(inputs), ptr(act), STEPS))
+            floor.append(lib0.floor_time(DIVIDES, SQRTS, SINCOS, 4 * STEPS, ptr(sink)))
+        f = statistics.median(floor)
+        print(f"throughput floor ({DIVIDES} divides, {SQRTS} sqrt, {SINCOS} sincos): {1e6 * f:.3f} us/evaluation")
+        for name, t in times.items():
+            k = statistics.median(t)
+            print(f"forward dynamics ({name}): {1e6 * k:.3f} us/evaluation -> kernel = {k / f:.2f} x floor")
+        if args.against:
+            print(f"this tree / {args.against}: {statistics.median(times['this tree']) / statistics.median(times[args.against]):.3f}"
+                  f" (median over {args.repeats} interleaved runs of {STEPS} RK4 steps)")
+
+
+if __name__ == "__main__":
+    main()
