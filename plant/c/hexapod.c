@@ -103,6 +103,30 @@ static inline v3 transport(v3 aB, v3 g, v3 eB, v3 wB, v3 r, v3 v_rel)
     return add(lin(1.0, aB, -1.0, g), add(cross(eB, r), cross(wB, lin(1.0, cross(wB, r), 2.0, v_rel))));
 }
 
+/* What the base motion contributes, in {B}: gravity g, the base's acceleration aB, angular
+   velocity wB and angular acceleration eB (zero where base_mode leaves them out). */
+typedef struct { v3 g, aB, wB, eB; } base_frame;
+
+static base_frame base_terms(int base_mode, double g0, const double *base_pose, const double *base_rate,
+                             const double *base_acc, int n)
+{
+    const v3 zero = vec(0.0, 0.0, 0.0);
+    base_frame f = {vec(0.0, 0.0, -g0), zero, zero, zero};
+    if (base_mode != MB_HEXAPOD_BASE_NONE) {
+        const double *bp = base_pose + 6 * n, *br = base_rate + 6 * n, *ba = base_acc + 6 * n;
+        double Rb[9];
+        const trig tb = angles(bp + 3);
+        rotation(&tb, Rb);
+        f.g = vec(-g0 * Rb[6], -g0 * Rb[7], -g0 * Rb[8]);
+        if (base_mode == MB_HEXAPOD_BASE_FULL) {
+            f.aB = mul_t(Rb, load(ba));
+            f.wB = mul_t(Rb, omega(&tb, br + 3));
+            f.eB = mul_t(Rb, omega_dot(&tb, br + 3, ba + 3));
+        }
+    }
+    return f;
+}
+
 /* Two legs at a time: d2 holds one double per leg, and every operation below acts on
    each lane alone, as the scalar operation would (IEEE results per lane: the same bits).
    GCC and clang keep a pair in one SSE2 / NEON register; other compilers get the pair
@@ -238,20 +262,22 @@ static void leg_mass(double *M, const double *J, double m_r, int legs, double mm
     else if (m_r != 0.0) leg_mass_of(M, J, 1, m_r, 0, mm, kt, rr, rho);
 }
 
-/* mb_hexapod_kane_ext, and (pose_trig not NULL) the cos and sin of the last state's
-   angles, so that mb_hexapod_rhs_actuated does not take them again. */
+/* mb_hexapod_kane_ext, and for mb_hexapod_rhs_actuated: (pose_trig not NULL) the cos and
+   sin of the last state's angles, so that it does not take them again; (frame not NULL)
+   the base terms of every state, already computed; M_all, h_all and J_all may be NULL
+   (not written). */
 static void kane(const double *base_joints, const double *platform_joints, const double *data, int n_states,
                  const double *pose_all, const double *rate_all, const double *arg_all, const double *base_pose,
                  const double *base_rate, const double *base_acc, int base_mode, int legs, int twist_speeds,
                  int solve, double m_r, const double *wrench_all, double *M_all, double *h_all, double *J_all,
-                 double *ldot, double *length, double *out_all, double *det, trig *pose_trig)
+                 double *ldot, double *length, double *out_all, double *det, trig *pose_trig,
+                 const base_frame *frame)
 {
     const double m_p = data[0], g0 = data[10];
     const double Ip[3] = {data[1], data[2], data[3]};
     const double mf = data[4], lf = data[5], mm = data[6], lm = data[7], Ia = data[8], It = data[9];
     const double zero3[3] = {0.0, 0.0, 0.0};
-    const v3 zero = vec(0.0, 0.0, 0.0);
-    double R[9], Rb[9], A[36], b[6], x[6];
+    double R[9], A[36], b[6], x[6];
     for (int n = 0; n < n_states; n++) {
         const double *pose = pose_all + 6 * n, *rate = rate_all + 6 * n;
         double M[36], h[6], J[36];   /* built here, copied out at the end: no aliasing */
@@ -263,19 +289,9 @@ static void kane(const double *base_joints, const double *platform_joints, const
         v3 w = twist_speeds ? load(rate + 3) : omega(&tp, rate + 3);
 
         /* base motion in {B} */
-        v3 g = vec(0.0, 0.0, -g0), aB = zero, wB = zero, eB = zero;
-        if (base_mode != MB_HEXAPOD_BASE_NONE) {
-            const double *bp = base_pose + 6 * n;
-            const trig tb = angles(bp + 3);
-            rotation(&tb, Rb);
-            g = vec(-g0 * Rb[6], -g0 * Rb[7], -g0 * Rb[8]);
-            if (base_mode == MB_HEXAPOD_BASE_FULL) {
-                const double *br = base_rate + 6 * n, *ba = base_acc + 6 * n;
-                aB = mul_t(Rb, load(ba));
-                wB = mul_t(Rb, omega(&tb, br + 3));
-                eB = mul_t(Rb, omega_dot(&tb, br + 3, ba + 3));
-            }
-        }
+        const base_frame bf = frame ? *frame
+                                    : base_terms(base_mode, g0, base_pose, base_rate, base_acc, n);
+        const v3 g = bf.g, aB = bf.aB, wB = bf.wB, eB = bf.eB;
 
         /* platform */
         for (int i = 0; i < 36; i++) M[i] = 0.0;
@@ -370,11 +386,13 @@ static void kane(const double *base_joints, const double *platform_joints, const
 
         if (wrench_all)   /* an external wrench W: M du + (h - W) = J^T F */
             for (int i = 0; i < 6; i++) h[i] -= wrench_all[6 * n + i];
-        for (int i = 0; i < 36; i++) {
-            M_all[36 * n + i] = M[i];
-            J_all[36 * n + i] = J[i];
+        if (M_all) {
+            for (int i = 0; i < 36; i++) {
+                M_all[36 * n + i] = M[i];
+                J_all[36 * n + i] = J[i];
+            }
+            for (int i = 0; i < 6; i++) h_all[6 * n + i] = h[i];
         }
-        for (int i = 0; i < 6; i++) h_all[6 * n + i] = h[i];
 
         if (solve == MB_HEXAPOD_ID) {
             const double *arg = arg_all + 6 * n;
@@ -428,7 +446,8 @@ void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joint
                          double *length, double *out_all, double *det)
 {
     kane(base_joints, platform_joints, data, n_states, pose_all, rate_all, arg_all, base_pose, base_rate, base_acc,
-         base_mode, legs, twist_speeds, solve, m_r, wrench_all, M_all, h_all, J_all, ldot, length, out_all, det, NULL);
+         base_mode, legs, twist_speeds, solve, m_r, wrench_all, M_all, h_all, J_all, ldot, length, out_all, det, NULL,
+         NULL);
 }
 
 void mb_hexapod_kane(const double *base_joints, const double *platform_joints, const double *data,
@@ -490,11 +509,16 @@ static void delivered(const double *act, const double *x, const double *command,
     }
 }
 
-double mb_hexapod_rhs_actuated(const double *bj, const double *pj, const double *data, const double *act,
-                               const double *x, const double *command, const double *wrench, const double *base0,
-                               double t0, double t, int base_mode, int legs, double *dx, double *force)
+/* The base terms of the last time an RK4 step asked for: its two middle stages share a
+   time, hence the same base and the same numbers. */
+typedef struct { int valid; double t; base_frame f; } base_memo;
+
+/* mb_hexapod_rhs_actuated, taking the base terms from memo (not NULL) when it holds t's. */
+static double rhs(const double *bj, const double *pj, const double *data, const double *act, const double *x,
+                  const double *command, const double *wrench, const double *base0, double t0, double t,
+                  int base_mode, int legs, double *dx, double *force, base_memo *memo)
 {
-    double base[18], M[36], h[6], J[36], ldot[6], length[6], out[6], det, f[6], ld[6];
+    double base[18], ldot[6], length[6], out[6], det, f[6], ld[6];
     double tau = t - t0;
     const double *forces = command;
     if (act) {
@@ -508,15 +532,26 @@ double mb_hexapod_rhs_actuated(const double *bj, const double *pj, const double 
     }
     if (force)
         for (int j = 0; j < 6; j++) force[j] = forces[j];
-    if (base_mode != MB_HEXAPOD_BASE_NONE)
-        for (int k = 0; k < 6; k++) {
-            base[k] = base0[k] + tau * base0[6 + k] + 0.5 * tau * tau * base0[12 + k];
-            base[6 + k] = base0[6 + k] + tau * base0[12 + k];
-            base[12 + k] = base0[12 + k];
+    base_frame bf;
+    if (memo && memo->valid && memo->t == t) {
+        bf = memo->f;
+    } else {
+        if (base_mode != MB_HEXAPOD_BASE_NONE)
+            for (int k = 0; k < 6; k++) {
+                base[k] = base0[k] + tau * base0[6 + k] + 0.5 * tau * tau * base0[12 + k];
+                base[6 + k] = base0[6 + k] + tau * base0[12 + k];
+                base[12 + k] = base0[12 + k];
+            }
+        bf = base_terms(base_mode, data[10], base, base + 6, base + 12, 0);
+        if (memo) {
+            memo->valid = 1;
+            memo->t = t;
+            memo->f = bf;
         }
+    }
     trig tx;
-    kane(bj, pj, data, 1, x, x + 6, forces, base, base + 6, base + 12, base_mode, legs, 1, MB_HEXAPOD_FD,
-         act ? act[MB_ACT_REFLECTED_MASS] : 0.0, wrench, M, h, J, ldot, length, out, &det, &tx);
+    kane(bj, pj, data, 1, x, x + 6, forces, NULL, NULL, NULL, base_mode, legs, 1, MB_HEXAPOD_FD,
+         act ? act[MB_ACT_REFLECTED_MASS] : 0.0, wrench, NULL, NULL, NULL, ldot, length, out, &det, &tx, &bf);
     v3 rr = rpy_rate(&tx, load(x + 9));
     for (int k = 0; k < 3; k++) {
         dx[k] = x[6 + k];
@@ -524,6 +559,13 @@ double mb_hexapod_rhs_actuated(const double *bj, const double *pj, const double 
     }
     for (int k = 0; k < 6; k++) dx[6 + k] = out[k];
     return fabs(det);
+}
+
+double mb_hexapod_rhs_actuated(const double *bj, const double *pj, const double *data, const double *act,
+                               const double *x, const double *command, const double *wrench, const double *base0,
+                               double t0, double t, int base_mode, int legs, double *dx, double *force)
+{
+    return rhs(bj, pj, data, act, x, command, wrench, base0, t0, t, base_mode, legs, dx, force, NULL);
 }
 
 double mb_hexapod_rhs(const double *bj, const double *pj, const double *data, const double *x,
@@ -569,25 +611,23 @@ static int advance(int rk4, int substeps, const double *bj, const double *pj, co
         for (int k = 24; k < 30; k++)
             if (inputs[k] != 0.0) wrench = inputs + 24;
     double dt = h / substeps, dmin = INFINITY, d;
+    base_memo memo = {0, 0.0, {{{0.0}}}};
     for (int n = 0; n < substeps; n++) {
         double t = t0 + n * dt;
-        d = mb_hexapod_rhs_actuated(bj, pj, data, act, x, forces, wrench, base0, t0, t, base_mode, legs, k1, NULL);
+        d = rhs(bj, pj, data, act, x, forces, wrench, base0, t0, t, base_mode, legs, k1, NULL, &memo);
         if (d < dmin) dmin = d;
         if (!rk4) {
             for (int k = 0; k < nx; k++) x[k] += dt * k1[k];
             continue;
         }
         for (int k = 0; k < nx; k++) xs[k] = x[k] + 0.5 * dt * k1[k];
-        d = mb_hexapod_rhs_actuated(bj, pj, data, act, xs, forces, wrench, base0, t0, t + 0.5 * dt, base_mode, legs,
-                                    k2, NULL);
+        d = rhs(bj, pj, data, act, xs, forces, wrench, base0, t0, t + 0.5 * dt, base_mode, legs, k2, NULL, &memo);
         if (d < dmin) dmin = d;
         for (int k = 0; k < nx; k++) xs[k] = x[k] + 0.5 * dt * k2[k];
-        d = mb_hexapod_rhs_actuated(bj, pj, data, act, xs, forces, wrench, base0, t0, t + 0.5 * dt, base_mode, legs,
-                                    k3, NULL);
+        d = rhs(bj, pj, data, act, xs, forces, wrench, base0, t0, t + 0.5 * dt, base_mode, legs, k3, NULL, &memo);
         if (d < dmin) dmin = d;
         for (int k = 0; k < nx; k++) xs[k] = x[k] + dt * k3[k];
-        d = mb_hexapod_rhs_actuated(bj, pj, data, act, xs, forces, wrench, base0, t0, t + dt, base_mode, legs, k4,
-                                    NULL);
+        d = rhs(bj, pj, data, act, xs, forces, wrench, base0, t0, t + dt, base_mode, legs, k4, NULL, &memo);
         if (d < dmin) dmin = d;
         for (int k = 0; k < nx; k++) x[k] += dt / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k]);
     }
