@@ -136,3 +136,21 @@ uint64_t digest(const double *params, const double *home, long n)
     }
     return hash;
 }
+
+#ifdef KERNEL_FLOOR_MAIN
+#include <stdio.h>
+#include <stdlib.h>
+/* The driver bench_kernel.py --callgrind runs under callgrind: argv[1] a file of the
+   numbers kernel_time takes (params 47, x0 18, inputs 30, act 6), argv[2] the steps. */
+int main(int argc, char **argv)
+{
+    double v[47 + 18 + 30 + 6];
+    FILE *f = argc == 3 ? fopen(argv[1], "r") : NULL;
+    if (!f) return 2;
+    for (size_t i = 0; i < sizeof v / sizeof v[0]; i++)
+        if (fscanf(f, "%lf", &v[i]) != 1) return 2;
+    fclose(f);
+    printf("%g\n", kernel_time(v, v + 47, v + 65, v + 95, atol(argv[2])));
+    return 0;
+}
+#endif
