@@ -522,9 +522,12 @@ static double rhs(const double *bj, const double *pj, const double *data, const 
     double tau = t - t0;
     const double *forces = command;
     if (act) {
-        if (act[MB_ACT_COULOMB] != 0.0 || act[MB_ACT_VISCOUS] != 0.0) leg_rates(bj, pj, x, ld);
-        delivered(act, x, command, ld, f);
-        forces = f;
+        int friction = act[MB_ACT_COULOMB] != 0.0 || act[MB_ACT_VISCOUS] != 0.0;
+        if (friction) leg_rates(bj, pj, x, ld);
+        if (friction || act[MB_ACT_BANDWIDTH] > 0.0 || act[MB_ACT_FORCE_LIMIT] > 0.0) {
+            delivered(act, x, command, ld, f);
+            forces = f;
+        }   /* else delivered would copy the command */
         if (act[MB_ACT_BANDWIDTH] > 0.0) {   /* dF/dt = 2 pi f_bw (F_cmd - F) */
             double rate = 2.0 * M_PI * act[MB_ACT_BANDWIDTH];
             for (int j = 0; j < 6; j++) dx[12 + j] = rate * (clamp(command[j], act[MB_ACT_FORCE_LIMIT]) - x[12 + j]);
@@ -536,13 +539,16 @@ static double rhs(const double *bj, const double *pj, const double *data, const 
     if (memo && memo->valid && memo->t == t) {
         bf = memo->f;
     } else {
-        if (base_mode != MB_HEXAPOD_BASE_NONE)
+        if (base_mode == MB_HEXAPOD_BASE_NONE) {
+            bf = base_terms(base_mode, data[10], NULL, NULL, NULL, 0);
+        } else {
             for (int k = 0; k < 6; k++) {
                 base[k] = base0[k] + tau * base0[6 + k] + 0.5 * tau * tau * base0[12 + k];
                 base[6 + k] = base0[6 + k] + tau * base0[12 + k];
                 base[12 + k] = base0[12 + k];
             }
-        bf = base_terms(base_mode, data[10], base, base + 6, base + 12, 0);
+            bf = base_terms(base_mode, data[10], base, base + 6, base + 12, 0);
+        }
         if (memo) {
             memo->valid = 1;
             memo->t = t;
@@ -611,7 +617,8 @@ static int advance(int rk4, int substeps, const double *bj, const double *pj, co
         for (int k = 24; k < 30; k++)
             if (inputs[k] != 0.0) wrench = inputs + 24;
     double dt = h / substeps, dmin = INFINITY, d;
-    base_memo memo = {0, 0.0, {{{0.0}}}};
+    base_memo memo;
+    memo.valid = 0;
     for (int n = 0; n < substeps; n++) {
         double t = t0 + n * dt;
         d = rhs(bj, pj, data, act, x, forces, wrench, base0, t0, t, base_mode, legs, k1, NULL, &memo);

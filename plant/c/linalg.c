@@ -65,7 +65,7 @@ static inline __attribute__((always_inline)) double eliminate6(const double *A, 
         UNROLL
         for (int k = 0; k < 6; k++) rows[r].s[k] = A[6 * r + k];
         R[r] = &rows[r];
-        if (b_in) b[r] = b_in[r];
+        b[r] = b_in ? b_in[r] : 0.0;
     }
     UNROLL
     for (int c = 0; c < 6; c++) {
@@ -80,7 +80,9 @@ static inline __attribute__((always_inline)) double eliminate6(const double *A, 
         if (p != c) {
             row6 *tmp = R[c]; R[c] = R[p]; R[p] = tmp;
             det = -det;
-            double t = b[c]; b[c] = b[p]; b[p] = t;
+            if (b_in) {
+                double t = b[c]; b[c] = b[p]; b[p] = t;
+            }
         }
         const row6 *pivot = R[c];
         det *= pivot->s[c];
