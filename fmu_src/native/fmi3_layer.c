@@ -12,6 +12,7 @@
    Enumerations read and written as Int64; the FMI 3 logger (text only, never a format);
    fmi3DoStep's out arguments. The FMU has no event mode, no clocks, no intermediate
    update and no model exchange: those calls answer fmi3Error with a log line. */
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -41,6 +42,8 @@ typedef struct {
     fmi3LogMessageCallback log;
     int phase;
     double start_time;   /* time before the first step (the FMI 2 layer reports the last step's) */
+    int stop_defined;    /* fmi3EnterInitializationMode's stopTime: no step may pass it (FMI 3.0) */
+    double stop_time;
     unsigned char kind3[MB3_NVARS + 1];
     int count3[MB3_NVARS + 1];
     fmi2ValueReference vr2[MB3_NVARS];   /* vr2[k] = k: the FMI 2 element value references */
@@ -84,6 +87,7 @@ static void say(instance3 *inst, fmi3Status status, const char *category, const 
 /* The inner layer names its own functions; its log lines are shown under the FMI 3 names. */
 static const char *const RENAMES[][2] = {
     {"fmi2GetReal", "fmi3GetFloat64"}, {"fmi2SetReal", "fmi3SetFloat64"},
+    {"fmi2SerializeFMUstate", "fmi3SerializeFMUState"}, {"fmi2DeSerializeFMUstate", "fmi3DeserializeFMUState"},
     {"fmi2GetInteger", "fmi3GetInt32"}, {"fmi2SetInteger", "fmi3SetInt32"},
     {"fmi2SetupExperiment", "fmi3EnterInitializationMode"}, {"fmi2Instantiate", "fmi3InstantiateCoSimulation"},
     {"fmi2", "fmi3"}};
@@ -238,10 +242,16 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
                                        fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime)
 {
     INSTANCE("fmi3EnterInitializationMode", P_INSTANTIATED)
+    /* misuse harness: a stopTime before the startTime was accepted, and steps past it ran */
+    if (stopTimeDefined && isfinite(startTime) && !(stopTime >= startTime))
+        return FAIL(inst, "fmi3EnterInitializationMode: stopTime %.17g s is before startTime %.17g s", stopTime,
+                    startTime);
     fmi2Status s = fmi2SetupExperiment(inst->inner, toleranceDefined, tolerance, startTime, stopTimeDefined,
                                            stopTime);
     if (s > fmi2Warning) return (fmi3Status)s;
     inst->start_time = startTime;
+    inst->stop_defined = stopTimeDefined != fmi3False;
+    inst->stop_time = stopTime;
     s = fmi2EnterInitializationMode(inst->inner);
     if (s <= fmi2Warning) inst->phase = P_INITIALIZATION;
     return (fmi3Status)s;
@@ -431,6 +441,16 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     INSTANCE("fmi3DoStep", P_STEP)
     if (!eventHandlingNeeded || !terminateSimulation || !earlyReturn || !lastSuccessfulTime)
         return FAIL(inst, "fmi3DoStep: an out argument is NULL");
+    /* FMI 3.0: a step past a defined stopTime is an error (the tolerance: the inner layer's
+       for the communication point, so a last step ending at stopTime by sums of h runs) */
+    double end = currentCommunicationPoint + communicationStepSize;
+    /* misuse harness: at t = 1e300 a step of 1 ms left the time where it was and ran (OK) */
+    if (communicationStepSize > 0 && end == currentCommunicationPoint)
+        return FAIL(inst, "fmi3DoStep: a step of %.17g s does not advance the time %.17g s (below its resolution)",
+                    communicationStepSize, currentCommunicationPoint);
+    if (inst->stop_defined && end > inst->stop_time + 1e-9 * fmax(1.0, fabs(inst->stop_time)))
+        return FAIL(inst, "fmi3DoStep: the step to t=%.17g s passes the stopTime %.17g s set at initialization", end,
+                    inst->stop_time);
     fmi2Status s = fmi2DoStep(inst->inner, currentCommunicationPoint, communicationStepSize,
                                   noSetFMUStatePriorToCurrentPoint);
     fmi2Real last = currentCommunicationPoint;
