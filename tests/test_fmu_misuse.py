@@ -557,6 +557,30 @@ def test_fmi3_a_failed_instance_is_step_discarded(native3, model):
     assert any("not allowed in state StepDiscarded" in line for line in answers.logs), answers.logs
 
 
+BAD_VALUES = [math.nan, math.inf, -math.inf, 1e300, -1e300, 5e-324]
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_fmi3_no_ok_with_a_non_finite_output_for_any_bad_value(native3, model):
+    """Every Float64 parameter and input (an array: every element) set to NaN, +-inf,
+    +-1e300 or the smallest subnormal, then initialization, two steps and every output
+    read: no call answers OK with a non-finite output, every other answer follows a log
+    line. It found: after an initialization refused for NaN outputs (SliderController's
+    amplitude 1e300, LegSensor's resolution 5e-324, BaseSensor's axis_rate 1e300, ...),
+    fmi3GetFloat64 read the NaN outputs back with fmi3OK (FMI 2.0's GetReal still does)."""
+    fmu = native3[model]
+    outputs = [v.name for v in fmu.md.modelVariables if v.causality == "output"]
+    settable = [v.name for v in fmu.md.modelVariables if v.causality in ("parameter", "input") and v.type == "Float64"]
+    refused = 0
+    for name in settable:
+        for value in BAD_VALUES:
+            answers = run3(fmu, "inst", "-", "-", "setf", ("vr", name), fmu.count(name), *[value] * fmu.count(name),
+                           *INIT3, "step", 0.0, 1e-3, "step", 1e-3, 1e-3, *(("get", o) for o in outputs))
+            assert all(math.isfinite(x) for v in answers.vectors for x in v), (name, value, answers.lines)
+            refused += any(status != "OK" for _, status in answers.calls[1:])
+    assert refused > 0   # the values do reach the model
+
+
 @pytest.mark.parametrize("model", MODELS)
 def test_fmi3_a_huge_step_is_served_or_refused(native3, model):
     """A step of 1e300 s: a model that integrates (the plants, the telescope's servo, the

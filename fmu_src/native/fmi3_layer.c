@@ -328,6 +328,12 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
         }
         fmi2Status s = fmi2GetReal(inst->inner, &inst->vr2[vr[k]], (size_t)inst->count3[vr[k]], values);
         if (s > fmi2Warning) return (fmi3Status)s;
+        /* misuse harness: after an initialization refused for a non-finite output (say
+           amplitude = 1e300), the outputs were read back NaN with fmi3OK */
+        for (int e = 0; e < inst->count3[vr[k]]; e++)
+            if (MB_MODEL.vars[vr[k] + (fmi3ValueReference)e].causality == MB_OUTPUT && !isfinite(values[e]))
+                return FAIL(inst, "fmi3GetFloat64: output %s is %g (not finite: its initialization was refused)",
+                            MB_MODEL.vars[vr[k] + (fmi3ValueReference)e].name, values[e]);
         values += inst->count3[vr[k]];
     }
     return fmi3OK;
