@@ -582,6 +582,22 @@ def test_fmi3_no_ok_with_a_non_finite_output_for_any_bad_value(native3, model):
 
 
 @pytest.mark.parametrize("model", MODELS)
+def test_fmi3_integers_and_enumerations_outside_their_range_are_refused(native3, model):
+    """Every Int32 and Enumeration parameter one below its min, one above its max and at
+    the Int32 extremes (Set answers OK: a value is checked with the others at
+    initialization): fmi3ExitInitializationMode answers fmi3Error naming the parameter."""
+    fmu = native3[model]
+    integers = [v for v in fmu.md.modelVariables if v.type in ("Int32", "Enumeration") and v.causality == "parameter"]
+    for v in integers:
+        call = "seti64" if v.type == "Enumeration" else "seti32"
+        low, high = int(v.min), int(v.max)
+        for value in sorted(x for x in {low - 1, high + 1, -2 ** 31, 2 ** 31 - 1} if not low <= x <= high):
+            answers = run(fmu, "inst", "-", "-", call, ("vr", v.name), value, *INIT3)
+            assert answers.statuses("fmi3ExitInitializationMode") == ["Error"], (v.name, value, answers.lines)
+            assert f"parameter {v.name} = " in answers.logs[-1] and "outside its valid range" in answers.logs[-1]
+
+
+@pytest.mark.parametrize("model", MODELS)
 def test_fmi3_a_huge_step_is_served_or_refused(native3, model):
     """A step of 1e300 s: a model that integrates (the plants, the telescope's servo, the
     controller's integral) refuses it with Discard past its work bound or a non-finite
