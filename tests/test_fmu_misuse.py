@@ -493,8 +493,11 @@ def test_fmi3_the_time_and_the_arrays_by_value_reference(native3, model):
         assert any(f"cover {n} values, nValues is {n + 1}" in line for line in answers.logs), answers.logs
     if enum:
         answers = run(fmu, "inst", "-", "-", "seti64", ("vr", enum), 2 ** 40, "getf", ("vr", enum), 1, *INIT3,
-                      "geti64", ("vr", enum), "geti32", ("vr", enum))
-        assert answers.statuses("fmi3SetInt64") == ["Error"] and "outside the Int32 range" in answers.logs[0]
+                      "geti64", ("vr", enum), "geti32", ("vr", enum), "seti64", ("vr", enum), 0)
+        assert answers.statuses("fmi3SetInt64") == ["Error", "Error"] and "outside the Int32 range" in answers.logs[0]
+        # a fixed parameter after initialization: the inner layer's line under the call's own name
+        assert answers.logs[-1].startswith(f"Error logStatusError: fmi3SetInt64: parameter {enum} is fixed"), \
+            answers.logs
         assert answers.statuses("fmi3GetFloat64") == ["Error"] and answers.statuses("fmi3GetInt64") == ["OK"]
         assert answers.statuses("fmi3GetInt32") == ["Error"]
 
