@@ -174,6 +174,33 @@ def test_ecos_reads_an_array_as_one_value(fmi3, capfd, model, array, scalar_inpu
     assert f"Error fmi3SetFloat64: the value references cover {expected}" in log, log[-2000:]
 
 
+@needs_ecos
+def test_ecos_steps_on_past_a_discard_and_errors(fmi3, capfd):
+    """A step our FMU refuses (BaseSensor, an axis of 1e300: non-finite accelerations)
+    answers fmi3Discard with terminateSimulation; ecos 0.7.2 steps on as with FMI 2.0
+    (tests/test_ecos.py): every later fmi3DoStep answers fmi3Error (not allowed in
+    StepDiscarded), ecos's time advances with no error, and the outputs stay those of the
+    last accepted step. The lines show only at its debug log level."""
+    path = next(p for p in fmi3.values() if p.stem == "BaseSensor")
+    names = [v.name for v in scalar_outputs(path)]
+    EcosLib.set_log_level("debug")
+    try:
+        with ecos_run({"m": path}, H) as sim:
+            sim.set_real("m::axis[1]", 0.3)
+            sim.step()
+            accepted = [sim.get_real("m::" + n) for n in names]
+            sim.set_real("m::axis[1]", 1e300)
+            for _ in range(3):
+                sim.step()
+            time, after = sim.get_time(), [sim.get_real("m::" + n) for n in names]
+    finally:
+        EcosLib.set_log_level("err")
+    log = capfd.readouterr().out
+    assert "Discard NonFiniteOutputError at t=0.001 s" in log, log[-2000:]
+    assert log.count("Error fmi3DoStep: not allowed in state StepDiscarded") == 2, log[-2000:]
+    assert time == sum([H] * 4) and after == accepted and any(x != 0 for x in accepted)
+
+
 def _elements(descriptions, reference):
     inst = reference.split(".", 1)[0]
     return [f"{inst}::{n}" for n in spec.expand({v.name for v in descriptions[inst].modelVariables}, reference)]
