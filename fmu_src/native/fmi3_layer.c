@@ -12,6 +12,7 @@
    Enumerations read and written as Int64; the FMI 3 logger (text only, never a format);
    fmi3DoStep's out arguments. The FMU has no event mode, no clocks, no intermediate
    update and no model exchange: those calls answer fmi3Error with a log line. */
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -41,6 +42,9 @@ typedef struct {
     fmi3LogMessageCallback log;
     int phase;
     double start_time;   /* time before the first step (the FMI 2 layer reports the last step's) */
+    const char *integer_call;   /* the fmi3 Int32/Int64 call under way: the inner layer's Integer lines name it */
+    int stop_defined;    /* fmi3EnterInitializationMode's stopTime: no step may pass it (FMI 3.0) */
+    double stop_time;
     unsigned char kind3[MB3_NVARS + 1];
     int count3[MB3_NVARS + 1];
     fmi2ValueReference vr2[MB3_NVARS];   /* vr2[k] = k: the FMI 2 element value references */
@@ -84,6 +88,7 @@ static void say(instance3 *inst, fmi3Status status, const char *category, const 
 /* The inner layer names its own functions; its log lines are shown under the FMI 3 names. */
 static const char *const RENAMES[][2] = {
     {"fmi2GetReal", "fmi3GetFloat64"}, {"fmi2SetReal", "fmi3SetFloat64"},
+    {"fmi2SerializeFMUstate", "fmi3SerializeFMUState"}, {"fmi2DeSerializeFMUstate", "fmi3DeserializeFMUState"},
     {"fmi2GetInteger", "fmi3GetInt32"}, {"fmi2SetInteger", "fmi3SetInt32"},
     {"fmi2SetupExperiment", "fmi3EnterInitializationMode"}, {"fmi2Instantiate", "fmi3InstantiateCoSimulation"},
     {"fmi2", "fmi3"}};
@@ -99,7 +104,14 @@ static void inner_logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Stat
     vsnprintf(text, sizeof text, fmt, ap);
     va_end(ap);
     const char *out = text;
-    for (size_t k = 0; k < sizeof RENAMES / sizeof RENAMES[0]; k++) {
+    /* misuse harness: a refused fmi3SetInt64 logged "fmi3SetInt32: ..." */
+    size_t integer = strlen("fmi2SetInteger");
+    if (inst && inst->integer_call && (strncmp(text, "fmi2SetInteger", integer) == 0 ||
+                                       strncmp(text, "fmi2GetInteger", integer) == 0)) {
+        snprintf(renamed, sizeof renamed, "%s%s", inst->integer_call, text + integer);
+        out = renamed;
+    }
+    for (size_t k = 0; out == text && k < sizeof RENAMES / sizeof RENAMES[0]; k++) {
         size_t n = strlen(RENAMES[k][0]);
         if (strncmp(text, RENAMES[k][0], n) == 0) {
             snprintf(renamed, sizeof renamed, "%s%s", RENAMES[k][1], text + n);
@@ -238,10 +250,16 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
                                        fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime)
 {
     INSTANCE("fmi3EnterInitializationMode", P_INSTANTIATED)
+    /* misuse harness: a stopTime before the startTime was accepted, and steps past it ran */
+    if (stopTimeDefined && isfinite(startTime) && !(stopTime >= startTime))
+        return FAIL(inst, "fmi3EnterInitializationMode: stopTime %.17g s is before startTime %.17g s", stopTime,
+                    startTime);
     fmi2Status s = fmi2SetupExperiment(inst->inner, toleranceDefined, tolerance, startTime, stopTimeDefined,
                                            stopTime);
     if (s > fmi2Warning) return (fmi3Status)s;
     inst->start_time = startTime;
+    inst->stop_defined = stopTimeDefined != fmi3False;
+    inst->stop_time = stopTime;
     s = fmi2EnterInitializationMode(inst->inner);
     if (s <= fmi2Warning) inst->phase = P_INITIALIZATION;
     return (fmi3Status)s;
@@ -318,6 +336,12 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
         }
         fmi2Status s = fmi2GetReal(inst->inner, &inst->vr2[vr[k]], (size_t)inst->count3[vr[k]], values);
         if (s > fmi2Warning) return (fmi3Status)s;
+        /* misuse harness: after an initialization refused for a non-finite output (say
+           amplitude = 1e300), the outputs were read back NaN with fmi3OK */
+        for (int e = 0; e < inst->count3[vr[k]]; e++)
+            if (MB_MODEL.vars[vr[k] + (fmi3ValueReference)e].causality == MB_OUTPUT && !isfinite(values[e]))
+                return FAIL(inst, "fmi3GetFloat64: output %s is %g (not finite: its initialization was refused)",
+                            MB_MODEL.vars[vr[k] + (fmi3ValueReference)e].name, values[e]);
         values += inst->count3[vr[k]];
     }
     return fmi3OK;
@@ -348,7 +372,9 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
         for (size_t k = 0; k < nvr; k++)                                                                         \
             for (int e = 0; e < inst->count3[vr[k]]; e++) {                                                            \
                 fmi2Integer v;                                                                                   \
+                inst->integer_call = "fmi3Get" #NAME;                                                            \
                 fmi2Status s = fmi2GetInteger(inst->inner, &inst->vr2[vr[k] + (fmi3ValueReference)e], 1, &v);      \
+                inst->integer_call = NULL;                                                                       \
                 if (s > fmi2Warning) return (fmi3Status)s;                                                       \
                 values[at++] = (TYPE)v;                                                                          \
             }                                                                                                    \
@@ -367,7 +393,9 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
                     return FAIL(inst, "fmi3Set" #NAME ": %s = %lld is outside the Int32 range",                 \
                                 MB_MODEL.vars[vr[k]].name, (long long)v);                                        \
                 fmi2Integer w = (fmi2Integer)v;                                                                  \
+                inst->integer_call = "fmi3Set" #NAME;                                                            \
                 fmi2Status s = fmi2SetInteger(inst->inner, &inst->vr2[vr[k] + (fmi3ValueReference)e], 1, &w);     \
+                inst->integer_call = NULL;                                                                       \
                 if (s > fmi2Warning) return (fmi3Status)s;                                                       \
             }                                                                                                    \
         return fmi3OK;                                                                                           \
@@ -431,6 +459,16 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     INSTANCE("fmi3DoStep", P_STEP)
     if (!eventHandlingNeeded || !terminateSimulation || !earlyReturn || !lastSuccessfulTime)
         return FAIL(inst, "fmi3DoStep: an out argument is NULL");
+    /* FMI 3.0: a step past a defined stopTime is an error (the tolerance: the inner layer's
+       for the communication point, so a last step ending at stopTime by sums of h runs) */
+    double end = currentCommunicationPoint + communicationStepSize;
+    /* misuse harness: at t = 1e300 a step of 1 ms left the time where it was and ran (OK) */
+    if (communicationStepSize > 0 && end == currentCommunicationPoint)
+        return FAIL(inst, "fmi3DoStep: a step of %.17g s does not advance the time %.17g s (below its resolution)",
+                    communicationStepSize, currentCommunicationPoint);
+    if (inst->stop_defined && end > inst->stop_time + 1e-9 * fmax(1.0, fabs(inst->stop_time)))
+        return FAIL(inst, "fmi3DoStep: the step to t=%.17g s passes the stopTime %.17g s set at initialization", end,
+                    inst->stop_time);
     fmi2Status s = fmi2DoStep(inst->inner, currentCommunicationPoint, communicationStepSize,
                                   noSetFMUStatePriorToCurrentPoint);
     fmi2Real last = currentCommunicationPoint;
