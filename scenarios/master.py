@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._cosim import ffi, lib
-from .fmi import _LABELS, FmuError, Instance, RealPort
+from .fmi import _LABELS, FmuError, Instance, Instance3, RealPort
 from . import flags as run_flags
 from .records import Records
 from .spec import Link, expand
@@ -146,7 +146,8 @@ def _address(function):
 class Loop:
     """The stepping of the master, in C (scenarios/c/cosim.c through cffi): each macro
     step writes the connected inputs, steps the FMUs and reads their outputs with the
-    FMUs' own fmi2SetReal/fmi2DoStep/fmi2GetReal, for Jacobi (inputs from the outputs
+    FMUs' own fmi2SetReal/fmi2DoStep/fmi2GetReal (FMI 3.0: fmi3SetFloat64/fmi3DoStep/
+    fmi3GetFloat64 on whole arrays, as RealPort3 plans them), for Jacobi (inputs from the outputs
     of t_k, optionally extrapolated) or Gauss-Seidel (in ``order``, inputs whose source
     has not stepped yet extrapolated). A Python loop making the same calls cost ~16 us
     more per macro step of three FMUs (benchmarks/bench_scenarios.py); this adds under
@@ -161,16 +162,31 @@ class Loop:
         for i, (inst, instance) in enumerate(zip(order, self.instances)):
             f = fmus[i]
             f.component = ffi.cast("void *", instance.fmu.component)
-            f.do_step = ffi.cast("cosim_do_step_fn", _address(instance.raw("fmi2DoStep")))
-            f.get_real = ffi.cast("cosim_get_real_fn", _address(instance.raw("fmi2GetReal")))
-            f.set_real = ffi.cast("cosim_set_real_fn", _address(instance.raw("fmi2SetReal")))
+            fmi3 = isinstance(instance, Instance3)
+            if fmi3:
+                f.fmi3 = g = self._new("cosim_fmi3 *")
+                g.do_step = ffi.cast("cosim_do_step3_fn", _address(instance.raw("fmi3DoStep")))
+                g.get_float64 = ffi.cast("cosim_get_float64_fn", _address(instance.raw("fmi3GetFloat64")))
+                g.set_float64 = ffi.cast("cosim_set_float64_fn", _address(instance.raw("fmi3SetFloat64")))
+            else:
+                f.do_step = ffi.cast("cosim_do_step_fn", _address(instance.raw("fmi2DoStep")))
+                f.get_real = ffi.cast("cosim_get_real_fn", _address(instance.raw("fmi2GetReal")))
+                f.set_real = ffi.cast("cosim_set_real_fn", _address(instance.raw("fmi2SetReal")))
             f.time = instance.time
             if inst in exchange.read_ports:
                 port, where = exchange.read_ports[inst]
                 f.read_vr = self._new("unsigned int[]", [instance.vr(n) for n in port.names])
                 f.n_read, f.read_at = port.n, where.start
+                if fmi3:
+                    g.read_vr, g.n_read_vr = self._new("unsigned int[]", port.vrs3), len(port.vrs3)
+                    g.read_index, g.n_read_values = self._new("size_t[]", port.index.tolist()), port.total
+                    g.read_values = self._new("double[]", port.total)
             if inst in exchange.write_ports:
                 port, idx, sources = exchange.write_ports[inst]
+                if fmi3:
+                    g.write_vr, g.n_write_vr = self._new("unsigned int[]", port.vrs3), len(port.vrs3)
+                    g.write_index, g.n_write_values = self._new("size_t[]", port.index.tolist()), port.total
+                    g.write_values, g.write_partial = self._new("double[]", port.total), port.partial
                 f.write_vr = self._new("unsigned int[]", [instance.vr(n) for n in port.names])
                 f.n_write = port.n
                 f.write_from = self._new("size_t[]", idx.tolist())

@@ -13,6 +13,35 @@ static int failed(cosim_master *m, size_t fmu, int call, int status)
     return 1;
 }
 
+/* FMI 3.0: the elements of write_buf into their variables' values, set in one call; the
+   values not connected keep what the FMU holds. */
+static int set_float64(cosim_fmu *f)
+{
+    cosim_fmi3 *g = f->fmi3;
+    size_t j;
+    int status;
+    if (g->write_partial) {
+        status = g->get_float64(f->component, g->write_vr, g->n_write_vr, g->write_values, g->n_write_values);
+        if (status > 1)
+            return status;
+    }
+    for (j = 0; j < f->n_write; j++)
+        g->write_values[g->write_index[j]] = f->write_buf[j];
+    return g->set_float64(f->component, g->write_vr, g->n_write_vr, g->write_values, g->n_write_values);
+}
+
+/* FMI 3.0: the variables holding the read elements in one call, the elements into y. */
+static int get_float64(cosim_fmu *f, double *y)
+{
+    cosim_fmi3 *g = f->fmi3;
+    size_t j;
+    int status = g->get_float64(f->component, g->read_vr, g->n_read_vr, g->read_values, g->n_read_values);
+    if (status <= 1)
+        for (j = 0; j < f->n_read; j++)
+            y[j] = g->read_values[g->read_index[j]];
+    return status;
+}
+
 static int write_inputs(cosim_master *m, size_t i, int extrapolate)
 {
     cosim_fmu *f = &m->fmus[i];
@@ -28,7 +57,7 @@ static int write_inputs(cosim_master *m, size_t i, int extrapolate)
             u = u + f->write_half[j] * (u - m->y_prev[f->write_from[j]]);
         f->write_buf[j] = u;
     }
-    status = f->set_real(f->component, f->write_vr, f->n_write, f->write_buf);
+    status = f->fmi3 ? set_float64(f) : f->set_real(f->component, f->write_vr, f->n_write, f->write_buf);
     return status > 1 ? failed(m, i, COSIM_SET_REAL, status) : 0;
 }
 
@@ -37,7 +66,12 @@ static int do_step(cosim_master *m, size_t i, double t)
     cosim_fmu *f = &m->fmus[i];
     int status;
     f->time = t;
-    status = f->do_step(f->component, t, m->h, 1);
+    if (f->fmi3) {   /* a refused step answers Discard (terminateSimulation set): the run stops either way */
+        _Bool event, terminate, early;
+        double last;
+        status = f->fmi3->do_step(f->component, t, m->h, 1, &event, &terminate, &early, &last);
+    } else
+        status = f->do_step(f->component, t, m->h, 1);
     return status > 1 ? failed(m, i, COSIM_DO_STEP, status) : 0;
 }
 
@@ -47,7 +81,7 @@ static int read_outputs(cosim_master *m, size_t i)
     int status;
     if (f->n_read == 0)
         return 0;
-    status = f->get_real(f->component, f->read_vr, f->n_read, m->y + f->read_at);
+    status = f->fmi3 ? get_float64(f, m->y + f->read_at) : f->get_real(f->component, f->read_vr, f->n_read, m->y + f->read_at);
     return status > 1 ? failed(m, i, COSIM_GET_REAL, status) : 0;
 }
 

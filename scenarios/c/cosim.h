@@ -1,7 +1,8 @@
 /* The stepping loop of the co-simulation master (scenarios/master.py): K macro steps of
-   Jacobi or Gauss-Seidel over FMI 2.0 co-simulation instances, called through cffi with
-   the instances' own fmi2DoStep/fmi2GetReal/fmi2SetReal, so a macro step costs the FMUs'
-   work and no Python. Plain declarations only (kernel_build.py strips preprocessor lines). */
+   Jacobi or Gauss-Seidel over FMI 2.0 and FMI 3.0 co-simulation instances, called through
+   cffi with the instances' own fmi2DoStep/fmi2GetReal/fmi2SetReal or fmi3DoStep/
+   fmi3GetFloat64/fmi3SetFloat64, so a macro step costs the FMUs' work and no Python.
+   Plain declarations only (kernel_build.py strips preprocessor lines). */
 #include <stddef.h>
 
 /* FMI 2.0 (fmi2FunctionTypes.h): fmi2Status is an int-sized enum, fmi2Component void *,
@@ -10,8 +11,38 @@ typedef int (*cosim_do_step_fn)(void *component, double t, double h, int no_set_
 typedef int (*cosim_get_real_fn)(void *component, const unsigned int vr[], size_t nvr, double value[]);
 typedef int (*cosim_set_real_fn)(void *component, const unsigned int vr[], size_t nvr, const double value[]);
 
+/* FMI 3.0 (fmi3FunctionTypes.h): fmi3Status an int-sized enum, fmi3Instance void *,
+   fmi3ValueReference uint32_t, fmi3Float64 double, fmi3Boolean bool. */
+typedef int (*cosim_do_step3_fn)(void *instance, double t, double h, _Bool no_set_prior_state,
+                                 _Bool *event_handling_needed, _Bool *terminate_simulation,
+                                 _Bool *early_return, double *last_successful_time);
+typedef int (*cosim_get_float64_fn)(void *instance, const unsigned int vr[], size_t nvr, double values[], size_t n_values);
+typedef int (*cosim_set_float64_fn)(void *instance, const unsigned int vr[], size_t nvr, const double values[], size_t n_values);
+
+/* An FMI 3.0 instance's side of the exchange: the master's element lists (cosim_fmu's
+   read_vr/write_vr, as FMI 2.0 numbers the elements) lie in whole FMI 3 variables (an
+   array of 6 is one value reference): those are read/written in one call into a buffer
+   of all their values, element j at buffer[index[j]]. */
+typedef struct {
+    cosim_do_step3_fn do_step;
+    cosim_get_float64_fn get_float64;
+    cosim_set_float64_fn set_float64;
+    const unsigned int *read_vr;   /* the variables holding cosim_fmu's read elements */
+    size_t n_read_vr;
+    size_t n_read_values;
+    const size_t *read_index;      /* cosim_fmu's read element j is read_values[read_index[j]] */
+    double *read_values;
+    const unsigned int *write_vr;  /* the variables holding its write elements */
+    size_t n_write_vr;
+    size_t n_write_values;
+    const size_t *write_index;
+    double *write_values;
+    int write_partial;             /* some of those values are not written: read them first */
+} cosim_fmi3;
+
 typedef struct {
     void *component;
+    cosim_fmi3 *fmi3;              /* NULL: an FMI 2.0 instance, stepped by the three below */
     cosim_do_step_fn do_step;
     cosim_get_real_fn get_real;
     cosim_set_real_fn set_real;
@@ -41,7 +72,7 @@ typedef struct {
     int extrapolate;               /* linear extrapolation of held inputs */
     double t0;
     double h;
-    int failed_fmu;                /* on a status above fmi2Warning: which fmu, call, status */
+    int failed_fmu;                /* on a status above Warning: which fmu, call, status */
     int failed_call;
     int failed_status;
 } cosim_master;
