@@ -2,6 +2,7 @@
 against their FMI 2.0 builds, the independent truth here: the same description
 translated, the same numbers bit for bit (one model file and kernel behind both), and
 FMI 3.0's states and misuse answered as the standard says, with a log line."""
+import csv
 import xml.etree.ElementTree as ET
 import zipfile
 from ctypes import CFUNCTYPE, POINTER, byref, c_bool, c_double, c_int, c_void_p
@@ -14,7 +15,7 @@ from fmpy.validation import validate_fmu
 
 from movingbase.fmu_src import builder, native_build
 from movingbase.fmu_src.telescope_fmu import PROFILES
-from movingbase.scenarios import fmi, runner
+from movingbase.scenarios import campaign, fmi, runner
 from movingbase.scenarios.records import run_records
 from tests.fmu_helpers import OPENED
 
@@ -370,3 +371,50 @@ def test_ssp_export_of_fmi3_fmus_is_refused_by_name(tmp_path):
         main(["--ssp", str(tmp_path / "scene.ssp"), str(scene)])
     assert f"fmus.{instance}.fmi_version" in str(exc.value) and "not exported yet" in str(exc.value)
     assert not (tmp_path / "scene.ssp").exists()
+
+
+def test_part_of_an_array_connected_keeps_the_rest(tmp_path):
+    """Only leg_force[2..6] of the plant connected (an FMI 3 array written in part by the
+    C loop, leg_force[1] held at the value set at initialization): the records equal the FMI 2 run's
+    bit for bit. Writing the array without reading it first would zero leg_force[1]."""
+    text = (runner.SHIPPED / "keyhole_tracking.toml").read_text()
+    whole = 'from = "controller.leg_force"\nto = "plant.leg_force"'
+    assert whole in text
+    parts = "\n[[connections]]\n".join(f'from = "controller.leg_force[{i}]"\nto = "plant.leg_force[{i}]"'
+                                       for i in range(2, 7))
+    scene = tmp_path / "part.toml"
+    text = text.replace(whole, parts).replace('stop_time = "8 s"', 'stop_time = "3 s"')
+    scene.write_text(text.replace('max_step = "1 ms",', 'max_step = "1 ms", "leg_force[1]" = 5.3e3,'))
+    runs = {v: runner.run_scenario(scene, tmp_path / str(v), ci=True, progress=False, fmi_version=v,
+                                   allow_unstable=True)[1] for v in (2, 3)}
+    for a, b in zip(runs[2], runs[3], strict=True):
+        ra, rb = run_records(a), run_records(b)
+        assert (a.failure, a.steps) == (b.failure, b.steps) and a.steps > 10
+        assert ra.values.tobytes() == rb.values.tobytes(), a.label
+        force = ra.names.index("controller.leg_force[1]")
+        assert np.ptp(ra.values[:, force]) > 0    # the controller's force moves; the plant's leg 1 does not get it
+
+
+def test_a_campaign_over_an_fmi3_scenario_runs_fmi3_fmus(tmp_path):
+    """A campaign whose base scenario chooses fmi_version = 3 for every instance: its
+    jobs carry FMI 3.0 FMU files (read from the files themselves), it runs through the
+    engine's worker processes, and its metrics equal those of the same campaign over
+    the FMI 2 scenario exactly."""
+    text = (runner.SHIPPED / "keyhole_tracking.toml").read_text()
+    summaries = {}
+    for version in (2, 3):
+        scene = tmp_path / f"scene{version}.toml"
+        scene.write_text(text.replace("fmu = ", f"fmi_version = {version}\nfmu = "))
+        assert set(runner.spec.load(scene).fmi_versions.values()) == {version}
+        path = tmp_path / f"c{version}.toml"
+        path.write_text(f'name = "c{version}"\nscenario = "{scene}"\nset = {{ stop_time = "2.5 s" }}\n'
+                        '[grid]\n"controller.feedforward" = ["fixed_base", "moving_base"]\n')
+        job_list, files = campaign.jobs(campaign.load(path))
+        versions = {fmi.unpack(files[d])[0].fmiVersion for job in job_list for d in job.fmus.values()}
+        assert versions == {f"{version}.0"}
+        camp, jobs, store, outcome, summary = campaign.run_campaign(path, tmp_path / "out", jobs_=1, progress=False)
+        assert len(outcome.computed) == len(camp.cases) > 1 and not outcome.failed
+        with open(summary) as f:
+            summaries[version] = [{k: v for k, v in row.items() if k != "run_time_s"} for row in csv.DictReader(f)]
+    assert summaries[2] == summaries[3]
+    assert float(summaries[3][0]["leg error rms"]) > 0
