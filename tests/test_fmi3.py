@@ -359,20 +359,6 @@ def test_enumeration_is_set_as_int64(pairs, tmp_path):
     assert assert_same_results(*runs)
 
 
-def test_ssp_export_of_fmi3_fmus_is_refused_by_name(tmp_path):
-    """The SSP export writes SSP 1.0 with FMI 2.0 FMUs: an instance chosen as FMI 3.0
-    stops the export with a scenario error naming its key, and no file is written."""
-    from movingbase.scenarios.__main__ import main
-    text = (runner.SHIPPED / "keyhole_tracking.toml").read_text()
-    instance = text.split("[fmus.", 1)[1].split("]", 1)[0]
-    scene = tmp_path / "scene.toml"
-    scene.write_text(text.replace(f"[fmus.{instance}]", f"[fmus.{instance}]\nfmi_version = 3", 1))
-    with pytest.raises(SystemExit) as exc:
-        main(["--ssp", str(tmp_path / "scene.ssp"), str(scene)])
-    assert f"fmus.{instance}.fmi_version" in str(exc.value) and "not exported yet" in str(exc.value)
-    assert not (tmp_path / "scene.ssp").exists()
-
-
 def test_part_of_an_array_connected_keeps_the_rest(tmp_path):
     """Only leg_force[2..6] of the plant connected (an FMI 3 array written in part by the
     C loop, leg_force[1] held at the value set at initialization): the records equal the FMI 2 run's
