@@ -117,7 +117,9 @@ def _loop(scenario, descriptions, values):
             viscous_friction=get(plant, "viscous_friction"), leg_sensor=sensor is not None,
             rate_cutoff=get(sensor, "rate_cutoff") if sensor else 0.0,
             delay_steps=int(get(sensor, "delay_steps")) if sensor else 0,
-            extrapolate=scenario.extrapolation == "linear", gauss_seidel=scenario.master == "gauss-seidel")
+            # "derivatives" extrapolates the loop's own signals (leg forces, lengths, rates: no
+            # FMU of the loop gives derivatives) linearly, so the loop is the linear one
+            extrapolate=scenario.extrapolation in ("linear", "derivatives"), gauss_seidel=scenario.master == "gauss-seidel")
         return plant, controller, loop, gains
     return None
 

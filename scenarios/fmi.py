@@ -12,7 +12,7 @@ import pathlib
 import re
 import shutil
 import zipfile
-from ctypes import CFUNCTYPE, POINTER, byref, c_bool, c_double, c_int, c_size_t, c_uint, c_void_p
+from ctypes import CFUNCTYPE, POINTER, byref, c_bool, c_double, c_int, c_int32, c_size_t, c_uint, c_void_p
 from functools import lru_cache
 
 import numpy as np
@@ -238,6 +238,7 @@ class RealPort:
 # both; its ports (RealPort3) and the C stepping loop make the FMI 3.0 calls.
 _TYPES3 = {"Float64": "Real", "Int32": "Integer", "Enumeration": "Enumeration"}
 _GET3 = CFUNCTYPE(c_int, c_void_p, POINTER(c_uint), c_size_t, POINTER(c_double), c_size_t)
+_DERIVATIVES3 = CFUNCTYPE(c_int, c_void_p, POINTER(c_uint), c_size_t, POINTER(c_int32), POINTER(c_double), c_size_t)
 _DO_STEP3 = CFUNCTYPE(c_int, c_void_p, c_double, c_double, c_int, POINTER(c_bool), POINTER(c_bool),
                       POINTER(c_bool), POINTER(c_double))
 
@@ -275,6 +276,21 @@ def description(path):
     return _elements(md) if md.fmiVersion.startswith("3") else md
 
 
+def derivative_orders(md3):
+    """FMI 3 output value reference -> the highest order of time derivative
+    fmi3GetOutputDerivatives gives of it: the chain of outputs declared each other's
+    derivative (the Float64 attribute derivative), at most maxOutputDerivativeOrder."""
+    outputs = {v.valueReference for v in md3.modelVariables if v.causality == "output"}
+    derivative_of = {v.derivative.valueReference: v.valueReference for v in md3.modelVariables
+                     if v.valueReference in outputs and getattr(v, "derivative", None) is not None
+                     and v.derivative.valueReference in outputs}
+    top = int(md3.coSimulation.maxOutputDerivativeOrder or 0)
+
+    def order(vr):
+        return 1 + order(derivative_of[vr]) if vr in derivative_of else 0
+    return {vr: min(order(vr), top) for vr in outputs if order(vr) and top}
+
+
 class Instance3(Instance):
     """An FMI 3.0 instance behind Instance's interface (fmpy's FMU3Slave): variables by
     their FMI 2.0 element names, read and written through RealPort3 (whole FMI 3
@@ -301,7 +317,9 @@ class Instance3(Instance):
         dll = self.fmu.dll
         self._raw3 = {"fmi3GetFloat64": _GET3(("fmi3GetFloat64", dll)),
                       "fmi3SetFloat64": _GET3(("fmi3SetFloat64", dll)),
-                      "fmi3DoStep": _DO_STEP3(("fmi3DoStep", dll))}
+                      "fmi3DoStep": _DO_STEP3(("fmi3DoStep", dll)),
+                      "fmi3GetOutputDerivatives": _DERIVATIVES3(("fmi3GetOutputDerivatives", dll))}
+        self.derivative_order = derivative_orders(md3)
         self._step_out = c_bool(), c_bool(), c_bool(), c_double()
 
     def _on_log3(self, environment, status, category, message):

@@ -445,12 +445,36 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
 }
 
 
+/* The derivative of order n of an output is the output declared its n-th time derivative
+   (MB3_DERIVATIVE, from native_build.OUTPUT_DERIVATIVES: the telescope's rate and
+   acceleration outputs, computed analytically with the pose), read at the same point. */
 fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                                     const fmi3Int32 orders[], fmi3Float64 values[], size_t nValues)
 {
-    (void)vr, (void)nvr, (void)orders, (void)values, (void)nValues;
     INSTANCE("fmi3GetOutputDerivatives", P_STEP | P_STEP_DISCARDED | P_TERMINATED)
-    return FAIL(inst, "fmi3GetOutputDerivatives: maxOutputDerivativeOrder is 0");
+    if (MB3_MAX_DERIVATIVE_ORDER == 0)
+        return FAIL(inst, "fmi3GetOutputDerivatives: maxOutputDerivativeOrder is 0");
+    if (!check_refs(inst, "fmi3GetOutputDerivatives", vr, nvr, values, nValues, K_FLOAT64)) return fmi3Error;
+    if (nvr && !orders) return FAIL(inst, "fmi3GetOutputDerivatives: orders is NULL");
+    for (size_t k = 0; k < nvr; k++) {
+        if (vr[k] == VR_TIME || MB_MODEL.vars[vr[k]].causality != MB_OUTPUT)
+            return FAIL(inst, "fmi3GetOutputDerivatives: value reference %u is not an output", (unsigned)vr[k]);
+        if (orders[k] < 1 || orders[k] > MB3_MAX_DERIVATIVE_ORDER)
+            return FAIL(inst, "fmi3GetOutputDerivatives: order %d of %s: orders run from 1 to "
+                        "maxOutputDerivativeOrder %d", (int)orders[k], MB_MODEL.vars[vr[k]].name,
+                        MB3_MAX_DERIVATIVE_ORDER);
+        int d = (int)vr[k];
+        for (int order = 1; order <= orders[k]; order++) {
+            d = MB3_DERIVATIVE[d];
+            if (d < 0)
+                return FAIL(inst, "fmi3GetOutputDerivatives: %s has no derivative of order %d (it has %d)",
+                            MB_MODEL.vars[vr[k]].name, (int)orders[k], order - 1);
+        }
+        fmi2Status s = fmi2GetReal(inst->inner, &inst->vr2[d], (size_t)inst->count3[vr[k]], values);
+        if (s > fmi2Warning) return (fmi3Status)s;
+        values += inst->count3[vr[k]];
+    }
+    return fmi3OK;
 }
 
 /* ------------------------------------------------------------------ FMU states */

@@ -18,6 +18,22 @@ typedef int (*cosim_do_step3_fn)(void *instance, double t, double h, _Bool no_se
                                  _Bool *early_return, double *last_successful_time);
 typedef int (*cosim_get_float64_fn)(void *instance, const unsigned int vr[], size_t nvr, double values[], size_t n_values);
 typedef int (*cosim_set_float64_fn)(void *instance, const unsigned int vr[], size_t nvr, const double values[], size_t n_values);
+typedef int (*cosim_get_derivatives_fn)(void *instance, const unsigned int vr[], size_t nvr, const int orders[],
+                                        double values[], size_t n_values);
+
+/* An FMI 3.0 instance's output derivatives of order o (1, 2), read after each of its
+   steps with fmi3GetOutputDerivatives: the variables holding read elements that have
+   them, in one call into values, element j of them into y_d[o-1][dst[j]]. */
+typedef struct {
+    const unsigned int *vr;
+    size_t n_vr;
+    const int *orders;             /* n_vr times o */
+    double *values;
+    size_t n_values;
+    const size_t *src;             /* element j is values[src[j]] ... */
+    const size_t *dst;             /* ... and goes to y_d[o-1][dst[j]] */
+    size_t n;
+} cosim_derivatives;
 
 /* An FMI 3.0 instance's side of the exchange: the master's element lists (cosim_fmu's
    read_vr/write_vr, as FMI 2.0 numbers the elements) lie in whole FMI 3 variables (an
@@ -38,6 +54,8 @@ typedef struct {
     const size_t *write_index;
     double *write_values;
     int write_partial;             /* some of those values are not written: read them first */
+    cosim_get_derivatives_fn get_derivatives;
+    cosim_derivatives derivatives[2];   /* orders 1 and 2 (n = 0: none read) */
 } cosim_fmi3;
 
 typedef struct {
@@ -69,7 +87,10 @@ typedef struct {
     double *y_start;               /* scratch, n_y (Gauss-Seidel: y at the start of the step) */
     size_t n_y;
     int gauss_seidel;
-    int extrapolate;               /* linear extrapolation of held inputs */
+    int extrapolate;               /* of held inputs: 0 none, 1 linear, 2 derivatives (linear where y_order is 0) */
+    const int *y_order;            /* per y: the highest order of derivative its source gives (0, 1, 2) */
+    double *y_d1;                  /* per y: its first and second time derivatives at its time */
+    double *y_d2;
     double t0;
     double h;
     int failed_fmu;                /* on a status above Warning: which fmu, call, status */
