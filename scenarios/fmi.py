@@ -401,7 +401,9 @@ class RealPort3(RealPort):
         self._vr = (c_uint * len(arrays))(*arrays)
         self._buf = (c_double * self.total)()
         self._all = np.ctypeslib.as_array(self._buf)
-        self.values = np.zeros(self.n)
+        # the elements are the variables' values in order (scalars, whole arrays): no gather
+        self._direct = self.total == self.n and np.array_equal(self.index, np.arange(self.n))
+        self.values = self._all if self._direct else np.zeros(self.n)
         self._get, self._set = instance.raw("fmi3GetFloat64"), instance.raw("fmi3SetFloat64")
 
     def _get_all(self):
@@ -411,14 +413,16 @@ class RealPort3(RealPort):
 
     def read(self):
         self._get_all()
-        self.values[:] = self._all[self.index]
+        if not self._direct:
+            self.values[:] = self._all[self.index]
         return self.values
 
     def write(self, values):
         self.values[:] = values
         if self.partial:
             self._get_all()
-        self._all[self.index] = self.values
+        if not self._direct:
+            self._all[self.index] = self.values
         status = self._set(self.instance.fmu.component, self._vr, len(self.vrs3), self._buf, self.total)
         if status > 1:
             self.instance.fail("setReal", f"status {_LABELS[status]}")

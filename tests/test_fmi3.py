@@ -404,3 +404,27 @@ def test_a_campaign_over_an_fmi3_scenario_runs_fmi3_fmus(tmp_path):
             summaries[version] = [{k: v for k, v in row.items() if k != "run_time_s"} for row in csv.DictReader(f)]
     assert summaries[2] == summaries[3]
     assert float(summaries[3][0]["leg error rms"]) > 0
+
+
+def test_one_call_of_many_variables_equals_one_call_each(pairs):
+    """fmi3GetFloat64/fmi3SetFloat64 take consecutive variables in one inner call (the
+    layer's runs): any order, time in between, arrays and scalars, a run that ends where
+    time's value reference begins, give the values of one call per variable."""
+    path = pairs["hexapod_plant_fmu"][1]
+    inst = open3(path)
+    md = {v.name: v for v in read_model_description(str(path)).modelVariables}
+    inst.initialize(0.0, {"moving_base": 0, **{f"leg_force[{k}]": 5.0e3 + k for k in range(1, 7)}})
+    inst.do_step(0.0, 1e-3)
+    floats = [v for v in md.values() if v.type == "Float64"]
+    size = {v.name: int(np.prod([int(d.start) for d in v.dimensions])) if v.dimensions else 1 for v in floats}
+    one = {v.name: inst.fmu.getFloat64([v.valueReference], size[v.name]) for v in floats}
+    last = max(floats, key=lambda v: v.valueReference if v.name != "time" else -1)
+    for order in (floats, floats[::-1], [md["pose[2]"], md["time"], md["pose[3]"], md["leg_force"], md["pose[1]"]],
+                  [last, md["time"]]):
+        values = inst.fmu.getFloat64([v.valueReference for v in order], sum(size[v.name] for v in order))
+        assert values == [x for v in order for x in one[v.name]]
+    inst.fmu.setFloat64([md["leg_force"].valueReference], [1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
+    assert inst.fmu.getFloat64([md["leg_force"].valueReference], 6) == [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
+    assert status_of(inst.fmu.setFloat64, [md["leg_force"].valueReference, md["time"].valueReference],
+                     [9.0] * 7) == ERROR
+    assert inst.fmu.getFloat64([md["leg_force"].valueReference], 6) == [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]   # nothing set

@@ -305,20 +305,34 @@ static int check_refs(instance3 *inst, const char *function, const fmi3ValueRefe
     return 1;
 }
 
+/* How many values from vr[k] on form one run of consecutive FMI 2 elements (the FMI 3
+   variables vr[k], vr[k+1], ... one after the other, time excluded), and how many
+   variables that is (*nvars): one inner call per run (a pose's six scalars, the
+   telescope's 60 outputs), not one per variable, so FMI 3 costs what FMI 2 does. */
+static size_t run_of(const instance3 *inst, const fmi3ValueReference vr[], size_t nvr, size_t k, size_t *nvars)
+{
+    size_t n = (size_t)inst->count3[vr[k]], j = k + 1;
+    while (j < nvr && vr[j] != VR_TIME && vr[j] == vr[k] + n) n += (size_t)inst->count3[vr[j++]];
+    *nvars = j - k;
+    return n;
+}
+
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Float64 values[],
                           size_t nValues)
 {
     INSTANCE("fmi3GetFloat64", GETTABLE)
     if (!check_refs(inst, "fmi3GetFloat64", vr, nvr, values, nValues, K_FLOAT64)) return fmi3Error;
-    for (size_t k = 0; k < nvr; k++) {
+    for (size_t k = 0, nvars; k < nvr; k += nvars) {
         if (vr[k] == VR_TIME) {   /* fmi2GetRealStatus answers only after initialization */
             if (inst->phase == P_INSTANTIATED || inst->phase == P_INITIALIZATION) *values++ = inst->start_time;
             else fmi2GetRealStatus(inst->inner, fmi2LastSuccessfulTime, values++);
+            nvars = 1;
             continue;
         }
-        fmi2Status s = fmi2GetReal(inst->inner, &inst->vr2[vr[k]], (size_t)inst->count3[vr[k]], values);
+        size_t n = run_of(inst, vr, nvr, k, &nvars);
+        fmi2Status s = fmi2GetReal(inst->inner, &inst->vr2[vr[k]], n, values);
         if (s > fmi2Warning) return (fmi3Status)s;
-        values += inst->count3[vr[k]];
+        values += n;
     }
     return fmi3OK;
 }
@@ -328,11 +342,13 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
 {
     INSTANCE("fmi3SetFloat64", SETTABLE)
     if (!check_refs(inst, "fmi3SetFloat64", vr, nvr, values, nValues, K_FLOAT64)) return fmi3Error;
-    for (size_t k = 0; k < nvr; k++) {
+    for (size_t k = 0; k < nvr; k++)
         if (vr[k] == VR_TIME) return FAIL(inst, "fmi3SetFloat64: time is the independent variable, it cannot be set");
-        fmi2Status s = fmi2SetReal(inst->inner, &inst->vr2[vr[k]], (size_t)inst->count3[vr[k]], values);
+    for (size_t k = 0, nvars; k < nvr; k += nvars) {
+        size_t n = run_of(inst, vr, nvr, k, &nvars);
+        fmi2Status s = fmi2SetReal(inst->inner, &inst->vr2[vr[k]], n, values);
         if (s > fmi2Warning) return (fmi3Status)s;
-        values += inst->count3[vr[k]];
+        values += n;
     }
     return fmi3OK;
 }
