@@ -398,6 +398,11 @@ def simulate_exported(ssp_path, scenario, initial_exchange=False):
     own label, the step's start time accumulated by repeated addition, as "fmpy_time"."""
     from fmpy.ssp.simulation import simulate_ssp
     from numpy.lib import recfunctions
+    with zipfile.ZipFile(ssp_path) as z:
+        version = ET.fromstring(z.read("SystemStructure.ssd")).get("version")
+    if version != "1.0":
+        raise ValueError(f"{ssp_path}: SSP {version} (it holds FMI 3.0 FMUs); fmpy's SSP master runs SSP 1.0 with "
+                         "FMI 2.0 FMUs: export the scenario with fmi_version = 2 to run it here")
     parameter_set, names = bound_parameters(ssp_path)
     clash = [(a, b) for a in names for b in names if a != b and b.startswith(a)]
     if clash:

@@ -146,3 +146,12 @@ def test_command_line_writes_ssp2_where_an_instance_is_fmi3(tmp_path):
         source = ssd.find(".//ssd:Component[@name='plant']", NS).get("source")
         assert b'fmiVersion="3.0"' in zipfile.ZipFile(z.open(source)).read("modelDescription.xml")
     assert ssd.get("version") == "2.0" and SCHEMA.validate(ssd), SCHEMA.error_log
+
+
+def test_fmpy_run_of_an_ssp2_file_is_refused_by_name(tmp_path):
+    """fmpy 0.3.32 runs SSP 1.0 with FMI 2.0 FMUs: simulate_exported refuses an SSP 2.0
+    file with the reason and the remedy, before fmpy sees it."""
+    path, _ = export(tmp_path, {"plant": 3})
+    scenario = spec.load(runner.resolve("keyhole_tracking"))
+    with pytest.raises(ValueError, match=r"SSP 2.0 .*fmpy's SSP master runs SSP 1.0 .*fmi_version = 2"):
+        ssp.simulate_exported(path, scenario)
