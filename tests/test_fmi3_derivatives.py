@@ -199,3 +199,20 @@ def test_extrapolation_derivatives_needs_a_source_that_gives_them(tmp_path):
         runner.prepare(scene)
     scene.write_text(text.replace("[fmus.base]", "[fmus.base]\nfmi_version = 3"))
     assert runner.prepare(scene)[0].extrapolation == "derivatives"
+
+
+def test_a_step_beyond_the_limit_is_refused_with_derivatives_as_with_linear(tmp_path):
+    """The leg loop's signals have no derivatives: "derivatives" has the predicted limit of
+    "linear" (2 ms on the slew; a 4 ms run diverges under both, studies.fmi3_derivatives),
+    and the refusal names the scenario's extrapolation and what the loop gets."""
+    text = (runner.SHIPPED / "telescope_slew.toml").read_text().replace('step = "1 ms"', 'step = "5 ms"')
+    text = text.replace("[fmus.base]", "[fmus.base]\nfmi_version = 3")
+    limits = {}
+    for extrapolation in ("linear", "derivatives"):
+        scene = tmp_path / f"{extrapolation}.toml"
+        scene.write_text(text.replace('extrapolation = "linear"', f'extrapolation = "{extrapolation}"'))
+        with pytest.raises(runner.spec.ScenarioError, match="beyond the predicted stability limit") as refused:
+            runner.run_scenario(scene, tmp_path / "out", ci=True, progress=False)
+        limits[extrapolation] = str(refused.value).split("stability limit ", 1)[1].split(" ", 2)[:2]
+    assert limits["linear"] == limits["derivatives"]
+    assert "extrapolation derivatives (linear on the leg loop" in str(refused.value)
