@@ -117,7 +117,9 @@ def _loop(scenario, descriptions, values):
             viscous_friction=get(plant, "viscous_friction"), leg_sensor=sensor is not None,
             rate_cutoff=get(sensor, "rate_cutoff") if sensor else 0.0,
             delay_steps=int(get(sensor, "delay_steps")) if sensor else 0,
-            extrapolate=scenario.extrapolation == "linear", gauss_seidel=scenario.master == "gauss-seidel")
+            # "derivatives" extrapolates the loop's own signals (leg forces, lengths, rates: no
+            # FMU of the loop gives derivatives) linearly, so the loop is the linear one
+            extrapolate=scenario.extrapolation in ("linear", "derivatives"), gauss_seidel=scenario.master == "gauss-seidel")
         return plant, controller, loop, gains
     return None
 
@@ -170,8 +172,12 @@ def predict(scenario, paths, descriptions, values, ci=False):
     return Prediction(limit, scenario.step, loop, gains, masses, tuple(flags))
 
 
-def _describe(loop):
+def _describe(loop, extrapolation=None):
+    """The loop's master and extrapolation; ``extrapolation`` "derivatives" is named as
+    the scenario says, with what the loop gets (linear)."""
     master = "gauss-seidel" if loop.gauss_seidel else "jacobi"
+    if extrapolation == "derivatives":
+        return f"master {master}, extrapolation derivatives (linear on the leg loop, whose signals have none)"
     return f"master {master}, extrapolation {'linear' if loop.extrapolate else 'none'}"
 
 
@@ -197,12 +203,12 @@ def check(scenario, prediction, allow_unstable=False):
                     others.append(f"{_describe(loop)} (limit {_ms(other)})")
     if prediction.limit > 0:
         text = (f"{scenario.step * 1e3:g} ms is beyond the predicted stability limit {_ms(prediction.limit)} of "
-                f"this loop ({_describe(prediction.loop)}, its gains and plant, along the motion): the leg loop "
-                f"would oscillate and grow")
+                f"this loop ({_describe(prediction.loop, scenario.extrapolation)}, its gains and plant, along the "
+                f"motion): the leg loop would oscillate and grow")
         hint = f"use a step below {_ms(prediction.limit)}"
     else:
-        text = (f"no step is stable with these gains ({_describe(prediction.loop)}, along the motion): the leg "
-                f"loop would drift or grow at {scenario.step * 1e3:g} ms as at any step")
+        text = (f"no step is stable with these gains ({_describe(prediction.loop, scenario.extrapolation)}, "
+                f"along the motion): the leg loop would drift or grow at {scenario.step * 1e3:g} ms as at any step")
         hint = "choose gains that stabilise the loop (controller.design)"
     if not allow_unstable:
         if others:

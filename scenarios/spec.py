@@ -45,7 +45,7 @@ IMPLEMENTATIONS = ("native", "python")
 # per instance: the FMI version of the FMU (3: the native FMU's FMI 3.0 build; equal results)
 FMI_VERSIONS = (2, 3)
 MASTERS = ("jacobi", "gauss-seidel")
-EXTRAPOLATIONS = ("none", "linear")
+EXTRAPOLATIONS = ("none", "linear", "derivatives")
 METRIC_KINDS = {  # kind -> required keys
     "leg_tracking": ("measured", "reference_pose"),
     "pose_tracking": ("measured", "reference"),
@@ -71,7 +71,9 @@ KEYS = {
                "Jacobi (every FMU steps on the others' outputs of the last step) or Gauss-Seidel "
                "(in the order of the connection graph)"),
     "extrapolation": (" or ".join(f'"{e}"' for e in EXTRAPOLATIONS), f'"{EXTRAPOLATIONS[0]}"',
-                      "inputs from FMUs not yet stepped: held, or extrapolated linearly"),
+                      "inputs from FMUs not yet stepped: held, extrapolated linearly, or by the output "
+                      "derivatives of FMI 3 FMUs that give them (the telescope with fmi_version = 3; "
+                      "linearly where a source gives none)"),
     "fidelity_tolerance": ("force", "none", 'with a hexapod_plant fidelity = "auto": the cheapest fidelity '
                            "level whose leg-force error along the scene stays within it"),
     "fmus.<instance>.fmu": (", ".join(FMU_SCRIPTS), _REQUIRED, "which of the kit's FMUs this instance is"),
@@ -542,6 +544,19 @@ def expand(md_variables, reference):
     return names
 
 
+def _check_derivatives(scenario, model_descriptions):
+    """extrapolation = "derivatives" needs a connection from an FMI 3 FMU that gives output
+    derivatives (maxOutputDerivativeOrder > 0: the telescope built as FMI 3)."""
+    sources = dict.fromkeys(source.split(".", 1)[0] for source, _ in scenario.connections)
+    giving = [inst for inst in sources if model_descriptions[inst].fmiVersion.startswith("3")
+              and int(model_descriptions[inst].coSimulation.maxOutputDerivativeOrder or 0) > 0]
+    if not giving:
+        raise ScenarioError(scenario.source, "extrapolation",
+                            '"derivatives" takes the output derivatives of FMI 3 FMUs that give them, and no '
+                            "connection starts at one: set fmi_version = 3 on the telescope instance (the FMU "
+                            'that gives them), or use "linear"')
+
+
 def bind(scenario, model_descriptions):
     """Check the scenario against the FMUs' model descriptions; return the parameter values
     per instance converted to what the FMU expects (SI floats, enumeration indices)."""
@@ -585,6 +600,9 @@ def bind(scenario, model_descriptions):
                                             f"{t_inst}.{t.name} ({t.type}, {t.unit})")
                     _feed_once(src, key, i, f"{source_ref} -> {target}", (s_inst, s.name), (t_inst, t.name),
                                feeders, fed)
+    if scenario.extrapolation == "derivatives":
+        with problems.part():
+            _check_derivatives(scenario, model_descriptions)
     for inst in scenario.fmus:
         optional = OPTIONAL_INPUTS.get(scenario.fmus[inst], ())
         missing = [n for n, v in variables[inst].items() if v.causality == "input" and (inst, n) not in fed

@@ -323,26 +323,40 @@ static int check_refs(instance3 *inst, const char *function, const fmi3ValueRefe
     return 1;
 }
 
+/* How many values from vr[k] on form one run of consecutive FMI 2 elements (the FMI 3
+   variables vr[k], vr[k+1], ... one after the other, time excluded), and how many
+   variables that is (*nvars): one inner call per run (a pose's six scalars, the
+   telescope's 60 outputs), not one per variable, so FMI 3 costs what FMI 2 does. */
+static size_t run_of(const instance3 *inst, const fmi3ValueReference vr[], size_t nvr, size_t k, size_t *nvars)
+{
+    size_t n = (size_t)inst->count3[vr[k]], j = k + 1;
+    while (j < nvr && vr[j] != VR_TIME && vr[j] == vr[k] + n) n += (size_t)inst->count3[vr[j++]];
+    *nvars = j - k;
+    return n;
+}
+
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Float64 values[],
                           size_t nValues)
 {
     INSTANCE("fmi3GetFloat64", GETTABLE)
     if (!check_refs(inst, "fmi3GetFloat64", vr, nvr, values, nValues, K_FLOAT64)) return fmi3Error;
-    for (size_t k = 0; k < nvr; k++) {
+    for (size_t k = 0, nvars; k < nvr; k += nvars) {
         if (vr[k] == VR_TIME) {   /* fmi2GetRealStatus answers only after initialization */
             if (inst->phase == P_INSTANTIATED || inst->phase == P_INITIALIZATION) *values++ = inst->start_time;
             else fmi2GetRealStatus(inst->inner, fmi2LastSuccessfulTime, values++);
+            nvars = 1;
             continue;
         }
-        fmi2Status s = fmi2GetReal(inst->inner, &inst->vr2[vr[k]], (size_t)inst->count3[vr[k]], values);
+        size_t n = run_of(inst, vr, nvr, k, &nvars);
+        fmi2Status s = fmi2GetReal(inst->inner, &inst->vr2[vr[k]], n, values);
         if (s > fmi2Warning) return (fmi3Status)s;
         /* misuse harness: after an initialization refused for a non-finite output (say
            amplitude = 1e300), the outputs were read back NaN with fmi3OK */
-        for (int e = 0; e < inst->count3[vr[k]]; e++)
+        for (size_t e = 0; e < n; e++)
             if (MB_MODEL.vars[vr[k] + (fmi3ValueReference)e].causality == MB_OUTPUT && !isfinite(values[e]))
                 return FAIL(inst, "fmi3GetFloat64: output %s is %g (not finite: its initialization was refused)",
                             MB_MODEL.vars[vr[k] + (fmi3ValueReference)e].name, values[e]);
-        values += inst->count3[vr[k]];
+        values += n;
     }
     return fmi3OK;
 }
@@ -352,11 +366,13 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
 {
     INSTANCE("fmi3SetFloat64", SETTABLE)
     if (!check_refs(inst, "fmi3SetFloat64", vr, nvr, values, nValues, K_FLOAT64)) return fmi3Error;
-    for (size_t k = 0; k < nvr; k++) {
+    for (size_t k = 0; k < nvr; k++)
         if (vr[k] == VR_TIME) return FAIL(inst, "fmi3SetFloat64: time is the independent variable, it cannot be set");
-        fmi2Status s = fmi2SetReal(inst->inner, &inst->vr2[vr[k]], (size_t)inst->count3[vr[k]], values);
+    for (size_t k = 0, nvars; k < nvr; k += nvars) {
+        size_t n = run_of(inst, vr, nvr, k, &nvars);
+        fmi2Status s = fmi2SetReal(inst->inner, &inst->vr2[vr[k]], n, values);
         if (s > fmi2Warning) return (fmi3Status)s;
-        values += inst->count3[vr[k]];
+        values += n;
     }
     return fmi3OK;
 }
@@ -483,12 +499,36 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
 }
 
 
+/* The derivative of order n of an output is the output declared its n-th time derivative
+   (MB3_DERIVATIVE, from native_build.OUTPUT_DERIVATIVES: the telescope's rate and
+   acceleration outputs, computed analytically with the pose), read at the same point. */
 fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                                     const fmi3Int32 orders[], fmi3Float64 values[], size_t nValues)
 {
-    (void)vr, (void)nvr, (void)orders, (void)values, (void)nValues;
     INSTANCE("fmi3GetOutputDerivatives", P_STEP | P_STEP_DISCARDED | P_TERMINATED)
-    return FAIL(inst, "fmi3GetOutputDerivatives: maxOutputDerivativeOrder is 0");
+    if (MB3_MAX_DERIVATIVE_ORDER == 0)
+        return FAIL(inst, "fmi3GetOutputDerivatives: maxOutputDerivativeOrder is 0");
+    if (!check_refs(inst, "fmi3GetOutputDerivatives", vr, nvr, values, nValues, K_FLOAT64)) return fmi3Error;
+    if (nvr && !orders) return FAIL(inst, "fmi3GetOutputDerivatives: orders is NULL");
+    for (size_t k = 0; k < nvr; k++) {
+        if (vr[k] == VR_TIME || MB_MODEL.vars[vr[k]].causality != MB_OUTPUT)
+            return FAIL(inst, "fmi3GetOutputDerivatives: value reference %u is not an output", (unsigned)vr[k]);
+        if (orders[k] < 1 || orders[k] > MB3_MAX_DERIVATIVE_ORDER)
+            return FAIL(inst, "fmi3GetOutputDerivatives: order %d of %s: orders run from 1 to "
+                        "maxOutputDerivativeOrder %d", (int)orders[k], MB_MODEL.vars[vr[k]].name,
+                        MB3_MAX_DERIVATIVE_ORDER);
+        int d = (int)vr[k];
+        for (int order = 1; order <= orders[k]; order++) {
+            d = MB3_DERIVATIVE[d];
+            if (d < 0)
+                return FAIL(inst, "fmi3GetOutputDerivatives: %s has no derivative of order %d (it has %d)",
+                            MB_MODEL.vars[vr[k]].name, (int)orders[k], order - 1);
+        }
+        fmi2Status s = fmi2GetReal(inst->inner, &inst->vr2[d], (size_t)inst->count3[vr[k]], values);
+        if (s > fmi2Warning) return (fmi3Status)s;
+        values += inst->count3[vr[k]];
+    }
+    return fmi3OK;
 }
 
 /* ------------------------------------------------------------------ FMU states */
