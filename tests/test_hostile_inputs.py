@@ -322,7 +322,10 @@ def _interrupted(tmp_path, args, ready):
 
 
 def test_ctrl_c_on_a_sweep_and_a_campaign_ends_in_one_clear_line(tmp_path):
-    status, err = _interrupted(tmp_path, ["run", "telescope_slew", "--out", tmp_path / "o"], b"[fixed_base]")
+    long_slew = tmp_path / "long_slew.toml"    # 10 min of slew: each run lasts seconds, so the Ctrl-C lands in one
+    long_slew.write_text((runner.SHIPPED / "telescope_slew.toml").read_text().replace('stop_time = "60 s"',
+                                                                                      'stop_time = "600 s"', 1))
+    status, err = _interrupted(tmp_path, ["run", long_slew, "--out", tmp_path / "o"], b"[fixed_base]")
     assert status != 0 and "Traceback" not in err and "KeyboardInterrupt" not in err, err
     assert err.strip().splitlines()[-1].startswith("interrupted:"), err
     status, err = _interrupted(tmp_path, ["campaign", "sky_slews", "--jobs", "2", "--out", tmp_path / "c"],
