@@ -3,6 +3,8 @@ marks, a colour per run kind and the resolution charts are saved at.
 
 Used by scenarios.report, scenarios.paper_forces, scenarios.mechanism3t_charts and the
 studies, so that "1 nm", "5.44 µm" and "moving-base blue" mean the same on every page."""
+import pathlib
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -87,7 +89,10 @@ def draw_marks(ax, top=None, vertical=False):
 
 
 def save(fig, path, **kwargs):
-    """Save at the kit's resolution and close the figure."""
+    """Save at the kit's resolution and close the figure. PNG compression level 1: the
+    file ~1.3x larger than at the default 6, its encoding several times cheaper (issue 21)."""
     import matplotlib.pyplot as plt
+    if str(path).endswith(".png") or not isinstance(path, (str, pathlib.Path)):
+        kwargs.setdefault("pil_kwargs", {"compress_level": 1})
     fig.savefig(path, dpi=DPI, **kwargs)
     plt.close(fig)
