@@ -122,7 +122,7 @@ def main(argv=None):
             print(f"  {len(more):3d} runs: {wall:6.2f} s, {wall / len(more):.3f} s per run")
 
     workers = args.max_workers
-    estimate = 500 * per_run[workers] * args.stop / 30.0 / workers
+    estimate = 500 * per_run[workers] * 30.0 / args.stop / workers
     print(f"estimate, 500 runs of 30 s on {workers} idle workers: 500 x {per_run[workers] * 30.0 / args.stop:.3f} "
           f"s CPU / {workers} = {estimate:.0f} s ({estimate / 60:.1f} min) plus the cluster's start")
 
