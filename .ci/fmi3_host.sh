@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
-# CI: the FMI 3.0 FMUs under a second FMI 3.0 host, independent of fmpy: fmi-sim, the
-# command-line simulator of the pure-Rust FMI importer rust-fmi, built here from crates.io
-# with cargo (pinned version, its own Cargo.lock), then tests/test_fmi3_host.py, which runs
-# every native FMI 3.0 FMU under it and compares with fmpy. The build takes ~25 min on two
-# cores the first time; FMI_SIM_ROOT keeps it (default ~/.cache/movingbase/fmi-sim-<version>).
+# Optional, not in .ci/run: the FMI 3.0 FMUs under a third FMI 3.0 host (ecos, the second,
+# runs in the default suite): fmi-sim, the command-line simulator of the pure-Rust FMI
+# importer rust-fmi, built here from crates.io with cargo (pinned version, its own
+# Cargo.lock), then tests/test_fmi3_host.py with fmi-sim required, which runs every native
+# FMI 3.0 FMU under it and compares with fmpy. The build takes ~25 min on two cores the
+# first time; FMI_SIM_ROOT keeps it (default ~/.cache/movingbase/fmi-sim-<version>).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 VERSION=0.7.0

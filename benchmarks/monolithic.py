@@ -77,7 +77,7 @@ class Pair:
         try:
             self.exchange, _ = master.start(scenario, paths, values, self.instances)
             self.loop = master.Loop(self.exchange, self.instances, list(scenario.fmus), False,
-                                    scenario.extrapolation == "linear", scenario.start_time, scenario.step)
+                                    scenario.extrapolation, scenario.start_time, scenario.step)
             port, where = self.exchange.read_ports[roles["plant"]]
             self._lengths = where.start + np.array([port.names.index(f"leg_length[{i}]") for i in range(1, 7)])
             self.exchange.read()

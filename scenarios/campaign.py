@@ -36,7 +36,7 @@ import sys
 from dataclasses import dataclass
 
 from . import engine, flags, resources, spec
-from .fmi import FmuFileError, unpack
+from .fmi import FmuFileError, description
 from .runner import OutputError, fmu_paths, output_folder, resolve
 
 _TOP = ("name", "description", "scenario", "set", "grid", "cases", "ci", "keep_records")
@@ -268,9 +268,9 @@ def parse(text, source="<string>", base_dir=".", ci=False):
 
 
 def _descriptions(scenario):
-    """Model descriptions per instance, of the implementation the scenario chose (FMUs
-    built if missing or stale)."""
-    return {inst: unpack(p)[0] for inst, p in fmu_paths(scenario).items()}
+    """Model descriptions per instance, of the implementation and FMI version the scenario
+    chose (FMUs built if missing or stale; an FMI 3 FMU's arrays as elements, fmi.description)."""
+    return {inst: description(p) for inst, p in fmu_paths(scenario).items()}
 
 
 SHIPPED = pathlib.Path(__file__).resolve().parent / "campaigns"
@@ -309,7 +309,7 @@ class CampaignJobs:
             paths = fmu_paths(scenario)     # each instance's implementation, as the scenario says
             digests = {inst: engine.file_digest(p) for inst, p in paths.items()}
             self.files.update({digests[inst]: p for inst, p in paths.items()})
-            descriptions = {inst: unpack(p)[0] for inst, p in paths.items()}
+            descriptions = {inst: description(p) for inst, p in paths.items()}
             self._bound[marker] = (scenario, spec.bind(scenario, descriptions), descriptions, digests)
         return self._bound[marker]
 

@@ -117,7 +117,9 @@ def _loop(scenario, descriptions, values):
             viscous_friction=get(plant, "viscous_friction"), leg_sensor=sensor is not None,
             rate_cutoff=get(sensor, "rate_cutoff") if sensor else 0.0,
             delay_steps=int(get(sensor, "delay_steps")) if sensor else 0,
-            extrapolate=scenario.extrapolation == "linear", gauss_seidel=scenario.master == "gauss-seidel")
+            # "derivatives" extrapolates the loop's own signals (leg forces, lengths, rates: no
+            # FMU of the loop gives derivatives) linearly, so the loop is the linear one
+            extrapolate=scenario.extrapolation in ("linear", "derivatives"), gauss_seidel=scenario.master == "gauss-seidel")
         return plant, controller, loop, gains
     return None
 
@@ -170,8 +172,12 @@ def predict(scenario, paths, descriptions, values, ci=False):
     return Prediction(limit, scenario.step, loop, gains, masses, tuple(flags))
 
 
-def _describe(loop):
+def _describe(loop, extrapolation=None):
+    """The loop's master and extrapolation; ``extrapolation`` "derivatives" is named as
+    the scenario says, with what the loop gets (linear)."""
     master = "gauss-seidel" if loop.gauss_seidel else "jacobi"
+    if extrapolation == "derivatives":
+        return f"master {master}, extrapolation derivatives (linear on the leg loop, whose signals have none)"
     return f"master {master}, extrapolation {'linear' if loop.extrapolate else 'none'}"
 
 
@@ -197,12 +203,12 @@ def check(scenario, prediction, allow_unstable=False):
                     others.append(f"{_describe(loop)} (limit {_ms(other)})")
     if prediction.limit > 0:
         text = (f"{scenario.step * 1e3:g} ms is beyond the predicted stability limit {_ms(prediction.limit)} of "
-                f"this loop ({_describe(prediction.loop)}, its gains and plant, along the motion): the leg loop "
-                f"would oscillate and grow")
+                f"this loop ({_describe(prediction.loop, scenario.extrapolation)}, its gains and plant, along the "
+                f"motion): the leg loop would oscillate and grow")
         hint = f"use a step below {_ms(prediction.limit)}"
     else:
-        text = (f"no step is stable with these gains ({_describe(prediction.loop)}, along the motion): the leg "
-                f"loop would drift or grow at {scenario.step * 1e3:g} ms as at any step")
+        text = (f"no step is stable with these gains ({_describe(prediction.loop, scenario.extrapolation)}, "
+                f"along the motion): the leg loop would drift or grow at {scenario.step * 1e3:g} ms as at any step")
         hint = "choose gains that stabilise the loop (controller.design)"
     if not allow_unstable:
         if others:
@@ -313,7 +319,18 @@ class Watch:
         if self.lengths and self.extent >= NEAR_STROKE:
             out.append(Flag("stroke", f"a leg reaches {100 * self.extent:.3g} % of its +-{self.stroke * 1e3:g} mm "
                                       "stroke"))
-        return out + warning_flags(warnings)
+        return merged(out + warning_flags(warnings))
+
+
+def merged(flags):
+    """One flag per kind: a second one of a kind (the detector's and the controller's
+    warnings both say 'saturated') joins the first one's message."""
+    by_kind = {}
+    for flag in flags:
+        first = by_kind.setdefault(flag.kind, flag)
+        if first is not flag:
+            by_kind[flag.kind] = Flag(flag.kind, f"{first.message}; {flag.message}")
+    return list(by_kind.values())
 
 
 def warning_flags(warnings):

@@ -12,7 +12,7 @@ import pathlib
 import re
 import shutil
 import zipfile
-from ctypes import CFUNCTYPE, POINTER, byref, c_bool, c_double, c_int, c_size_t, c_uint, c_void_p
+from ctypes import CFUNCTYPE, POINTER, byref, c_bool, c_double, c_int, c_int32, c_size_t, c_uint, c_void_p
 from functools import lru_cache
 
 import numpy as np
@@ -219,6 +219,10 @@ class RealPort:
     """A fixed list of Real variables of one instance, read or written in one FMI call
     through preallocated ctypes buffers (half the cost of fmpy's list-based calls)."""
 
+    def __new__(cls, instance, names):
+        """A port of an FMI 3.0 instance is a RealPort3."""
+        return super().__new__(RealPort3 if isinstance(instance, Instance3) else cls)
+
     def __init__(self, instance, names):
         self.instance = instance
         self.names = list(names)
@@ -246,14 +250,13 @@ class RealPort:
 # An FMI 3.0 FMU (fmu_src/native_build.build_native3) runs in the same master: Instance3
 # shows its variables as the FMI 2.0 FMU names them (leg_force[1..6] for the array
 # leg_force, each element's value reference the array's plus its offset, as
-# native_build numbers them) and answers the FMI 2.0 calls the master makes, so the
-# checks, the exchange and the C stepping loop are the same code for both.
+# native_build numbers them), so the checks and the exchange are the same code for
+# both; its ports (RealPort3) and the C stepping loop make the FMI 3.0 calls.
 _TYPES3 = {"Float64": "Real", "Int32": "Integer", "Enumeration": "Enumeration"}
 _GET3 = CFUNCTYPE(c_int, c_void_p, POINTER(c_uint), c_size_t, POINTER(c_double), c_size_t)
+_DERIVATIVES3 = CFUNCTYPE(c_int, c_void_p, POINTER(c_uint), c_size_t, POINTER(c_int32), POINTER(c_double), c_size_t)
 _DO_STEP3 = CFUNCTYPE(c_int, c_void_p, c_double, c_double, c_int, POINTER(c_bool), POINTER(c_bool),
                       POINTER(c_bool), POINTER(c_double))
-_GET2 = CFUNCTYPE(c_int, c_void_p, POINTER(c_uint), c_size_t, POINTER(c_double))
-_DO_STEP2 = CFUNCTYPE(c_int, c_void_p, c_double, c_double, c_int)
 
 
 def _elements(md3):
@@ -289,12 +292,26 @@ def description(path):
     return _elements(md) if md.fmiVersion.startswith("3") else md
 
 
+def derivative_orders(md3):
+    """FMI 3 output value reference -> the highest order of time derivative
+    fmi3GetOutputDerivatives gives of it: the chain of outputs declared each other's
+    derivative (the Float64 attribute derivative), at most maxOutputDerivativeOrder."""
+    outputs = {v.valueReference for v in md3.modelVariables if v.causality == "output"}
+    derivative_of = {v.derivative.valueReference: v.valueReference for v in md3.modelVariables
+                     if v.valueReference in outputs and getattr(v, "derivative", None) is not None
+                     and v.derivative.valueReference in outputs}
+    top = int(md3.coSimulation.maxOutputDerivativeOrder or 0)
+
+    def order(vr):
+        return 1 + order(derivative_of[vr]) if vr in derivative_of else 0
+    return {vr: min(order(vr), top) for vr in outputs if order(vr) and top}
+
+
 class Instance3(Instance):
     """An FMI 3.0 instance behind Instance's interface (fmpy's FMU3Slave): variables by
-    their FMI 2.0 element names; ``raw`` gives FMI 2.0-shaped fmi2DoStep/fmi2GetReal/
-    fmi2SetReal that make the FMI 3.0 calls (so the C loop steps it). Those are ctypes
-    callbacks: a Python call per exchange, slower than an FMI 2.0 FMU's direct calls,
-    with the same numbers."""
+    their FMI 2.0 element names, read and written through RealPort3 (whole FMI 3
+    variables in one call); ``raw`` gives the dll's fmi3DoStep/fmi3GetFloat64/
+    fmi3SetFloat64, which the C stepping loop calls directly (master.Loop)."""
 
     def __init__(self, path, name):
         self.name = name
@@ -313,70 +330,32 @@ class Instance3(Instance):
         self.freed = False
         self.call("instantiate", loggingOn=True, logMessage=self._on_log3)
         dll = self.fmu.dll
-        self._get3, self._set3 = _GET3(("fmi3GetFloat64", dll)), _GET3(("fmi3SetFloat64", dll))
-        self._step3 = _DO_STEP3(("fmi3DoStep", dll))
-        self._plans = {}
-        self._thunks = {"fmi2GetReal": _GET2(self._guard(self._get_elements)),
-                        "fmi2SetReal": _GET2(self._guard(self._set_elements)),
-                        "fmi2DoStep": _DO_STEP2(self._guard(self._do_step3))}
+        self._raw3 = {"fmi3GetFloat64": _GET3(("fmi3GetFloat64", dll)),
+                      "fmi3SetFloat64": _GET3(("fmi3SetFloat64", dll)),
+                      "fmi3DoStep": _DO_STEP3(("fmi3DoStep", dll)),
+                      "fmi3GetOutputDerivatives": _DERIVATIVES3(("fmi3GetOutputDerivatives", dll))}
+        self.derivative_order = derivative_orders(md3)
+        self._step_out = c_bool(), c_bool(), c_bool(), c_double()
 
     def _on_log3(self, environment, status, category, message):
         self.log.append(f"[{_LABELS[status]}] {message.decode(errors='replace')}")
 
-    def _guard(self, function):
-        """A callback never raises into C: an exception is logged and answered Error."""
-        def guarded(*args):
-            try:
-                return function(*args)
-            except Exception as exc:   # noqa: BLE001 - reported through the FMI status and the log
-                self.log.append(f"[ERROR] master's FMI 3 adapter: {type(exc).__name__}: {exc}")
-                return 3
-        return guarded
-
     def raw(self, function):
-        return self._thunks[function]
+        return self._raw3[function]
 
-    def _plan(self, vrs):
-        """For element value references: the FMI 3 arrays they lie in (as ctypes values)
-        and where each element is in the values of those arrays."""
-        plan = self._plans.get(vrs)
-        if plan is None:
-            arrays, at = [], {}
-            for vr in vrs:
-                if vr not in self.arrays:
-                    raise KeyError(f"no Float64 element has value reference {vr}")
-                array, _, count = self.arrays[vr]
-                if array not in at:
-                    at[array] = sum(self.arrays[a][2] for a in arrays)
-                    arrays.append(array)
-            total = sum(self.arrays[a][2] for a in arrays)
-            index = np.array([at[self.arrays[vr][0]] + self.arrays[vr][1] for vr in vrs], dtype=np.intp)
-            buffer = (c_double * total)()
-            plan = ((c_uint * len(arrays))(*arrays), len(arrays), buffer, np.ctypeslib.as_array(buffer), total, index)
-            self._plans[vrs] = plan
-        return plan
-
-    def _get_elements(self, component, vr, n, values):
-        arrays, narrays, buffer, view, total, index = self._plan(tuple(vr[:n]))
-        status = self._get3(self.fmu.component, arrays, narrays, buffer, total)
-        if status <= 1:
-            np.ctypeslib.as_array(values, (n,))[:] = view[index]
-        return status
-
-    def _set_elements(self, component, vr, n, values):
-        """Whole arrays are set: elements not written keep the values the FMU holds."""
-        arrays, narrays, buffer, view, total, index = self._plan(tuple(vr[:n]))
-        if index.size != total:
-            status = self._get3(self.fmu.component, arrays, narrays, buffer, total)
-            if status > 1:
-                return status
-        view[index] = np.ctypeslib.as_array(values, (n,))
-        return self._set3(self.fmu.component, arrays, narrays, buffer, total)
-
-    def _do_step3(self, component, t, h, no_set_prior):
-        event, terminate, early, last = c_bool(), c_bool(), c_bool(), c_double()
-        return self._step3(self.fmu.component, t, h, no_set_prior, byref(event), byref(terminate), byref(early),
-                           byref(last))
+    def plan(self, vrs):
+        """For element value references ``vrs``: the FMI 3 variables they lie in, the
+        number of values of those, and where each element is among those values."""
+        arrays, at = [], {}
+        for vr in vrs:
+            if vr not in self.arrays:
+                raise KeyError(f"FMU instance '{self.name}': no Float64 element has value reference {vr}")
+            array, _, count = self.arrays[vr]
+            if array not in at:
+                at[array] = sum(self.arrays[a][2] for a in arrays)
+                arrays.append(array)
+        total = sum(self.arrays[a][2] for a in arrays)
+        return arrays, total, np.array([at[self.arrays[vr][0]] + self.arrays[vr][1] for vr in vrs], dtype=np.intp)
 
     def _check(self, function, status):
         if status > 1:
@@ -390,13 +369,10 @@ class Instance3(Instance):
         elif var.type == "Enumeration":
             self.call("setInt64", [var.valueReference], [int(value)])
         else:
-            self._check("setReal", self.raw("fmi2SetReal")(None, (c_uint * 1)(var.valueReference), 1,
-                                                          (c_double * 1)(float(value))))
+            RealPort3(self, [name]).write([float(value)])
 
     def get_real(self, name):
-        out = (c_double * 1)()
-        self._check("getReal", self.raw("fmi2GetReal")(None, (c_uint * 1)(self.vr(name)), 1, out))
-        return out[0]
+        return RealPort3(self, [name]).read()[0]
 
     def initialize(self, start_time, values=None):
         """Enter initialization mode at ``start_time``, set ``values``, exit. An array's
@@ -417,4 +393,51 @@ class Instance3(Instance):
         for array, elements in reals.items():
             self.call("setFloat64", [array], elements)
         self.call("exitInitializationMode")
-        self._do_step = self.raw("fmi2DoStep")
+
+    def do_step(self, t, h):
+        self.time = t
+        self._check("doStep", self._raw3["fmi3DoStep"](self.fmu.component, t, h, True,
+                                                        *(byref(out) for out in self._step_out)))
+
+
+class RealPort3(RealPort):
+    """RealPort of an FMI 3.0 instance: the FMI 3 variables holding the elements, read or
+    written whole in one fmi3GetFloat64/fmi3SetFloat64 call (master.Loop hands the same
+    plan to the C loop). A write of part of an array reads it first: the elements not
+    written keep the values the FMU holds."""
+
+    def __init__(self, instance, names):
+        self.instance = instance
+        self.names = list(names)
+        self.n = len(self.names)
+        arrays, self.total, self.index = instance.plan([instance.vr(v) for v in self.names])
+        self.vrs3 = arrays
+        self.partial = len(set(self.index.tolist())) != self.total
+        self._vr = (c_uint * len(arrays))(*arrays)
+        self._buf = (c_double * self.total)()
+        self._all = np.ctypeslib.as_array(self._buf)
+        # the elements are the variables' values in order (scalars, whole arrays): no gather
+        self._direct = self.total == self.n and np.array_equal(self.index, np.arange(self.n))
+        self.values = self._all if self._direct else np.zeros(self.n)
+        self._get, self._set = instance.raw("fmi3GetFloat64"), instance.raw("fmi3SetFloat64")
+
+    def _get_all(self):
+        status = self._get(self.instance.fmu.component, self._vr, len(self.vrs3), self._buf, self.total)
+        if status > 1:
+            self.instance.fail("getReal", f"status {_LABELS[status]}")
+
+    def read(self):
+        self._get_all()
+        if not self._direct:
+            self.values[:] = self._all[self.index]
+        return self.values
+
+    def write(self, values):
+        self.values[:] = values
+        if self.partial:
+            self._get_all()
+        if not self._direct:
+            self._all[self.index] = self.values
+        status = self._set(self.instance.fmu.component, self._vr, len(self.vrs3), self._buf, self.total)
+        if status > 1:
+            self.instance.fail("setReal", f"status {_LABELS[status]}")

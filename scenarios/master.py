@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._cosim import ffi, lib
-from .fmi import _LABELS, FmuError, Instance, RealPort
+from .fmi import _LABELS, FmuError, Instance, Instance3, RealPort
 from . import flags as run_flags
 from .records import Records
 from .spec import Link, expand
@@ -45,6 +45,7 @@ class Run:
     failure: str = ""       # why the run stopped early ("" if it reached stop_time)
     records: object = None  # scenarios.records.Records (None: the run failed before recording began)
     flags: list = field(default_factory=list)   # scenarios.flags.Flag: what went wrong ([]: nothing seen)
+    cpu_time: float = float("nan")   # this thread's CPU time over the stepping: what a cost comparison on a shared machine uses
 
     @property
     def real_time_factor(self):
@@ -145,7 +146,8 @@ def _address(function):
 class Loop:
     """The stepping of the master, in C (scenarios/c/cosim.c through cffi): each macro
     step writes the connected inputs, steps the FMUs and reads their outputs with the
-    FMUs' own fmi2SetReal/fmi2DoStep/fmi2GetReal, for Jacobi (inputs from the outputs
+    FMUs' own fmi2SetReal/fmi2DoStep/fmi2GetReal (FMI 3.0: fmi3SetFloat64/fmi3DoStep/
+    fmi3GetFloat64 on whole arrays, as RealPort3 plans them), for Jacobi (inputs from the outputs
     of t_k, optionally extrapolated) or Gauss-Seidel (in ``order``, inputs whose source
     has not stepped yet extrapolated). A Python loop making the same calls cost ~16 us
     more per macro step of three FMUs (benchmarks/bench_scenarios.py); this adds under
@@ -153,23 +155,43 @@ class Loop:
 
     _CALLS = ("setReal", "doStep", "getReal")
 
+    EXTRAPOLATIONS = {"none": 0, "linear": 1, "derivatives": 2}   # cosim_master.extrapolate
+
     def __init__(self, exchange, instances, order, gauss_seidel, extrapolate, t0, h):
         self.instances = [instances[inst] for inst in order]
         self._keep = [exchange.y, exchange.y_prev]          # everything the C structs point into
+        order_of = np.zeros(max(1, exchange.y.size), dtype=np.intc)   # per y: derivatives its source gives
         fmus = self._new("cosim_fmu[]", len(order))
         for i, (inst, instance) in enumerate(zip(order, self.instances)):
             f = fmus[i]
             f.component = ffi.cast("void *", instance.fmu.component)
-            f.do_step = ffi.cast("cosim_do_step_fn", _address(instance.raw("fmi2DoStep")))
-            f.get_real = ffi.cast("cosim_get_real_fn", _address(instance.raw("fmi2GetReal")))
-            f.set_real = ffi.cast("cosim_set_real_fn", _address(instance.raw("fmi2SetReal")))
+            fmi3 = isinstance(instance, Instance3)
+            if fmi3:
+                f.fmi3 = g = self._new("cosim_fmi3 *")
+                g.do_step = ffi.cast("cosim_do_step3_fn", _address(instance.raw("fmi3DoStep")))
+                g.get_float64 = ffi.cast("cosim_get_float64_fn", _address(instance.raw("fmi3GetFloat64")))
+                g.set_float64 = ffi.cast("cosim_set_float64_fn", _address(instance.raw("fmi3SetFloat64")))
+            else:
+                f.do_step = ffi.cast("cosim_do_step_fn", _address(instance.raw("fmi2DoStep")))
+                f.get_real = ffi.cast("cosim_get_real_fn", _address(instance.raw("fmi2GetReal")))
+                f.set_real = ffi.cast("cosim_set_real_fn", _address(instance.raw("fmi2SetReal")))
             f.time = instance.time
             if inst in exchange.read_ports:
                 port, where = exchange.read_ports[inst]
                 f.read_vr = self._new("unsigned int[]", [instance.vr(n) for n in port.names])
                 f.n_read, f.read_at = port.n, where.start
+                if fmi3:
+                    g.read_vr, g.n_read_vr = self._new("unsigned int[]", port.vrs3), len(port.vrs3)
+                    g.read_index, g.n_read_values = self._new("size_t[]", port.index.tolist()), port.total
+                    g.read_values = self._new("double[]", port.total)
+                    if extrapolate == "derivatives":
+                        self._derivatives(g, instance, port, where.start, order_of)
             if inst in exchange.write_ports:
                 port, idx, sources = exchange.write_ports[inst]
+                if fmi3:
+                    g.write_vr, g.n_write_vr = self._new("unsigned int[]", port.vrs3), len(port.vrs3)
+                    g.write_index, g.n_write_values = self._new("size_t[]", port.index.tolist()), port.total
+                    g.write_values, g.write_partial = self._new("double[]", port.total), port.partial
                 f.write_vr = self._new("unsigned int[]", [instance.vr(n) for n in port.names])
                 f.n_write = port.n
                 f.write_from = self._new("size_t[]", idx.tolist())
@@ -184,8 +206,31 @@ class Loop:
         m.y_prev = ffi.cast("double *", self._view(exchange.y_prev))
         m.y_start = self._new("double[]", max(1, exchange.y.size))
         m.n_y = exchange.y.size
-        m.gauss_seidel, m.extrapolate, m.t0, m.h = gauss_seidel, extrapolate, t0, h
+        m.gauss_seidel, m.extrapolate, m.t0, m.h = gauss_seidel, self.EXTRAPOLATIONS[extrapolate], t0, h
+        m.y_order = ffi.cast("int *", self._view(order_of))
+        m.y_d1, m.y_d2 = self._new("double[]", order_of.size), self._new("double[]", order_of.size)
         self.master, self.fmus = m, fmus
+        self.derivatives = int(np.count_nonzero(order_of))     # how many outputs are extrapolated by them
+
+    def _derivatives(self, g, instance, port, at, order_of):
+        """Set up the FMI 3 instance's output derivatives (orders 1, 2) of the read
+        elements whose variables have them (fmi.derivative_orders)."""
+        g.get_derivatives = ffi.cast("cosim_get_derivatives_fn", _address(instance.raw("fmi3GetOutputDerivatives")))
+        elements = [instance.arrays[instance.vr(n)] for n in port.names]   # (variable, offset, count)
+        for j, (array, _, _) in enumerate(elements):
+            order_of[at + j] = instance.derivative_order.get(array, 0)
+        for o in (1, 2):
+            arrays = [a for a in port.vrs3 if instance.derivative_order.get(a, 0) >= o]
+            if not arrays:
+                continue
+            starts = np.cumsum([0] + [instance.arrays[a][2] for a in arrays])
+            pairs = [(int(starts[arrays.index(a)]) + k, at + j) for j, (a, k, _) in enumerate(elements) if a in arrays]
+            d = g.derivatives[o - 1]
+            d.vr, d.n_vr = self._new("unsigned int[]", arrays), len(arrays)
+            d.orders = self._new("int[]", [o] * len(arrays))
+            d.values, d.n_values = self._new("double[]", int(starts[-1])), int(starts[-1])
+            d.src, d.dst = self._new("size_t[]", [p[0] for p in pairs]), self._new("size_t[]", [p[1] for p in pairs])
+            d.n = len(pairs)
 
     def _view(self, array):
         value = ffi.from_buffer(array)
@@ -290,19 +335,18 @@ def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), p
     steps = int(round((scenario.stop_time - t0) / h))
     every = int(round(scenario.record_interval / h))
     path = None if outdir is None else pathlib.Path(outdir) / f"{label}.npz"
-    done, failure, began, watch = 0, None, time.perf_counter(), None
+    done, failure, began, cpu_began, watch = 0, None, time.perf_counter(), time.thread_time(), None
     try:
         exchange, _ = start(scenario, fmu_paths, parameters, instances)
         watch = run_flags.Watch.for_scenario(scenario, {k: i.md for k, i in instances.items()}, parameters)
         recorder = Recorder(scenario, instances, list(metrics), steps // every + 1, watch)
         order = step_order(scenario, parameters) if scenario.master == "gauss-seidel" else list(scenario.fmus)
-        loop = Loop(exchange, instances, order, scenario.master == "gauss-seidel",
-                    scenario.extrapolation == "linear", t0, h)
+        loop = Loop(exchange, instances, order, scenario.master == "gauss-seidel", scenario.extrapolation, t0, h)
         tick = max(1, steps // 200)
         exchange.read()
         exchange.y_prev[:] = exchange.y
         recorder.record(t0)
-        began = time.perf_counter()
+        began, cpu_began = time.perf_counter(), time.thread_time()
         while done < steps:   # C runs the steps up to the next record (or progress) point
             stop = min(steps, (done // every + 1) * every, done + CHUNK)
             if progress:
@@ -316,7 +360,7 @@ def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), p
     except FmuError as error:
         failure = error
     finally:
-        wall = time.perf_counter() - began
+        wall, cpu = time.perf_counter() - began, time.thread_time() - cpu_began
         if recorder and path:
             recorder.records.save(path)
         for instance in instances.values():
@@ -324,7 +368,8 @@ def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), p
     series = {m.name: m.series() for m in metrics}
     series.update({m.rotation.name: m.rotation.series() for m in metrics if hasattr(m, "rotation")})  # [rad]
     result = Run(label, path if recorder else None, done, wall, done * h,
-                 {m.name: m.result() for m in metrics}, series, records=recorder.records if recorder else None)
+                 {m.name: m.result() for m in metrics}, series, records=recorder.records if recorder else None,
+                 cpu_time=cpu)
     if failure is not None:
         result.failure = failure_line(failure, instances)
     result.flags = run_flags.run_flags(watch, result, instances, flags)

@@ -45,7 +45,7 @@ IMPLEMENTATIONS = ("native", "python")
 # per instance: the FMI version of the FMU (3: the native FMU's FMI 3.0 build; equal results)
 FMI_VERSIONS = (2, 3)
 MASTERS = ("jacobi", "gauss-seidel")
-EXTRAPOLATIONS = ("none", "linear")
+EXTRAPOLATIONS = ("none", "linear", "derivatives")
 METRIC_KINDS = {  # kind -> required keys
     "leg_tracking": ("measured", "reference_pose"),
     "pose_tracking": ("measured", "reference"),
@@ -71,7 +71,9 @@ KEYS = {
                "Jacobi (every FMU steps on the others' outputs of the last step) or Gauss-Seidel "
                "(in the order of the connection graph)"),
     "extrapolation": (" or ".join(f'"{e}"' for e in EXTRAPOLATIONS), f'"{EXTRAPOLATIONS[0]}"',
-                      "inputs from FMUs not yet stepped: held, or extrapolated linearly"),
+                      "inputs from FMUs not yet stepped: held, extrapolated linearly, or by the output "
+                      "derivatives of FMI 3 FMUs that give them (the telescope with fmi_version = 3; "
+                      "linearly where a source gives none)"),
     "fidelity_tolerance": ("force", "none", 'with a hexapod_plant fidelity = "auto": the cheapest fidelity '
                            "level whose leg-force error along the scene stays within it"),
     "fmus.<instance>.fmu": (", ".join(FMU_SCRIPTS), _REQUIRED, "which of the kit's FMUs this instance is"),
@@ -542,6 +544,19 @@ def expand(md_variables, reference):
     return names
 
 
+def _check_derivatives(scenario, model_descriptions):
+    """extrapolation = "derivatives" needs a connection from an FMI 3 FMU that gives output
+    derivatives (maxOutputDerivativeOrder > 0: the telescope built as FMI 3)."""
+    sources = dict.fromkeys(source.split(".", 1)[0] for source, _ in scenario.connections)
+    giving = [inst for inst in sources if model_descriptions[inst].fmiVersion.startswith("3")
+              and int(model_descriptions[inst].coSimulation.maxOutputDerivativeOrder or 0) > 0]
+    if not giving:
+        raise ScenarioError(scenario.source, "extrapolation",
+                            '"derivatives" takes the output derivatives of FMI 3 FMUs that give them, and no '
+                            "connection starts at one: set fmi_version = 3 on the telescope instance (the FMU "
+                            'that gives them), or use "linear"')
+
+
 def bind(scenario, model_descriptions):
     """Check the scenario against the FMUs' model descriptions; return the parameter values
     per instance converted to what the FMU expects (SI floats, enumeration indices)."""
@@ -585,6 +600,9 @@ def bind(scenario, model_descriptions):
                                             f"{t_inst}.{t.name} ({t.type}, {t.unit})")
                     _feed_once(src, key, i, f"{source_ref} -> {target}", (s_inst, s.name), (t_inst, t.name),
                                feeders, fed)
+    if scenario.extrapolation == "derivatives":
+        with problems.part():
+            _check_derivatives(scenario, model_descriptions)
     for inst in scenario.fmus:
         optional = OPTIONAL_INPUTS.get(scenario.fmus[inst], ())
         missing = [n for n, v in variables[inst].items() if v.causality == "input" and (inst, n) not in fed
@@ -599,8 +617,10 @@ def bind(scenario, model_descriptions):
         with problems.part():
             _check_metric(src, f"metrics[{i}]", metric, scalars)
     problems.raise_any()     # the checks below need every value bound
-    check_rates(src, "fmus", scenario, variables, values)
-    _check_models(src, "fmus", scenario, variables, values)
+    with problems.part():
+        check_rates(src, "fmus", scenario, variables, values)
+    with problems.part():
+        _check_models(src, "fmus", scenario, variables, values)
     if scenario.sweep:
         inst, (var, *_) = scalars("sweep.parameter", scenario.sweep[0])
         seen = {}
@@ -614,7 +634,8 @@ def bind(scenario, model_descriptions):
                     raise ScenarioError(src, key, f"{item!r} is the same value as sweep.values[{j}] "
                                         f"({scenario.sweep[1][j]!r}): each value runs once")
                 seen[swept[inst][var.name]] = i
-                check_rates(src, key, scenario, variables, swept)
+                with problems.part():
+                    check_rates(src, key, scenario, variables, swept)
                 _check_models(src, key, scenario, variables, swept, {(inst, var.name): item})
     problems.raise_any()
     return values
@@ -670,14 +691,17 @@ def check_rates(src, key, scenario, variables, values):
     """A cut-off frequency (a parameter named *cutoff in 1/s) above the Nyquist frequency
     of the communication step, 1/(2 step), is no filter the FMU can run: refused."""
     nyquist = 0.5 / scenario.step
+    problems = _Problems()
     for inst, params in values.items():
         for name, value in params.items():
             var = variables[inst].get(name)
             if var is not None and name.endswith("cutoff") and var.unit == "1/s" and \
                     isinstance(value, float) and value > nyquist:
                 where = f"fmus.{inst}.parameters.{name}" if key == "fmus" else key
-                raise ScenarioError(src, where, f"{value:g} Hz is above the Nyquist frequency of the step "
-                                    f"({scenario.step:g} s: {nyquist:g} Hz); lower it or the step")
+                problems.errors.append(ScenarioError(src, where, f"{value:g} Hz is above the Nyquist frequency of "
+                                                     f"the step ({scenario.step:g} s: {nyquist:g} Hz); lower it or "
+                                                     "the step"))
+    problems.raise_any()
 
 
 def _feed_once(src, key, index, written, source, target, feeders, fed):
@@ -721,10 +745,14 @@ def _check_metric(src, key, metric, scalars):
 def _check_models(src, key, scenario, variables, values, written=None):
     """Checks that need several parameters at once, as the models themselves make them
     (today: the telescope's profile over the run), so the FMU does not refuse them at
-    t = 0. ``written`` maps (instance, name) to the value as the file wrote it."""
+    t = 0. ``written`` maps (instance, name) to the value as the file wrote it. Every
+    instance is checked; their problems are told together."""
+    problems = _Problems()
     for inst, fmu in scenario.fmus.items():
         if fmu == "telescope":
-            _check_telescope(src, key, scenario, inst, variables[inst], values[inst], written or {})
+            with problems.part():
+                _check_telescope(src, key, scenario, inst, variables[inst], values[inst], written or {})
+    problems.raise_any()
 
 
 def _check_telescope(src, key, scenario, inst, md_variables, values, written):

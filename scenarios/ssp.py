@@ -2,7 +2,11 @@
 that file with fmpy's SSP master: an independent master to check ours against.
 
 ``export_ssp`` writes a zip holding SystemStructure.ssd (SSP 1.0, the version
-fmpy.ssp reads) and the FMUs under resources/: those the scenario chose per instance
+fmpy.ssp reads; SSP 2.0 where an instance is FMI 3.0: version "2.0", the same
+namespaces, an FMI 3 array one connector with its ssc:Dimension, connections to single
+elements by startIndices/endIndices (1-based, as FMI names the elements; SSP 2.0 leaves
+the base unsaid), parameters as ssv:Float64/Int32 and Enumerations by item name; no
+importer here reads SSP 2.0, see tests/test_ssp2.py) and the FMUs under resources/: those the scenario chose per instance
 (native by default: then the SSP needs no Python in the importing tool; libcosim runs
 it, tests/test_libcosim.py; the pythonfmu FMUs too, with Python in the tool). The SSD has
 
@@ -108,11 +112,19 @@ def resolve_links(scenario, fmu_paths, parameters):
             instance.terminate()
 
 
-def _typed(inst, variable, value):
-    """(SSV type tag, value literal) of a parameter value for an FMU variable."""
+def _typed(inst, variable, value, fmi3=False):
+    """(SSV type tag, value literal) of a parameter value for an FMU variable (FMI 2.0,
+    or FMI 3.0: Float64, Int32, an Enumeration by its item's name as SSP 2.0 writes it)."""
     kind = variable.type
-    if kind == "Real":
-        return "Real", _double(value)
+    if kind in ("Real", "Float64"):
+        return kind, _double(value)
+    if kind == "Int32":
+        return kind, str(int(value))
+    if kind == "Enumeration" and fmi3 and not isinstance(value, str):
+        items = {int(item.value): item.name for item in variable.declaredType.items}
+        if int(value) not in items:
+            raise ValueError(f"{inst}.{variable.name}: {value!r} is not one of the items {items}")
+        return "Enumeration", items[int(value)]
     if kind in ("Integer", "Enumeration"):
         if isinstance(value, str):   # an enumeration name, as in a scenario file
             choices = spec._enumeration(variable.description)
@@ -144,16 +156,62 @@ def scalar_connections(scenario, variables):
     return pairs
 
 
+def connector_of(md):
+    """element name (as fmi.description names it) -> (the FMU's variable, 1-based index
+    into it or None for a scalar): an FMI 3 array is one connector, its elements are
+    indices; an FMI 2 FMU's variables are their own connectors."""
+    if not md.fmiVersion.startswith("3"):
+        return {v.name: (v, None) for v in md.modelVariables}
+    out = {}
+    for var in md.modelVariables:
+        if var.causality == "independent":
+            continue
+        count = _size(var)
+        for k in range(count):
+            out[f"{var.name}[{k + 1}]" if var.dimensions else var.name] = (var, k + 1 if var.dimensions else None)
+    return out
+
+
+def _size(var):
+    return int(np.prod([int(d.start) for d in var.dimensions])) if var.dimensions else 1
+
+
+def _connections(pairs, where):
+    """SSD Connection attributes of the scalar ``pairs``: a whole array fed element by
+    element in order from a whole array of the same size is one connection without
+    indices; every other element its own connection, an array side named by its 1-based
+    index (SSP 2.0 startIndices/endIndices; one index per dimension, ours are 1-D)."""
+    groups = {}
+    for s_inst, s, t_inst, t in pairs:
+        (s_var, s_k), (t_var, t_k) = where[s_inst][s], where[t_inst][t]
+        groups.setdefault((s_inst, s_var.name, t_inst, t_var.name), []).append((s_var, s_k, t_var, t_k))
+    out = []
+    for (s_inst, s_name, t_inst, t_name), items in groups.items():
+        s_var, t_var = items[0][0], items[0][2]
+        whole = list(range(1, _size(s_var) + 1))
+        base = {"startElement": s_inst, "startConnector": s_name, "endElement": t_inst, "endConnector": t_name}
+        if s_var.dimensions and t_var.dimensions and [i[1] for i in items] == [i[3] for i in items] == whole \
+                and _size(t_var) == len(whole):
+            out.append(base)
+            continue
+        for _, s_k, _, t_k in items:
+            out.append({**base, **({"startIndices": str(s_k)} if s_k else {}), **({"endIndices": str(t_k)} if t_k else {})})
+    return out
+
+
 def build_ssd(scenario, fmu_paths, parameters, sources):
     """The SystemStructureDescription element; ``parameters`` without links,
-    ``sources``: instance -> path of its FMU inside the SSP."""
+    ``sources``: instance -> path of its FMU inside the SSP. SSP 1.0 when every FMU is
+    FMI 2.0; SSP 2.0 (the same namespaces, version "2.0") when any is FMI 3.0: its
+    connectors are its variables, an array one connector with its Dimension."""
     mds = {inst: unpack(fmu_paths[inst])[0] for inst in scenario.fmus}
-    variables = {inst: {v.name: v for v in md.modelVariables} for inst, md in mds.items()}
-    pairs = scalar_connections(scenario, variables)
-    connected_inputs = {(t_inst, t) for _, _, t_inst, t in pairs}
+    where = {inst: connector_of(md) for inst, md in mds.items()}
+    version = "2.0" if any(md.fmiVersion.startswith("3") for md in mds.values()) else "1.0"
+    pairs = scalar_connections(scenario, {inst: dict.fromkeys(w) for inst, w in where.items()})
+    connected_inputs = {(t_inst, where[t_inst][t][0].name) for _, _, t_inst, t in pairs}
 
     root = ET.Element(_q(SSD, "SystemStructureDescription"),
-                      {"version": "1.0", "name": scenario.name, "generationTool": "movingbase scenarios.ssp"})
+                      {"version": version, "name": scenario.name, "generationTool": "movingbase scenarios.ssp"})
     if scenario.description:
         root.set("description", scenario.description)
     system = ET.SubElement(root, _q(SSD, "System"), {"name": scenario.name})
@@ -168,29 +226,35 @@ def build_ssd(scenario, fmu_paths, parameters, sources):
         for var in declared:
             connector = ET.SubElement(connectors, _q(SSD, "Connector"), {"name": var.name, "kind": var.causality})
             kind = "Integer" if var.type == "Enumeration" else var.type
-            attributes = {"unit": var.unit} if var.type == "Real" and var.unit else {}
+            unit = var.unit or getattr(var.declaredType, "unit", None)     # FMI 3: the unit by its Float64Type
+            attributes = {"unit": unit} if var.type in ("Real", "Float64") and unit else {}
             ET.SubElement(connector, _q(SSC, kind), attributes)
+            for dimension in var.dimensions or []:
+                ET.SubElement(connector, _q(SSC, "Dimension"), {"size": str(int(dimension.start))})
             if attributes:
-                units[var.unit] = next((u for u in mds[inst].unitDefinitions if u.name == var.unit), None)
+                units[unit] = next((u for u in mds[inst].unitDefinitions if u.name == unit), None)
         values = parameters.get(inst, {})
         if values:
             binding = ET.SubElement(ET.SubElement(component, _q(SSD, "ParameterBindings")),
                                     _q(SSD, "ParameterBinding"))
             holder = ET.SubElement(binding, _q(SSD, "ParameterValues"))
-            pset = ET.SubElement(holder, _q(SSV, "ParameterSet"), {"version": "1.0", "name": PARAMETER_SET})
+            pset = ET.SubElement(holder, _q(SSV, "ParameterSet"), {"version": version, "name": PARAMETER_SET})
             plist = ET.SubElement(pset, _q(SSV, "Parameters"))
             for name, value in values.items():
                 if isinstance(value, Link):
                     raise ValueError(f"{inst}.{name}: unresolved link {value}; call resolve_links first")
-                if name not in variables[inst]:
+                if name not in where[inst]:
                     raise ValueError(f"{inst}: FMU {sources[inst]} has no variable {name!r}")
-                tag, literal = _typed(inst, variables[inst][name], value)
+                var, index = where[inst][name]
+                if index is not None:
+                    raise ValueError(f"{inst}.{name}: an element of the FMI 3 array {var.name}; array "
+                                     "parameters are not written")
+                tag, literal = _typed(inst, var, value, version == "2.0" and mds[inst].fmiVersion.startswith("3"))
                 ET.SubElement(ET.SubElement(plist, _q(SSV, "Parameter"), {"name": name}),
                               _q(SSV, tag), {"value": literal})
     connections = ET.SubElement(system, _q(SSD, "Connections"))
-    for s_inst, s, t_inst, t in pairs:
-        ET.SubElement(connections, _q(SSD, "Connection"),
-                      {"startElement": s_inst, "startConnector": s, "endElement": t_inst, "endConnector": t})
+    for attributes in _connections(pairs, where):
+        ET.SubElement(connections, _q(SSD, "Connection"), attributes)
     annotation = ET.SubElement(ET.SubElement(system, _q(SSD, "Annotations")), _q(SSC, "Annotation"),
                                {"type": "movingbase.scenario"})
     ET.SubElement(annotation, _q(MB, "Master"), {"algorithm": scenario.master, "step": _double(scenario.step),
@@ -221,11 +285,6 @@ def export_ssp(scenario, fmu_paths, parameters, path):
     Component), which SSP tools apply; fmpy.ssp.simulate_ssp ignores them: run the file
     with ``simulate_exported``, which passes them to fmpy as ``parameter_set``."""
     path = pathlib.Path(path)
-    for inst in scenario.fmus:
-        if not unpack(fmu_paths[inst])[0].fmiVersion.startswith("2"):
-            raise spec.ScenarioError(scenario.source, f"fmus.{inst}.fmi_version",
-                                     "the SSP export writes SSP 1.0 with FMI 2.0 FMUs; FMI 3.0 FMUs "
-                                     "(SSP 2.0, array connectors) are not exported yet: use fmi_version = 2")
     files, sources = {}, {}
     for inst in scenario.fmus:
         fmu = pathlib.Path(fmu_paths[inst]).resolve()
@@ -242,7 +301,8 @@ def export_ssp(scenario, fmu_paths, parameters, path):
     with zipfile.ZipFile(path, "w") as z:
         z.writestr("SystemStructure.ssd", text, compress_type=zipfile.ZIP_DEFLATED)
         for name, fmu in files.items():
-            z.writestr(name, integer_choices(fmu), compress_type=zipfile.ZIP_STORED)   # an FMU is a zip already
+            data = integer_choices(fmu) if unpack(fmu)[0].fmiVersion.startswith("2") else fmu.read_bytes()
+            z.writestr(name, data, compress_type=zipfile.ZIP_STORED)   # an FMU is a zip already
     return path
 
 
@@ -338,6 +398,11 @@ def simulate_exported(ssp_path, scenario, initial_exchange=False):
     own label, the step's start time accumulated by repeated addition, as "fmpy_time"."""
     from fmpy.ssp.simulation import simulate_ssp
     from numpy.lib import recfunctions
+    with zipfile.ZipFile(ssp_path) as z:
+        version = ET.fromstring(z.read("SystemStructure.ssd")).get("version")
+    if version != "1.0":
+        raise ValueError(f"{ssp_path}: SSP {version} (it holds FMI 3.0 FMUs); fmpy's SSP master runs SSP 1.0 with "
+                         "FMI 2.0 FMUs: export the scenario with fmi_version = 2 to run it here")
     parameter_set, names = bound_parameters(ssp_path)
     clash = [(a, b) for a in names for b in names if a != b and b.startswith(a)]
     if clash:

@@ -6,6 +6,7 @@ studies, so that "1 nm", "5.44 µm" and "moving-base blue" mean the same on ever
 import pathlib
 
 import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")
 from matplotlib import ticker  # noqa: E402
@@ -61,9 +62,31 @@ def ratio(a, b):
     return f"{x:.0f}x" if x >= 100 else f"{x:g}x"
 
 
+class _PlainLogLocator(ticker.Locator):
+    """Ticks at ``subs`` per decade while the axis spans at most 4 decades; wider, at whole
+    decades only, every n-th so that about 10 remain (matplotlib's LogLocator drops every
+    tick when it must thin decades with several subs)."""
+
+    def __init__(self, subs):
+        self.subs = subs
+
+    def __call__(self):
+        return self.tick_values(*self.axis.get_view_interval())
+
+    def tick_values(self, vmin, vmax):
+        vmin, vmax = sorted((vmin, vmax))
+        if not vmin > 0:
+            return []
+        lo, hi = int(np.floor(np.log10(vmin))), int(np.ceil(np.log10(vmax)))
+        subs = self.subs if hi - lo <= 4 else (1.0,)
+        stride = max(1, int(np.ceil((hi - lo) / 10)))
+        return [s * 10.0 ** d for d in range(lo - lo % stride, hi + 1, stride) for s in subs]
+
+
 def plain_log_axis(axis, subs=(1.0, 2.0, 5.0)):
-    """Label a log axis at 1, 2, 5 per decade in plain numbers (0.01, 2, 500), not 10^n."""
-    axis.set_major_locator(ticker.LogLocator(subs=subs))
+    """Label a log axis at 1, 2, 5 per decade (decades alone over a wide range) in plain
+    numbers (0.01, 2, 500), not 10^n; numbers under 1e-4 or over 1e6 as 1e-09."""
+    axis.set_major_locator(_PlainLogLocator(subs))
     axis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))
     axis.set_minor_formatter(ticker.NullFormatter())
 
@@ -86,6 +109,42 @@ def draw_marks(ax, top=None, vertical=False):
                     fontsize=8, color=MARK_COLOUR)
         drawn.append(text)
     return drawn
+
+
+def label_points(ax, xs, ys, texts, fontsize=7, color="0.25"):
+    """Write each text beside its point where it covers no other label and no marker of
+    the axes: the first free place of eight around the point (right-above first), else
+    the least covered one. Call it when the axes' scales and limits are final. Returns
+    the annotations."""
+    fig = ax.figure
+    fig.canvas.draw()                                   # the final layout: display coordinates hold
+    renderer = fig.canvas.get_renderer()
+    to_px = fig.dpi / 72.0
+    markers = [ax.transData.transform(c.get_offsets()) for c in ax.collections if len(c.get_offsets())]
+    markers = np.concatenate(markers) if markers else np.empty((0, 2))
+    radius = 5 * to_px
+    placed, notes = [], []
+    for x, y, text in zip(xs, ys, texts):
+        px, py = ax.transData.transform((x, y))
+        probe = ax.text(0, 0, text, fontsize=fontsize)
+        box = probe.get_window_extent(renderer)
+        probe.remove()
+        w, h, gap = box.width, box.height, 4 * to_px
+        candidates = [(gap, gap), (gap, -h - gap), (-w - gap, gap), (-w - gap, -h - gap),
+                      (-w / 2, 2 * gap), (-w / 2, -h - 2 * gap), (2 * gap, -h / 2), (-w - 2 * gap, -h / 2)]
+
+        def covered(dx, dy):
+            x0, y0 = px + dx, py + dy
+            hits = sum(x0 < bx1 and bx0 < x0 + w and y0 < by1 and by0 < y0 + h for bx0, by0, bx1, by1 in placed)
+            near = ((markers[:, 0] > x0 - radius) & (markers[:, 0] < x0 + w + radius)
+                    & (markers[:, 1] > y0 - radius) & (markers[:, 1] < y0 + h + radius))
+            return 2 * hits + int(near.sum())
+
+        dx, dy = min(candidates, key=lambda c: (covered(*c) > 0, covered(*c), candidates.index(c)))
+        placed.append((px + dx, py + dy, px + dx + w, py + dy + h))
+        notes.append(ax.annotate(text, (x, y), xytext=(dx / to_px, dy / to_px), textcoords="offset points",
+                                 fontsize=fontsize, color=color, ha="left", va="bottom"))
+    return notes
 
 
 def save(fig, path, **kwargs):

@@ -1,4 +1,4 @@
-"""Work-precision study: what each co-simulation setting costs in wall time and buys in
+"""Work-precision study: what each co-simulation setting costs in CPU time and buys in
 accuracy, against a reference solution of the same scene (studies.reference).
 
 For each scene the user's choices are swept:
@@ -14,8 +14,10 @@ not as a full factorial but as the step sweep of every master with the shipped p
 settings, plus integrator and fidelity variants with the Jacobi master (the shipped one).
 The controller always runs the shipped moving-base feedforward and default gains.
 
-Cost: wall time of the master's stepping loop (scenarios.master.Run.wall_time: FMU
-instantiation and initialisation excluded), the median of ``repeats`` runs made in
+Cost: CPU time of the master's stepping loop (scenarios.master.Run.cpu_time, the stepping
+thread's CPU time, FMU instantiation and initialisation excluded; CPU rather than wall time
+because the machines these run on are shared: another process's load stretches wall time,
+not this thread's CPU time), the median of ``repeats`` runs made in
 interleaved rounds (every setting once per round, so a load change on the machine hits
 all settings alike), after one short untimed warm-up run of each setting (lazy imports and
 compiled-code loads land there); a setting whose first run takes over LONG_RUN seconds
@@ -33,13 +35,13 @@ front. Distance of a setting (the shipped default) from the front, with the fron
 interpolated linearly in log-log between its points (the step is continuous, so the
 settings between two front points exist):
 
-* cost at equal error: c / c_front(e), its wall time over the front's at its error;
-* error at equal cost: e / e_front(c), its error over the front's at its wall time;
+* cost at equal error: c / c_front(e), its CPU time over the front's at its error;
+* error at equal cost: e / e_front(c), its error over the front's at its CPU time;
 
 both 1 on the front; the same ratios against the runs made only (no interpolation) are
 reported beside them. The default counts as "within 10 % of the front" when its cost at
 equal error is at most 1.10 (the accuracy it delivers cannot be had for less than 91 %
-of its wall time); the verdict is given for the position RMS (what the hexapod is for)
+of its CPU time); the verdict is given for the position RMS (what the hexapod is for)
 and, as a second opinion, for the leg-force RMS.
 
 Run ``python -m studies.work_precision [--scenes ...] [--repeats N] [--quick]``; it prints a
@@ -204,7 +206,7 @@ def quick_sweep():
 
 # ------------------------------------------------------------------------ co-simulation
 def cosimulate(prep, config, outdir, stop_time=None):
-    """One co-simulation; returns (wall time [s], times, pose (n, 6), leg forces (n, 6))."""
+    """One co-simulation; returns (CPU time of its stepping [s], times, pose (n, 6), leg forces (n, 6))."""
     scenario = dataclasses.replace(prep.scenario, step=config.step, master=config.master,
                                    extrapolation=config.extrapolation,
                                    stop_time=stop_time or prep.scenario.stop_time)
@@ -220,7 +222,7 @@ def cosimulate(prep, config, outdir, stop_time=None):
     records = run_records(run)
     pose = [k for k, c in enumerate(records.names) if c.startswith("plant.pose[")]
     force = [k for k, c in enumerate(records.names) if c.startswith("controller.leg_force[")]
-    return run.wall_time, records.time, records.values[:, pose], records.values[:, force]
+    return run.cpu_time, records.time, records.values[:, pose], records.values[:, force]
 
 
 _PROBE = """
@@ -333,7 +335,7 @@ def check_reference(ref, prep, rtol=RTOL_CHECK):
 
 def study(name, configs=None, repeats=3, progress=True, reference_solution=None, stop_time=None, prep=None):
     """Run the sweep on scene ``name``; returns (results, reference). ``results``: one
-    dict per setting with its Config, wall time (median), the times measured and the
+    dict per setting with its Config, CPU time (median), the times measured and the
     errors against the reference (or the failure message)."""
     from tqdm import tqdm
     configs = configs or sweep()
@@ -369,12 +371,12 @@ def study(name, configs=None, repeats=3, progress=True, reference_solution=None,
                     bar.update(1)
                     continue
                 try:
-                    wall, times, pose, forces = cosimulate(prep, config, tmp)
+                    cpu, times, pose, forces = cosimulate(prep, config, tmp)
                 except FmuError as exc:
                     result["failure"] = str(exc).splitlines()[-1].strip()[:160]
                     bar.update(1)
                     continue
-                result["times"].append(wall)
+                result["times"].append(cpu)
                 if result["error"] is None:
                     result["error"] = reference.compare(ref, times, pose, forces, prep.window)
                     peak = float(np.abs(forces).max())
@@ -384,16 +386,19 @@ def study(name, configs=None, repeats=3, progress=True, reference_solution=None,
                 bar.update(1)
         bar.close()
     for result in results:
-        result["wall_time"] = float(np.median(result["times"])) if result["times"] else np.nan
+        result["cpu_time"] = float(np.median(result["times"])) if result["times"] else np.nan
     return results, ref
 
 
 def measures(results, key):
-    """(costs, errors) arrays; NaN for failed and unstable runs, which the front ignores."""
+    """(costs, errors) arrays; NaN for failed and unstable runs, which the front ignores.
+    Position errors under the floor (1 nm) count as the floor: finer than the model
+    resolves, they are equal, and the cheapest of them is the front there."""
+    from movingbase.scenarios.style import FLOOR
     usable = [bool(r["error"]) and not r["unstable"] for r in results]
-    costs = np.array([r["wall_time"] if ok else np.nan for r, ok in zip(results, usable)])
+    costs = np.array([r["cpu_time"] if ok else np.nan for r, ok in zip(results, usable)])
     errors = np.array([r["error"][key] if ok else np.nan for r, ok in zip(results, usable)])
-    return costs, errors
+    return costs, np.maximum(errors, FLOOR) if key == "pose_rms_um" else errors   # NaN stays NaN
 
 
 def verdict(results, key="pose_rms_um", default=DEFAULT):
@@ -423,7 +428,7 @@ def table(results):
     front: P on the position-RMS front, F on the leg-force-RMS front."""
     front_pose = pareto_front(*measures(results, "pose_rms_um"))
     front_force = pareto_front(*measures(results, "force_rms_N"))
-    lines = [f"{'step':>6} {'master':<12} {'integrator':<10} {'fidelity':<13} {'wall':>7} "
+    lines = [f"{'step':>6} {'master':<12} {'integrator':<10} {'fidelity':<13} {'cpu':>7} "
              f"{'pos rms':>9} {'pos max':>9} {'rot rms':>8} {'F rms':>9} {'F max':>9}  front",
              f"{'[ms]':>6} {'':<12} {'x substeps':<10} {'':<13} {'[s]':>7} {'[µm]':>9} {'[µm]':>9} "
              f"{'[µrad]':>8} {'[N]':>9} {'[N]':>9}"]
@@ -443,7 +448,7 @@ def table(results):
         note = "  <- shipped default" if c == DEFAULT else ""
         if r["unstable"]:
             marks, note = "  ", f"  {r['unstable']}"
-        lines.append(f"{head} {r['wall_time']:>7.3f} {e['pose_rms_um']:>9.3g} {e['pose_max_um']:>9.3g} "
+        lines.append(f"{head} {r['cpu_time']:>7.3f} {e['pose_rms_um']:>9.3g} {e['pose_max_um']:>9.3g} "
                      f"{e['rot_rms_urad']:>8.3g} {e['force_rms_N']:>9.3g} {e['force_max_N']:>9.3g}  {marks}{note}")
     return "\n".join(lines)
 
@@ -455,7 +460,7 @@ REDUCED = "0.55"     # every reduced-fidelity plant: one grey, its points named 
 
 
 def chart(name, results, path, note=""):
-    """Error against wall time, log-log: position RMS (left) and leg-force RMS (right),
+    """Error against CPU time, log-log: position RMS (left) and leg-force RMS (right),
     the Pareto front (log-log interpolated), the shipped default as a star. Four encodings only:
     colour = master, marker = plant integrator, hollow = substeps, grey = reduced-fidelity
     plant; only the front's points carry their step, beside them; position errors under
@@ -465,9 +470,10 @@ def chart(name, results, path, note=""):
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
 
-    from movingbase.scenarios.style import FLOOR, plain_log_axis, ratio, save
+    from movingbase.scenarios.style import FLOOR, label_points, plain_log_axis, ratio, save
 
     fig, axes = plt.subplots(1, 2, figsize=(13, 6.2), layout="constrained")
+    labels = {}
     for ax, key, label in ((axes[0], "pose_rms_um", "platform position error against the reference, RMS [µm]"),
                            (axes[1], "force_rms_N", "leg-force error against the reference, RMS [N]")):
         costs, errors = measures(results, key)
@@ -478,7 +484,7 @@ def chart(name, results, path, note=""):
             if r["failure"]:
                 continue
             c = r["config"]
-            x, y = r["wall_time"], max(r["error"][key], floor)
+            x, y = r["cpu_time"], max(r["error"][key], floor)
             if r["unstable"]:
                 ax.scatter(x, y, s=40, marker="x", color="0.5", zorder=3)
                 continue
@@ -489,11 +495,6 @@ def chart(name, results, path, note=""):
         idx = np.flatnonzero(front)
         idx = idx[np.argsort(costs[idx])]
         ax.plot(costs[idx], shown[idx], color="k", lw=1.2, zorder=2)
-        for n, i in enumerate(idx):           # the front's steps, alternately above and below
-            c = results[i]["config"]
-            ax.annotate(f"{c.step * 1e3:g} ms" + ("" if c.fidelity == "full" else f", {c.fidelity}"), (costs[i], shown[i]),
-                        textcoords="offset points",
-                        xytext=(6, 6 if n % 2 else -11), fontsize=7, color="0.25")
         title = ""
         v = verdict(results, key)
         if v:
@@ -509,9 +510,12 @@ def chart(name, results, path, note=""):
         plain_log_axis(ax.yaxis)
         if floor:                             # never below 1 nm, no lower than the data needs
             ax.set_ylim(max(floor, 0.5 * np.nanmin(shown)), None)
-        ax.set_xlabel("wall time of the run [s] (median of repeats)")
+        ax.set_xlabel("CPU time of the stepping [s] (median of repeats)")
         ax.set_ylabel(label + (" (floored at 1 nm)" if floor else ""), fontsize=9)
         ax.grid(True, which="major", alpha=0.3)
+        labels[ax] = (costs[idx], shown[idx], [f"{results[i]['config'].step * 1e3:g} ms"
+                                               + ("" if results[i]["config"].fidelity == "full"
+                                                  else f", {results[i]['config'].fidelity}") for i in idx])
     keys = [Line2D([], [], ls="", marker="o", color=c, label=f"master {m}") for m, c in COLOURS.items()]
     keys += [Line2D([], [], ls="", marker=m, color="0.3", label=f"plant {k}") for k, m in MARKERS.items()]
     keys += [Line2D([], [], ls="", marker="o", markerfacecolor="none", color="0.3", label="hollow: > 1 substep"),
@@ -524,8 +528,10 @@ def chart(name, results, path, note=""):
     extra = ""
     if failed:
         extra = f"; failed, not shown: {', '.join(sorted({f'{c.integrator} plant' for c in failed}))}"
-    fig.suptitle(f"Work-precision, {name}: error against wall time (reference: coupled model, Radau rtol 1e-10, "
+    fig.suptitle(f"Work-precision, {name}: error against CPU time (reference: coupled model, Radau rtol 1e-10, "
                  f"continuous PID){extra}\n{note}", fontsize=9)
+    for ax, (xs, ys, texts) in labels.items():   # after the layout is final: free places beside the points
+        label_points(ax, xs, ys, texts)
     path.parent.mkdir(parents=True, exist_ok=True)
     save(fig, path)
     return path
@@ -533,15 +539,15 @@ def chart(name, results, path, note=""):
 
 def summary(results):
     """JSON-ready results."""
-    return [{**dataclasses.asdict(r["config"]), "label": r["config"].label, "wall_time_s": r["wall_time"],
-             "wall_times_s": r["times"], "error": r["error"], "failure": r["failure"], "unstable": r["unstable"]}
+    return [{**dataclasses.asdict(r["config"]), "label": r["config"].label, "cpu_time_s": r["cpu_time"],
+             "cpu_times_s": r["times"], "error": r["error"], "failure": r["failure"], "unstable": r["unstable"]}
             for r in results]
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m studies.work_precision", description=__doc__.split("\n\n")[0])
     parser.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES))
-    parser.add_argument("--repeats", type=int, default=3, help="runs per setting; the wall time is their median")
+    parser.add_argument("--repeats", type=int, default=3, help="runs per setting; the CPU time is their median")
     parser.add_argument("--quick", action="store_true", help="a handful of settings around the default")
     parser.add_argument("--figures", type=pathlib.Path, default=FIGURES, help="where the PNGs go")
     parser.add_argument("--json", type=pathlib.Path, help="also write all results to this JSON file")

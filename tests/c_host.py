@@ -28,6 +28,7 @@ from fmpy import read_model_description
 
 SOURCE = pathlib.Path(__file__).resolve().parent / "c_host" / "fmi2_host.c"
 MISUSE = SOURCE.with_name("misuse.c")
+MISUSE3 = SOURCE.with_name("misuse3.c")   # the FMI 3.0 misuse host
 HEADERS = pathlib.Path(fmpy.__file__).resolve().parent / "c-code"
 
 
@@ -49,12 +50,12 @@ class HostRun:
 
 
 def compile_host(cache=None, source=SOURCE):
-    """Path of the compiled host (``source``: fmi2_host.c or misuse.c), built once per
+    """Path of the compiled host (``source``: fmi2_host.c, misuse.c or misuse3.c), built once per
     source/header/flags hash into a temporary cache. MOVINGBASE_HOST_CFLAGS adds compiler
     flags: .ci/sanitize.sh builds the host with the sanitizers of the FMUs it loads."""
     flags = os.environ.get("MOVINGBASE_HOST_CFLAGS", "").split()
     digest = hashlib.sha256(source.read_bytes() + " ".join(flags).encode())
-    for header in sorted(HEADERS.glob("fmi2*.h")):
+    for header in sorted([*HEADERS.glob("fmi*.h"), *source.parent.glob("*.h")]):   # fmpy's and misuse_common.h
         digest.update(header.read_bytes())
     cache = pathlib.Path(cache or tempfile.gettempdir()) / "movingbase-c-host"
     cache.mkdir(parents=True, exist_ok=True)

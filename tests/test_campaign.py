@@ -108,6 +108,7 @@ def test_campaign_runs_equal_the_scenario_run_directly(tmp_path):
         run = master.run(scenario, paths, params, tmp_path, "direct", [metrics.make(m) for m in scenario.metrics])
         assert float(row["pose error peak"]) == run.metrics["pose error"]["peak"]
         assert float(row["leg error rms"]) == run.metrics["leg error"]["rms"]
+        assert 0 < run.cpu_time <= run.wall_time + 1e-3   # one thread's CPU time: never above the wall time it spans
     again = campaign.run_campaign(path, tmp_path / "out", jobs_=2, progress=False)[3]
     assert not again.computed and len(again.skipped) == 2
 

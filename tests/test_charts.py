@@ -124,7 +124,7 @@ def test_work_precision_chart_floor_front_labels_and_ratios(tmp_path, monkeypatc
     configs += [wp.Config(1e-3, integrator="euler", max_step=1e-3), wp.Config(1e-3, fidelity="massless_legs")]
     costs = [8.0, 2.0, 1.0, 4.0, 3.0, 0.5]
     pose = [2e-4, 0.05, 0.3, 7.0, 0.2, 40.0]            # the default far off the front, one run under 1 nm
-    results = [{"config": c, "failure": None, "unstable": None, "wall_time": w, "times": [w],
+    results = [{"config": c, "failure": None, "unstable": None, "cpu_time": w, "times": [w],
                 "error": {"pose_rms_um": e, "force_rms_N": 10 * e + 1}} for c, w, e in zip(configs, costs, pose)]
     axes = []
     monkeypatch.setattr(style, "save", lambda fig, path: axes.extend(fig.axes))
@@ -181,3 +181,20 @@ def test_slew_size_chart_ticks_at_the_sizes_run(tmp_path, monkeypatch):
     sc.size_chart(rows, tmp_path / "sizes.png")
     np.testing.assert_allclose(axes[0].get_xticks(), sizes)
     assert [t.get_text() for t in axes[0].get_xticklabels()] == [f"{d:g}" for d in sizes]
+
+
+@pytest.mark.parametrize("low, high, subs", [(1e-9, 1e5, {1.0}), (0.01, 50.0, {1.0, 2.0, 5.0})])
+def test_plain_log_axes_label_wide_and_narrow_ranges(low, high, subs):
+    """A log axis over 14 decades keeps labelled decades (matplotlib's LogLocator with
+    subs 1-2-5 dropped every tick there); over 3.7 decades it labels 1, 2 and 5."""
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots()
+    ax.set_yscale("log")
+    ax.set_ylim(low, high)
+    style.plain_log_axis(ax.yaxis)
+    fig.canvas.draw()
+    ticks = [t for t in ax.yaxis.get_majorticklocs() if low <= t <= high]
+    labels = [t.get_text() for t in ax.yaxis.get_majorticklabels() if t.get_text()]
+    plt.close(fig)
+    assert 5 <= len(ticks) <= 15 and len(labels) >= 5
+    assert {round(t / 10 ** np.floor(np.log10(t)), 6) for t in ticks} == subs

@@ -2,6 +2,7 @@
 against their FMI 2.0 builds, the independent truth here: the same description
 translated, the same numbers bit for bit (one model file and kernel behind both), and
 FMI 3.0's states and misuse answered as the standard says, with a log line."""
+import csv
 import xml.etree.ElementTree as ET
 import zipfile
 from ctypes import CFUNCTYPE, POINTER, byref, c_bool, c_double, c_int, c_void_p
@@ -14,7 +15,7 @@ from fmpy.validation import validate_fmu
 
 from movingbase.fmu_src import builder, native_build
 from movingbase.fmu_src.telescope_fmu import PROFILES
-from movingbase.scenarios import fmi, runner
+from movingbase.scenarios import campaign, fmi, runner
 from movingbase.scenarios.records import run_records
 from tests.fmu_helpers import OPENED
 
@@ -358,15 +359,72 @@ def test_enumeration_is_set_as_int64(pairs, tmp_path):
     assert assert_same_results(*runs)
 
 
-def test_ssp_export_of_fmi3_fmus_is_refused_by_name(tmp_path):
-    """The SSP export writes SSP 1.0 with FMI 2.0 FMUs: an instance chosen as FMI 3.0
-    stops the export with a scenario error naming its key, and no file is written."""
-    from movingbase.scenarios.__main__ import main
+def test_part_of_an_array_connected_keeps_the_rest(tmp_path):
+    """Only leg_force[2..6] of the plant connected (an FMI 3 array written in part by the
+    C loop, leg_force[1] held at the value set at initialization): the records equal the FMI 2 run's
+    bit for bit. Writing the array without reading it first would zero leg_force[1]."""
     text = (runner.SHIPPED / "keyhole_tracking.toml").read_text()
-    instance = text.split("[fmus.", 1)[1].split("]", 1)[0]
-    scene = tmp_path / "scene.toml"
-    scene.write_text(text.replace(f"[fmus.{instance}]", f"[fmus.{instance}]\nfmi_version = 3", 1))
-    with pytest.raises(SystemExit) as exc:
-        main(["--ssp", str(tmp_path / "scene.ssp"), str(scene)])
-    assert f"fmus.{instance}.fmi_version" in str(exc.value) and "not exported yet" in str(exc.value)
-    assert not (tmp_path / "scene.ssp").exists()
+    whole = 'from = "controller.leg_force"\nto = "plant.leg_force"'
+    assert whole in text
+    parts = "\n[[connections]]\n".join(f'from = "controller.leg_force[{i}]"\nto = "plant.leg_force[{i}]"'
+                                       for i in range(2, 7))
+    scene = tmp_path / "part.toml"
+    text = text.replace(whole, parts).replace('stop_time = "8 s"', 'stop_time = "3 s"')
+    scene.write_text(text.replace('max_step = "1 ms",', 'max_step = "1 ms", "leg_force[1]" = 5.3e3,'))
+    runs = {v: runner.run_scenario(scene, tmp_path / str(v), ci=True, progress=False, fmi_version=v,
+                                   allow_unstable=True)[1] for v in (2, 3)}
+    for a, b in zip(runs[2], runs[3], strict=True):
+        ra, rb = run_records(a), run_records(b)
+        assert (a.failure, a.steps) == (b.failure, b.steps) and a.steps > 10
+        assert ra.values.tobytes() == rb.values.tobytes(), a.label
+        force = ra.names.index("controller.leg_force[1]")
+        assert np.ptp(ra.values[:, force]) > 0    # the controller's force moves; the plant's leg 1 does not get it
+
+
+def test_a_campaign_over_an_fmi3_scenario_runs_fmi3_fmus(tmp_path):
+    """A campaign whose base scenario chooses fmi_version = 3 for every instance: its
+    jobs carry FMI 3.0 FMU files (read from the files themselves), it runs through the
+    engine's worker processes, and its metrics equal those of the same campaign over
+    the FMI 2 scenario exactly."""
+    text = (runner.SHIPPED / "keyhole_tracking.toml").read_text()
+    summaries = {}
+    for version in (2, 3):
+        scene = tmp_path / f"scene{version}.toml"
+        scene.write_text(text.replace("fmu = ", f"fmi_version = {version}\nfmu = "))
+        assert set(runner.spec.load(scene).fmi_versions.values()) == {version}
+        path = tmp_path / f"c{version}.toml"
+        path.write_text(f'name = "c{version}"\nscenario = "{scene}"\nset = {{ stop_time = "2.5 s" }}\n'
+                        '[grid]\n"controller.feedforward" = ["fixed_base", "moving_base"]\n')
+        job_list, files = campaign.jobs(campaign.load(path))
+        versions = {fmi.unpack(files[d])[0].fmiVersion for job in job_list for d in job.fmus.values()}
+        assert versions == {f"{version}.0"}
+        camp, jobs, store, outcome, summary = campaign.run_campaign(path, tmp_path / "out", jobs_=1, progress=False)
+        assert len(outcome.computed) == len(camp.cases) > 1 and not outcome.failed
+        with open(summary) as f:
+            summaries[version] = [{k: v for k, v in row.items() if k != "run_time_s"} for row in csv.DictReader(f)]
+    assert summaries[2] == summaries[3]
+    assert float(summaries[3][0]["leg error rms"]) > 0
+
+
+def test_one_call_of_many_variables_equals_one_call_each(pairs):
+    """fmi3GetFloat64/fmi3SetFloat64 take consecutive variables in one inner call (the
+    layer's runs): any order, time in between, arrays and scalars, a run that ends where
+    time's value reference begins, give the values of one call per variable."""
+    path = pairs["hexapod_plant_fmu"][1]
+    inst = open3(path)
+    md = {v.name: v for v in read_model_description(str(path)).modelVariables}
+    inst.initialize(0.0, {"moving_base": 0, **{f"leg_force[{k}]": 5.0e3 + k for k in range(1, 7)}})
+    inst.do_step(0.0, 1e-3)
+    floats = [v for v in md.values() if v.type == "Float64"]
+    size = {v.name: int(np.prod([int(d.start) for d in v.dimensions])) if v.dimensions else 1 for v in floats}
+    one = {v.name: inst.fmu.getFloat64([v.valueReference], size[v.name]) for v in floats}
+    last = max(floats, key=lambda v: v.valueReference if v.name != "time" else -1)
+    for order in (floats, floats[::-1], [md["pose[2]"], md["time"], md["pose[3]"], md["leg_force"], md["pose[1]"]],
+                  [last, md["time"]]):
+        values = inst.fmu.getFloat64([v.valueReference for v in order], sum(size[v.name] for v in order))
+        assert values == [x for v in order for x in one[v.name]]
+    inst.fmu.setFloat64([md["leg_force"].valueReference], [1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
+    assert inst.fmu.getFloat64([md["leg_force"].valueReference], 6) == [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
+    assert status_of(inst.fmu.setFloat64, [md["leg_force"].valueReference, md["time"].valueReference],
+                     [9.0] * 7) == ERROR
+    assert inst.fmu.getFloat64([md["leg_force"].valueReference], 6) == [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]   # nothing set

@@ -237,6 +237,19 @@ def test_a_sweep_value_the_telescope_model_refuses_is_refused(bare):
             descriptions=bare)
 
 
+def test_the_profile_and_every_sweep_value_are_told_together(bare):
+    """The model checks (the telescope's profile) and each sweep value are told in one
+    error, not the first alone: a user fixes the file in one go."""
+    text = edited(SLEW, ('target_elevation = "45 deg"', 'target_elevation = "95 deg"'),
+                  ('parameter = "controller.feedforward"\nvalues = ["none", "fixed_base", "moving_base"]',
+                   'parameter = "base.start_elevation"\nvalues = ["30 deg", "-5 deg", "-6 deg"]'))
+    with pytest.raises(spec.ScenarioError) as error:
+        spec.bind(spec.parse(text, "bad.toml"), bare)
+    keys = [key for _, key, _ in error.value.problems]
+    assert keys == ["fmus.base.parameters", "sweep.values[0]", "sweep.values[1]", "sweep.values[2]"], keys
+    assert "got -6..95 deg" in str(error.value)
+
+
 def test_a_sidereal_source_below_the_horizon_is_refused(descriptions):
     text = edited(KEYHOLE, ('declination = "30.89 deg"', 'declination = "-80 deg"'))
     refused(text, "fmus.base.parameters", "profile 'sidereal' with right_ascension = '222.32311789485317 deg', "

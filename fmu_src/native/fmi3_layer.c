@@ -12,6 +12,7 @@
    Enumerations read and written as Int64; the FMI 3 logger (text only, never a format);
    fmi3DoStep's out arguments. The FMU has no event mode, no clocks, no intermediate
    update and no model exchange: those calls answer fmi3Error with a log line. */
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -41,6 +42,9 @@ typedef struct {
     fmi3LogMessageCallback log;
     int phase;
     double start_time;   /* time before the first step (the FMI 2 layer reports the last step's) */
+    const char *integer_call;   /* the fmi3 Int32/Int64 call under way: the inner layer's Integer lines name it */
+    int stop_defined;    /* fmi3EnterInitializationMode's stopTime: no step may pass it (FMI 3.0) */
+    double stop_time;
     unsigned char kind3[MB3_NVARS + 1];
     int count3[MB3_NVARS + 1];
     fmi2ValueReference vr2[MB3_NVARS];   /* vr2[k] = k: the FMI 2 element value references */
@@ -84,6 +88,7 @@ static void say(instance3 *inst, fmi3Status status, const char *category, const 
 /* The inner layer names its own functions; its log lines are shown under the FMI 3 names. */
 static const char *const RENAMES[][2] = {
     {"fmi2GetReal", "fmi3GetFloat64"}, {"fmi2SetReal", "fmi3SetFloat64"},
+    {"fmi2SerializeFMUstate", "fmi3SerializeFMUState"}, {"fmi2DeSerializeFMUstate", "fmi3DeserializeFMUState"},
     {"fmi2GetInteger", "fmi3GetInt32"}, {"fmi2SetInteger", "fmi3SetInt32"},
     {"fmi2SetupExperiment", "fmi3EnterInitializationMode"}, {"fmi2Instantiate", "fmi3InstantiateCoSimulation"},
     {"fmi2", "fmi3"}};
@@ -99,7 +104,14 @@ static void inner_logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Stat
     vsnprintf(text, sizeof text, fmt, ap);
     va_end(ap);
     const char *out = text;
-    for (size_t k = 0; k < sizeof RENAMES / sizeof RENAMES[0]; k++) {
+    /* misuse harness: a refused fmi3SetInt64 logged "fmi3SetInt32: ..." */
+    size_t integer = strlen("fmi2SetInteger");
+    if (inst && inst->integer_call && (strncmp(text, "fmi2SetInteger", integer) == 0 ||
+                                       strncmp(text, "fmi2GetInteger", integer) == 0)) {
+        snprintf(renamed, sizeof renamed, "%s%s", inst->integer_call, text + integer);
+        out = renamed;
+    }
+    for (size_t k = 0; out == text && k < sizeof RENAMES / sizeof RENAMES[0]; k++) {
         size_t n = strlen(RENAMES[k][0]);
         if (strncmp(text, RENAMES[k][0], n) == 0) {
             snprintf(renamed, sizeof renamed, "%s%s", RENAMES[k][1], text + n);
@@ -238,10 +250,16 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
                                        fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime)
 {
     INSTANCE("fmi3EnterInitializationMode", P_INSTANTIATED)
+    /* misuse harness: a stopTime before the startTime was accepted, and steps past it ran */
+    if (stopTimeDefined && isfinite(startTime) && !(stopTime >= startTime))
+        return FAIL(inst, "fmi3EnterInitializationMode: stopTime %.17g s is before startTime %.17g s", stopTime,
+                    startTime);
     fmi2Status s = fmi2SetupExperiment(inst->inner, toleranceDefined, tolerance, startTime, stopTimeDefined,
                                            stopTime);
     if (s > fmi2Warning) return (fmi3Status)s;
     inst->start_time = startTime;
+    inst->stop_defined = stopTimeDefined != fmi3False;
+    inst->stop_time = stopTime;
     s = fmi2EnterInitializationMode(inst->inner);
     if (s <= fmi2Warning) inst->phase = P_INITIALIZATION;
     return (fmi3Status)s;
@@ -305,20 +323,40 @@ static int check_refs(instance3 *inst, const char *function, const fmi3ValueRefe
     return 1;
 }
 
+/* How many values from vr[k] on form one run of consecutive FMI 2 elements (the FMI 3
+   variables vr[k], vr[k+1], ... one after the other, time excluded), and how many
+   variables that is (*nvars): one inner call per run (a pose's six scalars, the
+   telescope's 60 outputs), not one per variable, so FMI 3 costs what FMI 2 does. */
+static size_t run_of(const instance3 *inst, const fmi3ValueReference vr[], size_t nvr, size_t k, size_t *nvars)
+{
+    size_t n = (size_t)inst->count3[vr[k]], j = k + 1;
+    while (j < nvr && vr[j] != VR_TIME && vr[j] == vr[k] + n) n += (size_t)inst->count3[vr[j++]];
+    *nvars = j - k;
+    return n;
+}
+
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Float64 values[],
                           size_t nValues)
 {
     INSTANCE("fmi3GetFloat64", GETTABLE)
     if (!check_refs(inst, "fmi3GetFloat64", vr, nvr, values, nValues, K_FLOAT64)) return fmi3Error;
-    for (size_t k = 0; k < nvr; k++) {
+    for (size_t k = 0, nvars; k < nvr; k += nvars) {
         if (vr[k] == VR_TIME) {   /* fmi2GetRealStatus answers only after initialization */
             if (inst->phase == P_INSTANTIATED || inst->phase == P_INITIALIZATION) *values++ = inst->start_time;
             else fmi2GetRealStatus(inst->inner, fmi2LastSuccessfulTime, values++);
+            nvars = 1;
             continue;
         }
-        fmi2Status s = fmi2GetReal(inst->inner, &inst->vr2[vr[k]], (size_t)inst->count3[vr[k]], values);
+        size_t n = run_of(inst, vr, nvr, k, &nvars);
+        fmi2Status s = fmi2GetReal(inst->inner, &inst->vr2[vr[k]], n, values);
         if (s > fmi2Warning) return (fmi3Status)s;
-        values += inst->count3[vr[k]];
+        /* misuse harness: after an initialization refused for a non-finite output (say
+           amplitude = 1e300), the outputs were read back NaN with fmi3OK */
+        for (size_t e = 0; e < n; e++)
+            if (MB_MODEL.vars[vr[k] + (fmi3ValueReference)e].causality == MB_OUTPUT && !isfinite(values[e]))
+                return FAIL(inst, "fmi3GetFloat64: output %s is %g (not finite: its initialization was refused)",
+                            MB_MODEL.vars[vr[k] + (fmi3ValueReference)e].name, values[e]);
+        values += n;
     }
     return fmi3OK;
 }
@@ -328,11 +366,13 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
 {
     INSTANCE("fmi3SetFloat64", SETTABLE)
     if (!check_refs(inst, "fmi3SetFloat64", vr, nvr, values, nValues, K_FLOAT64)) return fmi3Error;
-    for (size_t k = 0; k < nvr; k++) {
+    for (size_t k = 0; k < nvr; k++)
         if (vr[k] == VR_TIME) return FAIL(inst, "fmi3SetFloat64: time is the independent variable, it cannot be set");
-        fmi2Status s = fmi2SetReal(inst->inner, &inst->vr2[vr[k]], (size_t)inst->count3[vr[k]], values);
+    for (size_t k = 0, nvars; k < nvr; k += nvars) {
+        size_t n = run_of(inst, vr, nvr, k, &nvars);
+        fmi2Status s = fmi2SetReal(inst->inner, &inst->vr2[vr[k]], n, values);
         if (s > fmi2Warning) return (fmi3Status)s;
-        values += inst->count3[vr[k]];
+        values += n;
     }
     return fmi3OK;
 }
@@ -348,7 +388,9 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
         for (size_t k = 0; k < nvr; k++)                                                                         \
             for (int e = 0; e < inst->count3[vr[k]]; e++) {                                                            \
                 fmi2Integer v;                                                                                   \
+                inst->integer_call = "fmi3Get" #NAME;                                                            \
                 fmi2Status s = fmi2GetInteger(inst->inner, &inst->vr2[vr[k] + (fmi3ValueReference)e], 1, &v);      \
+                inst->integer_call = NULL;                                                                       \
                 if (s > fmi2Warning) return (fmi3Status)s;                                                       \
                 values[at++] = (TYPE)v;                                                                          \
             }                                                                                                    \
@@ -367,7 +409,9 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
                     return FAIL(inst, "fmi3Set" #NAME ": %s = %lld is outside the Int32 range",                 \
                                 MB_MODEL.vars[vr[k]].name, (long long)v);                                        \
                 fmi2Integer w = (fmi2Integer)v;                                                                  \
+                inst->integer_call = "fmi3Set" #NAME;                                                            \
                 fmi2Status s = fmi2SetInteger(inst->inner, &inst->vr2[vr[k] + (fmi3ValueReference)e], 1, &w);     \
+                inst->integer_call = NULL;                                                                       \
                 if (s > fmi2Warning) return (fmi3Status)s;                                                       \
             }                                                                                                    \
         return fmi3OK;                                                                                           \
@@ -431,6 +475,16 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     INSTANCE("fmi3DoStep", P_STEP)
     if (!eventHandlingNeeded || !terminateSimulation || !earlyReturn || !lastSuccessfulTime)
         return FAIL(inst, "fmi3DoStep: an out argument is NULL");
+    /* FMI 3.0: a step past a defined stopTime is an error (the tolerance: the inner layer's
+       for the communication point, so a last step ending at stopTime by sums of h runs) */
+    double end = currentCommunicationPoint + communicationStepSize;
+    /* misuse harness: at t = 1e300 a step of 1 ms left the time where it was and ran (OK) */
+    if (communicationStepSize > 0 && end == currentCommunicationPoint)
+        return FAIL(inst, "fmi3DoStep: a step of %.17g s does not advance the time %.17g s (below its resolution)",
+                    communicationStepSize, currentCommunicationPoint);
+    if (inst->stop_defined && end > inst->stop_time + 1e-9 * fmax(1.0, fabs(inst->stop_time)))
+        return FAIL(inst, "fmi3DoStep: the step to t=%.17g s passes the stopTime %.17g s set at initialization", end,
+                    inst->stop_time);
     fmi2Status s = fmi2DoStep(inst->inner, currentCommunicationPoint, communicationStepSize,
                                   noSetFMUStatePriorToCurrentPoint);
     fmi2Real last = currentCommunicationPoint;
@@ -445,12 +499,36 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
 }
 
 
+/* The derivative of order n of an output is the output declared its n-th time derivative
+   (MB3_DERIVATIVE, from native_build.OUTPUT_DERIVATIVES: the telescope's rate and
+   acceleration outputs, computed analytically with the pose), read at the same point. */
 fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                                     const fmi3Int32 orders[], fmi3Float64 values[], size_t nValues)
 {
-    (void)vr, (void)nvr, (void)orders, (void)values, (void)nValues;
     INSTANCE("fmi3GetOutputDerivatives", P_STEP | P_STEP_DISCARDED | P_TERMINATED)
-    return FAIL(inst, "fmi3GetOutputDerivatives: maxOutputDerivativeOrder is 0");
+    if (MB3_MAX_DERIVATIVE_ORDER == 0)
+        return FAIL(inst, "fmi3GetOutputDerivatives: maxOutputDerivativeOrder is 0");
+    if (!check_refs(inst, "fmi3GetOutputDerivatives", vr, nvr, values, nValues, K_FLOAT64)) return fmi3Error;
+    if (nvr && !orders) return FAIL(inst, "fmi3GetOutputDerivatives: orders is NULL");
+    for (size_t k = 0; k < nvr; k++) {
+        if (vr[k] == VR_TIME || MB_MODEL.vars[vr[k]].causality != MB_OUTPUT)
+            return FAIL(inst, "fmi3GetOutputDerivatives: value reference %u is not an output", (unsigned)vr[k]);
+        if (orders[k] < 1 || orders[k] > MB3_MAX_DERIVATIVE_ORDER)
+            return FAIL(inst, "fmi3GetOutputDerivatives: order %d of %s: orders run from 1 to "
+                        "maxOutputDerivativeOrder %d", (int)orders[k], MB_MODEL.vars[vr[k]].name,
+                        MB3_MAX_DERIVATIVE_ORDER);
+        int d = (int)vr[k];
+        for (int order = 1; order <= orders[k]; order++) {
+            d = MB3_DERIVATIVE[d];
+            if (d < 0)
+                return FAIL(inst, "fmi3GetOutputDerivatives: %s has no derivative of order %d (it has %d)",
+                            MB_MODEL.vars[vr[k]].name, (int)orders[k], order - 1);
+        }
+        fmi2Status s = fmi2GetReal(inst->inner, &inst->vr2[d], (size_t)inst->count3[vr[k]], values);
+        if (s > fmi2Warning) return (fmi3Status)s;
+        values += inst->count3[vr[k]];
+    }
+    return fmi3OK;
 }
 
 /* ------------------------------------------------------------------ FMU states */

@@ -103,6 +103,30 @@ static inline v3 transport(v3 aB, v3 g, v3 eB, v3 wB, v3 r, v3 v_rel)
     return add(lin(1.0, aB, -1.0, g), add(cross(eB, r), cross(wB, lin(1.0, cross(wB, r), 2.0, v_rel))));
 }
 
+/* What the base motion contributes, in {B}: gravity g, the base's acceleration aB, angular
+   velocity wB and angular acceleration eB (zero where base_mode leaves them out). */
+typedef struct { v3 g, aB, wB, eB; } base_frame;
+
+static base_frame base_terms(int base_mode, double g0, const double *base_pose, const double *base_rate,
+                             const double *base_acc, int n)
+{
+    const v3 zero = vec(0.0, 0.0, 0.0);
+    base_frame f = {vec(0.0, 0.0, -g0), zero, zero, zero};
+    if (base_mode != MB_HEXAPOD_BASE_NONE) {
+        const double *bp = base_pose + 6 * n, *br = base_rate + 6 * n, *ba = base_acc + 6 * n;
+        double Rb[9];
+        const trig tb = angles(bp + 3);
+        rotation(&tb, Rb);
+        f.g = vec(-g0 * Rb[6], -g0 * Rb[7], -g0 * Rb[8]);
+        if (base_mode == MB_HEXAPOD_BASE_FULL) {
+            f.aB = mul_t(Rb, load(ba));
+            f.wB = mul_t(Rb, omega(&tb, br + 3));
+            f.eB = mul_t(Rb, omega_dot(&tb, br + 3, ba + 3));
+        }
+    }
+    return f;
+}
+
 /* Two legs at a time: d2 holds one double per leg, and every operation below acts on
    each lane alone, as the scalar operation would (IEEE results per lane: the same bits).
    GCC and clang keep a pair in one SSE2 / NEON register; other compilers get the pair
@@ -116,6 +140,7 @@ static inline d2 ddiv(d2 a, d2 b) { return a / b; }
 static inline d2 dneg(d2 a) { return -a; }
 static inline double lane(d2 a, int i) { return a[i]; }
 static inline d2 pair(double a, double b) { d2 r = {a, b}; return r; }
+#define ALWAYS_INLINE static inline __attribute__((always_inline))
 #else
 typedef struct { double v[2]; } d2;
 static inline d2 dadd(d2 a, d2 b) { d2 r = {{a.v[0] + b.v[0], a.v[1] + b.v[1]}}; return r; }
@@ -125,6 +150,7 @@ static inline d2 ddiv(d2 a, d2 b) { d2 r = {{a.v[0] / b.v[0], a.v[1] / b.v[1]}};
 static inline d2 dneg(d2 a) { d2 r = {{-a.v[0], -a.v[1]}}; return r; }
 static inline double lane(d2 a, int i) { return a.v[i]; }
 static inline d2 pair(double a, double b) { d2 r = {{a, b}}; return r; }
+#define ALWAYS_INLINE static inline
 #endif
 
 static inline d2 splat(double a) { return pair(a, a); }
@@ -177,23 +203,85 @@ static inline w3 wtransport(w3 aB, w3 g, w3 eB, w3 wB, w3 r, w3 v_rel)
                 wadd(wcross(eB, r), wcross(wB, wlin(splat(1.0), wcross(wB, r), splat(2.0), v_rel))));
 }
 
-/* mb_hexapod_kane_ext, and (pose_trig not NULL) the cos and sin of the last state's
-   angles, so that mb_hexapod_rhs_actuated does not take them again. */
+/* The legs' terms of M added to it: for each leg in turn its reflected mass m_r J_j^T J_j
+   (m_r != 0), and with massive legs its joint mass k_t A^T A + (m_m - k_t) J_j^T J_j with
+   A = [1, -[rho]x] (k_t on the upper-left diagonal, k_t (rho.rho - rho rho^T) lower right,
+   -k_t [rho]x upper right, +k_t [rho]x lower left). Entry by entry the additions of one
+   leg after another, as a leg at a time adds them; but each pair of columns of M is held
+   in a register over all six legs (one load and store instead of one per term), and a
+   lane without a term adds -0.0 or subtracts +0.0, which leave every number as it is. */
+ALWAYS_INLINE void leg_mass_of(double *M, const double *J, int reflected, double m_r, int legs, double mm,
+                               const double *kt, const double *rr, const double *rho)
+{
+    const double m0 = -0.0, p0 = 0.0;
+#pragma GCC unroll 6
+    for (int a = 0; a < 6; a++) {
+#pragma GCC unroll 3
+        for (int k = 0; k < 6; k += 2) {
+            d2 acc = pair(M[6 * a + k], M[6 * a + k + 1]);
+#pragma GCC unroll 6
+            for (int j = 0; j < 6; j++) {
+                const double *Jj = J + 6 * j;
+                const d2 Jp = pair(Jj[k], Jj[k + 1]);
+                if (reflected) acc = dadd(acc, dmul(splat(m_r * Jj[a]), Jp));
+                if (!legs) continue;
+                const double t = kt[j], r0 = rho[3 * j], r1 = rho[3 * j + 1], r2 = rho[3 * j + 2];
+                switch (6 * a + k) {   /* the joint mass of row a, columns k and k + 1 */
+                case 0: acc = dadd(acc, pair(t, m0)); break;
+                case 4: acc = dsub(acc, pair(t * -r2, t * r1)); break;
+                case 6: acc = dadd(acc, pair(m0, t)); break;
+                case 8: acc = dsub(acc, pair(p0, t * r2)); break;
+                case 10: acc = dsub(acc, pair(p0, t * -r0)); break;
+                case 14: acc = dsub(dadd(acc, pair(t, m0)), pair(p0, t * -r1)); break;
+                case 16: acc = dsub(acc, pair(t * r0, p0)); break;
+                case 18: acc = dadd(acc, pair(m0, t * -r2)); break;
+                case 20: acc = dsub(dadd(acc, pair(t * r1, t * rr[j])), pair(p0, t * r0 * r0)); break;
+                case 22: acc = dsub(acc, pair(t * r0 * r1, t * r0 * r2)); break;
+                case 24: acc = dadd(acc, pair(t * r2, m0)); break;
+                case 26: acc = dsub(dadd(acc, pair(t * -r0, m0)), pair(p0, t * r1 * r0)); break;
+                case 28: acc = dsub(dadd(acc, pair(t * rr[j], m0)), pair(t * r1 * r1, t * r1 * r2)); break;
+                case 30: acc = dadd(acc, pair(t * -r1, t * r0)); break;
+                case 32: acc = dsub(acc, pair(p0, t * r2 * r0)); break;
+                case 34: acc = dsub(dadd(acc, pair(m0, t * rr[j])), pair(t * r2 * r1, t * r2 * r2)); break;
+                default: break;
+                }
+                acc = dadd(acc, dmul(splat((mm - t) * Jj[a]), Jp));
+            }
+            M[6 * a + k] = lane(acc, 0);
+            M[6 * a + k + 1] = lane(acc, 1);
+        }
+    }
+}
+
+/* leg_mass_of compiled for each case that occurs, so that no case is tested per term. */
+static void leg_mass(double *M, const double *J, double m_r, int legs, double mm, const double *kt, const double *rr,
+                     const double *rho)
+{
+    if (m_r == 0.0 && legs) leg_mass_of(M, J, 0, m_r, 1, mm, kt, rr, rho);
+    else if (legs) leg_mass_of(M, J, 1, m_r, 1, mm, kt, rr, rho);
+    else if (m_r != 0.0) leg_mass_of(M, J, 1, m_r, 0, mm, kt, rr, rho);
+}
+
+/* mb_hexapod_kane_ext, and for mb_hexapod_rhs_actuated: (pose_trig not NULL) the cos and
+   sin of the last state's angles, so that it does not take them again; (frame not NULL)
+   the base terms of every state, already computed; M_all, h_all and J_all may be NULL
+   (not written). */
 static void kane(const double *base_joints, const double *platform_joints, const double *data, int n_states,
                  const double *pose_all, const double *rate_all, const double *arg_all, const double *base_pose,
                  const double *base_rate, const double *base_acc, int base_mode, int legs, int twist_speeds,
                  int solve, double m_r, const double *wrench_all, double *M_all, double *h_all, double *J_all,
-                 double *ldot, double *length, double *out_all, double *det, trig *pose_trig)
+                 double *ldot, double *length, double *out_all, double *det, trig *pose_trig,
+                 const base_frame *frame)
 {
     const double m_p = data[0], g0 = data[10];
     const double Ip[3] = {data[1], data[2], data[3]};
     const double mf = data[4], lf = data[5], mm = data[6], lm = data[7], Ia = data[8], It = data[9];
     const double zero3[3] = {0.0, 0.0, 0.0};
-    const v3 zero = vec(0.0, 0.0, 0.0);
-    double R[9], Rb[9], A[36], b[6], x[6];
+    double R[9], A[36], b[6], x[6];
     for (int n = 0; n < n_states; n++) {
         const double *pose = pose_all + 6 * n, *rate = rate_all + 6 * n;
         double M[36], h[6], J[36];   /* built here, copied out at the end: no aliasing */
+        double kt_j[6], rr_j[6], rho_j[18];   /* each leg's k_t, rho.rho and rho, for leg_mass */
         const trig tp = angles(pose + 3);
         if (pose_trig) *pose_trig = tp;
         rotation(&tp, R);
@@ -201,19 +289,9 @@ static void kane(const double *base_joints, const double *platform_joints, const
         v3 w = twist_speeds ? load(rate + 3) : omega(&tp, rate + 3);
 
         /* base motion in {B} */
-        v3 g = vec(0.0, 0.0, -g0), aB = zero, wB = zero, eB = zero;
-        if (base_mode != MB_HEXAPOD_BASE_NONE) {
-            const double *bp = base_pose + 6 * n;
-            const trig tb = angles(bp + 3);
-            rotation(&tb, Rb);
-            g = vec(-g0 * Rb[6], -g0 * Rb[7], -g0 * Rb[8]);
-            if (base_mode == MB_HEXAPOD_BASE_FULL) {
-                const double *br = base_rate + 6 * n, *ba = base_acc + 6 * n;
-                aB = mul_t(Rb, load(ba));
-                wB = mul_t(Rb, omega(&tb, br + 3));
-                eB = mul_t(Rb, omega_dot(&tb, br + 3, ba + 3));
-            }
-        }
+        const base_frame bf = frame ? *frame
+                                    : base_terms(base_mode, g0, base_pose, base_rate, base_acc, n);
+        const v3 g = bf.g, aB = bf.aB, wB = bf.wB, eB = bf.eB;
 
         /* platform */
         for (int i = 0; i < 36; i++) M[i] = 0.0;
@@ -291,48 +369,30 @@ static void kane(const double *base_joints, const double *platform_joints, const
                 }
                 if (m_r != 0.0) {   /* reflected mass: T += m_r ld^2 / 2, ld = J_j u, ldd = J_j du + ldd0 */
                     double ldd_v = lane(ldd0, i);
-                    for (int a = 0; a < 6; a++) {
-                        double mj = m_r * J[6 * j + a];
-                        h[a] += mj * ldd_v;
-                        for (int c = 0; c < 6; c++) M[6 * a + c] += mj * J[6 * j + c];
-                    }
+                    for (int a = 0; a < 6; a++) h[a] += m_r * J[6 * j + a] * ldd_v;
                 }
                 if (!legs) continue;
                 v3 fi = pick(f, i), rfi = pick(rf, i);
                 for (int k = 0; k < 3; k++) {
                     h[k] += fi.e[k];
                     h[3 + k] += rfi.e[k];
+                    rho_j[3 * j + k] = rhoi.e[k];
                 }
-                /* joint mass: k_t A^T A + (m_m - k_t) j j^T with A = [1, -[rho]x] */
-                double kti = lane(kt, i), rri = lane(rr, i);
-                for (int a = 0; a < 3; a++) {
-                    double kr = kti * rhoi.e[a];
-                    M[7 * a] += kti;
-                    M[7 * (3 + a)] += kti * rri;
-                    for (int c = 0; c < 3; c++) M[6 * (3 + a) + 3 + c] -= kr * rhoi.e[c];
-                }
-                /* -kt [rho]x in the upper-right block, +kt [rho]x in the lower-left */
-                static const int skew_a[6] = {0, 0, 1, 1, 2, 2}, skew_c[6] = {1, 2, 0, 2, 0, 1};
-                const double skew[6] = {-rhoi.e[2], rhoi.e[1], rhoi.e[2], -rhoi.e[0], -rhoi.e[1], rhoi.e[0]};
-                for (int q = 0; q < 6; q++) {
-                    M[6 * skew_a[q] + 3 + skew_c[q]] -= kti * skew[q];
-                    M[6 * (3 + skew_a[q]) + skew_c[q]] += kti * skew[q];
-                }
-                double cm = mm - kti;
-                for (int a = 0; a < 6; a++) {
-                    double cj = cm * J[6 * j + a];
-                    for (int c = 0; c < 6; c++) M[6 * a + c] += cj * J[6 * j + c];
-                }
+                kt_j[j] = lane(kt, i);
+                rr_j[j] = lane(rr, i);
             }
         }
+        leg_mass(M, J, m_r, legs, mm, kt_j, rr_j, rho_j);
 
         if (wrench_all)   /* an external wrench W: M du + (h - W) = J^T F */
             for (int i = 0; i < 6; i++) h[i] -= wrench_all[6 * n + i];
-        for (int i = 0; i < 36; i++) {
-            M_all[36 * n + i] = M[i];
-            J_all[36 * n + i] = J[i];
+        if (M_all) {
+            for (int i = 0; i < 36; i++) {
+                M_all[36 * n + i] = M[i];
+                J_all[36 * n + i] = J[i];
+            }
+            for (int i = 0; i < 6; i++) h_all[6 * n + i] = h[i];
         }
-        for (int i = 0; i < 6; i++) h_all[6 * n + i] = h[i];
 
         if (solve == MB_HEXAPOD_ID) {
             const double *arg = arg_all + 6 * n;
@@ -356,20 +416,16 @@ static void kane(const double *base_joints, const double *platform_joints, const
             for (int k = 0; k < 6; k++) out_all[6 * n + k] = x[k];
             continue;
         }
-        for (int i = 0; i < 36; i++) A[i] = J[i];
-        det[n] = mb_det6(A);
+        det[n] = mb_det6(J);
         if (solve == MB_HEXAPOD_FD) {
             const double *arg = arg_all + 6 * n;
             double *out = out_all + 6 * n;
             for (int i = 0; i < 6; i++) {
                 double acc = -h[i];
-                for (int k = 0; k < 6; k++) {
-                    acc += J[6 * k + i] * arg[k];
-                    A[6 * i + k] = M[6 * i + k];
-                }
+                for (int k = 0; k < 6; k++) acc += J[6 * k + i] * arg[k];
                 b[i] = acc;
             }
-            mb_solve6(A, b, x);
+            mb_solve6(M, b, x);
             if (twist_speeds) {
                 for (int k = 0; k < 6; k++) out[k] = x[k];
             } else {
@@ -390,7 +446,8 @@ void mb_hexapod_kane_ext(const double *base_joints, const double *platform_joint
                          double *length, double *out_all, double *det)
 {
     kane(base_joints, platform_joints, data, n_states, pose_all, rate_all, arg_all, base_pose, base_rate, base_acc,
-         base_mode, legs, twist_speeds, solve, m_r, wrench_all, M_all, h_all, J_all, ldot, length, out_all, det, NULL);
+         base_mode, legs, twist_speeds, solve, m_r, wrench_all, M_all, h_all, J_all, ldot, length, out_all, det, NULL,
+         NULL);
 }
 
 void mb_hexapod_kane(const double *base_joints, const double *platform_joints, const double *data,
@@ -452,17 +509,25 @@ static void delivered(const double *act, const double *x, const double *command,
     }
 }
 
-double mb_hexapod_rhs_actuated(const double *bj, const double *pj, const double *data, const double *act,
-                               const double *x, const double *command, const double *wrench, const double *base0,
-                               double t0, double t, int base_mode, int legs, double *dx, double *force)
+/* The base terms of the last time an RK4 step asked for: its two middle stages share a
+   time, hence the same base and the same numbers. */
+typedef struct { int valid; double t; base_frame f; } base_memo;
+
+/* mb_hexapod_rhs_actuated, taking the base terms from memo (not NULL) when it holds t's. */
+static double rhs(const double *bj, const double *pj, const double *data, const double *act, const double *x,
+                  const double *command, const double *wrench, const double *base0, double t0, double t,
+                  int base_mode, int legs, double *dx, double *force, base_memo *memo)
 {
-    double base[18], M[36], h[6], J[36], ldot[6], length[6], out[6], det, f[6], ld[6];
+    double base[18], ldot[6], length[6], out[6], det, f[6], ld[6];
     double tau = t - t0;
     const double *forces = command;
     if (act) {
-        if (act[MB_ACT_COULOMB] != 0.0 || act[MB_ACT_VISCOUS] != 0.0) leg_rates(bj, pj, x, ld);
-        delivered(act, x, command, ld, f);
-        forces = f;
+        int friction = act[MB_ACT_COULOMB] != 0.0 || act[MB_ACT_VISCOUS] != 0.0;
+        if (friction) leg_rates(bj, pj, x, ld);
+        if (friction || act[MB_ACT_BANDWIDTH] > 0.0 || act[MB_ACT_FORCE_LIMIT] > 0.0) {
+            delivered(act, x, command, ld, f);
+            forces = f;
+        }   /* else delivered would copy the command */
         if (act[MB_ACT_BANDWIDTH] > 0.0) {   /* dF/dt = 2 pi f_bw (F_cmd - F) */
             double rate = 2.0 * M_PI * act[MB_ACT_BANDWIDTH];
             for (int j = 0; j < 6; j++) dx[12 + j] = rate * (clamp(command[j], act[MB_ACT_FORCE_LIMIT]) - x[12 + j]);
@@ -470,15 +535,29 @@ double mb_hexapod_rhs_actuated(const double *bj, const double *pj, const double 
     }
     if (force)
         for (int j = 0; j < 6; j++) force[j] = forces[j];
-    if (base_mode != MB_HEXAPOD_BASE_NONE)
-        for (int k = 0; k < 6; k++) {
-            base[k] = base0[k] + tau * base0[6 + k] + 0.5 * tau * tau * base0[12 + k];
-            base[6 + k] = base0[6 + k] + tau * base0[12 + k];
-            base[12 + k] = base0[12 + k];
+    base_frame bf;
+    if (memo && memo->valid && memo->t == t) {
+        bf = memo->f;
+    } else {
+        if (base_mode == MB_HEXAPOD_BASE_NONE) {
+            bf = base_terms(base_mode, data[10], NULL, NULL, NULL, 0);
+        } else {
+            for (int k = 0; k < 6; k++) {
+                base[k] = base0[k] + tau * base0[6 + k] + 0.5 * tau * tau * base0[12 + k];
+                base[6 + k] = base0[6 + k] + tau * base0[12 + k];
+                base[12 + k] = base0[12 + k];
+            }
+            bf = base_terms(base_mode, data[10], base, base + 6, base + 12, 0);
         }
+        if (memo) {
+            memo->valid = 1;
+            memo->t = t;
+            memo->f = bf;
+        }
+    }
     trig tx;
-    kane(bj, pj, data, 1, x, x + 6, forces, base, base + 6, base + 12, base_mode, legs, 1, MB_HEXAPOD_FD,
-         act ? act[MB_ACT_REFLECTED_MASS] : 0.0, wrench, M, h, J, ldot, length, out, &det, &tx);
+    kane(bj, pj, data, 1, x, x + 6, forces, NULL, NULL, NULL, base_mode, legs, 1, MB_HEXAPOD_FD,
+         act ? act[MB_ACT_REFLECTED_MASS] : 0.0, wrench, NULL, NULL, NULL, ldot, length, out, &det, &tx, &bf);
     v3 rr = rpy_rate(&tx, load(x + 9));
     for (int k = 0; k < 3; k++) {
         dx[k] = x[6 + k];
@@ -486,6 +565,13 @@ double mb_hexapod_rhs_actuated(const double *bj, const double *pj, const double 
     }
     for (int k = 0; k < 6; k++) dx[6 + k] = out[k];
     return fabs(det);
+}
+
+double mb_hexapod_rhs_actuated(const double *bj, const double *pj, const double *data, const double *act,
+                               const double *x, const double *command, const double *wrench, const double *base0,
+                               double t0, double t, int base_mode, int legs, double *dx, double *force)
+{
+    return rhs(bj, pj, data, act, x, command, wrench, base0, t0, t, base_mode, legs, dx, force, NULL);
 }
 
 double mb_hexapod_rhs(const double *bj, const double *pj, const double *data, const double *x,
@@ -531,25 +617,24 @@ static int advance(int rk4, int substeps, const double *bj, const double *pj, co
         for (int k = 24; k < 30; k++)
             if (inputs[k] != 0.0) wrench = inputs + 24;
     double dt = h / substeps, dmin = INFINITY, d;
+    base_memo memo;
+    memo.valid = 0;
     for (int n = 0; n < substeps; n++) {
         double t = t0 + n * dt;
-        d = mb_hexapod_rhs_actuated(bj, pj, data, act, x, forces, wrench, base0, t0, t, base_mode, legs, k1, NULL);
+        d = rhs(bj, pj, data, act, x, forces, wrench, base0, t0, t, base_mode, legs, k1, NULL, &memo);
         if (d < dmin) dmin = d;
         if (!rk4) {
             for (int k = 0; k < nx; k++) x[k] += dt * k1[k];
             continue;
         }
         for (int k = 0; k < nx; k++) xs[k] = x[k] + 0.5 * dt * k1[k];
-        d = mb_hexapod_rhs_actuated(bj, pj, data, act, xs, forces, wrench, base0, t0, t + 0.5 * dt, base_mode, legs,
-                                    k2, NULL);
+        d = rhs(bj, pj, data, act, xs, forces, wrench, base0, t0, t + 0.5 * dt, base_mode, legs, k2, NULL, &memo);
         if (d < dmin) dmin = d;
         for (int k = 0; k < nx; k++) xs[k] = x[k] + 0.5 * dt * k2[k];
-        d = mb_hexapod_rhs_actuated(bj, pj, data, act, xs, forces, wrench, base0, t0, t + 0.5 * dt, base_mode, legs,
-                                    k3, NULL);
+        d = rhs(bj, pj, data, act, xs, forces, wrench, base0, t0, t + 0.5 * dt, base_mode, legs, k3, NULL, &memo);
         if (d < dmin) dmin = d;
         for (int k = 0; k < nx; k++) xs[k] = x[k] + dt * k3[k];
-        d = mb_hexapod_rhs_actuated(bj, pj, data, act, xs, forces, wrench, base0, t0, t + dt, base_mode, legs, k4,
-                                    NULL);
+        d = rhs(bj, pj, data, act, xs, forces, wrench, base0, t0, t + dt, base_mode, legs, k4, NULL, &memo);
         if (d < dmin) dmin = d;
         for (int k = 0; k < nx; k++) x[k] += dt / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k]);
     }

@@ -6,11 +6,12 @@
    are overwritten. Returns det(A) (0.0 when exactly singular; x is then all NaN). */
 double mb_solve(int n, double *A, double *b, double *x);
 
-/* mb_solve at n = 6, unrolled by the compiler: the same operations and results. */
-double mb_solve6(double *A, double *b, double *x);
+/* mb_solve at n = 6 with A and b left as they are, two columns per instruction: the
+   same operations and results. */
+double mb_solve6(const double *A, const double *b, double *x);
 
-/* det(A) of a 6x6 A (overwritten) by the elimination of mb_solve without a right-hand
+/* det(A) of a 6x6 A (left as it is) by the elimination of mb_solve without a right-hand
    side: the same value as mb_solve's. */
-double mb_det6(double *A);
+double mb_det6(const double *A);
 
 #endif

@@ -1,7 +1,8 @@
 /* The stepping loop of the co-simulation master (scenarios/master.py): K macro steps of
-   Jacobi or Gauss-Seidel over FMI 2.0 co-simulation instances, called through cffi with
-   the instances' own fmi2DoStep/fmi2GetReal/fmi2SetReal, so a macro step costs the FMUs'
-   work and no Python. Plain declarations only (kernel_build.py strips preprocessor lines). */
+   Jacobi or Gauss-Seidel over FMI 2.0 and FMI 3.0 co-simulation instances, called through
+   cffi with the instances' own fmi2DoStep/fmi2GetReal/fmi2SetReal or fmi3DoStep/
+   fmi3GetFloat64/fmi3SetFloat64, so a macro step costs the FMUs' work and no Python.
+   Plain declarations only (kernel_build.py strips preprocessor lines). */
 #include <stddef.h>
 
 /* FMI 2.0 (fmi2FunctionTypes.h): fmi2Status is an int-sized enum, fmi2Component void *,
@@ -10,8 +11,56 @@ typedef int (*cosim_do_step_fn)(void *component, double t, double h, int no_set_
 typedef int (*cosim_get_real_fn)(void *component, const unsigned int vr[], size_t nvr, double value[]);
 typedef int (*cosim_set_real_fn)(void *component, const unsigned int vr[], size_t nvr, const double value[]);
 
+/* FMI 3.0 (fmi3FunctionTypes.h): fmi3Status an int-sized enum, fmi3Instance void *,
+   fmi3ValueReference uint32_t, fmi3Float64 double, fmi3Boolean bool. */
+typedef int (*cosim_do_step3_fn)(void *instance, double t, double h, _Bool no_set_prior_state,
+                                 _Bool *event_handling_needed, _Bool *terminate_simulation,
+                                 _Bool *early_return, double *last_successful_time);
+typedef int (*cosim_get_float64_fn)(void *instance, const unsigned int vr[], size_t nvr, double values[], size_t n_values);
+typedef int (*cosim_set_float64_fn)(void *instance, const unsigned int vr[], size_t nvr, const double values[], size_t n_values);
+typedef int (*cosim_get_derivatives_fn)(void *instance, const unsigned int vr[], size_t nvr, const int orders[],
+                                        double values[], size_t n_values);
+
+/* An FMI 3.0 instance's output derivatives of order o (1, 2), read after each of its
+   steps with fmi3GetOutputDerivatives: the variables holding read elements that have
+   them, in one call into values, element j of them into y_d[o-1][dst[j]]. */
+typedef struct {
+    const unsigned int *vr;
+    size_t n_vr;
+    const int *orders;             /* n_vr times o */
+    double *values;
+    size_t n_values;
+    const size_t *src;             /* element j is values[src[j]] ... */
+    const size_t *dst;             /* ... and goes to y_d[o-1][dst[j]] */
+    size_t n;
+} cosim_derivatives;
+
+/* An FMI 3.0 instance's side of the exchange: the master's element lists (cosim_fmu's
+   read_vr/write_vr, as FMI 2.0 numbers the elements) lie in whole FMI 3 variables (an
+   array of 6 is one value reference): those are read/written in one call into a buffer
+   of all their values, element j at buffer[index[j]]. */
+typedef struct {
+    cosim_do_step3_fn do_step;
+    cosim_get_float64_fn get_float64;
+    cosim_set_float64_fn set_float64;
+    const unsigned int *read_vr;   /* the variables holding cosim_fmu's read elements */
+    size_t n_read_vr;
+    size_t n_read_values;
+    const size_t *read_index;      /* cosim_fmu's read element j is read_values[read_index[j]] */
+    double *read_values;
+    const unsigned int *write_vr;  /* the variables holding its write elements */
+    size_t n_write_vr;
+    size_t n_write_values;
+    const size_t *write_index;
+    double *write_values;
+    int write_partial;             /* some of those values are not written: read them first */
+    cosim_get_derivatives_fn get_derivatives;
+    cosim_derivatives derivatives[2];   /* orders 1 and 2 (n = 0: none read) */
+} cosim_fmi3;
+
 typedef struct {
     void *component;
+    cosim_fmi3 *fmi3;              /* NULL: an FMI 2.0 instance, stepped by the three below */
     cosim_do_step_fn do_step;
     cosim_get_real_fn get_real;
     cosim_set_real_fn set_real;
@@ -38,10 +87,13 @@ typedef struct {
     double *y_start;               /* scratch, n_y (Gauss-Seidel: y at the start of the step) */
     size_t n_y;
     int gauss_seidel;
-    int extrapolate;               /* linear extrapolation of held inputs */
+    int extrapolate;               /* of held inputs: 0 none, 1 linear, 2 derivatives (linear where y_order is 0) */
+    const int *y_order;            /* per y: the highest order of derivative its source gives (0, 1, 2) */
+    double *y_d1;                  /* per y: its first and second time derivatives at its time */
+    double *y_d2;
     double t0;
     double h;
-    int failed_fmu;                /* on a status above fmi2Warning: which fmu, call, status */
+    int failed_fmu;                /* on a status above Warning: which fmu, call, status */
     int failed_call;
     int failed_status;
 } cosim_master;

@@ -31,9 +31,9 @@
 #include <string.h>
 
 #include "fmi2Functions.h"
+#include "misuse_common.h"
 
 static const char *STATUS[] = {"OK", "Warning", "Discard", "Error", "Fatal", "Pending"};
-static pthread_mutex_t print_lock = PTHREAD_MUTEX_INITIALIZER;
 
 static void log_message(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status, fmi2String category,
                         fmi2String message, ...)
@@ -89,19 +89,8 @@ static void quiet(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status 
 }
 static const fmi2CallbackFunctions QUIET = {quiet, calloc, free, NULL, NULL};
 
-static unsigned long crc32(const unsigned char *p, size_t n)
-{
-    unsigned long crc = 0xFFFFFFFFul;
-    for (size_t i = 0; i < n; i++) {
-        crc ^= p[i];
-        for (int k = 0; k < 8; k++) crc = (crc >> 1) ^ (0xEDB88320ul & (0ul - (crc & 1ul)));
-    }
-    return crc ^ 0xFFFFFFFFul;
-}
-
 /* One instance through initialization and `steps` doSteps; the hash of its Reals 0..511
    that answer (value references past the last are refused one by one). */
-typedef struct { int steps; double h; unsigned long hash; int ok; } Run;
 
 static void *run_one(void *arg)
 {
@@ -210,18 +199,7 @@ int main(int argc, char **argv)
             if (said("fmi2GetRealStatus", GetRealStatus(c, fmi2LastSuccessfulTime, &t)) == fmi2OK)
                 printf("last %.17g\n", t);
         } else if (!strcmp(cmd, "threads")) {
-            int n = atoi(ARG(1));
-            Run runs[64];
-            pthread_t ids[64];
-            if (n > 64) n = 64;
-            for (int k = 0; k < n; k++) {
-                runs[k] = (Run){atoi(ARG(2)), strtod(ARG(3), NULL), 0, 0};
-                pthread_create(&ids[k], NULL, run_one, &runs[k]);
-            }
-            for (int k = 0; k < n; k++) {
-                pthread_join(ids[k], NULL);
-                printf("thread %d %s %08lx\n", k, runs[k].ok ? "OK" : "failed", runs[k].hash);
-            }
+            run_threads(atoi(ARG(1)), atoi(ARG(2)), strtod(ARG(3), NULL), run_one);
             i += 3;
         } else if (!strcmp(cmd, "many")) {
             int n = atoi(ARG(1)), ok = 0;
