@@ -9,7 +9,8 @@ number."""
 import numpy as np
 
 from .records import run_records
-from .style import FLOOR, FLOOR_NOTE, MARKS_UM, draw_marks, fmt, length, ratio, run_colour, save  # noqa: F401
+from .style import (FLOOR, FLOOR_NOTE, MARKS_UM, draw_marks, fmt, length, plain_log_axis, ratio,  # noqa: F401
+                    run_colour, save)
 
 TRACKING = ("leg_tracking", "pose_tracking", "tracking")
 COINCIDE = 0.02      # two curves closer than this fraction of their peak are said to coincide
@@ -44,8 +45,7 @@ def _log_axis(ax):
     mathtext of 10^n labels were a third of a chart's drawing."""
     from matplotlib import ticker
     ax.set_yscale("log")
-    ax.yaxis.set_major_locator(ticker.LogLocator(subs=(1.0,)))
-    ax.yaxis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+    plain_log_axis(ax.yaxis, subs=(1.0,))
     ax.yaxis.set_minor_locator(ticker.NullLocator())
 
 
