@@ -1,30 +1,37 @@
-"""Campaign engine speed, side by side in one run: N independent slews run sequentially
-in this process (scenarios.master.run, the reference), then through scenarios.engine on
-a LocalCluster of 1 and 2 worker processes; the engine's cost per run beyond the run
-itself; and the wall time against the number of runs.
+"""Campaign engine speed, side by side in one run: N independent slews (the sky-coverage
+campaign's runs: telescope_slew, native FMUs, 30 s) run sequentially in this process
+(scenarios.master.run, the reference), then through scenarios.engine on a LocalCluster
+of 1 and 2 worker processes.
 
-    python -m benchmarks.bench_campaign [--runs 8] [--stop 6] [--max-workers 2]
+The machine is shared, so wall times measure its free CPU as much as the engine. The
+engine's own cost is therefore counted in CPU seconds, which other work does not
+inflate: the client process (scheduler, result transfer, writing the files) and every
+worker process, before and after, against the same runs' CPU in one process. From the
+CPU per run it estimates what a 500-run campaign takes on 2 idle workers, and prints
+the wall times measured (with the load) beside it.
 
+    python -m benchmarks.bench_campaign [--runs 8] [--stop 30] [--max-workers 2] [--campaign 500]
+
+--campaign N also runs a real N-run campaign (``movingbase campaign``'s path,
+scenarios.campaign.run_campaign) on 2 workers and prints its wall time and the load.
 Every run is a different start elevation (distinct keys, nothing found on disk).
 """
 import argparse
+import os
 import pathlib
-import statistics
 import tempfile
 import time
 
 import numpy as np
 
-from movingbase.fmu_src.builder import ensure_built
-from movingbase.scenarios import engine, master, metrics, spec
+from movingbase.scenarios import campaign, engine, master, metrics, spec
 from movingbase.scenarios.fmi import unpack
-from movingbase.scenarios.runner import SHIPPED
+from movingbase.scenarios.runner import SHIPPED, fmu_paths
 
 
 def _jobs(n, stop, offset=0.0):
     scenario = spec.load(SHIPPED / "telescope_slew.toml", overrides={"stop_time": f"{stop} s"})
-    scripts = ensure_built(sorted({spec.FMU_SCRIPTS[f] for f in scenario.fmus.values()}))
-    paths = {inst: scripts[spec.FMU_SCRIPTS[f]] for inst, f in scenario.fmus.items()}
+    paths = fmu_paths(scenario)          # the implementation the scenario names (native)
     values = spec.bind(scenario, {inst: unpack(p)[0] for inst, p in paths.items()})
     cases = [(f"el {el:.4f}", {"base": {"start_elevation": np.radians(el), "target_elevation": np.radians(el + 5)},
                                "controller": {"feedforward": 2}})
@@ -32,47 +39,77 @@ def _jobs(n, stop, offset=0.0):
     return scenario, paths, *engine.prepared_jobs(scenario, paths, values, cases, keep_record=False)
 
 
+def _worker_cpu(eng):
+    """CPU seconds each worker process has used so far (all its threads)."""
+    return sum(eng.client.run(time.process_time).values())
+
+
+def _engine_run(eng, jobs, files, store):
+    """Wall, client CPU and workers' CPU of one Engine.run; its results."""
+    results = []
+    workers, client = _worker_cpu(eng), time.process_time()
+    began = time.perf_counter()
+    outcome = eng.run(jobs, files, store, progress=False, on_result=lambda job, r: results.append(r))
+    wall = time.perf_counter() - began
+    client, workers = time.process_time() - client, _worker_cpu(eng) - workers
+    assert not outcome.failed, outcome.failed
+    return wall, client, workers, results
+
+
+def _sky_campaign(n, folder):
+    """A sky-slews campaign file of about ``n`` runs (the shipped one has 96): start
+    azimuths x start elevations x the two feedforwards, 30 s each."""
+    per_axis = max(1, round((n / 2) ** 0.5))
+    az = np.linspace(0.0, 350.0, per_axis)
+    el = np.linspace(10.0, 80.0, max(1, round(n / 2 / per_axis)))
+    quote = lambda values, plus: "[" + ", ".join(f'"{v + plus:.3f} deg"' for v in values) + "]"
+    text = (f'name = "sky_{n}"\nscenario = "telescope_slew"\nset = {{ stop_time = "30 s" }}\n'
+            f'[[grid]]\n"base.start_azimuth" = {quote(az, 0)}\n"base.target_azimuth" = {quote(az, 10)}\n'
+            f'[[grid]]\n"base.start_elevation" = {quote(el, 0)}\n"base.target_elevation" = {quote(el, 5)}\n'
+            '[[grid]]\n"controller.feedforward" = ["fixed_base", "moving_base"]\n')
+    path = pathlib.Path(folder) / f"sky_{n}.toml"
+    path.write_text(text)
+    return path
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=8)
-    parser.add_argument("--stop", type=float, default=6.0, help="simulated seconds per run (the slew starts at 5 s)")
+    parser.add_argument("--stop", type=float, default=30.0, help="simulated seconds per run (the slew starts at 5 s)")
     parser.add_argument("--max-workers", type=int, default=2)
+    parser.add_argument("--campaign", type=int, default=0, help="also run a real campaign of about this many runs")
     args = parser.parse_args(argv)
     scenario, paths, jobs, files = _jobs(args.runs, args.stop)
+    print(f"{args.runs} runs of {args.stop:g} s simulated ({int(args.stop / scenario.step)} macro steps each), "
+          f"load {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
 
-    with tempfile.TemporaryDirectory() as tmp:
-        master.run(scenario, paths, jobs[0].parameters, pathlib.Path(tmp), "warm",
-                   [metrics.make(m) for m in scenario.metrics])
-        began, cpu = time.perf_counter(), time.process_time()
-        for job in jobs:
-            master.run(scenario, paths, job.parameters, pathlib.Path(tmp), "seq",
-                       [metrics.make(m) for m in scenario.metrics])
-        sequential, cpu = time.perf_counter() - began, time.process_time() - cpu
-    print(f"{args.runs} runs of {args.stop:g} s simulated ({int(args.stop / scenario.step)} macro steps each)")
-    print(f"  sequential in this process: {sequential:.2f} s ({sequential / args.runs:.3f} s per run, "
-          f"{cpu / args.runs:.3f} s CPU)")
+    master.run(scenario, paths, jobs[0].parameters, None, "warm", [metrics.make(m) for m in scenario.metrics])
+    began, cpu = time.perf_counter(), time.process_time()
+    for job in jobs:
+        master.run(scenario, paths, job.parameters, None, "seq", [metrics.make(m) for m in scenario.metrics])
+    sequential, seq_cpu = time.perf_counter() - began, (time.process_time() - cpu) / args.runs
+    print(f"  sequential in this process: {sequential:.2f} s, {sequential / args.runs:.3f} s per run, "
+          f"{seq_cpu:.3f} s CPU per run")
 
-    walls = {}
+    walls, per_run = {}, {}
     for workers in range(1, args.max_workers + 1):
         with tempfile.TemporaryDirectory() as tmp, engine.Engine(jobs=workers) as eng:
             eng.client           # start the cluster outside the timing; warm every worker:
-            eng.run(_jobs(workers, args.stop, offset=0.001 * workers)[2], files, engine.Store(tmp + "/warm"),
+            eng.run(_jobs(workers, 6.0, offset=0.001 * workers)[2], files, engine.Store(tmp + "/warm"),
                     progress=False)
-            results = []
-            began = time.perf_counter()
-            outcome = eng.run(jobs, files, engine.Store(tmp + "/runs"), progress=False,
-                              on_result=lambda job, r: results.append(r))
-            walls[workers] = time.perf_counter() - began
-            assert not outcome.failed, outcome.failed
-            overhead = [r["task_time_s"] - r["run_time_s"] for r in results]
-            run = statistics.median(r["run_time_s"] for r in results)
-            cpu = statistics.median(r["task_cpu_s"] for r in results)
-            idle = (walls[workers] * workers - sum(r["task_time_s"] for r in results)) / args.runs
-            print(f"  engine, {workers} worker(s): cluster start {eng.start_time:.2f} s; {walls[workers]:.2f} s for "
-                  f"the runs = {sequential / walls[workers]:.2f}x sequential, {walls[1] / walls[workers]:.2f}x "
-                  f"1 worker; per run on the worker: co-simulation loop {run:.3f} s wall, task {cpu:.3f} s CPU, "
-                  f"instantiate + initialise + collect {statistics.median(overhead) * 1e3:.0f} ms; worker idle "
-                  f"per run (scheduling, transfer, writing, the last run's tail) {idle * 1e3:.0f} ms")
+            wall, client, worker_cpu, results = _engine_run(eng, jobs, files, engine.Store(tmp + "/runs"))
+            walls[workers] = wall
+            per_run[workers] = (client + worker_cpu) / args.runs
+            runs_cpu = sum(r["run_cpu_s"] for r in results) / args.runs
+            own = per_run[workers] - runs_cpu
+            print(f"  engine, {workers} worker(s): cluster start {eng.start_time:.2f} s; {wall:.2f} s for the runs "
+                  f"({sequential / wall:.2f}x sequential, {walls[1] / wall:.2f}x 1 worker: parallel efficiency "
+                  f"{100 * walls[1] / wall / workers:.0f} % by wall time)")
+            print(f"    CPU per run: {per_run[workers]:.3f} s = {per_run[workers] / seq_cpu:.3f}x the sequential run's "
+                  f"({seq_cpu:.3f} s); of it master.run on the worker {runs_cpu:.3f} s "
+                  f"({runs_cpu / seq_cpu:.3f}x sequential: the machine's cores shared), the engine's own "
+                  f"{own * 1e3:.1f} ms (client {client / args.runs * 1e3:.1f} ms: scheduler, transfer, files; "
+                  f"workers beyond master.run {(worker_cpu / args.runs - runs_cpu) * 1e3:.1f} ms)")
 
     print("wall time against the number of runs (2 workers):")
     with tempfile.TemporaryDirectory() as tmp, engine.Engine(jobs=args.max_workers) as eng:
@@ -83,6 +120,22 @@ def main(argv=None):
             eng.run(more, files, engine.Store(f"{tmp}/{n}"), progress=False)
             wall = time.perf_counter() - began
             print(f"  {len(more):3d} runs: {wall:6.2f} s, {wall / len(more):.3f} s per run")
+
+    workers = args.max_workers
+    estimate = 500 * per_run[workers] * 30.0 / args.stop / workers
+    print(f"estimate, 500 runs of 30 s on {workers} idle workers: 500 x {per_run[workers] * 30.0 / args.stop:.3f} "
+          f"s CPU / {workers} = {estimate:.0f} s ({estimate / 60:.1f} min) plus the cluster's start")
+
+    if args.campaign:
+        with tempfile.TemporaryDirectory() as tmp:
+            path = _sky_campaign(args.campaign, tmp)
+            load = os.getloadavg()[0]
+            began = time.perf_counter()
+            _, job_list, _, outcome, _ = campaign.run_campaign(path, tmp, jobs_=workers, progress=True)
+            wall = time.perf_counter() - began
+            print(f"real campaign, {len(job_list)} runs of 30 s on {workers} workers: {wall:.0f} s ({wall / 60:.1f} "
+                  f"min, cluster start included), {len(outcome.failed)} failed; load {load:.1f} before, "
+                  f"{os.getloadavg()[0]:.1f} after")
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@
    and the empty FMUs of both (what each layer costs without the kernel).
 Repeats interleave the implementations (median), so machine load hits both alike.
 
-    python benchmarks/bench_native.py [--repeats N]
+    python benchmarks/bench_native.py [--repeats N] [--only cosim]   (the co-simulation pairs: max(N, 15))
 """
 import argparse
 import dataclasses
@@ -133,10 +133,51 @@ def manoeuvre_us(scenario, paths, values, outdir, label):
     return run.wall_time / run.steps * 1e6
 
 
+def cosim_vs_monolithic(scenario, paths, values, repeats):
+    """The paper manoeuvre stepped by the master's C loop alone against the monolithic C
+    loop, ``repeats`` times each, the two sides alternating (each pair run back to back,
+    so the machine's load hits both alike): per step in wall and in CPU time, the median
+    and the fastest of each side, and the median of the pairs' ratios (what the ratio is
+    taken from: it does not drift with the load between pairs)."""
+    steps = round((scenario.stop_time - scenario.start_time) / scenario.step)
+    clocks = {"wall": time.perf_counter, "CPU": time.process_time}
+    loops = {(side, clock): [] for side in ("cosim", "monolithic") for clock in clocks}
+    for r in range(repeats):
+        for side in (("cosim", "monolithic") if r % 2 == 0 else ("monolithic", "cosim")):
+            pair = Pair(scenario, paths, values)
+            try:
+                began = {clock: read() for clock, read in clocks.items()}
+                done, _ = getattr(pair, side)(steps, lengths=False)
+                for clock, read in clocks.items():
+                    loops[side, clock].append((read() - began[clock]) / steps * 1e6)
+            finally:
+                pair.close()
+            if done != steps:
+                raise RuntimeError(f"the {side} run of the paper manoeuvre stopped at step {done} of {steps}")
+    print(f"  co-simulation (native FMUs, the master's C loop alone) against the monolithic C loop of the same "
+          f"kernels without FMI, {repeats} pairs of {steps} steps, alternating (load {os.getloadavg()[0]:.1f}):")
+    for clock in clocks:
+        cosim, mono = loops["cosim", clock], loops["monolithic", clock]
+        ratios = [c / m for c, m in zip(cosim, mono)]
+        print(f"    {clock:4s}: co-simulation {statistics.median(cosim):.2f} us/step (fastest {min(cosim):.2f}), "
+              f"monolithic {statistics.median(mono):.2f} (fastest {min(mono):.2f}) -> co-simulation = "
+              f"{statistics.median(ratios):.3f}x monolithic (median of the pairs' ratios; fastest against fastest "
+              f"{min(cosim) / min(mono):.3f}x; pairs {min(ratios):.2f}-{max(ratios):.2f}x)")
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--only", choices=["cosim"], help="only the co-simulation against the monolithic loop")
     args = parser.parse_args(argv)
+    if args.only == "cosim":
+        scenario, paths, descriptions, values = runner.prepare(runner.resolve("paper_manoeuvre"),
+                                                               implementation="native")
+        if scenario.sweep:
+            inst, name, value = spec.sweep_value(scenario, descriptions, scenario.sweep[1][0])
+            values[inst][name] = value
+        cosim_vs_monolithic(scenario, paths, values, max(args.repeats, 15))
+        return
     out = pathlib.Path(tempfile.mkdtemp())
     scripts = builder.available()
     python = builder.ensure_built(scripts)
@@ -187,21 +228,7 @@ def main(argv=None):
         print(f"    floor (three empty native FMUs, same exchange) {floor:.2f} us/step: native = {nat / floor:.1f}x "
               f"floor, pythonfmu = {py / floor:.1f}x floor")
 
-    loops = {"cosim": [], "monolithic": []}
-    for _ in range(args.repeats):
-        for side in loops:
-            pair = Pair(scenario, by_impl["native"], values)
-            try:
-                start = time.perf_counter()
-                done, _ = getattr(pair, side)(steps, lengths=False)
-                loops[side].append((time.perf_counter() - start) / steps * 1e6)
-            finally:
-                pair.close()
-            if done != steps:
-                raise RuntimeError(f"the {side} run of the paper manoeuvre stopped at step {done} of {steps}")
-    cosim, mono = (statistics.median(loops[k]) for k in ("cosim", "monolithic"))
-    print(f"  co-simulation (native FMUs, the master's C loop alone) {cosim:.2f} us/step, monolithic C loop of the "
-          f"same kernels without FMI {mono:.2f} us/step -> co-simulation = {cosim / mono:.3f}x monolithic")
+    cosim_vs_monolithic(scenario, by_impl["native"], values, max(args.repeats, 15))
 
     fmi3 = native_build.ensure_native3(["hexapod_plant_fmu"])["hexapod_plant_fmu"]
     empty3 = native_build.build_native3(empty["hexapod_plant_fmu"], out / "empty3", empty=True)

@@ -1,15 +1,21 @@
 """Wall time and real-time factor of every shipped scenario, the master's own cost
 per macro step (its stepping loop is C, scenarios/c/cosim.c) against a Python loop making
 the same FMI calls and against fmpy's list-based calls, a recorded run against the bare
-stepping (issue 21's goal: <= 1.25x), and the checks before a run (the stability
-prediction along the motion, scenarios.flags) against the run. Prints figures; asserts
-nothing.
+stepping (issue 21's goal: <= 1.25x), the checks before a run (the stability
+prediction along the motion, scenarios.flags) against the run, and the whole CLI process
+of one scenario against its stepping, phase by phase (issue 21's goal: <= 1.5x). Prints
+figures; asserts nothing.
 
-    python -m benchmarks.bench_scenarios [--ci] [--only recording|checks]   (--ci: the [ci] versions)
+    python -m benchmarks.bench_scenarios [--ci] [--only recording|checks|process]   (--ci: the [ci] versions)
 """
 import argparse
 import dataclasses
+import json
+import os
 import pathlib
+import resource
+import subprocess
+import sys
 import tempfile
 import time
 
@@ -136,10 +142,100 @@ def check_cost(ci, names=("telescope_slew", "telescope_slew_realistic", "keyhole
               f"{100 * best / stepping:15.2f}%")
 
 
+# The CLI in a child process with a clock around each phase of what it does; the phases
+# are the real functions (wrapped), not a copy of the command's sequence.
+_PHASED = r"""
+import atexit, sys, time
+began = time.perf_counter()
+import movingbase.__main__ as program
+from movingbase.scenarios import master, records, report, runner
+spent = {"imports": time.perf_counter() - began}
+def clock(owner, name, phase):
+    inner = getattr(owner, name)
+    def timed(*args, **kwargs):
+        start = time.perf_counter()
+        try:
+            return inner(*args, **kwargs)
+        finally:
+            spent[phase] = spent.get(phase, 0.0) + time.perf_counter() - start
+    setattr(owner, name, timed)
+for owner, name, phase in ((runner, "prepare", "checks"), (runner, "pre_run_flags", "checks"),
+                           (runner, "run_prepared", "runs"), (records.Records, "save", "records"),
+                           (runner, "write_results", "results"), (report, "_error_chart", "charts"),
+                           (report, "_summary_chart", "charts")):
+    clock(owner, name, phase)
+run = master.run
+steps = []
+def counted(*args, **kwargs):
+    result = run(*args, **kwargs)
+    steps.append(result.wall_time)
+    return result
+runner.master.run = counted
+def phases():
+    spent["stepping"] = sum(steps)
+    spent["inside"] = time.perf_counter() - began
+    print("PHASES", repr(spent), flush=True)
+atexit.register(phases)
+sys.argv = ["movingbase", "run"] + sys.argv[1:]
+program.main()   # as the command ends: exit handlers, no teardown
+"""
+
+
+def _cli(args, phased):
+    """Wall and CPU seconds of one CLI process, its stepping [s] (metrics.json) and, if
+    ``phased``, its phases {name: s}."""
+    out = pathlib.Path(tempfile.mkdtemp())
+    command = [sys.executable, "-c", _PHASED] if phased else [sys.executable, "-m", "movingbase", "run"]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    began = time.perf_counter()
+    done = subprocess.run(command + args + ["--quiet", "--out", str(out)], capture_output=True, text=True,
+                          check=True)
+    wall = time.perf_counter() - began
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+    stem = pathlib.Path(args[0]).stem
+    stepping = sum(r["wall_time_s"] for r in json.loads((out / stem / "metrics.json").read_text()).values())
+    phases = eval(done.stdout.split("PHASES ", 1)[1]) if phased else {}
+    return wall, cpu, stepping, phases
+
+
+def process_cost(ci, names=("telescope_slew", "paper_manoeuvre"), repeats=3):
+    """One scenario from the CLI (``movingbase run NAME --quiet``, a fresh process, FMUs
+    already built): its wall time against its stepping (the runs' wall_time_s), for each
+    --charts choice, interleaved, median of ``repeats``; then one process with a clock
+    around each phase."""
+    charts = ("all", "summary", "none")
+    ci_flag = ["--ci"] if ci else []
+    print(f"\none scenario from the CLI, whole process against its stepping ({'[ci]' if ci else 'full'} versions, "
+          f"median of {repeats}, interleaved; load {os.getloadavg()[0]:.1f}):")
+    print(f"{'scenario':18s} {'--charts':>9s} {'process [s]':>12s} {'CPU [s]':>8s} {'stepping [s]':>13s} "
+          f"{'process/stepping':>17s}")
+    for name in names:
+        results = {c: [] for c in charts}
+        for _ in range(repeats):
+            for c in charts:
+                results[c].append(_cli([name, "--charts", c] + ci_flag, False))
+        for c in charts:
+            wall, cpu, stepping = (sorted(x)[len(x) // 2] for x in list(zip(*results[c]))[:3])
+            print(f"{name:18s} {c:>9s} {wall:12.2f} {cpu:8.2f} {stepping:13.2f} {wall / stepping:16.2f}x")
+    for name in names:
+        wall, cpu, stepping, phases = _cli([name] + ci_flag, True)
+        start = wall - phases["inside"]
+        fmus = phases["runs"] - phases["stepping"] - phases.get("records", 0.0)
+        shown = {"interpreter start and end": start, "imports": phases["imports"], "checks": phases["checks"],
+                 "FMU loading, initialisation": fmus, "stepping": phases["stepping"],
+                 "records (npz)": phases.get("records", 0.0), "charts": phases.get("charts", 0.0),
+                 "report, metrics.json": phases["results"] - phases.get("charts", 0.0)}
+        shown["the rest"] = wall - sum(shown.values())
+        print(f"\n{name}, --charts all: phases of one process ({wall:.2f} s, {wall / stepping:.2f}x its stepping)")
+        for phase, seconds in shown.items():
+            print(f"  {phase:30s} {seconds:6.2f} s  {100 * seconds / wall:5.1f} %")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ci", action="store_true", help="run the short [ci] versions")
-    parser.add_argument("--only", choices=["recording", "checks"], help="only this part")
+    parser.add_argument("--only", choices=["recording", "checks", "process"], help="only this part")
     args = parser.parse_args()
     if args.only is None:
         scenario_table(args.ci)
@@ -148,6 +244,8 @@ def main():
         recording_cost()
     if args.only in (None, "checks"):
         check_cost(args.ci)
+    if args.only in (None, "process"):
+        process_cost(args.ci)
 
 
 if __name__ == "__main__":

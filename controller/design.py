@@ -34,8 +34,8 @@ circle; scenarios.flags takes it over the modes along a scenario's motion before
 """
 from dataclasses import dataclass
 
-import control
-import numpy as np
+import numpy as np   # python-control (~1.3 s to import, with scipy) is imported in the functions that
+                     # use it: a run's step-limit check (step_limit) needs numpy only
 
 from movingbase.plant.stewart import HOME_POSE, dynamics_terms, forward_dynamics, inverse_dynamics, pose_jacobian
 
@@ -82,6 +82,7 @@ def linearised_plant(params, pose=HOME_POSE, step=1e-6):
     deviations from the forces that hold the platform at rest (6); outputs: leg length
     deviations (6). A and B by central differences of forward_dynamics (``step`` in m, rad,
     m/s, rad/s; 1 N for forces, in which the accelerations are linear)."""
+    import control
     pose = np.asarray(pose, dtype=float)
     rest = np.zeros(6)
     hold = inverse_dynamics(params, pose, rest, rest)
@@ -115,6 +116,7 @@ def loop_margins(loop, points=4000):
     Uses python-control's FRD margins: its polynomial method finds spurious crossings near
     the loop's triple pole at z = 1. With several gain crossovers, the one with the smallest
     phase margin counts. Lower gain margin 0 means there is none."""
+    import control
     nyquist = np.pi / loop.dt
     omega = np.geomspace(1e-4 * nyquist, 0.999 * nyquist, points)
     gm, pm, _, _, wgc, _ = control.stability_margins(control.FRD(loop, omega), returnall=True)
@@ -193,6 +195,7 @@ def mode_loop(mass, gains, comm_step, loop=IDEAL):
     controller.pid -> one step of controller delay; the master's extrapolation on every
     connection of the loop. With IDEAL: ZOH plant 1/(mass s^2) with sampled length
     and rate, the PID of controller.pid, one step of delay."""
+    import control
     h = comm_step
     w_a = 2 * np.pi * loop.actuator_bandwidth
     if w_a > 0:   # states (F, l, dl/dt), input F_cmd
@@ -235,6 +238,7 @@ def _distinct(masses):
 def _modal_design(gains, comm_step, masses, loop, points=4000):
     """The Design of ``gains`` on the modes ``masses`` (heaviest last) in ``loop``; None
     if a mode's closed loop is unstable."""
+    import control
     loops = [mode_loop(m, gains, comm_step, loop) for m in _distinct(masses)]
     if any(np.abs(control.feedback(one).poles()).max() >= 1 for one in loops):
         return None
@@ -276,6 +280,7 @@ def design_pid(params, crossover_hz, phase_margin_deg, comm_step, integral_ratio
     |L| = 1 and arg L = PM - 180 deg at w_c are solved exactly. Raises ValueError if the
     crossover is not below Nyquist, if that needs a negative gain (crossover too high or
     margin too large for the loop), or if the gains destabilise a mode."""
+    import control
     if not 0 < crossover_hz < 0.5 / comm_step:
         raise ValueError(f"crossover {crossover_hz} Hz must lie between 0 and the Nyquist frequency "
                          f"{0.5 / comm_step} Hz of comm step {comm_step} s")
@@ -465,6 +470,7 @@ def step_limit(masses, gains, loop=IDEAL, low=1e-5, high=0.2, rtol=1e-3):
 def _closed_loop_matrix(plant, gains, comm_step):
     """Transition matrix of z_k = (x_k, u_{k-1}, I_{k-1}): plant state, held force, PID
     integral, for reference zero and no feedforward (deviations about equilibrium)."""
+    import control
     sampled = control.c2d(plant, comm_step, "zoh")
     lengths = plant.C
     rates = plant.C @ plant.A  # dl/dt = C (A x + B u) and C B = 0: lengths depend on pose only

@@ -7,6 +7,8 @@
     movingbase headline             regenerate the README's headline from docs/headline.json
     movingbase --version
 """
+import atexit
+import os
 import sys
 
 from . import __version__
@@ -15,7 +17,26 @@ COMMANDS = ("run", "campaign", "build", "headline")
 
 
 def main(argv=None):
-    argv = sys.argv[1:] if argv is None else list(argv)
+    """The command. As the program (``argv`` None: the console command or ``python -m
+    movingbase``) the process ends right after its exit handlers, without the
+    interpreter's teardown: freeing numpy's, matplotlib's, fmpy's and the FMUs' modules one
+    by one took 0.2-0.3 s of a 2.6 s run (issue 21); every file is closed by then."""
+    if argv is not None:
+        return _command(list(argv))
+    try:
+        status = _command(sys.argv[1:])
+    except SystemExit as exc:
+        status = exc.code
+    if status is not None and not isinstance(status, int):   # sys.exit("message"): printed, status 1
+        print(status, file=sys.stderr)
+        status = 1
+    atexit._run_exitfuncs()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(status or 0)
+
+
+def _command(argv):
     if argv[:1] in (["--version"], ["-V"]):
         print(f"movingbase {__version__}")
         return
@@ -31,7 +52,8 @@ def main(argv=None):
         return campaign(rest)
     if command == "build":
         from .fmu_src.builder import main as build
-        return build(rest)
+        build(rest)        # it returns the output folder: not an exit status
+        return None
     from .scenarios.headline import main as headline
     return headline(rest)
 

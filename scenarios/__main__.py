@@ -1,7 +1,7 @@
 """Command line: run scenario files (or shipped scenario names) and write their reports.
 
     movingbase run [SCENARIO ...] [--out DIR] [--ci] [--quiet] [--jobs N] [--dask tcp://HOST:PORT]
-                        [--implementation native|python] [--csv] [--allow-unstable]
+                        [--implementation native|python] [--csv] [--allow-unstable] [--charts all|summary|none]
     movingbase run SCENARIO --ssp FILE.ssp      (export for other FMI tools instead)
 
 Without a scenario it runs the main job: the telescope slew (FMUs built first) and the
@@ -13,8 +13,8 @@ import sys
 
 from .engine import EngineError, check_address
 from .fmi import FmuFileError
-from .paper_forces import main as paper_charts
 from .records import run_records
+from .report import CHARTS
 from .resources import ResourceError, check_jobs
 from .runner import SHIPPED, OutputError, prepare, resolve, run_scenario
 from .spec import IMPLEMENTATIONS, ScenarioError, sweep_value
@@ -45,6 +45,9 @@ def main(argv=None, prog="movingbase run"):
                         help="also export each run's records as CSV (<label>.csv beside its <label>.npz)")
     parser.add_argument("--allow-unstable", action="store_true",
                         help="run a communication step beyond the predicted stability limit anyway (flagged)")
+    parser.add_argument("--charts", choices=CHARTS, default="all",
+                        help="all: error against time per metric and the summary bars (default); summary: the "
+                             "summary bars of a sweep only; none: no charts (the report's tables and the records)")
     parser.add_argument("--ssp", metavar="FILE", help="export the (one) scenario as an SSP file, first sweep value")
     args = parser.parse_args(argv)
     try:
@@ -88,7 +91,7 @@ def _run(args, shipped):
             scenario, runs, report = run_scenario(name, args.out, ci=args.ci, progress=not args.quiet,
                                                   jobs=args.jobs, dask=args.dask,
                                                   implementation=args.implementation,
-                                                  allow_unstable=args.allow_unstable)
+                                                  allow_unstable=args.allow_unstable, charts=args.charts)
         except ScenarioError as exc:
             errors.append(f"scenario error: {exc}")
             continue
@@ -120,6 +123,7 @@ def _run(args, shipped):
     if errors:
         sys.exit("\n".join(errors))
     if not args.scenarios:
+        from .paper_forces import main as paper_charts   # pyplot: imported by what draws
         paper_charts(f"{args.out}/paper")
 
 

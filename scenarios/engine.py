@@ -56,11 +56,21 @@ from .resources import cores
 from .spec import Link, file_label
 
 RECORDS = ".records.npz"     # a kept run's recorded variables (scenarios.records), next to <key>.json
+# Runs per Dask task, at most: each task costs the client ~10 ms of CPU (scheduler and
+# messages, in the client's process for a local cluster), as much as 4 % of a 30 s slew;
+# in tasks of 4 runs a quarter of it. Fewer when there are few runs (every worker gets
+# at least 4 tasks, so none idles long at the end); a lost task runs its batch again.
+BATCH = 4
 
 # Dask's statistical profiler samples the worker's threads every 10 ms: it took ~13 % of a
-# run's CPU (benchmarks/bench_campaign.py). Off for local workers; for a cluster's workers
-# set DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False (README).
-WORKER_CONFIG = {"distributed.worker.profile.enabled": False}
+# run's CPU (benchmarks/bench_campaign.py). Its periodic housekeeping (the event loop's
+# 20 ms tick, the 0.5 s system monitor, the workers' 0.1 s memory monitor, work stealing's
+# 0.1 s balancing) cost the client and 2 workers 70 ms of CPU a second between them, ~8 ms
+# a 30 s slew; at these intervals 13 ms a second. Set for local clusters; for a cluster's
+# workers the same through DASK_* variables (docs/campaigns.md).
+WORKER_CONFIG = {"distributed.worker.profile.enabled": False, "distributed.admin.tick.interval": "1s",
+                 "distributed.admin.system-monitor.interval": "5s", "distributed.worker.memory.monitor-interval": "1s",
+                 "distributed.scheduler.work-stealing": False}
 _RUN_LOCK = threading.Lock()        # one run at a time per worker process
 _FMU_DIR = None                     # this worker process's copies of the FMU files
 _FMU_FILES = {}                     # sha256 -> local FMU path
@@ -149,6 +159,11 @@ def _outcome(run):
             "series": {name: (np.asarray(t), np.asarray(v)) for name, (t, v) in run.series.items()}}
 
 
+def execute_batch(jobs, blobs):
+    """Run several jobs in one task, one after the other (execute each)."""
+    return [execute(job, blobs) for job in jobs]
+
+
 def execute(job, blobs):
     """Run one job where this is called; a failing run returns its message instead of raising."""
     with _RUN_LOCK:
@@ -157,9 +172,10 @@ def execute(job, blobs):
         partial = None
         try:
             paths = {inst: _local_fmu(digest, blobs) for inst, digest in job.fmus.items()}
+            run_cpu = time.process_time()
             partial = master.run(job.scenario, paths, job.parameters, None, "run",
                                  [metrics.make(m) for m in job.scenario.metrics])
-            out.update(status="ok", **_outcome(partial))
+            out.update(status="ok", run_cpu_s=time.process_time() - run_cpu, **_outcome(partial))
         except Exception as exc:          # the run's failure is a result; others go on
             partial = getattr(exc, "run", None)   # what a run that stopped early did
             out.update(status="failed", error=getattr(partial, "failure", "") or f"{type(exc).__name__}: {exc}")
@@ -297,7 +313,7 @@ class Engine:
                 with dask.config.set(WORKER_CONFIG), _workers_ignore_ctrl_c():
                     self.cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
                                                 dashboard_address=None, silence_logs=logging.CRITICAL)
-                self._client = Client(self.cluster)
+                    self._client = Client(self.cluster)
             self._client.wait_for_workers(1 if self.address else self.jobs, timeout=120)
             self.start_time = time.perf_counter() - began
         return self._client
@@ -331,10 +347,12 @@ class Engine:
             self._blobs[key] = self.client.scatter([blobs], broadcast=True, hash=False)[0]
         return self._blobs[key]
 
-    def run(self, jobs, fmu_files, store, progress=True, retry_failed=False, on_result=None, name="runs"):
+    def run(self, jobs, fmu_files, store, progress=True, retry_failed=False, on_result=None, name="runs",
+            batch=None):
         """Run every job whose result is not in ``store`` yet. ``jobs``: a sized iterable
         of Job, iterated twice and never held (jobs made on the fly keep memory flat);
-        ``fmu_files``: sha256 -> FMU path. At most 2 jobs per worker are in flight.
+        ``fmu_files``: sha256 -> FMU path. Jobs go out in tasks of ``batch`` runs (default:
+        up to BATCH), at most 2 tasks per worker in flight.
         ``on_result(job, result)`` is called after each result is on disk. Ctrl-C stops
         cleanly (finished runs stay on disk)."""
         from distributed import as_completed
@@ -363,36 +381,41 @@ class Engine:
         if not count:
             return outcome
         blobs = self._scatter(fmu_files)
-        window = max(2, 2 * sum(self.client.nthreads().values()))
+        threads = sum(self.client.nthreads().values())
+        window, size = max(2, 2 * threads), batch or max(1, min(BATCH, count // (4 * max(threads, 1))))
         pending, queue, in_flight = as_completed(), to_run([]), {}
 
-        def submit(job):
-            future = self.client.submit(execute, job, blobs, key=f"run-{job.key}-{time.monotonic_ns()}")
-            in_flight[future.key] = job
+        def submit(batch):
+            future = self.client.submit(execute_batch, batch, blobs,
+                                        key=f"runs-{batch[0].key}-{len(batch)}-{time.monotonic_ns()}")
+            in_flight[future.key] = batch
             pending.add(future)
+
+        batches = iter(lambda: list(islice(queue, size)), [])
 
         bar = tqdm(total=count, desc=f"{name} ({len(skipped)} of {total} on disk)", unit="run",
                    disable=not progress, smoothing=0.1)
         try:
-            for job in islice(queue, window):
-                submit(job)
+            for batch in islice(batches, window):
+                submit(batch)
             for future in pending:
-                job = in_flight.pop(future.key)
+                batch = in_flight.pop(future.key)
                 try:
-                    result = future.result()
+                    results = future.result()
                 except Exception as exc:        # the engine lost the task (e.g. a worker died too often)
-                    outcome.failed[job.key] = f"not run: {type(exc).__name__}: {exc}"
+                    outcome.failed.update({job.key: f"not run: {type(exc).__name__}: {exc}" for job in batch})
                 else:
-                    store.write(job, dict(result))
-                    outcome.computed.append(job.key)
-                    if result["status"] != "ok":
-                        outcome.failed[job.key] = result["error"]
-                    if on_result:
-                        on_result(job, result)
+                    for job, result in zip(batch, results):
+                        store.write(job, dict(result))
+                        outcome.computed.append(job.key)
+                        if result["status"] != "ok":
+                            outcome.failed[job.key] = result["error"]
+                        if on_result:
+                            on_result(job, result)
                 future.release()
-                bar.update(1)
+                bar.update(len(batch))
                 bar.set_postfix(failed=len(outcome.failed), refresh=False)
-                nxt = next(queue, None)
+                nxt = next(batches, None)
                 if nxt is not None:
                     submit(nxt)
         except KeyboardInterrupt:

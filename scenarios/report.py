@@ -6,14 +6,11 @@ what the base motion adds and why.
 The sentences and numbers comparing the runs come from ``compare`` and ``fmt``, which
 the README's generated headline (``scenarios.headline``) uses too: one source for each
 number."""
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 
 from .records import run_records
-from .style import FLOOR, FLOOR_NOTE, MARKS_UM, draw_marks, fmt, length, ratio, run_colour, save  # noqa: F401
+from .style import (FLOOR, FLOOR_NOTE, MARKS_UM, draw_marks, fmt, length, plain_log_axis, ratio,  # noqa: F401
+                    run_colour, save)
 
 TRACKING = ("leg_tracking", "pose_tracking", "tracking")
 COINCIDE = 0.02      # two curves closer than this fraction of their peak are said to coincide
@@ -21,9 +18,36 @@ COINCIDE = 0.02      # two curves closer than this fraction of their peak are sa
 # shows two coinciding runs
 RUN_STYLES = ({"ls": "-", "lw": 3.0, "alpha": 0.45}, {"ls": (0, (5, 2)), "lw": 1.4},
               {"ls": "-", "lw": 1.0}, {"ls": "-.", "lw": 1.0}, {"ls": ":", "lw": 1.4})
+CHARTS = ("all", "summary", "none")   # what a run draws: every chart, the summary bars only, none
 RUN_MEANING = {"none": "PID alone, no feedforward",
                "fixed_base": "PID + feedforward from the fixed-base model (the base motion ignored)",
                "moving_base": "PID + feedforward from the moving-base model"}
+
+
+def _figure(rows, cols, size, left, right, top, bottom, gap, **kw):
+    """A figure of rows x cols axes with margins and gaps fixed in inches, room for the
+    kit's labels: constrained layout measured every tick label in two passes and cost
+    ~45 % of a chart's time (issue 21). pyplot is imported here: a run without charts
+    does not pay its import."""
+    import matplotlib.pyplot as plt
+    w, h = size
+    inner_w, inner_h = w - left - right, h - top - bottom
+    fig, axes = plt.subplots(rows, cols, figsize=size, squeeze=False, gridspec_kw={
+        "left": left / w, "right": 1 - right / w, "top": 1 - top / h, "bottom": bottom / h,
+        "hspace": gap * rows / (inner_h - gap * (rows - 1)), "wspace": gap * cols / (inner_w - gap * (cols - 1)),
+        **kw.pop("gridspec_kw", {})}, **kw)
+    return fig, axes
+
+
+def _log_axis(ax):
+    """A log error axis labelled at the decades in plain numbers (0.001, 10), no minor
+    ticks: the major grid is what a person reads, and the minor ticks' objects and the
+    mathtext of 10^n labels were a third of a chart's drawing."""
+    from matplotlib import ticker
+    ax.set_yscale("log")
+    plain_log_axis(ax.yaxis, subs=(1.0,))
+    ax.yaxis.set_minor_locator(ticker.NullLocator())
+
 
 
 def compare(metrics_by_run, metric, unit="µm", flagged=None):
@@ -80,7 +104,7 @@ def _error_panel(ax, runs, name, scale, unit, marks):
     top = max([v.max() for _, _, v in data if len(v)] + [FLOOR * 10])
     if marks:
         top = max([top] + [MARKS_UM[m] for m in draw_marks(ax, top)])
-    ax.set_yscale("log")
+    _log_axis(ax)
     ax.set_ylim(FLOOR, top * 2.5)
     ax.grid(True, which="major", alpha=0.3)
     if notes:
@@ -140,8 +164,8 @@ def _error_chart(scenario, runs, metric, path):
     if metric.kind == "pose_tracking":
         rows = [("position", 1.0, "µm", True), ("rotation", 1e6, "µrad", False)]
     n = len(rows) + (2 if motion else 0)
-    fig, axes = plt.subplots(n, 1, figsize=(10, 1.6 + 2.1 * n), sharex=True, layout="constrained",
-                             gridspec_kw={"height_ratios": [3] * len(rows) + [1.6] * (n - len(rows))}, squeeze=False)
+    fig, axes = _figure(n, 1, (10, 1.6 + 2.1 * n), left=1.15, right=0.6, top=0.55, bottom=1.1, gap=0.2,
+                        sharex=True, gridspec_kw={"height_ratios": [3] * len(rows) + [1.6] * (n - len(rows))})
     axes = axes[:, 0]
     panels = {}
     for ax, (kind, scale, unit, marks) in zip(axes, rows):
@@ -171,10 +195,10 @@ def _error_chart(scenario, runs, metric, path):
     mark_flagged(axes[:len(rows)], runs)
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, title=(scenario.sweep[0] if scenario.sweep else None), fontsize=8.5,
-               title_fontsize=8.5, loc="outside lower left", ncol=len(runs))
+               title_fontsize=8.5, loc="lower left", bbox_to_anchor=(0.005, 0.005), ncol=len(runs))
     if motion:
         fig.legend(*axes[-1].get_legend_handles_labels(), title="base motion: telescope axes", fontsize=8.5,
-                   title_fontsize=8.5, loc="outside lower right", ncol=2)
+                   title_fontsize=8.5, loc="lower right", bbox_to_anchor=(0.995, 0.005), ncol=2)
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(f"{scenario.name}: {metric.name} against time (measured from {metric.start:g} s)\n{FLOOR_NOTE}",
                  fontsize=10)
@@ -236,8 +260,8 @@ def _summary_chart(scenario, runs, tracked, path):
     closed)."""
     from matplotlib.patches import Patch
     quantities = _summary_quantities(tracked)
-    fig, axes = plt.subplots(1, len(quantities), figsize=(3.8 * len(quantities), 4.4), squeeze=False,
-                             layout="constrained")
+    fig, axes = _figure(1, len(quantities), (4.4 * len(quantities), 4.4), left=0.85, right=0.6, top=0.75,
+                        bottom=0.75, gap=1.4)   # a gap holds a panel's mark names and the next one's labels
     labels = [r.label for r in runs]
     colours = [run_colour(label, k) for k, label in enumerate(labels)]
     x = np.arange(len(runs))
@@ -258,7 +282,7 @@ def _summary_chart(scenario, runs, tracked, path):
         if off_scale:
             ax.text(0.02, 0.97, f"{' and '.join(off_scale)} marks: off the scale, above it", transform=ax.transAxes,
                     fontsize=7.5, va="top", color="0.3")
-        ax.set_yscale("log")
+        _log_axis(ax)
         ax.set_ylim(FLOOR, top * 4)
         ax.set_xticks(x, labels)
         ax.set_ylabel(f"error [{unit}] (log scale, floored at 1 n{unit[1:]})")
@@ -270,7 +294,8 @@ def _summary_chart(scenario, runs, tracked, path):
     fig.suptitle(f"{scenario.name}: tracking error after the {start:g} s settling, by "
                  f"{scenario.sweep[0] if scenario.sweep else 'run'}", fontsize=10)
     fig.legend(handles=[Patch(facecolor="0.5", alpha=0.45, hatch="//", edgecolor="0.5", label="RMS"),
-                        Patch(facecolor="0.5", label="peak")], loc="outside lower center", ncol=2, fontsize=8.5)
+                        Patch(facecolor="0.5", label="peak")], loc="lower center", bbox_to_anchor=(0.5, 0.005), ncol=2,
+               fontsize=8.5)
     save(fig, path)
     return panels
 
@@ -330,8 +355,11 @@ def _stopped(scenario, run):
             f"{scenario.stop_time - scenario.start_time:g} s")
 
 
-def write(scenario, runs, outdir):
-    """Write charts and report.md into outdir; return the report's path."""
+def write(scenario, runs, outdir, charts="all"):
+    """Write report.md and the ``charts`` (one of CHARTS: every chart, the summary bars
+    of several runs only, or none) into outdir; return the report's path."""
+    if charts not in CHARTS:
+        raise ValueError(f"charts must be one of {', '.join(CHARTS)}, got {charts!r}")
     tracked = [m for m in scenario.metrics if m.kind in TRACKING]
     per_run = [m for m in scenario.metrics if m.kind != "base_effect"]   # base effect: same for every run
     lines = [f"# {scenario.name}", "", scenario.description, ""] + flag_lines(runs) + settings(scenario)
@@ -349,11 +377,11 @@ def write(scenario, runs, outdir):
               for r in runs if r.failure]
     lines += [f"- {note}" for note in scenario.notes]
     lines += _findings(scenario, runs, tracked)
-    for metric in tracked:
+    for metric in tracked if charts == "all" else ():
         chart = outdir / f"{metric.name.replace(' ', '_')}_vs_time.png"
         _error_chart(scenario, runs, metric, chart)
         lines += [f"![{metric.name} against time]({chart.name})", ""]
-    if tracked and len(runs) > 1:
+    if tracked and len(runs) > 1 and charts != "none":
         _summary_chart(scenario, runs, tracked, outdir / "summary.png")
         lines += ["![summary](summary.png)", ""]
     lines += [f"Results per run: {', '.join(f'`{r.record_path.name}`' for r in runs if r.record_path)} "

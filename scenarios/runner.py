@@ -130,11 +130,11 @@ def _choose_fidelity(scenario, paths, values, plant):
 
 
 def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None, implementation=None,
-                 allow_unstable=False, fmi_version=None):
+                 allow_unstable=False, fmi_version=None, charts="all"):
     """Run every sweep value of a scenario; returns (scenario, runs, report path).
     ``jobs`` worker processes or the Dask cluster at ``dask`` run the values in parallel;
-    ``implementation`` and ``fmi_version`` as in prepare. A step beyond the predicted stability limit is
-    refused (ScenarioError) unless ``allow_unstable``; then every run is flagged."""
+    ``implementation`` and ``fmi_version`` as in prepare; ``charts`` as report.write. A step beyond the
+    predicted stability limit is refused (ScenarioError) unless ``allow_unstable``; then every run is flagged."""
     if progress:
         print(f"{pathlib.Path(str(path)).stem}: checking the scenario, building FMUs that are missing or stale "
               "(a first build takes ~10 s)", file=sys.stderr, flush=True)
@@ -145,7 +145,7 @@ def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None,
     if earlier:
         print(earlier, file=sys.stderr)
     runs = run_prepared(scenario, paths, descriptions, values, outdir, progress, jobs, dask, before)
-    return scenario, runs, write_results(scenario, runs, outdir)
+    return scenario, runs, write_results(scenario, runs, outdir, charts)
 
 
 def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=True, jobs=None, dask=None,
@@ -192,15 +192,16 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
     return runs
 
 
-def write_results(scenario, runs, outdir):
-    """metrics.json, the charts and report.md of the runs into outdir; the report's path."""
+def write_results(scenario, runs, outdir, charts="all"):
+    """metrics.json, the ``charts`` (report.CHARTS) and report.md of the runs into outdir;
+    the report's path."""
     summary = {r.label: {"metrics": r.metrics, "wall_time_s": r.wall_time, "steps": r.steps,
                          "real_time_factor": r.real_time_factor, **({"failed": r.failure} if r.failure else {}),
                          "flags": flags.as_dicts(r.flags)}
                for r in runs}
     outdir.mkdir(parents=True, exist_ok=True)
     (outdir / "metrics.json").write_text(json.dumps(_no_nan(summary), indent=2, default=float))
-    return report.write(scenario, runs, outdir)
+    return report.write(scenario, runs, outdir, charts)
 
 
 def pre_run_flags(scenario, paths, descriptions, values, ci=False, allow_unstable=False):

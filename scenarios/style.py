@@ -3,6 +3,8 @@ marks, a colour per run kind and the resolution charts are saved at.
 
 Used by scenarios.report, scenarios.paper_forces, scenarios.mechanism3t_charts and the
 studies, so that "1 nm", "5.44 µm" and "moving-base blue" mean the same on every page."""
+import pathlib
+
 import matplotlib
 import numpy as np
 
@@ -146,7 +148,11 @@ def label_points(ax, xs, ys, texts, fontsize=7, color="0.25"):
 
 
 def save(fig, path, **kwargs):
-    """Save at the kit's resolution and close the figure."""
+    """Save at the kit's resolution and close the figure. PNG compression level 1: the
+    file ~1.3x larger than at the default 6, its encoding several times cheaper (issue 21)."""
     import matplotlib.pyplot as plt
+    kind = kwargs.get("format") or (pathlib.Path(path).suffix[1:] if isinstance(path, (str, pathlib.Path)) else "png")
+    if kind == "png":
+        kwargs.setdefault("pil_kwargs", {"compress_level": 1})
     fig.savefig(path, dpi=DPI, **kwargs)
     plt.close(fig)

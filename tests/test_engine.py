@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from movingbase.scenarios import engine, master, metrics, spec
-from movingbase.scenarios.fmi import unpack
+from movingbase.scenarios.fmi import Instance, unpack
 from movingbase.scenarios.records import read_records
 from movingbase.scenarios.runner import SHIPPED
 
@@ -69,6 +69,47 @@ def test_local_cluster_equals_sequential_and_reports_failures(campaign, tmp_path
     assert 0 < failed["steps"] < 5400 and "pose error" in failed["metrics"]   # partial results kept
     assert outcome.failed == {bad[0].key: failed["error"]}
 
+
+def test_runs_batched_into_tasks_keep_each_runs_own_numbers(campaign, tmp_path):
+    """Six runs in tasks of 4 and 2 on one worker: every key gets its own sequential
+    numbers (a batch's results are matched to its jobs), none is lost or repeated."""
+    scenario, paths, values, jobs, files, sequential = campaign
+    store, seen = engine.Store(tmp_path), []
+    with engine.Engine(jobs=1) as eng:
+        outcome = eng.run(jobs, files, store, progress=False, batch=4, on_result=lambda job, r: seen.append(job.key))
+    assert sorted(seen) == sorted(outcome.computed) == sorted(sequential) and not outcome.failed
+    for key, run in sequential.items():
+        _same_as_sequential(store, key, run)
+
+
+def test_instances_of_one_fmu_share_its_library_not_their_state(native_fmus):
+    """A worker instantiates each run's FMUs on the library it loaded once (fmi._slave):
+    two live instances of one FMU with different parameters step as each does alone,
+    and freeing one leaves the other stepping (the library stays loaded)."""
+    scenario, paths, values = _bound(native_fmus)
+    outputs = [f"base_pose[{k}]" for k in range(1, 7)]
+
+    def started(name, elevation):
+        instance = Instance(paths["base"], name)
+        instance.initialize(0.0, {**values["base"], "start_elevation": elevation, "start_delay": 0.0})
+        return instance
+
+    def step(instance, first, count):
+        for k in range(first, first + count):
+            instance.do_step(k * 1e-3, 1e-3)
+        return [instance.get_real(v) for v in outputs]
+
+    alone = {}
+    for elevation in (0.3, 0.9):
+        instance = started("alone", elevation)
+        alone[elevation] = (step(instance, 0, 500), step(instance, 500, 500))
+        instance.terminate()
+    low, high = started("low", 0.3), started("high", 0.9)
+    assert low.fmu.dll is high.fmu.dll and low.fmu.component != high.fmu.component
+    assert (step(low, 0, 500), step(high, 0, 500)) == (alone[0.3][0], alone[0.9][0])
+    low.terminate()
+    assert step(high, 500, 500) == alone[0.9][1]
+    high.terminate()
 
 def test_killed_worker_and_interrupt_resume_without_loss_or_repeat(campaign, tmp_path):
     scenario, paths, values, jobs, files, sequential = campaign

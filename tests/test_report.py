@@ -175,6 +175,33 @@ def test_report_names_runs_states_settings_and_gives_base_effect_once(tmp_path):
         assert (tmp_path / name).exists() and f"]({name})" in text
 
 
+@pytest.mark.parametrize("charts, drawn", [("all", {"leg_error_vs_time.png", "pose_error_vs_time.png", "summary.png"}),
+                                           ("summary", {"summary.png"}), ("none", set())])
+def test_charts_choice_draws_what_is_asked_and_the_report_links_only_those(tmp_path, charts, drawn):
+    scenario, runs = _scenario(), _runs(tmp_path)
+    text = report.write(scenario, runs, tmp_path, charts).read_text()
+    assert {p.name for p in tmp_path.glob("*.png")} == drawn
+    assert {part.split(")")[0] for part in text.split("](")[1:] if ".png" in part.split(")")[0]} == drawn
+    with pytest.raises(ValueError, match="charts must be one of all, summary, none, got 'some'"):
+        report.write(scenario, runs, tmp_path, "some")
+
+
+def test_a_run_without_charts_imports_no_plotting_design_or_cluster_library(tmp_path):
+    """The CLI's own process, one [ci] scenario, --charts none: pyplot, python-control,
+    scipy, dask and pandas are not imported (each costs a run 0.2-1.3 s; issue 21). The
+    FMUs are built first, here: building one imports the FMU scripts and what they use."""
+    import subprocess
+    import sys
+    from movingbase.scenarios.runner import prepare, resolve
+    prepare(resolve("telescope_slew"), ci=True)
+    code = ("import sys; from movingbase.scenarios.__main__ import main; "
+            f"main(['telescope_slew', '--ci', '--quiet', '--charts', 'none', '--out', {str(tmp_path)!r}]); "
+            "print(sorted(m for m in ('matplotlib.pyplot', 'control', 'scipy', 'dask', 'distributed', 'pandas') "
+            "if m in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert (tmp_path / "telescope_slew" / "report.md").exists() and not list(tmp_path.rglob("*.png"))
+    assert done.stdout.splitlines()[-1] == "[]", done.stdout
+
 def test_ratio_and_fmt_are_three_digits():
     assert report.ratio(9.2547, 0.0641) == f"{9.2547 / 0.0641:.3g}x" == "144x"
     assert report.ratio(129.0, 0.0767) == "1680x" and report.ratio(1.0, 0.5) == "2x"
@@ -207,3 +234,28 @@ def test_cli_help_and_unknown_scenario_list_the_shipped_ones(capsys):
         main(["no_such_scene"])
     message = str(done.value.code)
     assert "'no_such_scene'" in message and all(name in message for name in shipped)
+
+
+def test_the_command_ends_with_its_status_after_writing_everything(tmp_path):
+    """`python -m movingbase` ends without the interpreter's teardown (0.2-0.3 s saved):
+    the status is still the command's, every file is written, an error still says why."""
+    import subprocess
+    import sys
+    command = [sys.executable, "-m", "movingbase", "run", "--quiet", "--charts", "summary", "--out", str(tmp_path)]
+    done = subprocess.run(command + ["telescope_slew", "--ci"], capture_output=True, text=True)
+    assert done.returncode == 0 and "telescope_slew: report" in done.stdout, done.stderr
+    folder = tmp_path / "telescope_slew"
+    assert set(json.loads((folder / "metrics.json").read_text())) == {"none", "fixed_base", "moving_base"}
+    assert (folder / "report.md").read_text().endswith("\n") and (folder / "summary.png").stat().st_size > 10_000
+    failed = subprocess.run(command + ["no_such_scene"], capture_output=True, text=True)
+    assert failed.returncode == 1 and "no scenario file or shipped scenario named 'no_such_scene'" in failed.stderr
+
+
+def test_build_command_returns_no_exit_status(monkeypatch):
+    """`movingbase build` returned the builder's output folder, which the console script
+    passed to sys.exit: the folder printed as an error and status 1 after a good build."""
+    import pathlib
+    from movingbase import __main__ as command
+    from movingbase.fmu_src import builder
+    monkeypatch.setattr(builder, "main", lambda argv: pathlib.Path("build/fmu"))
+    assert command.main(["build"]) is None
