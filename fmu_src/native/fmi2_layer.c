@@ -62,10 +62,10 @@ static const char *const CATEGORIES[NCAT] = {"logStatusWarning", "logStatusDisca
 typedef struct {
     double start_time;
     double time;              /* end of the last accepted step (fmi2LastSuccessfulTime) */
-    int stop_defined;         /* fmi2SetupExperiment's stopTime: no step may pass it */
-    double stop_time;
+    double stop_time;         /* fmi2SetupExperiment's stopTime: no step may pass it, if stop_defined */
     int failed;
     int phase;                /* enum phase: an FMU state restores it */
+    int stop_defined;
     char failure[1024];
 } layer_state;
 
