@@ -25,10 +25,17 @@
  *   the status, after the slave's line has said what is wrong. A fatal without the
  *   slave's error (an exception our slave did not catch) stays fmi2Fatal, its
  *   messages delivered as they came.
+ * - fmi2GetReal answers fmi2Error when the slave logged an fmi2Error during the call:
+ *   GuardedSlave.get_real names an output that is not finite (those a refused
+ *   initialization left; the native layer's rule).
+ * - fmi2SetupExperiment refuses a stopTime before the startTime; fmi2DoStep refuses,
+ *   with fmi2Error and a line, a step whose start is not the FMU's time, of a size not
+ *   finite and > 0, too small to advance the time, or ending past the stopTime (the
+ *   native layer's rules, fmi2_layer.c).
  * - fmi2DeSerializeFMUstate: bytes that are not a state this FMU serialized (header
  *   line and checksum, GuardedSlave._fmu_state_to_bytes) are refused with fmi2Error and
  *   a log line before the wrapper sees them.
- *   fmi2SetupExperiment and fmi2EnterInitializationMode are forwarded unchanged:
+ *   fmi2SetupExperiment (past its stopTime check) and fmi2EnterInitializationMode are forwarded unchanged:
  *   GuardedSlave's methods there only record values (the start time, that
  *   initialization mode began), so a fatal there is one no slave code guarded, and
  *   fmi2Fatal is then the truth. fmi2GetReal/fmi2GetInteger in initialization mode may
@@ -64,7 +71,6 @@
 #define FORWARDED(X) \
     X(fmi2SetDebugLogging, ANY_PHASE, (fmi2Component c, fmi2Boolean on, size_t n, const fmi2String categories[]), \
       (INNER, on, n, categories)) \
-    X(fmi2GetReal, READABLE, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real v[]), (INNER, vr, n, v)) \
     X(fmi2GetInteger, READABLE, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[]), (INNER, vr, n, v)) \
     X(fmi2GetBoolean, READABLE, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[]), (INNER, vr, n, v)) \
     X(fmi2GetString, READABLE, (fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[]), (INNER, vr, n, v)) \
@@ -97,7 +103,7 @@
 /* The functions this file defines itself (they do more than forward). */
 #define OWN(Y) Y(fmi2GetTypesPlatform) Y(fmi2GetVersion) Y(fmi2Instantiate) Y(fmi2FreeInstance) \
     Y(fmi2SetupExperiment) Y(fmi2EnterInitializationMode) Y(fmi2ExitInitializationMode) Y(fmi2Reset) \
-    Y(fmi2SetFMUstate) Y(fmi2DeSerializeFMUstate) Y(fmi2Terminate) Y(fmi2DoStep) Y(fmi2GetRealStatus)
+    Y(fmi2SetFMUstate) Y(fmi2DeSerializeFMUstate) Y(fmi2Terminate) Y(fmi2DoStep) Y(fmi2GetRealStatus) Y(fmi2GetReal)
 
 /* The wrapper's functions, found by dlsym at the first fmi2Instantiate. */
 #define MEMBER(name, ...) name##TYPE *name;
@@ -118,7 +124,7 @@ typedef struct {
     fmi2Component inner;
     fmi2CallbackFunctions host;      /* the host's callbacks */
     fmi2CallbackFunctions callbacks; /* given to the wrapper: ours, with this Shim as environment */
-    int holding;                     /* messages are held (during fmi2ExitInitializationMode) */
+    int holding;                     /* messages are held (during fmi2ExitInitializationMode, fmi2GetReal) */
     int slave_error;                 /* an fmi2Error message arrived while holding */
     Held *held;
     size_t n_held, max_held;
@@ -128,6 +134,8 @@ typedef struct {
     int phase;                       /* enum phase */
     int failed;                      /* a doStep answered Discard or the initialization failed */
     fmi2Real time;                   /* where the next doStep starts; NaN after fmi2SetFMUstate */
+    int stop_defined;                /* fmi2SetupExperiment's stopTime: no step may pass it */
+    fmi2Real stop;
 } Shim;
 
 /* FMI 2.0 states, as fmu_src/native/fmi2_layer.c keeps them (bits for the masks). */
@@ -304,9 +312,20 @@ FORWARDED(DEFINE)
 
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tolerance_defined, fmi2Real tolerance, fmi2Real start,
                                fmi2Boolean stop_defined, fmi2Real stop) {
+    Shim *s = c;
     if (!allowed(c, INSTANTIATED, "fmi2SetupExperiment")) return fmi2Error;
+    if (stop_defined && !(stop >= start)) {   /* the native layer's rule (fmi2_layer.c fmi2SetupExperiment) */
+        char text[200];
+        snprintf(text, sizeof text, "fmi2SetupExperiment: stopTime %.17g s is before startTime %.17g s", stop, start);
+        deliver(s, fmi2Error, "logStatusError", text);
+        return fmi2Error;
+    }
     fmi2Status status = wrapper.fmi2SetupExperiment(INNER, tolerance_defined, tolerance, start, stop_defined, stop);
-    if (status <= fmi2Warning) ((Shim *)c)->time = start;
+    if (status <= fmi2Warning) {
+        s->time = start;
+        s->stop_defined = stop_defined != fmi2False;
+        s->stop = stop;
+    }
     return status;
 }
 
@@ -323,7 +342,7 @@ fmi2Status fmi2Reset(fmi2Component c) {
     fmi2Status status = wrapper.fmi2Reset(s->inner);
     if (status <= fmi2Warning) {
         s->phase = INSTANTIATED;
-        s->failed = s->stepped = 0;
+        s->failed = s->stepped = s->stop_defined = 0;
         s->time = 0.0;
     }
     return status;
@@ -451,6 +470,18 @@ fmi2Status fmi2Terminate(fmi2Component c) {
     return status;
 }
 
+/* An output that is not finite (those a refused initialization left) answers fmi2Error:
+   GuardedSlave.get_real logs the line naming it, the values come back as they are. */
+fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real v[]) {
+    Shim *s = c;
+    if (!allowed(c, READABLE, "fmi2GetReal")) return fmi2Error;
+    s->holding = 1;
+    s->slave_error = 0;
+    fmi2Status status = wrapper.fmi2GetReal(s->inner, vr, n, v);
+    release(s, 0);
+    return status <= fmi2Warning && s->slave_error ? fmi2Error : status;
+}
+
 /* fmi2LastSuccessfulTime: the end of the last accepted step. The wrapper answers the start
    of the latest doStep, which moves on with every refused step a host keeps sending. */
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_set_prior) {
@@ -465,6 +496,12 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
     } else if (!isnan(s->time) && !(fabs(t - s->time) <= 1e-9 * (fabs(s->time) > 1.0 ? fabs(s->time) : 1.0))) {
         snprintf(text, sizeof text, "fmi2DoStep: currentCommunicationPoint %.17g s is not the FMU's time %.17g s "
                  "(the end of the last accepted step)", t, s->time);
+    } else if (t + h == t) {
+        snprintf(text, sizeof text, "fmi2DoStep: a step of %.17g s does not advance the time %.17g s "
+                 "(below its resolution)", h, t);
+    } else if (s->stop_defined && t + h > s->stop + 1e-9 * (fabs(s->stop) > 1.0 ? fabs(s->stop) : 1.0)) {
+        snprintf(text, sizeof text, "fmi2DoStep: the step to t=%.17g s passes the stopTime %.17g s set by "
+                 "fmi2SetupExperiment", t + h, s->stop);
     }
     if (text[0]) {   /* the native layer's rules (fmi2_layer.c fmi2DoStep) */
         deliver(s, fmi2Error, "logStatusError", text);

@@ -225,9 +225,21 @@ class GuardedSlave(Fmi2Slave):
         if self._stale:
             self._evaluate_initial()
         try:
-            return [array.item(i) for array, i in map(self.slots.__getitem__, vrs)]
+            values = [array.item(i) for array, i in map(self.slots.__getitem__, vrs)]
         except KeyError:
-            return super().get_real(vrs)
+            values = super().get_real(vrs)
+        if self.failure:   # only a refused initialization leaves an output NaN/inf (a refused step puts them back)
+            self._name_nonfinite_outputs(vrs, values)
+        return values
+
+    def _name_nonfinite_outputs(self, vrs, values):
+        """An Error line naming the first output read that is not finite: the shim
+        (pythonfmu_shim.c fmi2GetReal) then answers fmi2Error, as the native layer does."""
+        for vr, value in zip(vrs, values):
+            if self.vars[vr].causality == OUTPUT and not math.isfinite(value):
+                self.log(f"fmi2GetReal: output {self.vars[vr].name} is {value!r}, not finite (after: {self.failure})",
+                         Fmi2Status.error, "logStatusError")
+                return
 
     def set_real(self, vrs, values):
         """Vector inputs written array by array; the plan per list of value references is

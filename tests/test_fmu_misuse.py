@@ -153,6 +153,11 @@ SEQUENCES = {   # FMI 2.0 call sequence: script, then the statuses every call an
     "a negative step": ((*INIT, "step", 0.0, -1e-3), ["OK"] * 3 + ["Error"]),
     "a NaN step": ((*INIT, "step", 0.0, math.nan), ["OK"] * 3 + ["Error"]),
     "an infinite step": ((*INIT, "step", 0.0, math.inf), ["OK"] * 3 + ["Error"]),
+    "a step below the time's resolution": (("setup", 1e300, "enter", "exit", "step", 1e300, 1e-3),
+                                           ["OK"] * 3 + ["Error"]),
+    "a step past the stopTime": (("setup-stop", 0.0, 2e-3, "enter", "exit", "step", 0.0, 1e-3, "step", 1e-3, 1e-3,
+                                  "step", 2e-3, 1e-3), ["OK"] * 5 + ["Error"]),
+    "a stopTime before the startTime": (("setup-stop", 1.0, 0.5), ["Error"]),
     "a refused step leaves the time as it was": ((*INIT, "step", 0.0, 0.0, "step", 0.0, 1e-3),
                                                  ["OK"] * 3 + ["Error", "OK"]),
     "an FMU state restores the time": ((*INIT, "step", 0.0, 1e-3, "save", "step", 1e-3, 1e-3, "restore",
@@ -268,11 +273,18 @@ def test_no_ok_with_a_non_finite_output(native, model, name, value):
 
 
 def test_a_non_finite_output_at_initialization_is_an_error(native):
-    """SliderController's amplitude has no declared max: 1e300 gave NaN forces with OK."""
+    """SliderController's amplitude has no declared max: 1e300 gave NaN forces with OK.
+    The refused initialization leaves them NaN: fmi2GetReal read them back with fmi2OK;
+    now fmi2Error naming the output (an input or parameter reads back as set)."""
     fmu = native["SliderController"]
-    answers = run(fmu, "inst", "-", "-", "setr", ("vr", "amplitude"), 1e300, *INIT)
+    out = fmu.first("output")
+    answers = run(fmu, "inst", "-", "-", "setr", ("vr", "amplitude"), 1e300, *INIT, "getr", ("vr", out),
+                  "getr", ("vr", "amplitude"), timeout=120)
     assert answers.statuses("fmi2ExitInitializationMode") == ["Error"]
-    assert "largest magnitude is amplitude = 1e+300" in answers.logs[-1], answers.logs
+    assert "largest magnitude is amplitude = 1e+300" in answers.logs[-2], answers.logs
+    assert answers.statuses("fmi2GetReal") == ["Error", "OK"] and answers.values == {fmu.vr("amplitude"): 1e300}
+    assert answers.logs[-1].startswith(f"Error logStatusError: fmi2GetReal: output {out} is nan, not finite (after: "
+                                       "NonFiniteOutputError in initialization: "), answers.logs
 
 
 # --------------------------------------------------------- threads, instances, memory
@@ -340,6 +352,11 @@ def test_pythonfmu_failed_instance_refuses_steps_and_sets(python_fmus):
     assert answers.statuses("fmi2DoStep") == ["Discard", "Discard"], answers.lines
     assert answers.statuses("fmi2SetReal") == ["OK", "Error"] and answers.statuses("fmi2Terminate") == ["OK"]
     assert "last 0" in answers.lines
+
+
+def test_pythonfmu_a_non_finite_output_at_initialization_is_an_error(python_fmus):
+    """The same through the shim: GuardedSlave.get_real names the output, the shim answers fmi2Error."""
+    test_a_non_finite_output_at_initialization_is_an_error(python_fmus)
 
 
 def test_pythonfmu_no_ok_with_a_non_finite_output(python_fmus):
@@ -447,6 +464,8 @@ SEQUENCES3 = {   # FMI 3.0 call sequence: script, then the statuses every call a
                                        ["OK"] * 7 + ["Error", "OK"]),
     "an FMU state saved before initialization": (("save", *INIT3, "step", 0.0, 1e-3, "restore", "step", 0.0, 1e-3,
                                                   *INIT3), ["OK"] * 5 + ["Error", "OK", "OK"]),
+    "an FMU state saved in initialization mode": (("enter", 0.0, "save", "exit", "step", 0.0, 1e-3, "restore",
+                                                   "exit", "step", 0.0, 1e-3), ["OK"] * 7),
     "GetFMUState and SetFMUState with NULL": ((*INIT3, "save-null", "restore-null"), ["OK", "OK", "Error", "Error"]),
     "FreeFMUState twice": ((*INIT3, "save", "drop", "drop"), ["OK"] * 5),
     "calls this FMU does not offer": ((*INIT3, "unsupported"), ["OK", "OK"] + ["Error"] * 9),
@@ -469,6 +488,24 @@ def test_fmi3_call_sequence_answers_as_fmi3_specifies(native3, model, case):
     script, expected = SEQUENCES3[case]
     answers = run3(fmu, "inst", "-", "-", *named(fmu, script))
     assert [status for _, status in answers.calls[1:]] == expected, answers.lines
+
+
+@pytest.mark.parametrize("model", ["HexapodPlant", "TelescopeBase", "LegSensor"])
+def test_fmi3_a_state_saved_in_terminated_restores_terminated(native3, model):
+    """FMI 3.0 restores the state a state was saved in (the Reference FMUs copy it back):
+    one saved in Terminated was restored in StepMode, where the inner layer, restored
+    Terminated, refused the step under a line that named no FMI 3 state. Its time, outputs
+    and the stopTime come back with it."""
+    fmu = native3[model]
+    out = ("get", fmu.first("output"))
+    answers = run3(fmu, "inst", "-", "-", "enter-stop", 0.0, 1.0, "exit", "step", 0.0, 1e-3, out, "term", "save",
+                   "reset", *INIT3, "step", 0.0, 1e-3, "step", 1e-3, 1e-3, "restore", out, "getf", fmu.vr("time"), 1,
+                   "step", 1e-3, 1e-3, "term", "reset")
+    assert [status for _, status in answers.calls[1:]] == ["OK"] * 14 + ["Error", "Error", "OK"], answers.lines
+    assert answers.logs[-2:] == ["Error logStatusError: fmi3DoStep: not allowed in state Terminated",
+                                 "Error logStatusError: fmi3Terminate: not allowed in state Terminated"], answers.logs
+    saved, restored, time = answers.vectors
+    assert restored == saved and time == [1e-3], answers.lines
 
 
 @pytest.mark.parametrize("model", ["HexapodPlant", "LegSensor", "Mechanism3TPlant"])

@@ -20,10 +20,14 @@
      difference: after a Discard the instance stays failed and answers every further
      doStep with fmi2Discard ("refusing doStep"), as the pythonfmu FMUs do.
    - doStep: currentCommunicationPoint must be the FMU's time (the end of the last
-     accepted step, to 1e-9 relative) and the step finite and > 0, else fmi2Error.
+     accepted step, to 1e-9 relative), the step finite, > 0 and large enough to advance
+     the time, and its end not past a stopTime given to fmi2SetupExperiment (a stopTime
+     before the startTime is refused there), else fmi2Error.
    - No fmi2OK with a non-finite output: after every step and initialization each Real
      output is checked; one NaN/inf answers fmi2Discard (initialization: fmi2Error) with
-     a line naming the outputs and the input or parameter of largest magnitude.
+     a line naming the outputs and the input or parameter of largest magnitude; and
+     fmi2GetReal answers fmi2Error naming an output that is not finite (the outputs a
+     refused initialization left).
    - Work bound: a model integrating on substeps asks mb_substeps (model.h), which
      refuses a step needing more than MB_MAX_SUBSTEPS substeps (fmi2Discard, a line
      saying how many it would need) instead of overflowing an int or running for hours. */
@@ -58,8 +62,10 @@ static const char *const CATEGORIES[NCAT] = {"logStatusWarning", "logStatusDisca
 typedef struct {
     double start_time;
     double time;              /* end of the last accepted step (fmi2LastSuccessfulTime) */
+    double stop_time;         /* fmi2SetupExperiment's stopTime: no step may pass it, if stop_defined */
     int failed;
     int phase;                /* enum phase: an FMU state restores it */
+    int stop_defined;
     char failure[1024];
 } layer_state;
 
@@ -357,7 +363,7 @@ void fmi2FreeInstance(fmi2Component c)
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
                                fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
 {
-    (void)toleranceDefined, (void)tolerance, (void)stopTimeDefined, (void)stopTime;
+    (void)toleranceDefined, (void)tolerance;
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
     if (!allowed(inst, "fmi2SetupExperiment", INSTANTIATED)) return fmi2Error;
@@ -365,8 +371,16 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
         logf_(inst, fmi2Error, CAT_ERROR, "fmi2SetupExperiment: startTime must be finite");
         return fmi2Error;
     }
+    char startb[32], stopb[32];
+    if (stopTimeDefined && !(stopTime >= startTime)) {   /* misuse harness: accepted, and then ignored */
+        logf_(inst, fmi2Error, CAT_ERROR, "fmi2SetupExperiment: stopTime %s s is before startTime %s s",
+              mb_repr(stopTime, stopb), mb_repr(startTime, startb));
+        return fmi2Error;
+    }
     LAYER(inst)->start_time = startTime;
     LAYER(inst)->time = startTime;
+    LAYER(inst)->stop_defined = stopTimeDefined != fmi2False;
+    LAYER(inst)->stop_time = stopTime;
     return fmi2OK;
 }
 
@@ -545,9 +559,18 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     if (!allowed(inst, "fmi2GetReal", READABLE)) return fmi2Error;
     evaluate_initial(inst);
     const double *r = REALS(inst);
+    char text[32];
     for (size_t k = 0; k < nvr; k++) {
         if (!valid_vr(inst, "fmi2GetReal", vr[k], MB_REAL)) return fmi2Error;
         value[k] = r[vr[k]];
+        /* misuse harness: after an initialization refused for a non-finite output (say
+           SliderController's amplitude = 1e300), the outputs were read back NaN with fmi2OK */
+        if (MB_MODEL.vars[vr[k]].causality == MB_OUTPUT && !isfinite(value[k])) {
+            logf_(inst, fmi2Error, CAT_ERROR, "fmi2GetReal: output %s is %s, not finite%s%s%s",
+                  MB_MODEL.vars[vr[k]].name, mb_repr(value[k], text), LAYER(inst)->failed ? " (after: " : "",
+                  LAYER(inst)->failed ? LAYER(inst)->failure : "", LAYER(inst)->failed ? ")" : "");
+            return fmi2Error;
+        }
     }
     return fmi2OK;
 }
@@ -660,6 +683,18 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
     if (!(fabs(t - s->time) <= STEP_TIME_TOLERANCE * fmax(1.0, fabs(s->time)))) {
         logf_(inst, fmi2Error, CAT_ERROR, "fmi2DoStep: currentCommunicationPoint %s s is not the FMU's time %s s "
               "(the end of the last accepted step)", mb_repr(t, tb), mb_repr(s->time, nowb));
+        return fmi2Error;
+    }
+    if (t + h == t) {   /* misuse harness: at t = 1e300 a step of 1 ms left the time where it was, with OK */
+        logf_(inst, fmi2Error, CAT_ERROR, "fmi2DoStep: a step of %s s does not advance the time %s s "
+              "(below its resolution)", mb_repr(h, hb), mb_repr(t, tb));
+        return fmi2Error;
+    }
+    /* FMI 2.0: no step past a defined stopTime (to the tolerance of the communication
+       point, so a last step ending at stopTime by sums of h runs) */
+    if (s->stop_defined && t + h > s->stop_time + STEP_TIME_TOLERANCE * fmax(1.0, fabs(s->stop_time))) {
+        logf_(inst, fmi2Error, CAT_ERROR, "fmi2DoStep: the step to t=%s s passes the stopTime %s s set by "
+              "fmi2SetupExperiment", mb_repr(t + h, tb), mb_repr(s->stop_time, nowb));
         return fmi2Error;
     }
     memcpy(inst->backup, inst->block, inst->size);

@@ -11,7 +11,7 @@
  *                       prints "fmi2Instantiate instance" or "fmi2Instantiate NULL"
  *   nores               the next fmi2Instantiate gets "" as fmuResourceLocation
  *   log CATEGORY        SetDebugLogging(on) for that one category
- *   setup T0 | enter | exit | term | reset | free
+ *   setup T0 | setup-stop T0 TSTOP | enter | exit | term | reset | free
  *   step T H            fmi2DoStep
  *   setr VR X | seti VR N | getr VR | geti VR   (getr prints "value VR X")
  *   save | restore | drop   fmi2GetFMUstate / fmi2SetFMUstate / fmi2FreeFMUstate (one slot)
@@ -154,6 +154,10 @@ int main(int argc, char **argv)
         } else if (!strcmp(cmd, "setup")) {
             said("fmi2SetupExperiment", SetupExperiment(c, fmi2False, 0, strtod(ARG(1), NULL), fmi2False, 0));
             i++;
+        } else if (!strcmp(cmd, "setup-stop")) {
+            said("fmi2SetupExperiment", SetupExperiment(c, fmi2False, 0, strtod(ARG(1), NULL), fmi2True,
+                                                        strtod(ARG(2), NULL)));
+            i += 2;
         } else if (!strcmp(cmd, "enter")) said("fmi2EnterInitializationMode", EnterInitializationMode(c));
         else if (!strcmp(cmd, "exit")) said("fmi2ExitInitializationMode", ExitInitializationMode(c));
         else if (!strcmp(cmd, "term")) said("fmi2Terminate", Terminate(c));
