@@ -306,8 +306,11 @@ def _interrupted(tmp_path, args, ready):
     import signal
     import threading
     import time
+    # SIGINT at its default in the child: a test run started in the background (`cmd &`, nohup)
+    # ignores SIGINT, the child would inherit that, and Python then installs no Ctrl-C handler
     process = subprocess.Popen([sys.executable, "-m", "movingbase", *map(str, args)], cwd=tmp_path,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     chunks = []
     reader = threading.Thread(target=lambda: chunks.extend(iter(lambda: process.stderr.read1(4096), b"")))
     reader.start()
