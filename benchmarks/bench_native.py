@@ -23,6 +23,12 @@
 Repeats interleave the implementations (median), so machine load hits both alike.
 
     python benchmarks/bench_native.py [--repeats N] [--only cosim]   (the co-simulation pairs: max(N, 15))
+
+Instruction counts, repeatable on a loaded machine (--only steps: each side once, N steps):
+
+    valgrind --tool=callgrind --collect-atstart=no --toggle-collect=cosim_steps \
+        python benchmarks/bench_native.py --only steps --steps 2000
+    (--toggle-collect='ffi_call*' instead counts the monolithic loop, called through ctypes)
 """
 import argparse
 import dataclasses
@@ -168,14 +174,25 @@ def cosim_vs_monolithic(scenario, paths, values, repeats):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--only", choices=["cosim"], help="only the co-simulation against the monolithic loop")
+    parser.add_argument("--only", choices=["cosim", "steps"],
+                        help="only the co-simulation against the monolithic loop (steps: each once, untimed)")
+    parser.add_argument("--steps", type=int, default=2000, help="with --only steps: how many macro steps")
     args = parser.parse_args(argv)
-    if args.only == "cosim":
+    if args.only:
         scenario, paths, descriptions, values = runner.prepare(runner.resolve("paper_manoeuvre"),
                                                                implementation="native")
         if scenario.sweep:
             inst, name, value = spec.sweep_value(scenario, descriptions, scenario.sweep[1][0])
             values[inst][name] = value
+        if args.only == "steps":
+            for side in ("cosim", "monolithic"):
+                pair = Pair(scenario, paths, values)
+                try:
+                    done, _ = getattr(pair, side)(args.steps, lengths=False)
+                finally:
+                    pair.close()
+                print(f"{side}: {done} steps")
+            return
         cosim_vs_monolithic(scenario, paths, values, max(args.repeats, 15))
         return
     out = pathlib.Path(tempfile.mkdtemp())

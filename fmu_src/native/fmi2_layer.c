@@ -31,8 +31,10 @@
    - Work bound: a model integrating on substeps asks mb_substeps (model.h), which
      refuses a step needing more than MB_MAX_SUBSTEPS substeps (fmi2Discard, a line
      saying how many it would need) instead of overflowing an int or running for hours. */
+#include <float.h>
 #include <math.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -76,7 +78,10 @@ struct mb_instance {
     int dirty;                /* initialization mode: inputs or parameters set since the outputs were computed */
     size_t size, r_off, i_off, m_off;
     unsigned char *block;     /* layer_state | double r[n] | int i[n] | model */
-    unsigned char *backup;    /* the block before the running doStep */
+    unsigned char *backup;    /* r, i and the model before the running doStep (what a refused step restores) */
+    unsigned char *access;    /* per value reference: enum access bits, from the variable table */
+    int *output_runs;         /* the Real outputs as runs of consecutive value references: first, count, ... */
+    int n_output_runs;
     char kind[64];
     char message[896];
 };
@@ -93,6 +98,17 @@ static const char MAGIC[8] = {'M', 'B', 'F', 'M', 'U', 'S', '3', '\0'};   /* 3: 
 #define REALS(inst) ((double *)((inst)->block + (inst)->r_off))
 #define INTS(inst) ((int *)((inst)->block + (inst)->i_off))
 #define MODEL(inst) ((void *)((inst)->block + (inst)->m_off))
+
+/* What get/set may do with a value reference, one byte each, made at instantiation from
+   the variable table: the calls a host repeats every step (the C master's fmi2SetReal and
+   fmi2GetReal) check one byte per value reference, and only a call that fails one walks
+   the table again to name the problem. */
+enum access {
+    A_REAL = 1,         /* a Real variable: fmi2GetReal reads it */
+    A_OUTPUT = 2,       /* a Real output: read only while finite */
+    A_SET_ALWAYS = 4,   /* a Real input: fmi2SetReal sets it in any state that allows the call */
+    A_SET_EARLY = 8     /* a Real input or parameter: settable before the end of initialization */
+};
 
 static size_t align16(size_t n) { return (n + 15) & ~(size_t)15; }
 
@@ -144,11 +160,28 @@ void mb_warning(mb_instance *inst, const char *fmt, ...)
     emit(inst, fmi2Warning, CAT_WARNING, text);
 }
 
+/* Are x[0..n) all finite? One pass without a branch per value: a double is NaN or inf
+   when its exponent bits are all ones, and only then does adding one to the exponent
+   carry into the sign bit. The checks every step makes (the outputs after a doStep, a
+   controller's inputs) cost this; the walks that name what is not finite run after it fails. */
+static int all_finite(const double *x, int n)
+{
+    const uint64_t exponent = 0x7ff0000000000000u, exponent_one = 0x0010000000000000u;
+    uint64_t carries = 0;
+    for (int k = 0; k < n; k++) {
+        uint64_t bits;
+        memcpy(&bits, &x[k], sizeof bits);
+        carries |= (bits & exponent) + exponent_one;
+    }
+    return !(carries >> 63);
+}
+
 int mb_nonfinite_rows(int nrows, int width, const double *rows, const char *const *names, char *out, size_t n)
 {
     int count = 0;
     size_t used = 0;
     out[0] = '\0';
+    if (all_finite(rows, nrows * width)) return 0;
     for (int row = 0; row < nrows; row++) {
         int bad = 0;
         for (int k = 0; k < width; k++) bad |= !isfinite(rows[row * width + k]);
@@ -214,6 +247,10 @@ static void record_failure(mb_instance *inst, const char *when, fmi2Status statu
 static int nonfinite_outputs(mb_instance *inst)
 {
     const double *r = REALS(inst);
+    int finite = 1;   /* the message's walk only when an output is not finite */
+    for (int k = 0; k < inst->n_output_runs; k++)
+        finite &= all_finite(r + inst->output_runs[2 * k], inst->output_runs[2 * k + 1]);
+    if (finite) return 0;
     char outs[400] = "", value[32];
     size_t used = 0;
     int count = 0, worst = -1;
@@ -307,6 +344,16 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
     return fmi2OK;
 }
 
+static void free_instance(mb_instance *inst)
+{
+    free(inst->block);
+    free(inst->backup);
+    free(inst->access);
+    free(inst->output_runs);
+    free(inst->name);
+    free(inst);
+}
+
 fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
                               fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
                               fmi2Boolean visible, fmi2Boolean loggingOn)
@@ -336,13 +383,27 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     inst->m_off = inst->i_off + align16(sizeof(int) * (size_t)MB_MODEL.nvars);
     inst->size = inst->m_off + align16(MB_MODEL.model_size);
     inst->block = calloc(1, inst->size);
-    inst->backup = calloc(1, inst->size);
-    if (!inst->name || !inst->block || !inst->backup) {
-        free(inst->name);
-        free(inst->block);
-        free(inst->backup);
-        free(inst);
+    inst->backup = calloc(1, inst->size - inst->r_off);
+    inst->access = calloc((size_t)MB_MODEL.nvars + 1, 1);
+    inst->output_runs = calloc(2 * (size_t)MB_MODEL.nvars + 1, sizeof(int));
+    if (!inst->name || !inst->block || !inst->backup || !inst->access || !inst->output_runs) {
+        free_instance(inst);
         return NULL;
+    }
+    for (int vr = 0; vr < MB_MODEL.nvars; vr++) {
+        const mb_var *v = &MB_MODEL.vars[vr];
+        if (v->type != MB_REAL) continue;
+        inst->access[vr] = (unsigned char)(A_REAL | (v->causality == MB_OUTPUT ? A_OUTPUT : 0) |
+                                           (v->causality == MB_INPUT ? A_SET_ALWAYS | A_SET_EARLY : 0) |
+                                           (v->causality == MB_PARAMETER ? A_SET_EARLY : 0));
+        if (v->causality == MB_OUTPUT) {
+            int *last = inst->output_runs + 2 * (inst->n_output_runs - 1);
+            if (inst->n_output_runs && last[0] + last[1] == vr) last[1]++;
+            else {
+                inst->output_runs[2 * inst->n_output_runs++] = vr;
+                inst->output_runs[2 * inst->n_output_runs - 1] = 1;
+            }
+        }
     }
     strcpy(inst->name, name);
     for (int k = 0; k < NCAT; k++) inst->category_on[k] = loggingOn;
@@ -352,12 +413,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
 
 void fmi2FreeInstance(fmi2Component c)
 {
-    mb_instance *inst = c;
-    if (!inst) return;
-    free(inst->block);
-    free(inst->backup);
-    free(inst->name);
-    free(inst);
+    if (c) free_instance(c);
 }
 
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
@@ -500,6 +556,12 @@ fmi2Status fmi2Reset(fmi2Component c)
 }
 
 /* ------------------------------------------------------------------- get and set */
+/* A model's init and step write r, i and its own struct, never the layer's state (its
+   failure goes to inst->kind and message): the rollback of a refused step saves and
+   restores those, not the 1 KB layer_state before them. */
+static void save_model(mb_instance *inst) { memcpy(inst->backup, inst->block + inst->r_off, inst->size - inst->r_off); }
+static void restore_model(mb_instance *inst) { memcpy(inst->block + inst->r_off, inst->backup, inst->size - inst->r_off); }
+
 /* Outputs read in initialization mode are computed from the parameters and inputs set so
    far (as the Reference FMUs do), so that an importer that propagates values during
    initialization (libcosim) starts every FMU from its neighbours' initial outputs. If the
@@ -509,9 +571,8 @@ static void evaluate_initial(mb_instance *inst)
 {
     if (PHASE(inst) != INITIALIZATION || !inst->dirty) return;
     inst->dirty = 0;
-    memcpy(inst->backup, inst->block, inst->size);
-    if (MODEL_INIT(inst, LAYER(inst)->start_time) || nonfinite_outputs(inst))
-        memcpy(inst->block, inst->backup, inst->size);
+    save_model(inst);
+    if (MODEL_INIT(inst, LAYER(inst)->start_time) || nonfinite_outputs(inst)) restore_model(inst);
 }
 
 static int valid_vr(mb_instance *inst, const char *function, fmi2ValueReference vr, int type)
@@ -559,13 +620,18 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     if (!allowed(inst, "fmi2GetReal", READABLE)) return fmi2Error;
     evaluate_initial(inst);
     const double *r = REALS(inst);
+    const unsigned char *access = inst->access;
     char text[32];
     for (size_t k = 0; k < nvr; k++) {
-        if (!valid_vr(inst, "fmi2GetReal", vr[k], MB_REAL)) return fmi2Error;
+        int a = vr[k] < (fmi2ValueReference)MB_MODEL.nvars ? access[vr[k]] : 0;
+        if (!(a & A_REAL)) {
+            valid_vr(inst, "fmi2GetReal", vr[k], MB_REAL);   /* its line */
+            return fmi2Error;
+        }
         value[k] = r[vr[k]];
         /* misuse harness: after an initialization refused for a non-finite output (say
            SliderController's amplitude = 1e300), the outputs were read back NaN with fmi2OK */
-        if (MB_MODEL.vars[vr[k]].causality == MB_OUTPUT && !isfinite(value[k])) {
+        if ((a & A_OUTPUT) && !(fabs(value[k]) <= DBL_MAX)) {
             logf_(inst, fmi2Error, CAT_ERROR, "fmi2GetReal: output %s is %s, not finite%s%s%s",
                   MB_MODEL.vars[vr[k]].name, mb_repr(value[k], text), LAYER(inst)->failed ? " (after: " : "",
                   LAYER(inst)->failed ? LAYER(inst)->failure : "", LAYER(inst)->failed ? ")" : "");
@@ -596,9 +662,13 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
     if (!allowed(inst, "fmi2SetReal", INSTANTIATED | INITIALIZATION | STEPPING) || !unfailed(inst, "fmi2SetReal"))
         return fmi2Error;
     double *r = REALS(inst);
+    const unsigned char *access = inst->access;
+    int settable_now = PHASE(inst) & (INSTANTIATED | INITIALIZATION) ? A_SET_EARLY : A_SET_ALWAYS;
     for (size_t k = 0; k < nvr; k++) {
-        if (!valid_vr(inst, "fmi2SetReal", vr[k], MB_REAL) || !settable(inst, "fmi2SetReal", vr[k]))
+        if (!(vr[k] < (fmi2ValueReference)MB_MODEL.nvars && (access[vr[k]] & settable_now))) {
+            if (valid_vr(inst, "fmi2SetReal", vr[k], MB_REAL)) settable(inst, "fmi2SetReal", vr[k]);   /* its line */
             return fmi2Error;
+        }
         r[vr[k]] = value[k];
     }
     inst->dirty = 1;
@@ -697,12 +767,12 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
               "fmi2SetupExperiment", mb_repr(t + h, tb), mb_repr(s->stop_time, nowb));
         return fmi2Error;
     }
-    memcpy(inst->backup, inst->block, inst->size);
+    save_model(inst);
     if (!MODEL_STEP(inst, t, h) && !nonfinite_outputs(inst)) {
         s->time = t + h;
         return fmi2OK;
     }
-    memcpy(inst->block, inst->backup, inst->size);   /* outputs keep the last accepted state */
+    restore_model(inst);   /* outputs keep the last accepted state */
     char when[64];
     snprintf(when, sizeof when, "at t=%.6g s", t);
     record_failure(inst, when, fmi2Discard);
