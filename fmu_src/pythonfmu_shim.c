@@ -500,8 +500,8 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
         snprintf(text, sizeof text, "fmi2DoStep: a step of %.17g s does not advance the time %.17g s "
                  "(below its resolution)", h, t);
     } else if (s->stop_defined && t + h > s->stop + 1e-9 * (fabs(s->stop) > 1.0 ? fabs(s->stop) : 1.0)) {
-        snprintf(text, sizeof text, "fmi2DoStep: the step to t=%.17g s passes the stopTime %.17g s set by "
-                 "fmi2SetupExperiment", t + h, s->stop);
+        snprintf(text, sizeof text, "fmi2DoStep: the step to t=%.17g s passes the experiment's stopTime "
+                 "%.17g s", t + h, s->stop);
     }
     if (text[0]) {   /* the native layer's rules (fmi2_layer.c fmi2DoStep) */
         deliver(s, fmi2Error, "logStatusError", text);

@@ -763,8 +763,8 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
     /* FMI 2.0: no step past a defined stopTime (to the tolerance of the communication
        point, so a last step ending at stopTime by sums of h runs) */
     if (s->stop_defined && t + h > s->stop_time + STEP_TIME_TOLERANCE * fmax(1.0, fabs(s->stop_time))) {
-        logf_(inst, fmi2Error, CAT_ERROR, "fmi2DoStep: the step to t=%s s passes the stopTime %s s set by "
-              "fmi2SetupExperiment", mb_repr(t + h, tb), mb_repr(s->stop_time, nowb));
+        logf_(inst, fmi2Error, CAT_ERROR, "fmi2DoStep: the step to t=%s s passes the experiment's stopTime "
+              "%s s", mb_repr(t + h, tb), mb_repr(s->stop_time, nowb));
         return fmi2Error;
     }
     save_model(inst);

@@ -12,7 +12,6 @@
    Enumerations read and written as Int64; the FMI 3 logger (text only, never a format);
    fmi3DoStep's out arguments. The FMU has no event mode, no clocks, no intermediate
    update and no model exchange: those calls answer fmi3Error with a log line. */
-#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -56,20 +55,18 @@ typedef struct {
     int phase;
     double start_time;   /* time before the first step (the FMI 2 layer reports the last step's) */
     const char *integer_call;   /* the fmi3 Int32/Int64 call under way: the inner layer's Integer lines name it */
-    int stop_defined;    /* fmi3EnterInitializationMode's stopTime: no step may pass it (FMI 3.0) */
-    double stop_time;
     unsigned char kind3[MB3_NVARS + 1];
     int count3[MB3_NVARS + 1];
     fmi2ValueReference vr2[MB3_NVARS];   /* vr2[k] = k: the FMI 2 element value references */
     plan get_plan, set_plan;   /* fmi3GetFloat64's and fmi3SetFloat64's */
 } instance3;
 
-/* An FMU state: the inner layer's and the FMI 3 layer's own, the instance state (mode)
-   and the experiment's times with it (as the Reference FMUs' setFMUState restores them). */
+/* An FMU state: the inner layer's (which holds the stopTime) and the FMI 3 layer's own,
+   the instance state (mode) and the start time with it (as the Reference FMUs'
+   setFMUState restores them). */
 typedef struct {
     int phase;
-    int stop_defined;
-    double start_time, stop_time;
+    double start_time;
     fmi2FMUstate inner;
 } state3;
 
@@ -273,16 +270,12 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
                                        fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime)
 {
     INSTANCE("fmi3EnterInitializationMode", P_INSTANTIATED)
-    /* misuse harness: a stopTime before the startTime was accepted, and steps past it ran */
-    if (stopTimeDefined && isfinite(startTime) && !(stopTime >= startTime))
-        return FAIL(inst, "fmi3EnterInitializationMode: stopTime %.17g s is before startTime %.17g s", stopTime,
-                    startTime);
+    /* the inner layer keeps the stopTime: it refuses one before the startTime and every
+       step past it, under this function's and fmi3DoStep's names (RENAMES) */
     fmi2Status s = fmi2SetupExperiment(inst->inner, toleranceDefined, tolerance, startTime, stopTimeDefined,
                                            stopTime);
     if (s > fmi2Warning) return (fmi3Status)s;
     inst->start_time = startTime;
-    inst->stop_defined = stopTimeDefined != fmi3False;
-    inst->stop_time = stopTime;
     s = fmi2EnterInitializationMode(inst->inner);
     if (s <= fmi2Warning) inst->phase = P_INITIALIZATION;
     return (fmi3Status)s;
@@ -529,15 +522,8 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     INSTANCE("fmi3DoStep", P_STEP)
     if (!eventHandlingNeeded || !terminateSimulation || !earlyReturn || !lastSuccessfulTime)
         return FAIL(inst, "fmi3DoStep: an out argument is NULL");
-    /* FMI 3.0: a step past a defined stopTime is an error (the tolerance: the inner layer's
-       for the communication point, so a last step ending at stopTime by sums of h runs).
-       The inner fmi2DoStep checks it too, but its line names fmi2SetupExperiment; the step
-       below the time's resolution, the step size and the communication point are its
-       checks alone (their lines renamed to fmi3DoStep). */
-    double end = currentCommunicationPoint + communicationStepSize;
-    if (inst->stop_defined && end > inst->stop_time + 1e-9 * fmax(1.0, fabs(inst->stop_time)))
-        return FAIL(inst, "fmi3DoStep: the step to t=%.17g s passes the stopTime %.17g s set at initialization", end,
-                    inst->stop_time);
+    /* the communication point, the step size, its resolution and the stopTime are the inner
+       fmi2DoStep's checks (their lines renamed to fmi3DoStep) */
     fmi2Status s = fmi2DoStep(inst->inner, currentCommunicationPoint, communicationStepSize,
                                   noSetFMUStatePriorToCurrentPoint);
     fmi2Real last = currentCommunicationPoint;
@@ -602,8 +588,6 @@ fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
     }
     st->phase = inst->phase;
     st->start_time = inst->start_time;
-    st->stop_defined = inst->stop_defined;
-    st->stop_time = inst->stop_time;
     *FMUState = st;
     return fmi3OK;
 }
@@ -621,8 +605,6 @@ fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState)
     if (s <= fmi2Warning) {
         inst->phase = st->phase;
         inst->start_time = st->start_time;
-        inst->stop_defined = st->stop_defined;
-        inst->stop_time = st->stop_time;
     }
     return (fmi3Status)s;
 }
@@ -639,10 +621,10 @@ fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
     return fmi3OK;
 }
 
-/* Serialised: the FMI 3 layer's part in HEADER3 bytes (the instance state, whether a stopTime
-   is defined: 8 bytes each; the start and stop times: 8 bytes each, this platform's doubles),
-   then the inner layer's serialised state (its magic, identifier and checksum). */
-enum { HEADER3 = 32 };
+/* Serialised: the FMI 3 layer's part in HEADER3 bytes (the instance state: 8 bytes; the
+   start time: 8 bytes, this platform's double), then the inner layer's serialised state
+   (its magic, identifier and checksum; the stopTime in it). */
+enum { HEADER3 = 16 };
 fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState, size_t *size)
 {
     instance3 *inst = instance;
@@ -663,11 +645,9 @@ fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState, f
     state3 *st = FMUState;
     if (!st || !serializedState || size < HEADER3)
         return FAIL(inst, "fmi3SerializeFMUState: no FMU state, or the buffer is too small");
-    long long phase = st->phase, stop_defined = st->stop_defined;
+    long long phase = st->phase;
     memcpy(serializedState, &phase, 8);
-    memcpy(serializedState + 8, &stop_defined, 8);
-    memcpy(serializedState + 16, &st->start_time, 8);
-    memcpy(serializedState + 24, &st->stop_time, 8);
+    memcpy(serializedState + 8, &st->start_time, 8);
     return (fmi3Status)fmi2SerializeFMUstate(inst->inner, st->inner, (fmi2Byte *)serializedState + HEADER3,
                                              size - HEADER3);
 }
@@ -677,17 +657,15 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte seriali
 {
     instance3 *inst = instance;
     if (!inst) return fmi3Error;
-    long long phase = 0, stop_defined = -1;
-    double start_time = 0, stop_time = 0;
+    long long phase = 0;
+    double start_time = 0;
     if (serializedState && size >= HEADER3) {
         memcpy(&phase, serializedState, 8);
-        memcpy(&stop_defined, serializedState + 8, 8);
-        memcpy(&start_time, serializedState + 16, 8);
-        memcpy(&stop_time, serializedState + 24, 8);
+        memcpy(&start_time, serializedState + 8, 8);
     }
     if (!FMUState || !serializedState || size < HEADER3 ||
         (phase != P_INSTANTIATED && phase != P_INITIALIZATION && phase != P_STEP && phase != P_STEP_DISCARDED &&
-         phase != P_TERMINATED) || (stop_defined != 0 && stop_defined != 1))
+         phase != P_TERMINATED))
         return FAIL(inst, "fmi3DeserializeFMUState: the bytes are not a serialised %s state (%zu bytes)",
                     MB_MODEL.identifier, size);
     state3 *st = *FMUState;
@@ -703,9 +681,7 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte seriali
         return (fmi3Status)s;
     }
     st->phase = (int)phase;
-    st->stop_defined = (int)stop_defined;
     st->start_time = start_time;
-    st->stop_time = stop_time;
     *FMUState = st;
     return fmi3OK;
 }
