@@ -30,10 +30,17 @@ def main(argv=None):
     if status is not None and not isinstance(status, int):   # sys.exit("message"): printed, status 1
         print(status, file=sys.stderr)
         status = 1
+    exit_now(status or 0)
+
+
+def exit_now(status):
+    """End the process with ``status`` after its exit handlers (temporary folders) and with
+    stdout and stderr flushed, without the interpreter's teardown (the command's and the
+    test session's end: see main and tests/conftest.py)."""
     atexit._run_exitfuncs()
     sys.stdout.flush()
     sys.stderr.flush()
-    os._exit(status or 0)
+    os._exit(status)
 
 
 def _command(argv):

@@ -49,7 +49,6 @@ def _log_axis(ax):
     ax.yaxis.set_minor_locator(ticker.NullLocator())
 
 
-
 def compare(metrics_by_run, metric, unit="µm", flagged=None):
     """The fixed- against moving-base sentence for one tracking metric, or None. ``flagged``
     {run: [Flag]}: if either run is flagged, only the sentence that says no comparison

@@ -35,10 +35,5 @@ def pytest_unconfigure(config):
     (our temp folders) ran: with pythonfmu FMUs loaded into this interpreter (fmpy runs
     them in-process), Py_Finalize ended in SIGSEGV in 2 of 6 full runs after every test had
     passed and the summary was printed; the cause is not found yet (docs/development.md)."""
-    import atexit
-    import os
-    import sys
-    atexit._run_exitfuncs()
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os._exit(getattr(config, "movingbase_status", 0))
+    from movingbase.__main__ import exit_now
+    exit_now(getattr(config, "movingbase_status", 0))
