@@ -259,6 +259,11 @@ _DO_STEP3 = CFUNCTYPE(c_int, c_void_p, c_double, c_double, c_int, POINTER(c_bool
                       POINTER(c_bool), POINTER(c_double))
 
 
+def element_count(var):
+    """How many values an FMI 3.0 variable holds: the product of its dimensions (1: a scalar)."""
+    return int(np.prod([int(d.start) for d in var.dimensions])) if var.dimensions else 1
+
+
 def _elements(md3):
     """The FMI 3.0 model description ``md3`` with its variables as FMI 2.0 elements: an
     array name of n elements becomes name[1] .. name[n]; the independent time is left out."""
@@ -269,7 +274,7 @@ def _elements(md3):
             continue
         if var.type not in _TYPES3:
             raise FmuError(f"{md3.modelName}: variable {var.name} is an FMI 3 {var.type}, which the master does not exchange")
-        count = int(np.prod([int(d.start) for d in var.dimensions])) if var.dimensions else 1
+        count = element_count(var)
         starts = var.start.split() if var.start is not None else [None] * count
         for k in range(count):
             element = copy.copy(var)
@@ -320,7 +325,7 @@ class Instance3(Instance):
         self.variables = {v.name: v for v in self.md.modelVariables}
         self.arrays = {}   # element value reference -> (FMI 3 value reference, offset, element count)
         for var in md3.modelVariables:
-            count = int(np.prod([int(d.start) for d in var.dimensions])) if var.dimensions else 1
+            count = element_count(var)
             for k in range(count):
                 self.arrays[var.valueReference + k] = (var.valueReference, k, count)
         self.starts = {v.valueReference: v.start for v in self.md.modelVariables}

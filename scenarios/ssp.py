@@ -65,7 +65,7 @@ import zipfile
 import numpy as np
 
 from . import spec
-from .fmi import unpack
+from .fmi import element_count, unpack
 from .master import start, step_order
 from .spec import Link, expand
 
@@ -166,14 +166,10 @@ def connector_of(md):
     for var in md.modelVariables:
         if var.causality == "independent":
             continue
-        count = _size(var)
+        count = element_count(var)
         for k in range(count):
             out[f"{var.name}[{k + 1}]" if var.dimensions else var.name] = (var, k + 1 if var.dimensions else None)
     return out
-
-
-def _size(var):
-    return int(np.prod([int(d.start) for d in var.dimensions])) if var.dimensions else 1
 
 
 def _connections(pairs, where):
@@ -188,10 +184,10 @@ def _connections(pairs, where):
     out = []
     for (s_inst, s_name, t_inst, t_name), items in groups.items():
         s_var, t_var = items[0][0], items[0][2]
-        whole = list(range(1, _size(s_var) + 1))
+        whole = list(range(1, element_count(s_var) + 1))
         base = {"startElement": s_inst, "startConnector": s_name, "endElement": t_inst, "endConnector": t_name}
         if s_var.dimensions and t_var.dimensions and [i[1] for i in items] == [i[3] for i in items] == whole \
-                and _size(t_var) == len(whole):
+                and element_count(t_var) == len(whole):
             out.append(base)
             continue
         for _, s_k, _, t_k in items:
