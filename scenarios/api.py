@@ -28,6 +28,7 @@ import numpy as np
 
 from . import campaign as campaigns
 from . import engine, master, report, runner, spec
+from . import flags as run_flags
 from .flags import Flag
 from .records import Records, read_records, run_records
 
@@ -195,9 +196,12 @@ class Result:
         return {label: r.flags for label, r in self.runs.items() if r.flags}
 
     def metrics_table(self) -> pandas.DataFrame:
-        """One row per run, one column per (metric, key) number."""
+        """One row per run, one column per (metric, key) number, and the column
+        ("flags", "") saying what went wrong with a run ('' if nothing): a flagged run's
+        numbers are not results, and the table says so where they stand."""
         pd = _pandas()
-        rows = {label: {(m, k): v for m, values in r.metrics.items() for k, v in values.items() if k != "unit"}
+        rows = {label: {**{(m, k): v for m, values in r.metrics.items() for k, v in values.items() if k != "unit"},
+                        ("flags", ""): run_flags.summary(r.flags)}
                 for label, r in self.runs.items()}
         return pd.DataFrame.from_dict(rows, orient="index")
 

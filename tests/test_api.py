@@ -2,6 +2,7 @@
 the same metrics and the same recorded series bit for bit, nothing written without
 ``out``, ``set`` overrides checked and applied exactly as the same value written in the
 file, to_pandas against the arrays, and a failed run's flag and partial records."""
+import importlib.util
 import json
 import subprocess
 import sys
@@ -125,6 +126,7 @@ def test_to_pandas_holds_the_arrays(result, tmp_path):
     assert every.loc["fixed_base"].to_numpy().tobytes() == run.values.tobytes()
     table = result.metrics_table()
     assert table.loc["moving_base", ("leg error", "rms")] == result.metrics["moving_base"]["leg error"]["rms"]
+    assert table[("flags", "")].tolist() == [""] * len(table)          # none of the shipped runs went wrong
     structured = run.to_numpy()
     assert structured.dtype.names[:2] == ("time", "base.axis[1]")
     assert structured["plant.pose[3]"].tobytes() == run["plant.pose"][:, 2].tobytes()
@@ -156,6 +158,10 @@ def test_a_run_that_fails_is_flagged_with_its_partial_records():
     assert any(r.sim_time == pytest.approx(4.0) for r in ran)
     assert failed.time[-1] <= failed.sim_time and len(failed.time) >= 2
     assert "cut_short" in repr(failed)
+    if importlib.util.find_spec("pandas"):     # the table says it where the numbers stand
+        said = ran.metrics_table()[("flags", "")]
+        assert all("step_beyond_limit: " in said[r.label] and ("cut_short: " in said[r.label]) == (r.sim_time < 4.0)
+                   for r in ran)
 
 
 def test_plot_gives_the_report_s_charts_and_report_writes_them(result, tmp_path):
