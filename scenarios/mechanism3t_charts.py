@@ -1,15 +1,12 @@
 """Charts of the 3T mechanism: workspace (paper Fig. 11-12) and slider forces of the paper example (Fig. 13)."""
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+from movingbase.plant import mechanism3t as m3t
 
-from movingbase.plant import mechanism3t as m3t  # noqa: E402
-
-from .style import save  # noqa: E402
+from .style import save
 
 PAPER_PEAK_FORCE_N = 142.2
 
@@ -22,7 +19,8 @@ def _section(ax, points, axes, keep, **style):
 def slider_force_chart(history, path):
     """Slider forces of the paper example against the paper's peak; returns the axes (the
     figure is closed)."""
-    fig, ax = plt.subplots(figsize=(8, 4.5))
+    fig = Figure(figsize=(8, 4.5))
+    ax = fig.subplots()
     for k, name in enumerate(("x_A2", "y_A1", "y_A3")):
         ax.plot(history.t, history.forces[:, k], label=f"slider {name}")
     ax.axhline(PAPER_PEAK_FORCE_N, color="k", ls=":", label=f"paper's peak {PAPER_PEAK_FORCE_N} N")
@@ -47,7 +45,7 @@ def write_charts(outdir, step=0.005):
     history = m3t.paper_example(params)
     paths = {}
 
-    fig = plt.figure(figsize=(7, 6))
+    fig = Figure(figsize=(7, 6))
     ax = fig.add_subplot(projection="3d")
     pts = full.points[::7] * 1e3
     ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], c=pts[:, 2], s=1, cmap="viridis")
@@ -58,7 +56,8 @@ def write_charts(outdir, step=0.005):
     save(fig, paths["workspace_3d"])
 
     z_cut, y_cut = 0.35, 0.05
-    fig, (ax_xy, ax_xz) = plt.subplots(1, 2, figsize=(12, 6.5), width_ratios=(1, 1.6))
+    fig = Figure(figsize=(12, 6.5))
+    ax_xy, ax_xz = fig.subplots(1, 2, width_ratios=(1, 1.6))
     for ws, style in ((paper, dict(c="0.8", label=f"paper criterion, eq. 11 only ({paper.volume:.4f} m$^3$)")),
                       (full, dict(c="tab:blue", label=f"limbs I and II closing too ({full.volume:.4f} m$^3$)"))):
         _section(ax_xy, ws.points, (0, 1), lambda p: np.abs(p[:, 2] - z_cut) < step / 2, **style)

@@ -17,10 +17,8 @@ stays right):
 import dataclasses
 import pathlib
 
-import matplotlib
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from movingbase.plant.stewart import HOME_POSE, S_BAND_POSE, StewartParams, inverse_dynamics
 from movingbase.plant.trajectory import quintic
@@ -77,7 +75,7 @@ def plot_paper_forces(t, fixed, moving, path):
     column per reading (``moving``: {reading: forces}) with the base moving and moving -
     fixed on one shared scale; tension (-F) positive, kN, one legend. Returns the fixed
     panel and the (2, readings) array of the others (the figure is closed)."""
-    fig = plt.figure(figsize=(5.2 * len(moving) + 0.8, 8.6), layout="constrained")
+    fig = Figure(figsize=(5.2 * len(moving) + 0.8, 8.6), layout="constrained")
     grid = fig.add_gridspec(3, len(moving), height_ratios=(0.8, 1, 1))
     top = fig.add_subplot(grid[0, :])
     _legs(top, t, fixed)

@@ -27,12 +27,14 @@ RUN_MEANING = {"none": "PID alone, no feedforward",
 def _figure(rows, cols, size, left, right, top, bottom, gap, **kw):
     """A figure of rows x cols axes with margins and gaps fixed in inches, room for the
     kit's labels: constrained layout measured every tick label in two passes and cost
-    ~45 % of a chart's time (issue 21). pyplot is imported here: a run without charts
-    does not pay its import."""
-    import matplotlib.pyplot as plt
+    ~45 % of a chart's time (issue 21). A plain Figure, not pyplot's: drawing leaves the
+    caller's backend and pyplot's figures alone (a notebook's inline plots), and
+    matplotlib is imported here, so a run without charts does not pay its import."""
+    from matplotlib.figure import Figure
     w, h = size
     inner_w, inner_h = w - left - right, h - top - bottom
-    fig, axes = plt.subplots(rows, cols, figsize=size, squeeze=False, gridspec_kw={
+    fig = Figure(figsize=size)
+    axes = fig.subplots(rows, cols, squeeze=False, gridspec_kw={
         "left": left / w, "right": 1 - right / w, "top": 1 - top / h, "bottom": bottom / h,
         "hspace": gap * rows / (inner_h - gap * (rows - 1)), "wspace": gap * cols / (inner_w - gap * (cols - 1)),
         **kw.pop("gridspec_kw", {})}, **kw)

@@ -3,13 +3,10 @@ marks, a colour per run kind and the resolution charts are saved at.
 
 Used by scenarios.report, scenarios.paper_forces, scenarios.mechanism3t_charts and the
 studies, so that "1 nm", "5.44 µm" and "moving-base blue" mean the same on every page."""
+import functools
 import pathlib
 
-import matplotlib
 import numpy as np
-
-matplotlib.use("Agg")
-from matplotlib import ticker  # noqa: E402
 
 # Errors below 1 nm (1 nrad) are finer than a rigid-body model without joint play,
 # compliance or sensor noise resolves, and far below any metrology: log axes stop there
@@ -62,31 +59,40 @@ def ratio(a, b):
     return f"{x:.0f}x" if x >= 100 else f"{x:g}x"
 
 
-class _PlainLogLocator(ticker.Locator):
-    """Ticks at ``subs`` per decade while the axis spans at most 4 decades; wider, at whole
-    decades only, every n-th so that about 10 remain (matplotlib's LogLocator drops every
-    tick when it must thin decades with several subs)."""
+@functools.cache
+def _plain_log_locator():
+    """plain_log_axis's locator class, made on first use: matplotlib is imported by what
+    draws (a run without charts does not pay its import, issue 21)."""
+    from matplotlib import ticker
 
-    def __init__(self, subs):
-        self.subs = subs
+    class PlainLogLocator(ticker.Locator):
+        """Ticks at ``subs`` per decade while the axis spans at most 4 decades; wider, at whole
+        decades only, every n-th so that about 10 remain (matplotlib's LogLocator drops every
+        tick when it must thin decades with several subs)."""
 
-    def __call__(self):
-        return self.tick_values(*self.axis.get_view_interval())
+        def __init__(self, subs):
+            self.subs = subs
 
-    def tick_values(self, vmin, vmax):
-        vmin, vmax = sorted((vmin, vmax))
-        if not vmin > 0:
-            return []
-        lo, hi = int(np.floor(np.log10(vmin))), int(np.ceil(np.log10(vmax)))
-        subs = self.subs if hi - lo <= 4 else (1.0,)
-        stride = max(1, int(np.ceil((hi - lo) / 10)))
-        return [s * 10.0 ** d for d in range(lo - lo % stride, hi + 1, stride) for s in subs]
+        def __call__(self):
+            return self.tick_values(*self.axis.get_view_interval())
+
+        def tick_values(self, vmin, vmax):
+            vmin, vmax = sorted((vmin, vmax))
+            if not vmin > 0:
+                return []
+            lo, hi = int(np.floor(np.log10(vmin))), int(np.ceil(np.log10(vmax)))
+            subs = self.subs if hi - lo <= 4 else (1.0,)
+            stride = max(1, int(np.ceil((hi - lo) / 10)))
+            return [s * 10.0 ** d for d in range(lo - lo % stride, hi + 1, stride) for s in subs]
+
+    return PlainLogLocator
 
 
 def plain_log_axis(axis, subs=(1.0, 2.0, 5.0)):
     """Label a log axis at 1, 2, 5 per decade (decades alone over a wide range) in plain
     numbers (0.01, 2, 500), not 10^n; numbers under 1e-4 or over 1e6 as 1e-09."""
-    axis.set_major_locator(_PlainLogLocator(subs))
+    from matplotlib import ticker
+    axis.set_major_locator(_plain_log_locator()(subs))
     axis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))
     axis.set_minor_formatter(ticker.NullFormatter())
 
@@ -148,11 +154,13 @@ def label_points(ax, xs, ys, texts, fontsize=7, color="0.25"):
 
 
 def save(fig, path, **kwargs):
-    """Save at the kit's resolution and close the figure. PNG compression level 1: the
-    file ~1.3x larger than at the default 6, its encoding several times cheaper (issue 21)."""
-    import matplotlib.pyplot as plt
+    """Save at the kit's resolution (a figure made by pyplot, as the studies make them, is
+    then closed). PNG compression level 1: the file ~1.3x larger than at the default 6,
+    its encoding several times cheaper (issue 21)."""
     kind = kwargs.get("format") or (pathlib.Path(path).suffix[1:] if isinstance(path, (str, pathlib.Path)) else "png")
     if kind == "png":
         kwargs.setdefault("pil_kwargs", {"compress_level": 1})
     fig.savefig(path, dpi=DPI, **kwargs)
-    plt.close(fig)
+    if fig.canvas.manager is not None:
+        import matplotlib.pyplot as plt
+        plt.close(fig)

@@ -177,6 +177,20 @@ def test_plot_gives_the_report_s_charts_and_report_writes_them(result, tmp_path)
     assert read_records(tmp_path / "rep" / "none.npz").values.tobytes() == result["none"].values.tobytes()
 
 
+def test_charts_leave_the_user_s_backend_and_pyplot_figures_alone(tmp_path):
+    """A notebook has its own backend and figures: running a scene with its charts and
+    Result.plot() keep both (the kit once switched the backend to Agg as it was imported,
+    which closed the user's pyplot figures). A fresh process, as a notebook's kernel."""
+    code = ("import matplotlib; matplotlib.use('svg'); import matplotlib.pyplot as plt; plt.figure(); "
+            "import movingbase; "
+            f"r = movingbase.run({NAME!r}, ci=True, progress=False, out={str(tmp_path)!r}); figures = r.plot(); "
+            "print(matplotlib.get_backend(), plt.get_fignums(), len(figures))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.split() == ["svg", "[1]", "3"], done.stdout + done.stderr
+    assert {p.name for p in (tmp_path / NAME).glob("*.png")} == {"leg_error_vs_time.png", "pose_error_vs_time.png",
+                                                                "summary.png"}
+
+
 def test_a_campaign_s_table_holds_the_numbers_of_its_runs_run_one_by_one(tmp_path):
     """Each row of movingbase.campaign's table has the metrics movingbase.run gives for
     the same case; a campaign that keeps no records writes none (and says so)."""
