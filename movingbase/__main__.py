@@ -59,7 +59,12 @@ def _command(argv):
         return campaign(rest)
     if command == "build":
         from .fmu_src.builder import main as build
-        build(rest)        # it returns the output folder: not an exit status
+        try:
+            build(rest)    # it returns the output folder: not an exit status
+        except OSError as exc:      # --out onto a file, a folder it may not write, a full disk
+            target = exc.filename or ""
+            why = "is a file, not a folder" if os.path.isfile(target) else exc.strerror or exc
+            return f"build error: {target}: {why}"
         return None
     from .scenarios.headline import main as headline
     return headline(rest)

@@ -60,18 +60,21 @@ def main(argv=None, prog="movingbase run"):
 def _run(args, shipped):
     """The checks of the command line (all before anything runs), then each scenario."""
     names = args.scenarios or ["telescope_slew"]
+    if not all(n.strip() for n in names):
+        sys.exit("scenario error: an empty scenario name; give a scenario file or a shipped name: " + shipped)
     unknown = [n for n in names if not resolve(n).exists()]
     if unknown:
         sys.exit(f"scenario error: no scenario file or shipped scenario named {', '.join(map(repr, unknown))}; "
                  f"shipped: {shipped}")
     folders = {}
     for name in names:   # the output folder follows the file: two files of one stem would share it
-        path = resolve(name).resolve()
-        folders.setdefault(path.stem, set()).add(path)
+        path = resolve(name).resolve()   # (a stem differing in case only too: one folder on macOS and Windows)
+        folders.setdefault(path.stem.casefold(), set()).add(path)
     clashes = {stem: paths for stem, paths in folders.items() if len(paths) > 1}
     repeated = [n for n in dict.fromkeys(names) if [resolve(m).resolve() for m in names].count(resolve(n).resolve()) > 1]
     if clashes or repeated:
-        what = [f"{', '.join(sorted(map(str, p)))} would all write to {args.out}/{stem}" for stem, p in clashes.items()]
+        what = [f"{', '.join(sorted(map(str, p)))} would all write to {args.out}/{min(p).stem}"
+                for p in clashes.values()]
         what += [f"{n!r} is named more than once" for n in repeated]
         sys.exit(f"scenario error: {'; '.join(what)}: run them in separate commands with their own --out")
     try:
@@ -132,7 +135,9 @@ def _export(args, name):
     file path whose folder exists."""
     target = pathlib.Path(args.ssp)
     if target.is_dir() or not target.parent.is_dir():
-        why = "is a folder" if target.is_dir() else f"its folder {target.parent} does not exist"
+        blocker = next((p for p in target.parents if p.exists() and not p.is_dir()), None)
+        why = "is a folder" if target.is_dir() else f"{blocker} is a file, not a folder" if blocker else \
+            f"its folder {target.parent} does not exist"
         sys.exit(f"command error: --ssp {target}: {why}; give the path of the .ssp file to write")
     try:
         scenario, paths, descriptions, values = prepare(resolve(name), ci=args.ci, implementation=args.implementation)

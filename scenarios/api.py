@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any, Union
 import numpy as np
 
 from . import campaign as campaigns
-from . import engine, master, report, runner, spec
+from . import engine, master, report, resources, runner, spec
 from . import flags as run_flags
 from .flags import Flag
 from .records import Records, read_records, run_records
@@ -56,8 +56,10 @@ def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = Non
     ``{"base.start_elevation": "60 deg"}`` sets an FMU instance's parameter,
     ``{"stop_time": "10 s"}`` a top-level key (names and files only); every value goes
     through the checks of a value written in the file (units, ranges, the model's own
-    refusals) when the scenario is bound (``run``). ``ci`` applies the file's [ci] section."""
-    set = dict(set or {})
+    refusals) when the scenario is bound (``run``). ``ci`` applies the file's [ci] section.
+    A Scenario's fields (changed in Python) are checked as the same values in a file."""
+    source = scenario.source if isinstance(scenario, spec.Scenario) else str(scenario)
+    set = _overrides(source, set)
     top = {k: v for k, v in set.items() if "." not in k}
     if isinstance(scenario, spec.Scenario):
         if top or ci:
@@ -65,7 +67,10 @@ def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = Non
                                      f"{'top-level keys ' + ', '.join(top) if top else 'ci'} can be applied to a "
                                      "scenario file only (load_scenario(path, set=..., ci=...)), not to a Scenario "
                                      "object; change its fields with dataclasses.replace")
-        loaded = copy.deepcopy(scenario)
+        loaded = spec.parse_data(copy.deepcopy(spec.as_data(scenario)), scenario.source)
+    elif not isinstance(scenario, (str, os.PathLike)):
+        raise TypeError(f"scenario must be a shipped name, a file path or a Scenario, got "
+                        f"{type(scenario).__name__} {scenario!r:.60}")
     else:
         path = runner.resolve(os.fspath(scenario))
         loaded = spec.load(path)
@@ -84,6 +89,21 @@ def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = Non
                                      "from sweep.values")
         loaded.parameters[inst][name] = value
     return loaded
+
+
+def _overrides(source: str, values: Any) -> dict[str, Any]:
+    """``set`` as a dict of text keys to values as a file gives them (numpy scalars and
+    arrays as numbers and lists); anything else is refused, naming it."""
+    if values is None:
+        return {}
+    if not isinstance(values, Mapping):
+        raise spec.ScenarioError(source, "set", f"expected a mapping of 'instance.parameter' or top-level keys "
+                                 f"to values, got {type(values).__name__} {values!r:.60}")
+    bad = [k for k in values if not isinstance(k, str) or not k]
+    if bad:
+        raise spec.ScenarioError(source, "set", f"keys are text, 'instance.parameter' or a top-level key; got "
+                                 f"{', '.join(repr(k) for k in bad)}")
+    return {k: spec.plain(v) for k, v in values.items()}
 
 
 # ------------------------------------------------------------------------ results
@@ -222,8 +242,7 @@ class Result:
     def report(self, path: str | os.PathLike[str]) -> pathlib.Path:
         """Write into folder ``path`` what ``movingbase run --out`` writes into its
         scenario folder (records as npz, metrics.json, charts, report.md); the report's path."""
-        folder = pathlib.Path(path)
-        folder.mkdir(parents=True, exist_ok=True)
+        folder = runner.make_folder(path)
         runs = []
         for run in self._runs:
             kept = self.runs[run.label].records
@@ -310,5 +329,8 @@ def campaign(path: str | os.PathLike[str], *, out: str | os.PathLike[str] = "out
     """Run a campaign file as ``movingbase campaign`` does: on ``jobs`` worker processes,
     results in a store under out/<name>/ (so a campaign always writes: an interrupted one
     resumes, a finished one is read back)."""
+    warning = resources.check_jobs(jobs)     # 0 once meant "all cores", silently
+    if warning:
+        print(warning, flush=True)
     ran, job_list, store, _, summary = campaigns.run_campaign(path, out, ci=ci, jobs_=jobs, progress=progress)
     return CampaignResult(ran, job_list, store, summary)

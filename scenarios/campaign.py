@@ -103,10 +103,6 @@ def _axes(source, grid):
             if not isinstance(values, list) or not values:
                 raise CampaignError(source, f"{where}.{key}", "expected a non-empty list of values")
             lengths.add(len(values))
-            for j, value in enumerate(values):
-                if repr(value) in map(repr, values[:j]):
-                    raise CampaignError(source, f"{where}.{key}[{j}]", f"{value!r} is already value "
-                                        f"[{list(map(repr, values)).index(repr(value))}] of this axis: each runs once")
         if len(lengths) > 1:
             raise CampaignError(source, where, f"the keys of one axis vary together and need lists of one "
                                 f"length; got lengths {', '.join(str(len(v)) for v in table.values())}")
@@ -147,8 +143,8 @@ def parse(text, source="<string>", base_dir=".", ci=False):
         data.update(ci_table)
     if "scenario" not in data or not isinstance(data["scenario"], str):
         raise CampaignError(source, "scenario", "missing: name a shipped scenario or a scenario file")
-    name = spec.check_name(source, "name" if "name" in data else "file name",
-                           data.get("name", pathlib.Path(source).stem), CampaignError)
+    name = spec.check_name(source, "name", data["name"], CampaignError) if "name" in data else \
+        pathlib.Path(source).stem       # the file's own name needs no check: it is one
     path = resolve(data["scenario"])
     if not path.exists() and (pathlib.Path(base_dir) / data["scenario"]).exists():
         path = pathlib.Path(base_dir) / data["scenario"]
@@ -200,18 +196,22 @@ def parse(text, source="<string>", base_dir=".", ci=False):
         axes.append(("scenario sweep", [sweep_key], [(v,) for v in base.sweep[1]]))
 
     descriptions = _descriptions(base)
-    checked = {}                    # (key, repr(value)) already checked
+    checked = {}                    # (key, repr(value)) -> the value converted, once checked
 
     def check(where, key, value):
-        if (key, repr(value)) in checked:
-            return
-        checked[(key, repr(value))] = True
+        if (key, repr(value)) not in checked:
+            checked[(key, repr(value))] = converted(where, key, value)
+
+    def converted(where, key, value):
         if key in SCENARIO_KEYS:
             try:
                 spec.load(path, overrides={key: value})
             except spec.ScenarioError as exc:
                 raise CampaignError(source, where, str(exc).removeprefix(f"{path}: ")) from None
-            return
+            return spec.to_si(value, "s") if _is_quantity(value) else value
+        if isinstance(value, str) and value.startswith("@"):
+            raise CampaignError(source, where, f"{value!r}: a link to another FMU's output at the start time is "
+                                f"written in the scenario file ({path.name}); a campaign sets values")
         inst, _, name = key.partition(".")
         if not name or inst not in base.fmus:
             raise CampaignError(source, where, f"unknown key {key!r}: expected one of {', '.join(SCENARIO_KEYS)} "
@@ -224,19 +224,21 @@ def parse(text, source="<string>", base_dir=".", ci=False):
         if (inst, name) in connected or any((inst, t) in connected for t in targets):
             raise CampaignError(source, where, f"{key} is an input that {path.name} connects: the connection "
                                 "feeds it in every run, a value set here would be ignored")
-        values = value if isinstance(value, list) else [value]
+        values = spec.plain(value) if isinstance(value, list) else [value]
         if len(values) != len(targets):
             raise CampaignError(source, where, f"expected {len(targets)} values, got {len(values)}")
+        out = []
         for target, item in zip(targets, values):
             try:
-                converted = spec._value(source, where, variables[target], item)
+                out.append(spec._value(source, where, variables[target], item))
             except spec.ScenarioError as exc:
                 raise CampaignError(source, where, str(exc).removeprefix(f"{source}: {where}: ")) from None
             try:            # the largest step of the campaign: a cut-off must lie below each run's Nyquist
                 spec.check_rates(source, where, dataclasses.replace(base, step=max(steps)),
-                                 {inst: {target: variables[target]}}, {inst: {target: converted}})
+                                 {inst: {target: variables[target]}}, {inst: {target: out[-1]}})
             except spec.ScenarioError as exc:
                 raise CampaignError(source, where, str(exc).removeprefix(f"{source}: {where}: ")) from None
+        return tuple(out)
 
     every = [(f"set.{key}", key, value) for key, value in fixed.items()]
     every += [(f"{where}.{key}[{j}]" if where != "scenario sweep" else f"{path.name}: sweep.values[{j}]", key, value)
@@ -246,6 +248,19 @@ def parse(text, source="<string>", base_dir=".", ci=False):
     for where, key, value in every:
         with problems.part():
             check(where, key, value)
+    problems.raise_any()
+    for where, keys, rows in axes:   # one run per value: "1 m" and "1000 mm" are one value
+        if where == "scenario sweep":
+            continue                 # the scenario checks its own
+        seen = {}
+        for j, row in enumerate(rows):
+            same = seen.setdefault(tuple(checked[(k, repr(v))] for k, v in zip(keys, row)), j)
+            if same != j:
+                shown = ", ".join(f"{k} = {v!r}" for k, v in zip(keys, rows[same]))
+                problems.errors.append(CampaignError(
+                    source, f"{where}.{keys[0]}[{j}]" if len(keys) == 1 else f"{where}[{j}]",
+                    f"{', '.join(f'{v!r}' for v in row)} is already value [{same}] of this axis ({shown}): "
+                    "each runs once"))
     problems.raise_any()
 
     runs, varying = [], []
@@ -258,6 +273,14 @@ def parse(text, source="<string>", base_dir=".", ci=False):
                 values.update(zip(keys, row))
                 parts.append(", ".join(f"{k}={_label(v)}" for k, v in zip(keys, row)))
             runs.append(Case("; ".join(parts) or "run", values))
+    labels = {}
+    for i, run in enumerate(runs):   # a label names one run (the table's rows, CampaignResult.series)
+        j = labels.setdefault(run.label, i)
+        if j != i:
+            first, this = cases[j // (len(runs) // len(cases))], cases[i // (len(runs) // len(cases))]
+            raise CampaignError(source, f"{this[0]}.label" if this[1] else this[0],
+                                f"its runs would have the labels of {first[0]}'s ({run.label!r}): "
+                                "give each case its own label")
     for key in dict.fromkeys(k for run in runs for k in run.values):
         if len({repr(run.values.get(key)) for run in runs}) > 1:
             varying.append(key)
@@ -313,24 +336,59 @@ class CampaignJobs:
             self._bound[marker] = (scenario, spec.bind(scenario, descriptions), descriptions, digests)
         return self._bound[marker]
 
+    def _case(self, case):
+        """(scenario, bound parameters, descriptions, digests) of one case."""
+        scenario, values, descriptions, digests = self._bind(
+            {k: v for k, v in case.values.items() if k in SCENARIO_KEYS})
+        params = {inst: dict(v) for inst, v in values.items()}
+        for key, raw in case.values.items():
+            if key in SCENARIO_KEYS:
+                continue
+            inst = key.split(".", 1)[0]
+            variables = {v.name: v for v in descriptions[inst].modelVariables}
+            for target, item in zip(spec.expand(variables, key), raw if isinstance(raw, list) else [raw]):
+                params[inst][target] = spec._value(self.campaign.source, key, variables[target], item)
+        return scenario, params, descriptions, digests
+
     def __iter__(self):
         for case in self.campaign.cases:
-            scenario, values, descriptions, digests = self._bind(
-                {k: v for k, v in case.values.items() if k in SCENARIO_KEYS})
-            params = {inst: dict(v) for inst, v in values.items()}
-            for key, raw in case.values.items():
-                if key in SCENARIO_KEYS:
-                    continue
-                inst = key.split(".", 1)[0]
-                variables = {v.name: v for v in descriptions[inst].modelVariables}
-                for target, item in zip(spec.expand(variables, key), raw if isinstance(raw, list) else [raw]):
-                    params[inst][target] = spec._value(self.campaign.source, key, variables[target], item)
+            scenario, params, _, digests = self._case(case)
             yield engine.Job(case.label, scenario, params, digests, self.campaign.keep_records)
+
+    def check(self):
+        """Each run's settings together, as a scenario file's are checked before it runs:
+        what the models refuse (the telescope's profile over the run) and a step beyond
+        the predicted stability limit (a campaign runs no step beyond it). Every refused
+        run is told; runs of the same settings are checked once."""
+        source, refused, seen = self.campaign.source, {}, set()   # refused: problem -> labels of its runs
+        for case in self.campaign.cases:
+            scenario, params, descriptions, digests = self._case(case)
+            marker = repr((scenario.start_time, scenario.stop_time, scenario.step, scenario.master,
+                           scenario.extrapolation, sorted((i, sorted(p.items())) for i, p in params.items())))
+            if marker in seen:
+                continue
+            seen.add(marker)
+            variables = {inst: {v.name: v for v in d.modelVariables} for inst, d in descriptions.items()}
+            written = {tuple(k.split(".", 1)): v for k, v in case.values.items() if k not in SCENARIO_KEYS}
+            try:
+                spec._check_models(source, "run", scenario, variables, params, written)
+                paths = {inst: self.files[digest] for inst, digest in digests.items()}
+                flags.check(scenario, flags.predict(scenario, paths, descriptions, params))
+            except spec.ScenarioError as exc:    # the stability limit is said of the scenario's step
+                for _, key, problem in exc.problems:
+                    text = problem if key == "run" else f"{key}: {problem.split('; or run it anyway')[0]}"
+                    refused.setdefault(text, []).append(case.label)
+        if refused:
+            raise CampaignError.joined([CampaignError(source, f"run {labels[0]!r}" + (
+                f" (and {len(labels) - 1} more: {', '.join(map(repr, labels[1:4]))}{', ...' if len(labels) > 4 else ''})"
+                if len(labels) > 1 else ""), problem) for problem, labels in refused.items()])
 
 
 def jobs(campaign):
-    """(jobs, {sha256: FMU path}): a sized iterable of one engine Job per case."""
+    """(jobs, {sha256: FMU path}): a sized iterable of one engine Job per case, every run's
+    settings checked (CampaignJobs.check)."""
     made = CampaignJobs(campaign)
+    made.check()
     return made, made.files
 
 

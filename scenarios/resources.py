@@ -35,7 +35,8 @@ class Estimate:
     disk_bytes: float           # all runs' records
 
     def text(self):
-        return (f"{self.runs} run{'s' if self.runs != 1 else ''} of {self.steps:,} steps, ~{_duration(self.seconds)} "
+        steps = f"{self.steps:,}" if self.steps < 1e15 else f"{self.steps:.3g}"    # not 300 digits
+        return (f"{self.runs} run{'s' if self.runs != 1 else ''} of {steps} steps, ~{_duration(self.seconds)} "
                 f"of stepping on one core, ~{_size(self.disk_bytes)} of records")
 
 

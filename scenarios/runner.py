@@ -22,6 +22,8 @@ def resolve(name):
     """A scenario file path (".toml" may be left out), or the bare name of a shipped
     scenario (scenarios/files/<name>.toml); anything else as given, for load to refuse."""
     path = pathlib.Path(name)
+    if path.name in ("", ".", ".."):    # "", ".", "/", "..": a folder, which load refuses as such
+        return path
     candidates = [path, path.with_name(path.name + ".toml")] if path.suffix != ".toml" else [path]
     if path.parent == pathlib.Path(".") and path.suffix != ".toml":
         candidates.append(SHIPPED / f"{path.name}.toml")
@@ -35,18 +37,37 @@ class OutputError(ValueError):
 def output_folder(out, path):
     """``out``/<the scenario file's stem>: the results follow the file the user ran (a
     copy of a shipped scenario does not write into the shipped one's folder). Created
-    here; OutputError if ``out`` is a file, cannot be created or is not writable."""
-    out = pathlib.Path(out)
-    folder = out / pathlib.Path(path).stem
+    here; OutputError if ``out`` is empty or a file, cannot be created or is not writable."""
+    out = pathlib.Path(_named(out))
+    stem = pathlib.Path(path).stem
+    if stem in ("", ".", ".."):       # "..toml", "...toml": out itself or its parent, not a folder under it
+        raise OutputError(f"file name {pathlib.Path(path).name!r}: without .toml, {stem!r} cannot name its output "
+                          f"folder under {out} (it would write into {out / stem}); rename the file")
+    return make_folder(out / stem)
+
+
+def _named(folder):
+    """``folder`` unless it is empty ("" is the current folder to pathlib: never meant)."""
+    if not isinstance(folder, (str, os.PathLike)):
+        raise OutputError(f"the output folder must be a path, got {type(folder).__name__} {folder!r:.60}")
+    if not str(folder).strip():
+        raise OutputError("the output folder (--out, out=, report()) is empty; name the folder the results go to")
+    return folder
+
+
+def make_folder(folder):
+    """The folder ``folder``, created; OutputError, naming it, if it is empty or a file (or
+    under one), cannot be created or is not writable."""
+    folder = pathlib.Path(_named(folder))
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except (FileExistsError, NotADirectoryError):
         blocker = next(p for p in (folder, *folder.parents) if p.exists() and not p.is_dir())
-        raise OutputError(f"output folder {folder}: {blocker} is a file, not a folder; choose another --out") from None
+        raise OutputError(f"output folder {folder}: {blocker} is a file, not a folder; choose another folder") from None
     except OSError as exc:
         raise OutputError(f"output folder {folder}: cannot be created ({exc.strerror})") from None
     if not os.access(folder, os.W_OK | os.X_OK):
-        raise OutputError(f"output folder {folder}: not writable; choose another --out")
+        raise OutputError(f"output folder {folder}: not writable; choose another folder")
     return folder
 
 
@@ -68,9 +89,13 @@ def prepare(path, ci=False, implementation=None, out=None, fmi_version=None):
     native FMUs) override every instance's choice; ``out`` (a folder) is checked to hold
     the records (scenarios.resources), warnings printed."""
     scenario = spec.load(path)
-    if ci and scenario.ci:
-        scenario = spec.load(path, overrides=scenario.ci)
-    return prepare_loaded(scenario, implementation, out, fmi_version)
+    told = spec.sources_of(scenario.ci, "the value of [ci], for --ci") if ci else {}
+    if told:
+        scenario = spec.load(path, overrides=scenario.ci, told_as=told)
+    try:
+        return prepare_loaded(scenario, implementation, out, fmi_version)
+    except spec.ScenarioError as exc:
+        raise spec.retold(exc, told) from None
 
 
 def prepare_loaded(scenario, implementation=None, out=None, fmi_version=None):

@@ -62,7 +62,7 @@ _REQUIRED = "required"
 # refuses and fills in, so a key added to the checker without a line here fails a test.
 KEYS = {
     "name": ("string", "the file's name without .toml", "report title: letters, digits, _ . - (the output "
-             "folder is named after the file run)"),
+             "folder is named after the file run; the file's own name is taken as it is)"),
     "description": ("string", "empty", "text under the report's title"),
     "start_time": ("time", "0 s", "start of the time grid"),
     "stop_time": ("time", _REQUIRED, "end of the time grid: a whole number of steps after start_time"),
@@ -107,6 +107,7 @@ MAX_FILE_BYTES = 1 << 20       # a scenario or campaign file larger than this is
 MAX_DEPTH = 8                  # tables and arrays nested deeper than this are no scenario's
 CHECK_POINTS = 100_001        # times at which a model's profile is checked over a run, at most
 MAX_INTEGER = 2 ** 53          # larger integer literals are no setting's (and lose precision as floats)
+MAX_TIME_ULP = 1e-3            # a time's float resolution must stay below this fraction of the step
 
 
 class ScenarioError(ValueError):
@@ -294,6 +295,11 @@ class Scenario:
     fmi_versions: dict = field(default_factory=dict)     # instance -> one of FMI_VERSIONS
 
 
+def _time_span(step):
+    """The largest |t| at which a double still resolves times to MAX_TIME_ULP of ``step``."""
+    return 2.0 ** (math.floor(math.log2(MAX_TIME_ULP * step)) + 53)
+
+
 def _quantity(source, key, value, dimension):
     try:
         return to_si(value, dimension)
@@ -340,7 +346,11 @@ def parse(text, source="<string>", overrides=None):
     """Scenario from TOML text; ``overrides`` replaces top-level keys (e.g. the CI's
     shorter stop_time; tables merge key by key). Every problem in the file is reported
     at once, in one ScenarioError."""
-    data = read_toml(text, source)
+    return parse_data(read_toml(text, source), source, overrides)
+
+
+def parse_data(data, source="<string>", overrides=None):
+    """parse for data already read (a TOML file's tables, or a Scenario's fields as_data)."""
     needs = ("a scenario needs stop_time, step, one [fmus.<instance>] table per FMU and [[connections]] "
              "(example: scenarios/files/telescope_slew.toml)")
     if not data:
@@ -368,12 +378,22 @@ def parse(text, source="<string>", overrides=None):
             raise ScenarioError(source, "step", f"must be positive, got {data['step']!r}")
         if not stop > start:
             raise ScenarioError(source, "stop_time", f"must be after start_time ({start} s)")
+        resolution = math.ulp(max(abs(start), abs(stop)))
+        if resolution > MAX_TIME_ULP * step:
+            raise ScenarioError(source, "start_time" if abs(start) > abs(stop) else "stop_time",
+                                f"at t = {max(abs(start), abs(stop)):.6g} s a time is resolved only to {resolution:.3g} s, "
+                                f"too coarse for step {data['step']!r}: the time grid would be uneven; keep the times "
+                                f"within {_time_span(step):.3g} s of 0 (an epoch belongs in a parameter such as "
+                                "utc_start)")
         if abs((stop - start) / step - round((stop - start) / step)) > 1e-9 * max(1.0, (stop - start) / step):
             steps = (stop - start) / step
             nearest = " and ".join(f"{start + n * step:.12g} s" for n in sorted({max(1, int(steps)), int(steps) + 1}))
             raise ScenarioError(source, "stop_time", f"{data['stop_time']!r} is not a whole number of steps of "
                                 f"{data['step']!r} after start_time ({steps:.6g} steps); nearest valid stop times: "
                                 f"{nearest}")
+        if round((stop - start) / step) < 1:    # within the whole-number tolerance of 0 steps
+            raise ScenarioError(source, "stop_time", f"{data['stop_time']!r} is less than one step ({data['step']!r}) "
+                                f"after start_time: no step would run; the first valid stop time is {start + step:.12g} s")
         steps, grid_ok = round((stop - start) / step), True
     if not grid_ok:         # what failed is told; nothing below is measured against it
         start, stop, step, steps = 0.0, math.inf, 1.0, 1
@@ -384,9 +404,10 @@ def parse(text, source="<string>", overrides=None):
     if extrapolation not in EXTRAPOLATIONS:
         problems.errors.append(ScenarioError(source, "extrapolation", f"unknown {extrapolation!r}; choose one of "
                                              f"{EXTRAPOLATIONS}"))
-    name = data.get("name", pathlib.Path(source).stem)
-    with problems.part():
-        check_name(source, "name" if "name" in data else "file name", name)
+    name = data.get("name", pathlib.Path(source).stem)   # the file's own name needs no check: it is one
+    if "name" in data:
+        with problems.part():
+            check_name(source, "name", name)
 
     fmus, parameters, implementations, versions = {}, {}, {}, {}
     for instance, table in data["fmus"].items():
@@ -442,7 +463,8 @@ def parse(text, source="<string>", overrides=None):
         interval = _quantity(source, "record.interval", record.get("interval", data["step"]), "s")
         ratio = interval / step
         if grid_ok and (interval < step or abs(ratio - round(ratio)) > 1e-9 * ratio):
-            raise ScenarioError(source, "record.interval", "must be a whole multiple of step")
+            raise ScenarioError(source, "record.interval", f"{record.get('interval', data['step'])!r} must be a whole "
+                                f"multiple of step ({data['step']!r})")
         every = max(1, int(round(ratio)))
         last_record = start + (steps // every) * every * step if grid_ok else math.inf
         recorded = [_reference(source, "record.variables", v, fmus)
@@ -498,15 +520,27 @@ def parse(text, source="<string>", overrides=None):
                                         f"{_TYPE_NAMES.get(type(value), type(value).__name__)} {value!r:.60}")
             labels = {}
             for i, value in enumerate(table["values"]):
-                label = file_label(value)
+                label = file_label(value).casefold()   # one file on a case-insensitive disk (macOS, Windows)
                 if label in labels:
-                    raise ScenarioError(source, f"sweep.values[{i}]", f"{value!r} repeats sweep.values"
-                                        f"[{labels[label]}] ({table['values'][labels[label]]!r}): each value runs once")
+                    j = labels[label]
+                    what = "repeats" if value == table["values"][j] else \
+                        f"would write the same files ({file_label(value)[:60]}.npz) as"
+                    raise ScenarioError(source, f"sweep.values[{i}]", f"{value!r:.80} {what} sweep.values[{j}] "
+                                        f"({table['values'][j]!r:.80}): each value runs once, under its own name "
+                                        "(the first 100 characters, letters compared regardless of case)")
                 labels[label] = i
             sweep = (_reference(source, "sweep.parameter", table["parameter"], fmus), table["values"])
     ci = data.get("ci", {})
     for extra, problem in unknown_keys(set(ci) - _TOP_KEYS, sorted(_TOP_KEYS)):
         problems.errors.append(ScenarioError(source, f"ci.{extra}", problem))
+    ci_fmus = ci.get("fmus", {})
+    with problems.part():
+        for inst in _table(source, "ci.fmus", ci_fmus):   # [ci] changes the file's instances; a typo adds none
+            if inst not in data["fmus"]:
+                near = difflib.get_close_matches(str(inst), list(data["fmus"]), 1, 0.6)
+                raise ScenarioError(source, f"ci.fmus.{inst}", f"no instance {inst!r} in [fmus]; "
+                                    f"{f'did you mean {near[0]!r}? ' if near else ''}[ci] changes the settings "
+                                    f"of the file's instances ({', '.join(data['fmus'])}), it adds none")
     tolerance = None
     if "fidelity_tolerance" in data:
         with problems.part():
@@ -521,10 +555,38 @@ def parse(text, source="<string>", overrides=None):
                     implementations=implementations, fmi_versions=versions)
 
 
-def load(path, overrides=None):
+def load(path, overrides=None, told_as=None):
     """Scenario from a TOML file; a missing path, a directory, a device, a huge file or
-    a file that is not UTF-8 text is refused with what was expected."""
-    return parse(read_text(path), str(pathlib.Path(path)), overrides)
+    a file that is not UTF-8 text is refused with what was expected. ``told_as``
+    (sources_of) tells a problem in a key ``overrides`` replaced where its value came from."""
+    try:
+        return parse(read_text(path), str(pathlib.Path(path)), overrides)
+    except ScenarioError as exc:
+        raise retold(exc, told_as) from None
+
+
+def sources_of(overrides, note):
+    """{key path: note} of every value ``overrides`` sets ("fmus.base.parameters.lever_arm"),
+    for retold."""
+    out = {}
+    for key, value in (overrides or {}).items():
+        if isinstance(value, dict) and value:
+            out.update({f"{key}.{k}": v for k, v in sources_of(value, note).items()})
+        else:
+            out[str(key)] = note
+    return out
+
+
+def retold(error, sources):
+    """``error`` with each problem in a key that ``sources`` names followed by where its
+    value came from (a stop_time off the grid in [ci], not in the file's top level)."""
+    if not sources:
+        return error
+    errors = []
+    for source, key, problem in error.problems:
+        note = next((n for path, n in sources.items() if key == path or key.startswith((path + ".", path + "["))), None)
+        errors.append(ScenarioError(source, key, problem if note is None else f"{problem} ({note})"))
+    return ScenarioError.joined(errors)
 
 
 # ------------------------------------------------------------------- binding to the FMUs
@@ -565,6 +627,8 @@ def bind(scenario, model_descriptions):
 
     def scalars(key, reference):
         inst = reference.split(".", 1)[0]
+        if inst not in variables:        # a reference parse did not see (a link, a Scenario changed in Python)
+            _reference(src, key, reference, variables)
         names = expand(variables[inst], reference)
         if not names:
             raise ScenarioError(src, key, f"FMU instance {inst!r} ({scenario.fmus[inst]}) has no variable "
@@ -610,9 +674,15 @@ def bind(scenario, model_descriptions):
         if missing:
             problems.errors.append(ScenarioError(src, f"fmus.{inst}",
                                                  f"inputs neither connected nor set: {', '.join(missing)}"))
+    recorded = {}       # scalar -> the reference that records it: a column is recorded once
     for reference in scenario.record:
         with problems.part():
-            scalars("record.variables", reference)
+            inst, names = scalars("record.variables", reference)
+            for var in names:
+                other = recorded.setdefault(f"{inst}.{var.name}", reference)
+                if other is not reference:
+                    raise ScenarioError(src, "record.variables", f"{inst}.{var.name} is recorded twice ({other!r} "
+                                        f"and {reference!r}): one column each; keep one")
     for i, metric in enumerate(scenario.metrics):
         with problems.part():
             _check_metric(src, f"metrics[{i}]", metric, scalars)
@@ -645,7 +715,11 @@ def _bind_parameter(src, key, inst, name, raw, scalars, values, fed):
     """One parameter as written (a value, a list for a vector, or a link "@inst.var")
     into ``values``; the inputs it sets are added to ``fed``."""
     _, targets = scalars(key, f"{inst}.{name}")
+    raw = plain(raw)
     if isinstance(raw, str) and raw.startswith("@"):
+        if not re.fullmatch(r"@[A-Za-z_]\w*\.[\w\[\]\.]+", raw, re.ASCII):
+            raise ScenarioError(src, key, f"link {raw!r} is not '@instance.output' (the output of another FMU "
+                                "at the start time, e.g. '@base.reference_pose')")
         link_inst, sources = scalars(key, raw[1:])
         if len(sources) != len(targets) or any(v.causality != "output" for v in sources):
             raise ScenarioError(src, key, f"{raw} must be an output of the same size as {name}")
@@ -662,6 +736,46 @@ def _bind_parameter(src, key, inst, name, raw, scalars, values, fed):
             raise ScenarioError(src, key, f"{var.name} is an {var.causality}, not a parameter or input")
         values[inst][var.name] = _value(src, key, var, item)
         fed.add((inst, var.name))
+
+
+def plain(value):
+    """A value from Python as the TOML file would give it: numpy scalars as Python
+    numbers, arrays and tuples as lists (a notebook's np.float32(0.5) or np.zeros(6))."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (np.ndarray, tuple, list)):
+        items = value.tolist() if isinstance(value, np.ndarray) else value
+        return [plain(v) for v in items] if isinstance(items, list) else items
+    return value
+
+
+def as_data(scenario):
+    """A Scenario's fields as the tables of a scenario file (times in SI seconds), so that
+    parse_data checks a Scenario changed in Python exactly as it checks a file."""
+    fmus = scenario.fmus if isinstance(scenario.fmus, dict) else {}
+    tables = {inst: {"fmu": fmu, "implementation": scenario.implementations.get(inst, IMPLEMENTATIONS[0]),
+                     "fmi_version": scenario.fmi_versions.get(inst, FMI_VERSIONS[0]),
+                     "parameters": scenario.parameters.get(inst, {}) if isinstance(scenario.parameters, dict) else
+                     scenario.parameters}
+              for inst, fmu in fmus.items()}
+    connections = [{"from": c[0], "to": plain(c[1])} if isinstance(c, (tuple, list)) and len(c) == 2 else c
+                   for c in scenario.connections] if isinstance(scenario.connections, list) else scenario.connections
+    metrics = [{"kind": m.kind, "name": m.name, "from": m.start, **m.args} if isinstance(m, Metric) else m
+               for m in scenario.metrics] if isinstance(scenario.metrics, list) else scenario.metrics
+    data = {"name": scenario.name, "description": scenario.description, "start_time": plain(scenario.start_time),
+            "stop_time": plain(scenario.stop_time), "step": plain(scenario.step), "master": scenario.master,
+            "extrapolation": scenario.extrapolation, "fmus": tables if isinstance(scenario.fmus, dict) else scenario.fmus,
+            "connections": connections, "metrics": metrics,
+            "record": {"interval": plain(scenario.record_interval), "variables": plain(scenario.record)}}
+    if scenario.sweep is not None:
+        sweep = scenario.sweep
+        data["sweep"] = {"parameter": sweep[0], "values": plain(sweep[1])} \
+            if isinstance(sweep, (tuple, list)) and len(sweep) == 2 else sweep
+    if scenario.ci:
+        data["ci"] = scenario.ci
+    if scenario.fidelity_tolerance is not None:
+        data["fidelity_tolerance"] = plain(scenario.fidelity_tolerance)
+    return data
 
 
 def _check_links(src, values):
@@ -729,7 +843,15 @@ def _check_metric(src, key, metric, scalars):
             for reference in reads:
                 scalars(f"{key}.{arg}", reference)
         return
-    sizes = {arg: len(scalars(f"{key}.{arg}", reference)[1]) for arg, reference in metric.args.items()}
+    sizes = {}
+    for arg, reference in metric.args.items():
+        _, read = scalars(f"{key}.{arg}", reference)
+        fixed = [v for v in read if v.causality in ("parameter", "calculatedParameter") or
+                 v.variability in ("constant", "fixed")]
+        if fixed:      # its value never changes during the run: the metric would measure the setting
+            raise ScenarioError(src, f"{key}.{arg}", f"{reference} is a {fixed[0].causality} (fixed for the run); "
+                                "a metric measures what the run changes: an output or an input")
+        sizes[arg] = len(read)
     needed = {"leg_tracking": {"measured": 6, "reference_pose": 6},
               "pose_tracking": {"measured": 6, "reference": 6}}.get(metric.kind, {})
     for arg, size in needed.items():
@@ -813,6 +935,7 @@ def metric_variables(metric):
 
 def _value(source, key, var, raw):
     """raw converted for var (SI float or integer index), within the FMU's declared range."""
+    raw = plain(raw)
     if var.type in ("Integer", "Enumeration"):
         choices = _enumeration(var.description)
         if isinstance(raw, str) and raw in choices:

@@ -22,6 +22,9 @@ _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(\S+)
 
 
 _MICRO = re.compile("^[\u00b5\u03bc]")
+# characters that look like a number's but are not (pasted from documents), and what to write
+_LOOKALIKES = {"\u2212": " (the minus sign '\u2212' is not '-')", "\u2013": " (the dash '\u2013' is not '-')",
+               ",": " (a decimal point, not a comma)", "_": " (digits without '_')"}
 
 
 class UnitError(ValueError):
@@ -36,8 +39,11 @@ def units_of(dimension):
 def split(value):
     """(number, unit or None) of a quantity string; UnitError if it is not one."""
     match = _QUANTITY.match(value)
+    if not match and re.match(r"\s*[-+]?(nan|inf(inity)?)\b", value, re.IGNORECASE):
+        raise UnitError(f"{value!r} is not a finite number")
     if not match:
-        raise UnitError(f"cannot read quantity {value!r}: write '<number> <unit>'")
+        hint = next((h for c, h in _LOOKALIKES.items() if c in value), "")
+        raise UnitError(f"cannot read quantity {value!r}: write '<number> <unit>'{hint}")
     return float(match.group(1)), match.group(2)
 
 

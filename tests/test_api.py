@@ -226,3 +226,69 @@ def test_a_file_that_is_not_records_is_refused_naming_it(content, problem, tmp_p
         np.savez(path, **content)
     with pytest.raises(ValueError, match=f"{path}: {problem}"):
         read_records(path)
+
+
+@pytest.mark.parametrize("change, key, problem", [
+    ({"step": 0.0}, "step", "must be positive"),
+    ({"step": -1e-3}, "step", "must be positive"),
+    ({"stop_time": float("nan")}, "stop_time", "nan is not a finite number"),
+    ({"stop_time": 4.0005}, "stop_time", "not a whole number of steps"),
+    ({"record_interval": 0.0}, "record.interval", "must be a whole multiple of step"),
+    ({"name": "../x"}, "name", "not a path"),
+    ({"master": "bogus"}, "master", "unknown master 'bogus'"),
+    ({"sweep": ("nope.lever_arm", ["1 m"])}, "sweep.parameter", "unknown FMU instance 'nope'"),
+    ({"record": ["nope.x"]}, "record.variables", "unknown FMU instance 'nope'"),
+    ({"connections": [("nope.x", ["plant.leg_force"])]}, "connections[0].from", "unknown FMU instance 'nope'"),
+    ({"implementations": {"base": "rust"}}, "fmus.base.implementation", "unknown implementation 'rust'"),
+    ({"parameters": {"base": 5}}, "fmus.base.parameters", "expected a table"),
+])
+def test_a_scenario_object_changed_in_python_is_checked_as_its_file(change, key, problem):
+    """dataclasses.replace (as the docs suggest) once bypassed every check of the file:
+    step 0 ended in ZeroDivisionError, a NaN stop time in ValueError, an unknown instance
+    in KeyError, and a negative step or an unknown master ran."""
+    import dataclasses
+    scenario = dataclasses.replace(movingbase.load_scenario(NAME, ci=True), **change)
+    with pytest.raises(spec.ScenarioError) as error:
+        movingbase.run(scenario, progress=False)
+    assert f": {key}: " in str(error.value) and problem in str(error.value), str(error.value)
+
+
+def test_set_takes_numpy_values_as_the_numbers_they_hold():
+    """np.float32(0.5), np.int64(1), a 0-d array or np.zeros(6) from a notebook were refused
+    ("expected a number", "expected 6 values, got 1"); they bind to what Python's numbers bind to."""
+    def bound(values):
+        scenario = movingbase.load_scenario("telescope_slew", ci=True, set=values)
+        return runner.prepare_loaded(scenario)[3]
+    as_numpy = bound({"base.start_elevation": np.float32(0.5), "plant.moving_base": np.int64(1),
+                      "base.lever_arm": np.array(25.0), "plant.initial_pose": np.zeros(6),
+                      "stop_time": np.float64(8.0)})
+    as_python = bound({"base.start_elevation": float(np.float32(0.5)), "plant.moving_base": 1,
+                       "base.lever_arm": 25.0, "plant.initial_pose": [0.0] * 6, "stop_time": 8.0})
+    assert as_numpy == as_python and as_numpy["base"]["start_elevation"] == float(np.float32(0.5))
+
+
+@pytest.mark.parametrize("values, problem", [
+    ("base.lever_arm", "expected a mapping"), ({3: 1}, "keys are text"), ({None: 1}, "keys are text"),
+    ({"": 1}, "keys are text"),
+])
+def test_a_set_that_is_no_mapping_of_keys_is_refused(values, problem):
+    with pytest.raises(spec.ScenarioError, match=problem):
+        movingbase.load_scenario(NAME, set=values)
+
+
+def test_report_into_a_file_or_an_empty_path_is_refused(result, tmp_path):
+    """report(path) onto a file ended in FileExistsError; report("") wrote into the current folder."""
+    (tmp_path / "file").write_text("x")
+    for path, problem in [(tmp_path / "file", "is a file, not a folder"), ("", "is empty"), (" ", "is empty"),
+                          (123, "must be a path, got int")]:
+        with pytest.raises(runner.OutputError, match=problem):
+            result.report(path)
+
+
+@pytest.mark.parametrize("jobs", [0, -1, 1.5, True])
+def test_a_campaign_s_bad_worker_count_is_refused_before_anything_runs(jobs, tmp_path):
+    """jobs=0 once ran on every core ("0 or all"), silently; the command line refused it."""
+    from movingbase.scenarios.resources import ResourceError
+    with pytest.raises(ResourceError, match="at least 1"):
+        movingbase.campaign("slew_sizes", ci=True, jobs=jobs, out=tmp_path, progress=False)
+    assert list(tmp_path.iterdir()) == []

@@ -156,3 +156,54 @@ def test_every_path_runs_the_implementation_the_scenario_names(tmp_path):
     assert {inst: _implementation(files[digest]) for inst, digest in job.fmus.items()} == chosen
     sweep_jobs, sweep_files = runner.engine.prepared_jobs(scenario, paths, values, [("run", {})])
     assert {inst: _implementation(sweep_files[d]) for inst, d in sweep_jobs[0].fmus.items()} == chosen
+
+
+@pytest.mark.parametrize("body, key, problem", [
+    # one value written twice: the same run twice under two labels
+    (HEAD + '[[grid]]\n"base.lever_arm" = ["1 m", "1000 mm"]\n', "grid[0].base.lever_arm[1]",
+     "'1000 mm' is already value [0] of this axis (base.lever_arm = '1 m')"),
+    (HEAD + '[[grid]]\n"base.lever_arm" = [1, 1.0]\n', "grid[0].base.lever_arm[1]", "already value [0]"),
+    (HEAD + '[[grid]]\nstop_time = ["8 s", "8000 ms"]\n', "grid[0].stop_time[1]", "already value [0]"),
+    (HEAD + '[[grid]]\n"base.start_elevation" = ["30 deg", "30 deg"]\n"base.target_elevation" = ["35 deg", '
+     '"0.6108652381980153"]\n', "grid[0][1]", "already value [0]"),
+    # two cases whose runs share labels: the table's rows and CampaignResult.series(label) mix them
+    (HEAD + '[[cases]]\nlabel = "a"\n"base.lever_arm" = "1 m"\n[[cases]]\nlabel = "a"\n"base.lever_arm" = "2 m"\n',
+     "cases[1].label", "would have the labels of cases[0]'s"),
+    (HEAD + '[[cases]]\n"base.lever_arm" = "1 m"\n[[cases]]\n"base.lever_arm" = "1 m"\n', "cases[1]",
+     "give each case its own label"),
+    # a link is the scenario file's; once told "expected 6 values, got 1"
+    (HEAD + 'set = { "plant.initial_pose" = "@base.reference_pose" }\n', "set.plant.initial_pose",
+     "a link to another FMU's output at the start time is written in the scenario file"),
+])
+def test_campaign_values_that_would_run_twice_or_mislabel_are_refused(tmp_path, body, key, problem):
+    with pytest.raises(campaign.CampaignError) as info:
+        _parse(body, tmp_path)
+    message = str(info.value)
+    assert message.startswith(f"{tmp_path / 'c.toml'}: {key}: ") and problem in message, message
+
+
+def test_a_zipped_axis_may_repeat_a_value_of_one_key(tmp_path):
+    """Two slews from one start elevation are two runs (the per-key check refused them)."""
+    c = _parse(HEAD + '[[grid]]\n"base.start_elevation" = ["30 deg", "30 deg"]\n"base.target_elevation" = '
+               '["35 deg", "40 deg"]\n', tmp_path)
+    assert len(c.cases) == 6
+
+
+@pytest.mark.parametrize("body, problem", [
+    # the telescope model refuses the combination (a scenario file with it is refused before it runs)
+    ('name = "k"\nscenario = "keyhole_tracking"\n[[grid]]\n"base.declination" = ["30.89 deg", "-80 deg"]\n',
+     "run 'base.declination=-80 deg; controller.feedforward=none' (and 2 more: "),
+    # beyond the predicted stability limit (2 ms for the slew's Jacobi with linear extrapolation)
+    (HEAD + 'set = { step = "2.5 ms" }\n', "step: 2.5 ms is beyond the predicted stability limit 2 ms"),
+])
+def test_runs_the_models_or_the_stability_limit_refuse_are_refused_before_any_runs(tmp_path, body, problem):
+    """Campaign values were checked one by one, never as a run: a source below the horizon
+    and a step beyond the stability limit ran (the scenario file with them is refused)."""
+    c = _parse(body, tmp_path)
+    with pytest.raises(campaign.CampaignError) as info:
+        campaign.jobs(c)
+    message = str(info.value)
+    assert message.startswith(f"{tmp_path / 'c.toml'}: run ") and problem in message, message
+    assert "--allow-unstable" not in message and len(message.splitlines()) == 1, message
+    good = _parse(body.replace('"-80 deg"', '"31.59 deg"').replace('"2.5 ms"', '"2 ms"'), tmp_path)
+    assert len(list(campaign.jobs(good)[0])) == len(good.cases)

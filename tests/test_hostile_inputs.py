@@ -347,3 +347,116 @@ def test_every_bad_value_of_a_campaign_is_reported_at_once(tmp_path):
     lines = str(info.value).splitlines()
     assert [line.split(": ", 2)[1] for line in lines] == [
         "set.base.colour", "grid[0].base.start_azimuth[1]", "cases[0].controller.feedforward"], lines
+
+
+# ------------------------------------------------------------------ hunted later (branch hostile3)
+@pytest.mark.parametrize("link", ["@", "@base", "@.x", "@base.", "@ base.axis", "@@base.axis", "@nope.axis"])
+def test_a_link_that_is_no_instance_output_is_refused_naming_it(descriptions, link):
+    """'@base', '@' and '@nope.x' once ended in a ValueError or KeyError traceback."""
+    refused(edited(SLEW, ('lever_arm = "25 m"', f'lever_arm = "{link}"')), "fmus.base.parameters.lever_arm",
+            "'@instance.output'" if link != "@nope.axis" else "unknown FMU instance 'nope'", descriptions=descriptions)
+
+
+@pytest.mark.parametrize("stop", ["1e-300 s", "1e-13 s"])
+def test_a_stop_time_within_one_step_of_the_start_is_refused(stop):
+    """1e-300 s at 1 ms passed the whole-number check (1e-297 steps rounds to 0): a run of
+    no step, refused by the telescope model as 't must be strictly increasing'."""
+    text = edited(SLEW, ('stop_time = "60 s"', f'stop_time = "{stop}"'))
+    refused(text, "stop_time", f"'{stop}' is less than one step ('1 ms')", "first valid stop time is 0.001 s")
+
+
+@pytest.mark.parametrize("changes, key", [
+    ([('step = "1 ms"', 'step = "1 ms"\nstart_time = "1e12 s"'), ('stop_time = "60 s"', 'stop_time = "1000000000060 s"')],
+     "stop_time"),
+    ([('step = "1 ms"', 'step = "1 ms"\nstart_time = "-1e10 s"')], "start_time"),
+    ([('stop_time = "60 s"', 'stop_time = "1e20 s"')], "stop_time"),
+])
+def test_times_beyond_what_a_double_resolves_at_the_step_are_refused(changes, key):
+    """At t = 1e12 s a double resolves 0.12 ms: a 1 ms grid there is uneven by 12 %, silently."""
+    message = refused(edited(SLEW, *changes), key, "is resolved only to", "too coarse for step '1 ms'")
+    start = spec.parse(edited(SLEW, ('step = "1 ms"', 'step = "1 ms"\nstart_time = "1e6 s"'),
+                              ('stop_time = "60 s"', 'stop_time = "1000060 s"')), "ok.toml").start_time
+    assert start == 1e6 and "8.59e+09 s" in message     # within the limit runs; the limit is said
+
+
+@pytest.mark.parametrize("values, what", [
+    ('["a", "A"]', "would write the same files (A.npz)"),                       # one file on macOS and Windows
+    (f'["{"x" * 100}1", "{"x" * 100}2"]', "would write the same files"),        # labels are cut at 100
+    ('["a/b", "a_b"]', "would write the same files (a_b.npz)"),
+])
+def test_sweep_values_whose_files_would_collide_are_refused(values, what):
+    text = edited(SLEW, ('values = ["none", "fixed_base", "moving_base"]', f"values = {values}"))
+    refused(text, "sweep.values[1]", what, "sweep.values[0]")
+
+
+def test_a_column_recorded_twice_and_a_metric_of_a_parameter_are_refused(descriptions):
+    R = 'variables = ["base.axis", "base.axis_rate"'
+    refused(edited(SLEW, (R, 'variables = ["base.axis", "base.axis[1]"')), "record.variables",
+            "base.axis[1] is recorded twice ('base.axis' and 'base.axis[1]')", descriptions=descriptions)
+    refused(edited(SLEW, ('variable = "controller.leg_force"', 'variable = "base.lever_arm"')), "metrics[2].variable",
+            "base.lever_arm is a parameter (fixed for the run)", descriptions=descriptions)
+    refused(edited(SLEW, ('measured = "plant.pose"', 'measured = "plant.initial_pose"')), "metrics[1].measured",
+            "plant.initial_pose is a parameter", descriptions=descriptions)
+
+
+def test_ci_values_are_told_as_the_ci_table_s(tmp_path):
+    """A bad value in [ci] was told as if the file's top-level key held it ("stop_time: ..."
+    where the file says 60 s), and a [ci.fmus.<typo>] table added an FMU instance to the CI run."""
+    for ci, key, part in [('step = "x"', "step", "cannot read quantity 'x'"),
+                          ('name = "../x"', "name", "not a path"),
+                          ('[ci.fmus.base.parameters]\nlever_arm = "-1 m"', "fmus.base.parameters.lever_arm",
+                           "outside the range"),
+                          ('[ci.sweep]\nvalues = ["bogus"]', "sweep.values[0]", "'bogus' is not one of"),
+                          ('[ci.fmus.bsae]\nfmu = "telescope"', "ci.fmus.bsae", "did you mean 'base'")]:
+        path = tmp_path / "x.toml"
+        path.write_text(edited(SLEW, ('[ci]', f'[ci]\n{ci}\n' if not ci.startswith("[") else f'{ci}\n[ci]')))
+        with pytest.raises(spec.ScenarioError) as error:
+            runner.prepare(path, ci=True)
+        message = str(error.value)
+        assert message.startswith(f"{path}: {key}: ") and part in message, message
+        assert key.startswith("ci.") or message.endswith("(the value of [ci], for --ci)"), message
+
+
+def test_odd_scenario_names_and_output_folders_are_refused_naming_them(tmp_path):
+    """"", "." and "/" once ended in a pathlib traceback; a file named "...toml" wrote its
+    results into the parent of --out, "..toml" into --out itself; --out "" into the
+    current folder; --ssp under a file said its folder "does not exist"."""
+    dots = tmp_path / "d"
+    dots.mkdir()
+    (dots / "...toml").write_text(SLEW)
+    (tmp_path / "file").write_text("x")
+    for args, part in [(("",), "an empty scenario name"), ((".",), "is a directory"), (("/",), "is a directory"),
+                       ((dots / "...toml", "--ci", "--out", dots / "o"), "cannot name its output folder"),
+                       (("telescope_slew", "--ci", "--out", ""), "output folder (--out, out=, report()) is empty"),
+                       (("telescope_slew", "--ssp", tmp_path / "file" / "x.ssp"), "file is a file, not a folder")]:
+        status, _, err = _cli(tmp_path, *args, "--quiet", "--charts", "none")
+        assert status != 0 and part in err, (args, err)
+    assert sorted(p.name for p in dots.iterdir()) == ["...toml"] and not (tmp_path / "telescope_slew").exists()
+    (tmp_path / "A.toml").write_text(SLEW)     # one folder on a case-insensitive disk
+    (tmp_path / "a.toml").write_text(SLEW)
+    status, _, err = _cli(tmp_path, "A.toml", "a.toml", "--quiet")
+    assert status != 0 and "would all write to" in err, err
+
+
+def test_a_file_name_of_spaces_and_accents_names_its_scenario(tmp_path):
+    """The output folder follows the file, so its name needs no check: 'my slew.toml' without
+    a name key was refused ("holds ' '") though the same file with one ran into 'out/my slew'."""
+    text = edited(SLEW, ('name = "telescope_slew"\n', ''))
+    for stem in ("my slew", "élan"):
+        assert spec.parse(text, f"{stem}.toml").name == stem
+        assert runner.output_folder(tmp_path, f"{stem}.toml") == tmp_path / stem
+    refused(edited(SLEW, ('name = "telescope_slew"', 'name = "my/slew"')), "name", "not a path")
+
+
+@pytest.mark.parametrize("value, problem", [
+    ("−1 ms", "the minus sign '−' is not '-'"), ("1,5 ms", "a decimal point"), ("1_000 us", "digits without '_'"),
+    ("nan s", "'nan s' is not a finite number"), ("-inf ms", "is not a finite number"),
+])
+def test_quantities_with_look_alike_characters_say_which(value, problem):
+    with pytest.raises(spec.UnitError, match=problem):
+        to_si(value, "s")
+
+
+def test_a_huge_step_count_is_told_in_few_digits():
+    text = resources.Estimate(3, 10 ** 300, 10, 5, 1e300, 1e300).text()
+    assert "1e+300 steps" in text and len(text) < 200, text
