@@ -16,7 +16,7 @@ from .fmi import FmuFileError
 from .records import run_records
 from .report import CHARTS
 from .resources import ResourceError, check_jobs
-from .runner import SHIPPED, OutputError, prepare, resolve, run_scenario
+from .runner import SHIPPED, OutputError, not_found, prepare, resolve, run_scenario
 from .spec import IMPLEMENTATIONS, ScenarioError, sweep_value
 from .ssp import export_ssp
 
@@ -64,8 +64,7 @@ def _run(args, shipped):
         sys.exit("scenario error: an empty scenario name; give a scenario file or a shipped name: " + shipped)
     unknown = [n for n in names if not resolve(n).exists()]
     if unknown:
-        sys.exit(f"scenario error: no scenario file or shipped scenario named {', '.join(map(repr, unknown))}; "
-                 f"shipped: {shipped}")
+        sys.exit(f"scenario error: {not_found(unknown)}")
     folders = {}
     for name in names:   # the output folder follows the file: two files of one stem would share it
         path = resolve(name).resolve()   # (a stem differing in case only too: one folder on macOS and Windows)
@@ -81,7 +80,7 @@ def _run(args, shipped):
         for warning in (check_jobs(args.jobs),):
             if warning:
                 print(warning, file=sys.stderr)
-        if args.dask:
+        if args.dask is not None:   # "" too: it once ran locally, silently
             check_address(args.dask)
     except (ResourceError, EngineError) as exc:
         sys.exit(f"command error: {exc}")

@@ -73,6 +73,8 @@ def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = Non
                         f"{type(scenario).__name__} {scenario!r:.60}")
     else:
         path = runner.resolve(os.fspath(scenario))
+        if not path.exists():
+            raise spec.ScenarioError(str(path), "file", runner.not_found([os.fspath(scenario)]))
         loaded = spec.load(path)
         overrides = {**(loaded.ci if ci else {}), **top}
         if overrides:

@@ -452,7 +452,7 @@ def main(argv=None):
         warning = resources.check_jobs(args.jobs)
         if warning:
             print(warning, file=sys.stderr)
-        if args.dask:
+        if args.dask is not None:   # "" too: it once ran locally, silently
             engine.check_address(args.dask)
         campaign, job_list, store, outcome, summary = run_campaign(
             args.campaign, args.out, args.ci, args.jobs, args.dask, not args.quiet, args.retry_failed)

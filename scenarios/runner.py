@@ -1,6 +1,7 @@
 """Run a scenario file end to end: check it, build the FMUs it needs, co-simulate each
 sweep value with a progress bar, and write results, charts and the report. A run an FMU
 stops is kept with its partial results and marked; the other sweep values still run."""
+import difflib
 import json
 import os
 import pathlib
@@ -21,13 +22,23 @@ SHIPPED = pathlib.Path(__file__).resolve().parent / "files"
 def resolve(name):
     """A scenario file path (".toml" may be left out), or the bare name of a shipped
     scenario (scenarios/files/<name>.toml); anything else as given, for load to refuse."""
-    path = pathlib.Path(name)
+    path = pathlib.Path(name).expanduser()
     if path.name in ("", ".", ".."):    # "", ".", "/", "..": a folder, which load refuses as such
         return path
     candidates = [path, path.with_name(path.name + ".toml")] if path.suffix != ".toml" else [path]
     if path.parent == pathlib.Path(".") and path.suffix != ".toml":
         candidates.append(SHIPPED / f"{path.name}.toml")
     return next((c for c in candidates if c.is_file()), path)
+
+
+def not_found(names):
+    """What to say of names that are neither a scenario file nor a shipped scenario: the
+    shipped names, and the nearest one where a name is close ("telescope_slew ")."""
+    shipped = sorted(p.stem for p in SHIPPED.glob("*.toml"))
+    near = [difflib.get_close_matches(str(n).strip().lower(), shipped, 1, 0.6) for n in names]
+    hints = "".join(f"; did you mean {m[0]!r} for {n!r}?" for n, m in zip(names, near) if m)
+    return (f"no scenario file or shipped scenario named {', '.join(map(repr, names))}{hints}; "
+            f"shipped: {', '.join(shipped)}")
 
 
 class OutputError(ValueError):

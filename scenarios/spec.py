@@ -410,6 +410,8 @@ def parse_data(data, source="<string>", overrides=None):
             check_name(source, "name", name)
 
     fmus, parameters, implementations, versions = {}, {}, {}, {}
+    if not data["fmus"]:
+        problems.errors.append(ScenarioError(source, "fmus", f"no FMU instance: {needs}"))
     for instance, table in data["fmus"].items():
         key = f"fmus.{instance}"
         with problems.part():
@@ -436,6 +438,9 @@ def parse_data(data, source="<string>", overrides=None):
             if versions[instance] == 3 and implementations[instance] != "native":
                 raise ScenarioError(source, f"{key}.fmi_version", "FMI 3.0 is built for the native FMUs only; "
                                     f"implementation {implementations[instance]!r} is FMI 2.0")
+            if "fmu" not in table:
+                raise ScenarioError(source, f"{key}.fmu", f"missing: which of the kit's FMUs this instance is "
+                                    f"({', '.join(FMU_SCRIPTS)})")
             fmu = _text(source, f"{key}.fmu", table.get("fmu"), "")
             if fmu not in FMU_SCRIPTS:
                 near = difflib.get_close_matches(fmu, list(FMU_SCRIPTS), 1, 0.6)
@@ -692,7 +697,8 @@ def bind(scenario, model_descriptions):
     with problems.part():
         _check_models(src, "fmus", scenario, variables, values)
     if scenario.sweep:
-        inst, (var, *_) = scalars("sweep.parameter", scenario.sweep[0])
+        inst, swept_vars = scalars("sweep.parameter", scenario.sweep[0])
+        var = _swept(src, scenario.sweep[0], swept_vars, feeders)
         seen = {}
         for i, item in enumerate(scenario.sweep[1]):
             key = f"sweep.values[{i}]"
@@ -709,6 +715,22 @@ def bind(scenario, model_descriptions):
                 _check_models(src, key, scenario, variables, swept, {(inst, var.name): item})
     problems.raise_any()
     return values
+
+
+def _swept(src, reference, swept, feeders):
+    """The one variable a sweep sets: a parameter, or an input no connection feeds (the
+    connection would set it in every run: runs labelled by values that did not run)."""
+    if len(swept) != 1:
+        raise ScenarioError(src, "sweep.parameter", f"{reference} has {len(swept)} values; a sweep sets one: name an "
+                            f"element, e.g. {reference}[1]")
+    var, inst = swept[0], reference.split(".", 1)[0]
+    if var.causality not in ("parameter", "input"):
+        raise ScenarioError(src, "sweep.parameter", f"{reference} is an {var.causality}, not a parameter or input")
+    if (inst, var.name) in feeders:
+        index, written, _ = feeders[(inst, var.name)]
+        raise ScenarioError(src, "sweep.parameter", f"{reference} is an input that connections[{index}] ({written}) "
+                            "feeds: the connection would set it in every run, not the sweep values")
+    return var
 
 
 def _bind_parameter(src, key, inst, name, raw, scalars, values, fed):

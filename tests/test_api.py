@@ -292,3 +292,16 @@ def test_a_campaign_s_bad_worker_count_is_refused_before_anything_runs(jobs, tmp
     with pytest.raises(ResourceError, match="at least 1"):
         movingbase.campaign("slew_sizes", ci=True, jobs=jobs, out=tmp_path, progress=False)
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("scenario, problem", [
+    ("telescope_slew ", "did you mean 'telescope_slew' for 'telescope_slew '?"),
+    ("nope", "no scenario file or shipped scenario named 'nope'; shipped: keyhole_tracking"),
+    (5, "scenario must be a shipped name, a file path or a Scenario, got int 5"),
+    (None, "got NoneType None"),
+])
+def test_a_scenario_that_is_not_one_is_refused_naming_the_shipped_ones(scenario, problem):
+    """A missing name said only "file: does not exist"; an int or None ended in os.fspath's TypeError."""
+    with pytest.raises((spec.ScenarioError, TypeError)) as error:
+        movingbase.load_scenario(scenario)
+    assert problem in str(error.value), str(error.value)

@@ -428,7 +428,8 @@ def test_odd_scenario_names_and_output_folders_are_refused_naming_them(tmp_path)
     for args, part in [(("",), "an empty scenario name"), ((".",), "is a directory"), (("/",), "is a directory"),
                        ((dots / "...toml", "--ci", "--out", dots / "o"), "cannot name its output folder"),
                        (("telescope_slew", "--ci", "--out", ""), "output folder (--out, out=, report()) is empty"),
-                       (("telescope_slew", "--ssp", tmp_path / "file" / "x.ssp"), "file is a file, not a folder")]:
+                       (("telescope_slew", "--ssp", tmp_path / "file" / "x.ssp"), "file is a file, not a folder"),
+                       (("telescope_slew", "--dask", ""), "expected a scheduler address")]:   # ran locally
         status, _, err = _cli(tmp_path, *args, "--quiet", "--charts", "none")
         assert status != 0 and part in err, (args, err)
     assert sorted(p.name for p in dots.iterdir()) == ["...toml"] and not (tmp_path / "telescope_slew").exists()
@@ -460,3 +461,26 @@ def test_quantities_with_look_alike_characters_say_which(value, problem):
 def test_a_huge_step_count_is_told_in_few_digits():
     text = resources.Estimate(3, 10 ** 300, 10, 5, 1e300, 1e300).text()
     assert "1e+300 steps" in text and len(text) < 200, text
+
+
+@pytest.mark.parametrize("parameter, values, problem", [
+    # a connected input: the connection set it in every run, the runs were labelled by values that did not run
+    ("controller.leg_length[1]", '["2.6 m", "2.7 m"]', "is an input that connections[6] (plant.leg_length -> "
+                                                     "controller.leg_length) feeds"),
+    ("plant.leg_length[1]", '["2.6 m", "2.7 m"]', "is an output, not a parameter or input"),
+    # a vector: only its first element was set
+    ("plant.initial_pose", '["0 m", "0.1 m"]', "has 6 values; a sweep sets one: name an element"),
+])
+def test_a_sweep_of_what_no_value_can_set_is_refused(descriptions, parameter, values, problem):
+    text = edited(SLEW, ('parameter = "controller.feedforward"', f'parameter = "{parameter}"'),
+                  ('values = ["none", "fixed_base", "moving_base"]', f"values = {values}"))
+    refused(text, "sweep.parameter", problem, descriptions=descriptions)
+    unconnected = edited(SLEW, ('parameter = "controller.feedforward"', 'parameter = "plant.platform_wrench[1]"'),
+                         ('values = ["none", "fixed_base", "moving_base"]', 'values = ["0 N", "1 N"]'))
+    assert spec.bind(spec.parse(unconnected, "ok.toml"), descriptions)      # an input nothing feeds: its start value
+
+
+def test_a_scenario_of_no_fmu_and_an_instance_without_fmu_are_refused():
+    refused('stop_time = "1 s"\nstep = "1 ms"\nconnections = []\nfmus = {}\n', "fmus", "no FMU instance")
+    refused('stop_time = "1 s"\nstep = "1 ms"\nconnections = []\n[fmus.x]\n', "fmus.x.fmu",
+            "missing: which of the kit's FMUs this instance is")
