@@ -245,6 +245,9 @@ class Result:
         """Write into folder ``path`` what ``movingbase run --out`` writes into its
         scenario folder (records as npz, metrics.json, charts, report.md); the report's path."""
         folder = runner.make_folder(path)
+        earlier = runner.replaced(folder)
+        if earlier:       # said, as the command says it
+            print(earlier, flush=True)
         runs = []
         for run in self._runs:
             kept = self.runs[run.label].records

@@ -103,6 +103,7 @@ TOP_LEVEL_TYPES = {"name": (str,), "description": (str,), "start_time": (int, fl
 _TYPE_NAMES = {str: "text", int: "integer", float: "number", dict: "table", list: "array", bool: "true/false"}
 PLAIN_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}")     # names that become file or folder names
 INSTANCE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
+_NOT_IN_FILE_NAMES = set('/\\:*?"<>|')    # nor in a Markdown table's cell ('|')
 MAX_FILE_BYTES = 1 << 20       # a scenario or campaign file larger than this is not one
 MAX_DEPTH = 8                  # tables and arrays nested deeper than this are no scenario's
 CHECK_POINTS = 100_001        # times at which a model's profile is checked over a run, at most
@@ -486,10 +487,19 @@ def parse_data(data, source="<string>", overrides=None):
                 raise ScenarioError(source, f"{key}.kind", f"unknown metric kind {kind!r}; choose one of "
                                     f"{', '.join(METRIC_KINDS)}")
             name_ = _text(source, f"{key}.name", metric.pop("name", None), kind)
-            if name_ in named:
-                raise ScenarioError(source, f"{key}.name", f"{name_!r} is also the name of metrics[{named[name_]}]; "
-                                    "metric names are the columns of the results: give each its own")
-            named[name_] = i
+            bad = sorted({c for c in name_ if c in _NOT_IN_FILE_NAMES or not c.isprintable()})
+            if bad or not name_.strip() or name_.startswith(".") or len(name_) > 100:
+                why = f"holds {', '.join(map(repr, bad))}" if bad else "is empty" if not name_.strip() else \
+                    "starts with ." if name_.startswith(".") else f"is {len(name_)} characters long (at most 100)"
+                raise ScenarioError(source, f"{key}.name", f"{name_[:60]!r} {why}: a metric's name also names its "
+                                    "chart file and a column of the report's table")
+            label = name_.replace(" ", "_").casefold()   # its chart: <name>_vs_time.png, one on macOS and Windows
+            if label in named:
+                j, other = named[label]
+                same = "is also the name of" if name_ == other else "would write the chart file of"
+                raise ScenarioError(source, f"{key}.name", f"{name_!r} {same} metrics[{j}] ({other!r}); metric "
+                                    "names are the columns of the results: give each its own")
+            named[label] = (i, name_)
             metric_start = _quantity(source, f"{key}.from", metric.get("from", "0 s"), "s")
             if metric_start >= stop or metric_start > last_record + 1e-9 * step:
                 where = f"at or after stop_time ({stop:g} s)" if metric_start >= stop else \
@@ -636,8 +646,11 @@ def bind(scenario, model_descriptions):
             _reference(src, key, reference, variables)
         names = expand(variables[inst], reference)
         if not names:
-            raise ScenarioError(src, key, f"FMU instance {inst!r} ({scenario.fmus[inst]}) has no variable "
-                                f"{reference.split('.', 1)[1]!r}")
+            name = reference.split(".", 1)[1]
+            near = difflib.get_close_matches(name, list(dict.fromkeys(n.split("[", 1)[0] for n in variables[inst])), 1,
+                                             0.7)
+            raise ScenarioError(src, key, f"FMU instance {inst!r} ({scenario.fmus[inst]}) has no variable {name!r}"
+                                + (f"; did you mean {near[0]!r}?" if near else ""))
         return inst, [variables[inst][n] for n in names]
 
     problems = _Problems()

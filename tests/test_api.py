@@ -276,8 +276,13 @@ def test_a_set_that_is_no_mapping_of_keys_is_refused(values, problem):
         movingbase.load_scenario(NAME, set=values)
 
 
-def test_report_into_a_file_or_an_empty_path_is_refused(result, tmp_path):
-    """report(path) onto a file ended in FileExistsError; report("") wrote into the current folder."""
+def test_report_into_a_file_or_an_empty_path_is_refused(result, tmp_path, capsys):
+    """report(path) onto a file ended in FileExistsError; report("") wrote into the current
+    folder; a second report into one folder replaced the first without a word."""
+    result.report(tmp_path / "twice")
+    assert capsys.readouterr().out == ""
+    result.report(tmp_path / "twice")
+    assert "holds the results of an earlier run" in capsys.readouterr().out
     (tmp_path / "file").write_text("x")
     for path, problem in [(tmp_path / "file", "is a file, not a folder"), ("", "is empty"), (" ", "is empty"),
                           (123, "must be a path, got int")]:

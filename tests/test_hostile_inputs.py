@@ -484,3 +484,21 @@ def test_a_scenario_of_no_fmu_and_an_instance_without_fmu_are_refused():
     refused('stop_time = "1 s"\nstep = "1 ms"\nconnections = []\nfmus = {}\n', "fmus", "no FMU instance")
     refused('stop_time = "1 s"\nstep = "1 ms"\nconnections = []\n[fmus.x]\n', "fmus.x.fmu",
             "missing: which of the kit's FMUs this instance is")
+
+
+def test_an_unknown_variable_suggests_the_nearest(descriptions):
+    refused(edited(SLEW, ('lever_arm = "25 m"', 'lever_arn = "25 m"')), "fmus.base.parameters.lever_arn",
+            "has no variable 'lever_arn'; did you mean 'lever_arm'?", descriptions=descriptions)
+    refused(edited(SLEW, ('measured = "plant.leg_length"', 'measured = "plant.leg_lenght"')), "metrics[0].measured",
+            "did you mean 'leg_length'?", descriptions=descriptions)
+
+
+@pytest.mark.parametrize("name, problem", [
+    ("../../evil", "holds '/'"),            # its chart was written two folders above the run's folder, outside --out
+    ("a|b", "holds '|'"), ("", "is empty"), (".x", "starts with ."),
+    ("pose_error", "'pose error' would write the chart file of metrics[0] ('pose_error')"),   # pose_error_vs_time.png
+    ("Pose Error", "would write the chart file of metrics[0] ('Pose Error')"),                # on macOS and Windows
+])
+def test_a_metric_name_that_is_no_file_name_of_its_own_is_refused(name, problem):
+    key = "metrics[1].name" if "chart file" in problem else "metrics[0].name"
+    refused(edited(SLEW, ('name = "leg error"', f'name = "{name}"')), key, problem)
