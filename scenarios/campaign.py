@@ -30,7 +30,9 @@ one row per run, read back from the files.
 import argparse
 import csv
 import dataclasses
+import difflib
 import itertools
+import os
 import pathlib
 import sys
 from dataclasses import dataclass
@@ -301,9 +303,16 @@ SHIPPED = pathlib.Path(__file__).resolve().parent / "campaigns"
 
 def load(path, ci=False):
     """A campaign file, or the name of a shipped one (scenarios/campaigns/<name>.toml)."""
-    path = pathlib.Path(path)
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"a campaign is a file path or a shipped name, got {type(path).__name__} {path!r:.60}")
+    path = pathlib.Path(path).expanduser()
     if not path.exists() and path.suffix != ".toml" and (SHIPPED / f"{path}.toml").exists():
         path = SHIPPED / f"{path}.toml"
+    if not path.exists():
+        shipped = sorted(p.stem for p in SHIPPED.glob("*.toml"))
+        near = difflib.get_close_matches(path.stem.lower(), shipped, 1, 0.6)
+        raise CampaignError(str(path), "file", "does not exist; " + (f"did you mean {near[0]!r}? " if near else "")
+                            + f"shipped campaigns: {', '.join(shipped)}")
     return parse(spec.read_text(path, CampaignError, "campaign"), str(path), path.parent, ci)
 
 

@@ -560,8 +560,11 @@ def parse_data(data, source="<string>", overrides=None):
     if "fidelity_tolerance" in data:
         with problems.part():
             tolerance = _quantity(source, "fidelity_tolerance", data["fidelity_tolerance"], "N")
+            if tolerance < 0:     # no level is within it (choosing one ended in StopIteration)
+                raise ScenarioError(source, "fidelity_tolerance", f"{data['fidelity_tolerance']!r} is negative: "
+                                    "a leg-force error is at least 0 N (0 N: the full model)")
     for inst, params in parameters.items():
-        if params.get("fidelity") == "auto" and (fmus[inst] != "hexapod_plant" or tolerance is None):
+        if params.get("fidelity") == "auto" and (fmus[inst] != "hexapod_plant" or "fidelity_tolerance" not in data):
             problems.errors.append(ScenarioError(source, f"fmus.{inst}.parameters.fidelity",
                                    '"auto" needs a hexapod_plant and a top-level fidelity_tolerance (a force)'))
     problems.raise_any()

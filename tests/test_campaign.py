@@ -207,3 +207,10 @@ def test_runs_the_models_or_the_stability_limit_refuse_are_refused_before_any_ru
     assert "--allow-unstable" not in message and len(message.splitlines()) == 1, message
     good = _parse(body.replace('"-80 deg"', '"31.59 deg"').replace('"2.5 ms"', '"2 ms"'), tmp_path)
     assert len(list(campaign.jobs(good)[0])) == len(good.cases)
+
+
+def test_a_campaign_that_is_not_one_names_the_shipped_ones():
+    with pytest.raises(campaign.CampaignError, match="sky_slew: file: does not exist; did you mean 'sky_slews'"):
+        campaign.load("sky_slew")
+    with pytest.raises(TypeError, match="a campaign is a file path or a shipped name, got int 5"):
+        campaign.load(5)

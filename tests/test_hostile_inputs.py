@@ -502,3 +502,10 @@ def test_an_unknown_variable_suggests_the_nearest(descriptions):
 def test_a_metric_name_that_is_no_file_name_of_its_own_is_refused(name, problem):
     key = "metrics[1].name" if "chart file" in problem else "metrics[0].name"
     refused(edited(SLEW, ('name = "leg error"', f'name = "{name}"')), key, problem)
+
+
+def test_a_negative_fidelity_tolerance_is_refused():
+    """fidelity = "auto" with a negative tolerance ended in StopIteration (no level within it)."""
+    text = edited(SLEW, ('fidelity = "full"', 'fidelity = "auto"'), ('step = "1 ms"', 'step = "1 ms"\nfidelity_tolerance = "-1 N"'))
+    message = refused(text, "fidelity_tolerance", "'-1 N' is negative")
+    assert len(message.splitlines()) == 1, message      # not also "auto needs a fidelity_tolerance"
