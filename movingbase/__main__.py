@@ -62,12 +62,21 @@ def _command(argv):
         try:
             build(rest)    # it returns the output folder: not an exit status
         except OSError as exc:      # --out onto a file, a folder it may not write, a full disk
-            target = exc.filename or ""
-            why = "is a file, not a folder" if os.path.isfile(target) else exc.strerror or exc
-            return f"build error: {target}: {why}"
+            return f"build error: {_os_problem(exc)}"
         return None
     from .scenarios.headline import main as headline
-    return headline(rest)
+    try:
+        return headline(rest)
+    except OSError as exc:          # --from a folder without the full runs' results
+        return f"headline error: {_os_problem(exc)} (--from names the --out of the full runs: movingbase run)"
+    except (ValueError, KeyError) as exc:     # a metrics.json that is not the kit's
+        return f"headline error: --from {rest[-1] if rest else ''}: results that are not the full runs' ({exc!r:.200})"
+
+
+def _os_problem(exc):
+    """'<path>: <what>' of an OSError, a file where a folder belongs said so."""
+    target = exc.filename or ""
+    return f"{target}: {'is a file, not a folder' if os.path.isfile(target) else exc.strerror or exc}"
 
 
 if __name__ == "__main__":

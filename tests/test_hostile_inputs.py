@@ -509,3 +509,13 @@ def test_a_negative_fidelity_tolerance_is_refused():
     text = edited(SLEW, ('fidelity = "full"', 'fidelity = "auto"'), ('step = "1 ms"', 'step = "1 ms"\nfidelity_tolerance = "-1 N"'))
     message = refused(text, "fidelity_tolerance", "'-1 N' is negative")
     assert len(message.splitlines()) == 1, message      # not also "auto needs a fidelity_tolerance"
+
+
+def test_build_and_headline_folders_that_are_none_are_refused_naming_them(tmp_path):
+    """`movingbase build --out FILE` and `movingbase headline --from DIR` without the full
+    runs ended in tracebacks (FileExistsError, FileNotFoundError)."""
+    (tmp_path / "file").write_text("x")
+    status, _, err = _cli(tmp_path, "--out", tmp_path / "file", command="build")
+    assert status == 1 and f"build error: {tmp_path / 'file'}: is a file, not a folder" in err, err
+    status, _, err = _cli(tmp_path, "--from", tmp_path / "nope", command="headline")
+    assert status == 1 and "headline error: " in err and "No such file or directory" in err, err
