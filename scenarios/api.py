@@ -155,9 +155,12 @@ class RunResult:
         if name == "time" or name in self.records.names:
             return self.records[name]
         parts = [n for n in self.records.names if n.startswith(name + "[")]
+        if not parts and not self.records.names and self.run.failure:
+            raise KeyError(f"run {self.label}: nothing was recorded, the run failed before its first row: "
+                           f"{self.run.failure}")
         if not parts:
             raise KeyError(f"run {self.label}: no recorded variable {name!r}; recorded: "
-                           f"{', '.join(self.records.names)}")
+                           f"{', '.join(self.records.names) or 'nothing (the scenario records no variable)'}")
         return np.column_stack([self.records[n] for n in parts])
 
     def to_pandas(self) -> pandas.DataFrame:

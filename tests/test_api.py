@@ -310,3 +310,13 @@ def test_a_scenario_that_is_not_one_is_refused_naming_the_shipped_ones(scenario,
     with pytest.raises((spec.ScenarioError, TypeError)) as error:
         movingbase.load_scenario(scenario)
     assert problem in str(error.value), str(error.value)
+
+
+def test_a_run_that_failed_before_recording_says_so_where_its_series_is_asked():
+    """A pose out of reach at the start: every method still answers; asking for a series
+    said only "no recorded variable 'plant.pose'; recorded: " (nothing)."""
+    ran = movingbase.run("telescope_slew", ci=True, progress=False, set={"plant.initial_pose": [0, 0, 0.43, 0, 0, 0]})
+    run = ran["none"]
+    assert not run.ok and len(run.time) == 0 and ran.to_pandas().shape[0] == 0
+    with pytest.raises(KeyError, match="nothing was recorded, the run failed before its first row: .*exitInitial"):
+        run["plant.pose"]
