@@ -16,14 +16,9 @@ from .fmi import FmuFileError
 from .records import run_records
 from .report import CHARTS
 from .resources import ResourceError, check_jobs
-from .runner import SHIPPED, OutputError, not_found, prepare, resolve, run_scenario
+from .runner import OutputError, not_found, prepare, resolve, run_scenario, shipped_names
 from .spec import IMPLEMENTATIONS, ScenarioError, sweep_value
 from .ssp import export_ssp
-
-
-def shipped_names():
-    """Names of the scenario files shipped in scenarios/files/."""
-    return sorted(p.stem for p in SHIPPED.glob("*.toml"))
 
 
 def main(argv=None, prog="movingbase run"):

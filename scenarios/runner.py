@@ -31,10 +31,15 @@ def resolve(name):
     return next((c for c in candidates if c.is_file()), path)
 
 
+def shipped_names():
+    """Names of the scenario files shipped in scenarios/files/."""
+    return sorted(p.stem for p in SHIPPED.glob("*.toml"))
+
+
 def not_found(names):
     """What to say of names that are neither a scenario file nor a shipped scenario: the
     shipped names, and the nearest one where a name is close ("telescope_slew ")."""
-    shipped = sorted(p.stem for p in SHIPPED.glob("*.toml"))
+    shipped = shipped_names()
     near = [difflib.get_close_matches(str(n).strip().lower(), shipped, 1, 0.6) for n in names]
     hints = "".join(f"; did you mean {m[0]!r} for {n!r}?" for n, m in zip(names, near) if m)
     return (f"no scenario file or shipped scenario named {', '.join(map(repr, names))}{hints}; "

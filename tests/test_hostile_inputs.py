@@ -11,7 +11,7 @@ import zipfile
 
 import pytest
 
-from movingbase.scenarios import campaign, engine, fmi, resources, runner, spec
+from movingbase.scenarios import api, campaign, engine, fmi, resources, runner, spec
 from movingbase.scenarios.fmi import unpack
 from movingbase.scenarios.units import to_si
 from tests.test_scenario_errors import SLEW, edited, refused
@@ -446,6 +446,8 @@ def test_a_file_name_of_spaces_and_accents_names_its_scenario(tmp_path):
     for stem in ("my slew", "élan"):
         assert spec.parse(text, f"{stem}.toml").name == stem
         assert runner.output_folder(tmp_path, f"{stem}.toml") == tmp_path / stem
+        (tmp_path / f"{stem}.toml").write_text(text)       # and as a Scenario object in Python
+        assert api.load_scenario(api.load_scenario(tmp_path / f"{stem}.toml")).name == stem
     refused(edited(SLEW, ('name = "telescope_slew"', 'name = "my/slew"')), "name", "not a path")
 
 
