@@ -198,6 +198,7 @@ def parse(text, source="<string>", base_dir=".", ci=False):
         axes.append(("scenario sweep", [sweep_key], [(v,) for v in base.sweep[1]]))
 
     descriptions = _descriptions(base)
+    fixed_top = {k: v for k, v in fixed.items() if k in SCENARIO_KEYS}
     checked = {}                    # (key, repr(value)) -> the value converted, once checked
 
     def check(where, key, value):
@@ -207,7 +208,7 @@ def parse(text, source="<string>", base_dir=".", ci=False):
     def converted(where, key, value):
         if key in SCENARIO_KEYS:
             try:
-                spec.load(path, overrides={key: value})
+                spec.load(path, overrides={**fixed_top, key: value})   # with set's start_time, stop_time, ...
             except spec.ScenarioError as exc:
                 raise CampaignError(source, where, str(exc).removeprefix(f"{path}: ")) from None
             return spec.to_si(value, "s") if _is_quantity(value) else value
@@ -334,15 +335,21 @@ class CampaignJobs:
         marker = repr(sorted(top.items()))
         if marker not in self._bound:
             c = self.campaign
-            scenario = spec.load(c.scenario_path, overrides=top)
-            if any(p.get("fidelity") == "auto" for p in scenario.parameters.values()):
-                raise CampaignError(c.source, "scenario", 'a plant fidelity "auto" is chosen per scenario '
-                                    'run; a campaign names a fidelity level (set "plant.fidelity")')
-            paths = fmu_paths(scenario)     # each instance's implementation, as the scenario says
-            digests = {inst: engine.file_digest(p) for inst, p in paths.items()}
-            self.files.update({digests[inst]: p for inst, p in paths.items()})
-            descriptions = {inst: description(p) for inst, p in paths.items()}
-            self._bound[marker] = (scenario, spec.bind(scenario, descriptions), descriptions, digests)
+            try:
+                scenario = spec.load(c.scenario_path, overrides=top)
+                if any(p.get("fidelity") == "auto" for p in scenario.parameters.values()):
+                    raise CampaignError(c.source, "scenario", 'a plant fidelity "auto" is chosen per scenario '
+                                        'run; a campaign names a fidelity level (set "plant.fidelity")')
+                paths = fmu_paths(scenario)     # each instance's implementation, as the scenario says
+                digests = {inst: engine.file_digest(p) for inst, p in paths.items()}
+                self.files.update({digests[inst]: p for inst, p in paths.items()})
+                descriptions = {inst: description(p) for inst, p in paths.items()}
+                self._bound[marker] = (scenario, spec.bind(scenario, descriptions), descriptions, digests)
+            except CampaignError:
+                raise
+            except spec.ScenarioError as exc:    # the settings of some runs together, told as the campaign's
+                where = ", ".join(f"{k} = {v!r}" for k, v in sorted(top.items()))
+                raise CampaignError(c.source, f"runs of {where}" if top else "scenario", str(exc)) from None
         return self._bound[marker]
 
     def _case(self, case):

@@ -214,3 +214,16 @@ def test_a_campaign_that_is_not_one_names_the_shipped_ones():
         campaign.load("sky_slew")
     with pytest.raises(TypeError, match="a campaign is a file path or a shipped name, got int 5"):
         campaign.load(5)
+
+
+def test_set_s_top_level_keys_are_checked_together_and_bind_errors_are_the_campaign_s(tmp_path):
+    """set's start_time was checked against the scenario's own stop_time ("stop_time must be
+    after start_time"), and a setting refused when binding was told of the scenario file."""
+    c = _parse(HEAD + 'set = { start_time = "100 s", stop_time = "108 s" }\n', tmp_path)
+    assert {case.values["start_time"] for case in c.cases} == {"100 s"}
+    c = _parse(HEAD + 'set = { extrapolation = "derivatives" }\n', tmp_path)
+    with pytest.raises(campaign.CampaignError) as info:
+        campaign.jobs(c)
+    message = str(info.value)
+    assert message.startswith(f"{tmp_path / 'c.toml'}: runs of extrapolation = 'derivatives': ") and \
+        'extrapolation: "derivatives" takes the output derivatives of FMI 3 FMUs' in message, message
