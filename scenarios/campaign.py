@@ -147,9 +147,8 @@ def parse(text, source="<string>", base_dir=".", ci=False):
         raise CampaignError(source, "scenario", "missing: name a shipped scenario or a scenario file")
     name = spec.check_name(source, "name", data["name"], CampaignError) if "name" in data else \
         pathlib.Path(source).stem       # the file's own name needs no check: it is one
-    path = resolve(data["scenario"])
-    if not path.exists() and (pathlib.Path(base_dir) / data["scenario"]).exists():
-        path = pathlib.Path(base_dir) / data["scenario"]
+    beside = resolve(pathlib.Path(base_dir) / data["scenario"])   # relative to this file first: a file of that
+    path = beside if beside.is_file() else resolve(data["scenario"])   # name in the current folder was taken
     if not path.exists():
         raise CampaignError(source, "scenario", f"{data['scenario']!r} is neither a shipped scenario nor a file")
     fixed = _flat(_table(source, "set", data.get("set", {})))

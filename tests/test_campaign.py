@@ -227,3 +227,16 @@ def test_set_s_top_level_keys_are_checked_together_and_bind_errors_are_the_campa
     message = str(info.value)
     assert message.startswith(f"{tmp_path / 'c.toml'}: runs of extrapolation = 'derivatives': ") and \
         'extrapolation: "derivatives" takes the output derivatives of FMI 3 FMUs' in message, message
+
+
+def test_the_scenario_is_found_beside_the_campaign_file_first(tmp_path, monkeypatch):
+    """A scenario path is relative to the campaign file (docs/campaigns.md); a file of that
+    name in the current folder was taken instead, silently."""
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "slew.toml").write_text(runner.resolve("telescope_slew").read_text())
+    (tmp_path / "slew.toml").write_text(runner.resolve("paper_manoeuvre").read_text())
+    (tmp_path / "mine" / "c.toml").write_text('scenario = "slew"\n')
+    monkeypatch.chdir(tmp_path)
+    assert campaign.load(tmp_path / "mine" / "c.toml").scenario_path == tmp_path / "mine" / "slew.toml"
+    (tmp_path / "mine" / "shipped.toml").write_text('scenario = "telescope_slew"\n')
+    assert campaign.load(tmp_path / "mine" / "shipped.toml").scenario_path == runner.resolve("telescope_slew")
