@@ -222,10 +222,10 @@ def check(scenario, prediction, allow_unstable=False):
 # ------------------------------------------------------------------ during the run
 class Watch:
     """Detectors fed every recorded row (``feed``, in the recorder's blocks; rows buffered
-    and evaluated BLOCK at a time, as the metrics do), per ``window`` of time: the envelope of the leg forces' and
-    lengths' second difference (an oscillation; a smooth motion keeps it small), rows
-    with a force at its limit, the legs' extent into their stroke, non-finite values.
-    Memory: a few numbers per window."""
+    and evaluated BLOCK at a time, as the metrics do), per ``window`` of time: the
+    envelope of the leg forces' and lengths' second difference (an oscillation; a smooth
+    motion keeps it small), rows with a force at its limit, the legs' extent into their
+    stroke, non-finite values. Memory: a few numbers per window."""
 
     BLOCK = 256
 

@@ -44,8 +44,9 @@ def _largest(rows):
 
 class _Metric:
     """Running RMS, peak and decimated series of per-row errors. A subclass buffers the
-    rows its ``needs`` name (``feed``: the recorder's blocks; ``update``: one row) and turns a block of them into errors at once
-    (``_evaluate``); the sums then run row by row in time order, as one row at a time did."""
+    rows its ``needs`` name (``feed``: the recorder's blocks; ``update``: one row) and
+    turns a block of them into errors at once (``_evaluate``); the sums then run row by
+    row in time order, as one row at a time did."""
 
     scale, unit = 1.0, ""
     start = 0.0      # updates before this time are ignored (settling)
@@ -72,7 +73,8 @@ class _Metric:
         self._block.add(t, list(zip(columns, self._where)), self._flush)
 
     def update(self, t, values):
-        """One row: {need: its values}."""
+        """One row given by name, {need: its values} (a caller without the recorder's
+        blocks): a block of one row."""
         self.feed(np.array([t]), [np.reshape(values[name], (1, -1)) for name in self.needs])
 
     def _flush(self):
