@@ -7,12 +7,13 @@ blocks. The sums, the peak and the series still run row by row in time order, so
 numbers equal one-row-at-a-time evaluation.
 
 Kinds (scenario key ``kind``):
-* ``leg_tracking``: measured leg lengths against the legs of the reference pose
+* ``leg_tracking``: measured leg lengths [m] against the legs of the reference pose
   (inverse kinematics of the hexapod), in µm.
 * ``pose_tracking``: platform pose against the reference pose: position error norm [µm]
   and rotation error angle [µrad].
-* ``tracking``: any measured vector against a reference vector of the same size [µm].
-* ``peak``: largest |value| of a variable [kN].
+* ``tracking``: any measured vector of lengths [m] against a reference vector of the same
+  size [µm].
+* ``peak``: largest |value| of a force variable [N], in kN.
 * ``base_effect``: along the reference motion and the base motion, the peak leg-force
   change the base motion causes, split into gravity turning with the base and the
   transport/centripetal/Coriolis terms (inverse dynamics at three fidelities) [kN].
