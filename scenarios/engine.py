@@ -7,8 +7,9 @@ Why this shape:
 * A run is a ``Job``: the checked scenario, its bound parameter values, and the content
   digest of every FMU it needs (scenarios.fmi.content_digest: the same for two builds of
   the same sources). Its key is a hash of exactly what decides its numbers (time grid,
-  master, connections, recording, metrics, parameters, FMU contents), so a result on disk
-  is found again by any later campaign that asks for the same run, after a rebuild too.
+  master, connections, recording, metrics, parameters, FMU contents, the kit's own code:
+  ``code_digest``), so a result on disk is found again by any later campaign that asks
+  for the same run, after a rebuild too, and never by other code.
 * The FMU files travel once to every worker (scattered, not per task); each worker
   process writes them to a local folder and extracts each once (``scenarios.fmi.unpack``
   caches by path). A run then instantiates its FMUs from the extracted folders: ~13 ms
@@ -31,7 +32,9 @@ through JSON as their repr (exact) and series through npz.
 import atexit
 import contextlib
 import dataclasses
+import functools
 import hashlib
+import importlib.util
 import json
 import logging
 import os
@@ -128,10 +131,32 @@ class Job:
             object.__setattr__(self, "key", run_key(self.scenario, self.parameters, self.fmus))
 
 
+def code_digest(roots=None):
+    """SHA-256 of the kit's own sources (.py, .c, .h under ``roots``, by default the folders of
+    movingbase.plant, controller, fmu_src and scenarios): what decides a run's numbers beside
+    its FMUs and settings (the master, metrics and flags; for the pythonfmu FMUs the models
+    themselves, which they import from this package at run time, so their FMU files stay the
+    same when the physics changes). An edited or upgraded kit's results on disk are run again."""
+    if roots is None:
+        return _package_digest()
+    digest = hashlib.sha256()
+    for root in map(pathlib.Path, roots):
+        for path in sorted(p for p in root.rglob("*") if p.suffix in (".py", ".c", ".h") and p.is_file()
+                           and "__pycache__" not in p.parts):
+            digest.update(f"{path.relative_to(root.parent)}:{path.stat().st_size}:".encode() + path.read_bytes())
+    return digest.hexdigest()
+
+
+@functools.cache
+def _package_digest():
+    return code_digest([importlib.util.find_spec(f"movingbase.{name}").submodule_search_locations[0]
+                        for name in ("plant", "controller", "fmu_src", "scenarios")])
+
+
 def run_key(scenario, parameters, fmus):
     """Hash of what decides a run's numbers; names, descriptions and the file's path do not."""
     s = scenario
-    what = {"time": [s.start_time, s.stop_time, s.step], "master": s.master, "extrapolation": s.extrapolation,
+    what = {"code": code_digest(), "time": [s.start_time, s.stop_time, s.step], "master": s.master, "extrapolation": s.extrapolation,
             "fmus": {inst: [s.fmus[inst], fmus[inst]] for inst in sorted(s.fmus)},
             "connections": s.connections, "record": [s.record_interval, s.record],
             "metrics": [[m.name, m.kind, m.args, m.start] for m in s.metrics],

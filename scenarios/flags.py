@@ -31,6 +31,7 @@ import numpy as np
 from movingbase.controller import design
 from movingbase.plant.stewart import FIDELITIES, HOME_POSE, StewartParams, dynamics_terms
 from . import fidelity as scene_fidelity
+from .records import Block
 from .spec import ScenarioError
 
 POSES = 9             # poses along the reference motion at which the leg-space masses are taken
@@ -220,11 +221,11 @@ def check(scenario, prediction, allow_unstable=False):
 
 # ------------------------------------------------------------------ during the run
 class Watch:
-    """Detectors fed every recorded row (``feed``; rows buffered and evaluated BLOCK at a
-    time, as the metrics do), per ``window`` of time: the envelope of the leg forces' and
-    lengths' second difference (an oscillation; a smooth motion keeps it small), rows
-    with a force at its limit, the legs' extent into their stroke, non-finite values.
-    Memory: a few numbers per window."""
+    """Detectors fed every recorded row (``feed``, in the recorder's blocks; rows buffered
+    and evaluated BLOCK at a time, as the metrics do), per ``window`` of time: the
+    envelope of the leg forces' and lengths' second difference (an oscillation; a smooth
+    motion keeps it small), rows with a force at its limit, the legs' extent into their
+    stroke, non-finite values. Memory: a few numbers per window."""
 
     BLOCK = 256
 
@@ -239,7 +240,7 @@ class Watch:
         self.tail = {}                # the last two rows of forces and lengths before this block
         self.non_finite = None        # time of the first non-finite row
         self.rows = 0
-        self._t, self._rows, self._filled = np.empty(self.BLOCK), None, 0
+        self._block = None
 
     @classmethod
     def for_scenario(cls, scenario, descriptions, values):
@@ -258,21 +259,17 @@ class Watch:
         """The recorder's columns of each recorded reference."""
         self.slices = slices
 
-    def feed(self, t, row):
-        """One recorded row (the recorder's whole row, copied)."""
-        if self._rows is None:
-            self._rows, self.t0 = np.empty((self.BLOCK, len(row))), t
-        self._rows[self._filled] = row
-        self._t[self._filled] = t
-        self._filled += 1
-        if self._filled == self.BLOCK:
-            self._flush()
+    def feed(self, t, rows):
+        """Recorded rows (n, the recorder's whole row, copied) at times t (n,)."""
+        if self._block is None:
+            self._block, self.t0 = Block(self.BLOCK, rows.shape[1]), float(t[0])
+        self._block.add(t, [(rows, slice(None))], self._flush)
 
     def _flush(self):
-        n, self._filled = self._filled, 0
-        if not n:
+        if self._block is None or not self._block.filled:
             return
-        t, rows = self._t[:n], self._rows[:n]
+        t, rows = self._block.take()
+        n = len(t)
         self.rows += n
         if self.non_finite is None and not np.isfinite(rows).all():
             self.non_finite = float(t[np.argmin(np.isfinite(rows).all(axis=1))])

@@ -7,14 +7,16 @@ the other in an order taken from the connection graph (sources first; a cycle is
 at the FMU declared first in the file), each seeing the outputs already computed for
 t_k+1. Linear extrapolation replaces a held input u_k by the mean of its linear
 extrapolation over the coming step, u_k + (u_k - u_k-1) / 2, for inputs whose source has
-not yet stepped. The stepping runs in C (scenarios/c/cosim.c, class Loop) between the
-record points; Python sets up, records, feeds the metrics and reports.
+not yet stepped. The stepping and the reading of the recorded values run in C
+(scenarios/c/cosim.c, class Loop), many record points per call; Python sets up, hands the
+blocks of rows to the records, the metrics and the watch, and reports.
 
 Every FMI call is status-checked (scenarios.fmi); a Discard/Error stops the run with
 RunFailed: one line naming the instance, the time and the FMU's error log line, and the
 run so far (the rows recorded so far are kept and written, the metrics cover them).
 Records go into arrays preallocated for the record grid (scenarios.records), written once
-as npz; metrics keep running sums.
+as npz; metrics keep running sums. A failed read of a recorded value stops the run as a
+failed step does, the rows before it kept.
 """
 import ctypes
 import pathlib
@@ -151,13 +153,16 @@ class Loop:
     of t_k, optionally extrapolated) or Gauss-Seidel (in ``order``, inputs whose source
     has not stepped yet extrapolated). A Python loop making the same calls cost ~16 us
     more per macro step of three FMUs (benchmarks/bench_scenarios.py); this adds under
-    0.3 us to the FMUs' own work (benchmarks/bench_native.py, empty FMUs)."""
+    0.3 us to the FMUs' own work (benchmarks/bench_native.py, empty FMUs). With a
+    ``recorder`` it also reads the recorded values after every ``every``-th step into
+    the recorder's block, one getReal (getFloat64) per instance, as Python read them at
+    ~13 us a row."""
 
     _CALLS = ("setReal", "doStep", "getReal")
 
     EXTRAPOLATIONS = {"none": 0, "linear": 1, "derivatives": 2}   # cosim_master.extrapolate
 
-    def __init__(self, exchange, instances, order, gauss_seidel, extrapolate, t0, h):
+    def __init__(self, exchange, instances, order, gauss_seidel, extrapolate, t0, h, recorder=None, every=0):
         self.instances = [instances[inst] for inst in order]
         self._keep = [exchange.y, exchange.y_prev]          # everything the C structs point into
         order_of = np.zeros(max(1, exchange.y.size), dtype=np.intc)   # per y: derivatives its source gives
@@ -210,6 +215,8 @@ class Loop:
         m.y_order = ffi.cast("int *", self._view(order_of))
         m.y_d1, m.y_d2 = self._new("double[]", order_of.size), self._new("double[]", order_of.size)
         self.master, self.fmus = m, fmus
+        if recorder:
+            self._recording(recorder, every)
         self.derivatives = int(np.count_nonzero(order_of))     # how many outputs are extrapolated by them
 
     def _derivatives(self, g, instance, port, at, order_of):
@@ -232,6 +239,25 @@ class Loop:
             d.src, d.dst = self._new("size_t[]", [p[0] for p in pairs]), self._new("size_t[]", [p[1] for p in pairs])
             d.n = len(pairs)
 
+    def _recording(self, recorder, every):
+        """Point the C loop at the recorder's reads (cosim_record: per instance its
+        elements, FMI 3 planned as RealPort3 plans them) and at its block of rows."""
+        m = self.master
+        records = self._new("cosim_record[]", len(recorder.reads))
+        for r, (instance, names, columns) in zip(records, recorder.reads):
+            vrs = [instance.vr(n) for n in names]
+            total, index = len(vrs), range(len(vrs))
+            if isinstance(instance, Instance3):
+                vrs, total, index = instance.plan(vrs)
+            r.fmu = self.instances.index(instance)
+            r.vr, r.n_vr = self._new("unsigned int[]", list(vrs)), len(vrs)
+            r.values, r.n_values = self._new("double[]", total), total
+            r.index, r.column = self._new("size_t[]", list(index)), self._new("size_t[]", columns)
+            r.n = len(names)
+        m.records, m.n_records, m.every = records, len(recorder.reads), every
+        m.rows = ffi.cast("double *", self._view(recorder.block))
+        m.capacity, m.n_columns = recorder.block.shape
+
     def _view(self, array):
         value = ffi.from_buffer(array)
         self._keep.append(value)
@@ -244,12 +270,22 @@ class Loop:
 
     def steps(self, k, count):
         """Run macro steps k .. k+count-1; returns how many completed (fewer: a call
-        answered above Warning, see ``check``). Each instance's time becomes that of its
-        last doStep, as Instance.do_step sets it, for the error message."""
+        answered above Warning, see ``check``, or the recorder's block is full). Each
+        instance's time becomes that of its last doStep, as Instance.do_step sets it, for
+        the error message."""
         done = lib.cosim_steps(self.master, k, count)
         for f, instance in zip(self.fmus, self.instances):
             instance.time = f.time
         return done
+
+    def record_row(self):
+        """Read one row now (the run's first) into the recorder's block."""
+        lib.cosim_record_row(self.master)
+
+    @property
+    def rows(self):
+        """How many rows the last ``steps`` or ``record_row`` put into the recorder's block."""
+        return self.master.n_rows
 
     def check(self):
         """Raise the FmuError of the call that stopped the last ``steps``, if any, as the
@@ -260,10 +296,13 @@ class Loop:
 
 
 class Recorder:
-    """Recorded variables into preallocated arrays (scenarios.records: one row per record
-    point, units with the names; no per-float formatting), read with one FMI call per
-    instance; metrics and the watch (scenarios.flags.Watch) fed at each row. What only the
-    watch needs is read but not recorded."""
+    """Recorded variables, read by the C loop (Loop) into ``block`` a row per record
+    point, one FMI call per instance, and handed over a block at a time (``take``) to
+    preallocated arrays (scenarios.records: one row per record point, units with the
+    names), the metrics and the watch (scenarios.flags.Watch). What only the watch needs
+    is read but not recorded."""
+
+    ROWS = 256   # the most rows one C call records before it returns them
 
     def __init__(self, scenario, instances, metrics, rows, watch=None):
         md = {inst: i.variables for inst, i in instances.items()}
@@ -278,27 +317,28 @@ class Recorder:
                 columns.setdefault(inst, []).append((n, len(names)))
                 names.append(f"{inst}.{n}")
                 units.append(md[inst][n].unit or "1")
-        kept = self.slices[wanted[-1]].stop if wanted else 0
-        self.ports = [(RealPort(instances[inst], [n for n, _ in cols]), np.array([j for _, j in cols]))
-                      for inst, cols in columns.items()]
-        self.records = Records(names[:kept], units[:kept], rows)
-        self.row = np.zeros(len(names))
-        self.written = self.row[:kept]
-        self.values = {ref: self.row[s] for ref, s in self.slices.items()}   # views of row
-        self.metrics = metrics
+        self.kept = self.slices[wanted[-1]].stop if wanted else 0
+        self.reads = [(instances[inst], [n for n, _ in cols], [j for _, j in cols]) for inst, cols in columns.items()]
+        self.records = Records(names[:self.kept], units[:self.kept], rows)
+        self.block = np.zeros((min(self.ROWS, rows), len(names)))
+        self.metrics = [(m, [self.slices[n] for n in m.needs]) for m in metrics]
         self.watch = watch
         if watch:
             watch.bind(self.slices)
 
-    def record(self, t):
-        for port, where in self.ports:
-            self.row[where] = port.read()
-        self.records.append(t, self.written)
-        for metric in self.metrics:
-            if t >= metric.start - 1e-12:
-                metric.update(t, self.values)
+    def take(self, t, n):
+        """The block's first n rows, recorded at times t (n,): into the records, to each
+        metric from its start time, to the watch."""
+        if not n:
+            return
+        rows = self.block[:n]
+        self.records.extend(t, rows[:, :self.kept])
+        for metric, where in self.metrics:
+            first = int(np.searchsorted(t, metric.start - 1e-12))   # t >= start - 1e-12 from here
+            if first < n:
+                metric.feed(t[first:], [rows[first:, s] for s in where])
         if self.watch:
-            self.watch.feed(t, self.row)
+            self.watch.feed(t, rows)
 
 
 def start(scenario, fmu_paths, parameters, instances):
@@ -341,20 +381,23 @@ def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), p
         watch = run_flags.Watch.for_scenario(scenario, {k: i.md for k, i in instances.items()}, parameters)
         recorder = Recorder(scenario, instances, list(metrics), steps // every + 1, watch)
         order = step_order(scenario, parameters) if scenario.master == "gauss-seidel" else list(scenario.fmus)
-        loop = Loop(exchange, instances, order, scenario.master == "gauss-seidel", scenario.extrapolation, t0, h)
+        loop = Loop(exchange, instances, order, scenario.master == "gauss-seidel", scenario.extrapolation, t0, h,
+                    recorder, every)
         tick = max(1, steps // 200)
         exchange.read()
         exchange.y_prev[:] = exchange.y
-        recorder.record(t0)
+        loop.record_row()
+        recorder.take(np.array([t0]), loop.rows)
+        loop.check()
         began, cpu_began = time.perf_counter(), time.thread_time()
-        while done < steps:   # C runs the steps up to the next record (or progress) point
-            stop = min(steps, (done // every + 1) * every, done + CHUNK)
+        while done < steps:   # C runs the steps and records their rows, up to a progress point or a full block
+            stop = min(steps, done + CHUNK)
             if progress:
                 stop = min(stop, (done - 1) // tick * tick + tick + 1)   # after step k with k % tick == 0
+            first = done // every + 1   # the record point the next row is taken at
             done += loop.steps(done, stop - done)
+            recorder.take(t0 + (first + np.arange(loop.rows)) * every * h, loop.rows)
             loop.check()
-            if done % every == 0:
-                recorder.record(t0 + done * h)
             if progress and (done - 1) % tick == 0:
                 progress((done - 1) / steps)
     except FmuError as error:

@@ -1,18 +1,19 @@
 """Metrics computed while a run streams: running RMS and peak, plus a decimated time
 series for the charts (at most MAX_POINTS points, so memory stays flat on long runs).
-A metric copies each row it is fed into a block of BLOCK rows and evaluates a full block
+A metric copies the rows it is fed into a block of BLOCK rows and evaluates a full block
 (and what is left at result()/series()) with batched plant calls: the paper manoeuvre's
 four metrics took 60-130 µs per recorded row evaluated one row at a time, 10-20 µs in
 blocks. The sums, the peak and the series still run row by row in time order, so the
 numbers equal one-row-at-a-time evaluation.
 
 Kinds (scenario key ``kind``):
-* ``leg_tracking``: measured leg lengths against the legs of the reference pose
+* ``leg_tracking``: measured leg lengths [m] against the legs of the reference pose
   (inverse kinematics of the hexapod), in µm.
 * ``pose_tracking``: platform pose against the reference pose: position error norm [µm]
   and rotation error angle [µrad].
-* ``tracking``: any measured vector against a reference vector of the same size [µm].
-* ``peak``: largest |value| of a variable [kN].
+* ``tracking``: any measured vector of lengths [m] against a reference vector of the same
+  size [µm].
+* ``peak``: largest |value| of a force variable [N], in kN.
 * ``base_effect``: along the reference motion and the base motion, the peak leg-force
   change the base motion causes, split into gravity turning with the base and the
   transport/centripetal/Coriolis terms (inverse dynamics at three fidelities) [kN].
@@ -24,6 +25,8 @@ import numpy as np
 from movingbase.plant.errors import PlantError
 from movingbase.plant.rotations import rpy_matrix
 from movingbase.plant.stewart import StewartParams, inverse_dynamics, inverse_kinematics
+
+from .records import Block
 
 MAX_POINTS = 4000
 BLOCK = 256   # rows buffered per metric, then evaluated at once by the batched plant calls
@@ -42,8 +45,9 @@ def _largest(rows):
 
 class _Metric:
     """Running RMS, peak and decimated series of per-row errors. A subclass buffers the
-    rows its ``needs`` name (``update``) and turns a block of them into errors at once
-    (``_evaluate``); the sums then run row by row in time order, as one row at a time did."""
+    rows its ``needs`` name (``feed``: the recorder's blocks; ``update``: one row) and
+    turns a block of them into errors at once (``_evaluate``); the sums then run row by
+    row in time order, as one row at a time did."""
 
     scale, unit = 1.0, ""
     start = 0.0      # updates before this time are ignored (settling)
@@ -56,36 +60,36 @@ class _Metric:
         self.peak = 0.0
         self.t, self.values = [], []
         self.stride, self._countdown = 1, 1
-        self._times, self._rows, self._filled = np.empty(BLOCK), None, 0
+        self._block = None
+
+    def feed(self, t, columns):
+        """Rows at times t (n,): ``columns`` holds each need's values (n, its size),
+        copied into the block (the caller may overwrite its arrays afterwards); each
+        full block is evaluated."""
+        if self._block is None:
+            ends = np.cumsum([0] + [np.shape(c)[1] for c in columns]).tolist()
+            self._where = [slice(a, b) for a, b in zip(ends, ends[1:])]
+            self._cuts = ends[1:-1]
+            self._block = Block(BLOCK, ends[-1])
+        self._block.add(t, list(zip(columns, self._where)), self._flush)
 
     def update(self, t, values):
-        """Copy this row's needs into the block (the caller may overwrite its arrays
-        afterwards); a full block is evaluated."""
-        if self._rows is None:
-            ends = np.cumsum([0] + [np.size(values[name]) for name in self.needs]).tolist()
-            self._where = [(name, slice(a, b)) for name, a, b in zip(self.needs, ends, ends[1:])]
-            self._cuts = ends[1:-1]
-            self._rows = np.empty((BLOCK, ends[-1]))
-        row = self._rows[self._filled]
-        for name, where in self._where:
-            row[where] = values[name]
-        self._times[self._filled] = t
-        self._filled += 1
-        if self._filled == BLOCK:
-            self._flush()
+        """One row given by name, {need: its values} (a caller without the recorder's
+        blocks): a block of one row."""
+        self.feed(np.array([t]), [np.reshape(values[name], (1, -1)) for name in self.needs])
 
     def _flush(self):
         """Evaluate the buffered rows. If the batched call refuses the block (a singular
         pose, NaN), the rows go one at a time: those before the bad one are counted and
         its error is raised, as when each row was evaluated on arrival."""
-        n, self._filled = self._filled, 0
-        if not n:
+        if self._block is None or not self._block.filled:
             return
+        times, rows = self._block.take()
         try:
-            self._evaluate(self._times[:n], np.split(self._rows[:n], self._cuts, axis=1))
+            self._evaluate(times, np.split(rows, self._cuts, axis=1))
         except PlantError:
-            for k in range(n):
-                self._evaluate(self._times[k:k + 1], np.split(self._rows[k:k + 1], self._cuts, axis=1))
+            for k in range(len(times)):
+                self._evaluate(times[k:k + 1], np.split(rows[k:k + 1], self._cuts, axis=1))
             raise
 
     def _accumulate(self, t, errors):

@@ -41,11 +41,12 @@ class Records:
         records.count = len(records._data)
         return records
 
-    def append(self, t: float, row: np.ndarray) -> None:
-        """Add one row (a full grid's worth of rows was preallocated)."""
-        self._data[self.count, 0] = t
-        self._data[self.count, 1:] = row
-        self.count += 1
+    def extend(self, t: np.ndarray, rows: np.ndarray) -> None:
+        """Add rows (n, columns) at times t (n,) (a full grid's worth of rows was preallocated)."""
+        stop = self.count + len(t)
+        self._data[self.count:stop, 0] = t
+        self._data[self.count:stop, 1:] = rows
+        self.count = stop
 
     @property
     def time(self) -> np.ndarray:
@@ -88,6 +89,35 @@ class Records:
             f.write(",".join(self.header) + "\r\n")
             f.writelines(",".join(map(repr, row)) + "\r\n" for row in self._data[:self.count].tolist())
         return path
+
+
+class Block:
+    """Recorded rows buffered for an evaluation a block at a time (scenarios.metrics,
+    flags.Watch): ``size`` rows of ``width`` values and their times. ``add`` copies rows in
+    slices and calls ``full()`` whenever the block fills, so blocks end at the same row
+    counts however the rows arrive (one at a time or many)."""
+
+    def __init__(self, size: int, width: int):
+        self.t, self.rows, self.filled = np.empty(size), np.empty((size, width)), 0
+
+    def add(self, t: np.ndarray, parts: Sequence[tuple[np.ndarray, Any]], full: Any) -> None:
+        """Rows at times t (n,); ``parts``: (values (n, w), the block's columns they go to)."""
+        done = 0
+        while done < len(t):
+            n = min(len(self.t) - self.filled, len(t) - done)
+            at = slice(self.filled, self.filled + n)
+            self.t[at] = t[done:done + n]
+            for values, columns in parts:
+                self.rows[at, columns] = values[done:done + n]
+            self.filled += n
+            done += n
+            if self.filled == len(self.t):
+                full()
+
+    def take(self) -> tuple[np.ndarray, np.ndarray]:
+        """(times, rows) buffered, views of the block, which starts empty again."""
+        n, self.filled = self.filled, 0
+        return self.t[:n], self.rows[:n]
 
 
 def read_records(path: str | os.PathLike[str]) -> Records:

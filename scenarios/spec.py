@@ -53,6 +53,16 @@ METRIC_KINDS = {  # kind -> required keys
     "peak": ("variable",),
     "base_effect": ("base", "reference"),
 }
+_POSE = ("m", "m", "m", "rad", "rad", "rad")
+# kind -> {argument: the unit of each of its values (one string: of every value)}: what the
+# metric's own unit (metrics.py: µm, µrad, kN) takes its variables to be
+METRIC_RESULT_UNITS = {"leg_tracking": "µm", "pose_tracking": "µm and µrad", "tracking": "µm", "peak": "kN"}
+METRIC_UNITS = {
+    "leg_tracking": {"measured": "m", "reference_pose": _POSE},
+    "pose_tracking": {"measured": _POSE, "reference": _POSE},
+    "tracking": {"measured": "m", "reference": "m"},
+    "peak": {"variable": "N"},
+}
 _TOP_KEYS = {"name", "description", "start_time", "stop_time", "step", "master", "extrapolation",
              "fmus", "connections", "record", "metrics", "sweep", "ci", "fidelity_tolerance"}
 _REQUIRED = "required"
@@ -876,7 +886,8 @@ def _feed_once(src, key, index, written, source, target, feeders, fed):
 
 def _check_metric(src, key, metric, scalars):
     """The variables a metric reads exist, reported under the metric's own keys, with the
-    sizes its kind needs."""
+    sizes and units its kind needs (a leg_tracking metric fed leg forces as its reference
+    pose printed 2.6e10 µm as a result)."""
     if metric.kind == "base_effect":
         references = metric_variables(metric)
         for arg, reads in (("base", references[:3]), ("reference", references[3:])):
@@ -901,6 +912,18 @@ def _check_metric(src, key, metric, scalars):
     if metric.kind == "tracking" and sizes["measured"] != sizes["reference"]:
         raise ScenarioError(src, key, f"measured {metric.args['measured']} has {sizes['measured']} values, "
                             f"reference {metric.args['reference']} {sizes['reference']}")
+    for arg, want in METRIC_UNITS.get(metric.kind, {}).items():
+        units = tuple(v.unit or "1" for v in scalars(f"{key}.{arg}", metric.args[arg])[1])
+        want = (want,) * len(units) if isinstance(want, str) else want
+        if units != want:
+            raise ScenarioError(src, f"{key}.{arg}", f"{metric.args[arg]} is in {_units_text(units)}; a "
+                                f"{metric.kind} metric's {arg} must be in {_units_text(want)} (its result is in "
+                                f"{METRIC_RESULT_UNITS[metric.kind]})")
+
+
+def _units_text(units):
+    """('m', 'm') as 'm'; ('m', 'rad') as 'm, rad'."""
+    return units[0] if len(set(units)) == 1 else ", ".join(units)
 
 
 # -------------------------------------------------- ranges that min/max cannot declare

@@ -154,6 +154,12 @@ class _Trace:
         self.stop = stop_when_decided
         self.t, self.error, self.force_peak = [], [], 0.0
 
+    def feed(self, t, columns):
+        """Rows at times t as scenarios.master's recorder hands them over, a block at a
+        time; ``columns`` in the order of ``needs``."""
+        for k, time in enumerate(t.tolist()):
+            self.update(time, {name: column[k] for name, column in zip(self.needs, columns)})
+
     def update(self, t, values):
         self.t.append(t)
         self.error.append(float(np.abs(values["plant.leg_length"] - self.reference).max()))

@@ -235,3 +235,24 @@ def test_a_rebuild_of_the_same_sources_keeps_the_cache_key(tmp_path):
             data = source.read(info)
             target.writestr(info, data + b"\n# edited" if info.filename.endswith("leg_sensor_fmu.py") else data)
     assert engine.file_digest(changed) != engine.file_digest(first[0])
+
+
+def test_the_key_follows_the_kit_s_own_code(fmus, tmp_path, monkeypatch):
+    """A pythonfmu FMU imports its model from this package at run time, and the metrics are
+    computed by it: an edited kit keeps every FMU file, so the run key must change with the
+    code, or a campaign would take results of the old code for the new one. A copy of the
+    sources with one line added gives another digest; the digest is the key's."""
+    import shutil
+    from movingbase.scenarios import metrics as metrics_module
+    copy = tmp_path / "scenarios"
+    shutil.copytree(pathlib.Path(metrics_module.__file__).parent, copy, ignore=shutil.ignore_patterns("*.so", "__pycache__"))
+    before = engine.code_digest([copy])
+    with open(copy / "metrics.py", "a") as f:
+        f.write("\n# edited\n")
+    assert engine.code_digest([copy]) != before
+    assert engine.code_digest([copy]) == engine.code_digest([copy])          # a digest, not a clock
+    scenario, paths, values = _bound(fmus)
+    job = engine.Job("a", scenario, values, {inst: engine.file_digest(p) for inst, p in paths.items()})
+    assert engine.run_key(scenario, values, job.fmus) == job.key
+    monkeypatch.setattr(engine, "_package_digest", lambda: before)
+    assert engine.run_key(scenario, values, job.fmus) != job.key

@@ -156,8 +156,7 @@ def test_watch_sees_non_finite_values_and_steady_growth_only():
     def fed(force):
         watch = flags.Watch(1e9, np.zeros(6), 0.15, "f", "l", window=0.5)
         watch.bind({"f": slice(0, 6), "l": slice(6, 12)})
-        for ti, fi in zip(t, force):
-            watch.feed(ti, np.r_[np.full(6, fi), np.zeros(6)])
+        watch.feed(t, np.c_[np.repeat(force[:, None], 6, axis=1), np.zeros((len(t), 6))])
         return {f.kind for f in watch.flags()}
     wiggle = 1e3 * (-1.0) ** np.arange(len(t))
     assert fed(wiggle * np.exp(0.3 * t)) == {"unstable"}

@@ -326,6 +326,28 @@ def test_unit_and_variable_mistakes_name_what_was_expected(descriptions, change,
     refused(edited(SLEW, change), key, *parts, descriptions=descriptions)
 
 
+@pytest.mark.parametrize("change, key, parts", [
+    (('reference_pose = "base.reference_pose"', 'reference_pose = "controller.leg_force"'),
+     "metrics[0].reference_pose", ["controller.leg_force is in N; a leg_tracking metric's reference_pose must be in "
+                                   "m, m, m, rad, rad, rad (its result is in µm)"]),
+    (('measured = "plant.leg_length"', 'measured = "plant.leg_rate"'), "metrics[0].measured",
+     ["plant.leg_rate is in m/s; a leg_tracking metric's measured must be in m"]),
+    (('measured = "plant.pose"', 'measured = "base.base_rate"'), "metrics[1].measured",
+     ["base.base_rate is in m/s, m/s, m/s, rad/s, rad/s, rad/s; a pose_tracking metric's measured must be in m, m, m, "
+      "rad, rad, rad (its result is in µm and µrad)"]),
+    (('variable = "controller.leg_force"', 'variable = "plant.leg_length"'), "metrics[2].variable",
+     ["plant.leg_length is in m; a peak metric's variable must be in N (its result is in kN)"]),
+    (('reference = "base"', 'reference = "base"\n[[metrics]]\nkind = "tracking"\nmeasured = "base.axis"\n'
+      'reference = "base.axis_rate"'), "metrics[4].measured", ["base.axis is in rad; a tracking metric's measured "
+                                                               "must be in m (its result is in µm)"]),
+])
+def test_a_metric_of_variables_in_other_units_than_its_kind_reads_is_refused(descriptions, change, key, parts):
+    """A metric's result carries its kind's unit (µm, µrad, kN): a variable of another
+    quantity gave numbers in no unit at all (leg forces as a leg_tracking reference pose:
+    2.6e10 "µm" in the report). Refused, naming the variable's units and those needed."""
+    refused(edited(SLEW, change), key, *parts, descriptions=descriptions)
+
+
 # ------------------------------------------------------------ a run that fails mid-way
 def test_a_run_failing_mid_way_is_one_line_and_the_sweep_and_report_go_on(tmp_path):
     """A 16 ms step is past the controller's predicted 3.36 ms stability limit: with the

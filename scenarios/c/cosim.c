@@ -136,12 +136,46 @@ static int gauss_seidel_step(cosim_master *m, long k)
     return 0;
 }
 
+/* The recorded values into the next row: one read per recorded instance, in the
+   recorder's order, as master.Recorder read them with one FMI call each. */
+static int record_row(cosim_master *m)
+{
+    double *row = m->rows + m->n_rows * m->n_columns;
+    size_t r, j;
+    for (r = 0; r < m->n_records; r++) {
+        const cosim_record *c = &m->records[r];
+        cosim_fmu *f = &m->fmus[c->fmu];
+        int status = f->fmi3 ? f->fmi3->get_float64(f->component, c->vr, c->n_vr, c->values, c->n_values)
+                             : f->get_real(f->component, c->vr, c->n_vr, c->values);
+        if (status > 1)
+            return failed(m, c->fmu, COSIM_GET_REAL, status);
+        for (j = 0; j < c->n; j++)
+            row[c->column[j]] = c->values[c->index[j]];
+    }
+    m->n_rows++;
+    return 0;
+}
+
+int cosim_record_row(cosim_master *m)
+{
+    m->failed_fmu = -1;
+    m->n_rows = 0;
+    return record_row(m);
+}
+
 long cosim_steps(cosim_master *m, long k, long count)
 {
     long done;
     m->failed_fmu = -1;
-    for (done = 0; done < count; done++)
+    m->n_rows = 0;
+    for (done = 0; done < count; done++) {
+        int due = m->every > 0 && (k + done + 1) % m->every == 0;
+        if (due && m->n_rows == m->capacity)
+            break;
         if (m->gauss_seidel ? gauss_seidel_step(m, k + done) : jacobi_step(m, k + done))
             break;
+        if (due && record_row(m))
+            return done + 1;
+    }
     return done;
 }

@@ -1,7 +1,9 @@
 /* The stepping loop of the co-simulation master (scenarios/master.py): K macro steps of
    Jacobi or Gauss-Seidel over FMI 2.0 and FMI 3.0 co-simulation instances, called through
    cffi with the instances' own fmi2DoStep/fmi2GetReal/fmi2SetReal or fmi3DoStep/
-   fmi3GetFloat64/fmi3SetFloat64, so a macro step costs the FMUs' work and no Python.
+   fmi3GetFloat64/fmi3SetFloat64, so a macro step costs the FMUs' work and no Python; the
+   recorded variables read at every record point into a block of rows, so a recorded
+   run's rows cost no Python either until the block is handed over.
    Plain declarations only (kernel_build.py strips preprocessor lines). */
 #include <stddef.h>
 
@@ -75,6 +77,20 @@ typedef struct {
     double time;                   /* the t of its last doStep call */
 } cosim_fmu;
 
+/* One instance's recorded elements, read at each record point in one call (FMI 2.0
+   fmi2GetReal of the elements; FMI 3.0 fmi3GetFloat64 of the variables holding them) into
+   values; element j is values[index[j]] and goes to column column[j] of the row. */
+typedef struct {
+    size_t fmu;                    /* which of cosim_master's fmus */
+    const unsigned int *vr;
+    size_t n_vr;
+    double *values;
+    size_t n_values;
+    const size_t *index;
+    const size_t *column;
+    size_t n;
+} cosim_record;
+
 enum cosim_call { COSIM_SET_REAL = 0, COSIM_DO_STEP = 1, COSIM_GET_REAL = 2 };
 
 typedef struct {
@@ -93,9 +109,21 @@ typedef struct {
     double *y_d2;
     double t0;
     double h;
+    const cosim_record *records;   /* the recorded instances, read in this order */
+    size_t n_records;
+    long every;                    /* a row after each step k with (k + 1) % every == 0 (0: none) */
+    double *rows;                  /* capacity x n_columns, row-major: the rows of the last call */
+    size_t n_columns;
+    size_t capacity;
+    size_t n_rows;
     int failed_fmu;                /* on a status above Warning: which fmu, call, status */
     int failed_call;
     int failed_status;
 } cosim_master;
 
+/* Macro steps k .. k+count-1, each followed by its row where one is due. Returns how many
+   steps completed: fewer when a call answered above Warning (failed_fmu >= 0; the step
+   whose row failed counts as completed) or when the next row would not fit the rows. */
 long cosim_steps(cosim_master *m, long k, long count);
+/* One row now (the run's first, before stepping): 0, or 1 when a read failed. */
+int cosim_record_row(cosim_master *m);
