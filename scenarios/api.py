@@ -21,6 +21,7 @@ import dataclasses
 import io
 import os
 import pathlib
+import time
 from collections.abc import Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, Union
 
@@ -248,7 +249,7 @@ class Result:
         """Write into folder ``path`` what ``movingbase run --out`` writes into its
         scenario folder (records as npz, metrics.json, charts, report.md); the report's path."""
         folder = runner.make_folder(path)
-        earlier = runner.replaced(folder)
+        earlier, started = runner.replaced(folder), time.time()
         if earlier:       # said, as the command says it
             print(earlier, flush=True)
         runs = []
@@ -258,7 +259,10 @@ class Result:
             if run.record_path is None or pathlib.Path(str(run.record_path)).resolve() != target.resolve():
                 run = dataclasses.replace(run, record_path=kept.save(target))
             runs.append(run)
-        return runner.write_results(self.scenario, runs, folder)
+        written = runner.write_results(self.scenario, runs, folder)
+        if earlier and runner.left_over(folder, started):
+            print(runner.left_over(folder, started), flush=True)
+        return written
 
     def __repr__(self) -> str:
         flagged = f", flagged: {', '.join(self.flags)}" if self.flags else ""
@@ -280,10 +284,14 @@ def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: boo
     prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation, out)
     before = runner.pre_run_flags(prepared, paths, descriptions, values, ci, allow_unstable)
     outdir = None if out is None else runner.output_folder(out, prepared.source)
-    if outdir is not None and runner.replaced(outdir):
-        print(runner.replaced(outdir), flush=True)
+    earlier, started = outdir is not None and runner.replaced(outdir), time.time()
+    if earlier:
+        print(earlier, flush=True)
     runs = runner.run_prepared(prepared, paths, descriptions, values, outdir, progress, before=before)
-    return Result(prepared, runs, runner.write_results(prepared, runs, outdir) if outdir else None)
+    result = Result(prepared, runs, runner.write_results(prepared, runs, outdir) if outdir else None)
+    if earlier and runner.left_over(outdir, started):
+        print(runner.left_over(outdir, started), flush=True)
+    return result
 
 
 # ------------------------------------------------------------------------ campaigns

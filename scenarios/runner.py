@@ -98,6 +98,17 @@ def replaced(folder):
             f"{time.strftime('%Y-%m-%d %H:%M', time.localtime(when))}): {shown}; this run replaces them")
 
 
+def left_over(folder, since):
+    """The files in ``folder`` this run did not rewrite (older than ``since``, its start),
+    as one line, or "": an earlier run's charts beside this run's report (--charts none,
+    another sweep) are not its results."""
+    kept = sorted(p.name for p in pathlib.Path(folder).iterdir() if p.is_file() and p.stat().st_mtime < since)
+    if not kept:
+        return ""
+    shown = ", ".join(kept[:6]) + (f" and {len(kept) - 6} more" if len(kept) > 6 else "")
+    return f"{folder}: {shown} from the earlier run are not this run's (it wrote no such file); delete them"
+
+
 def prepare(path, ci=False, implementation=None, out=None, fmi_version=None):
     """Scenario, FMU paths per instance and checked parameter values: all checks done
     before anything runs. ``ci`` applies the file's [ci] overrides (a shorter run);
@@ -182,11 +193,14 @@ def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None,
     scenario, paths, descriptions, values = prepare(resolve(path), ci, implementation, out, fmi_version)
     before = pre_run_flags(scenario, paths, descriptions, values, ci, allow_unstable)
     outdir = output_folder(out, scenario.source)
-    earlier = replaced(outdir)
+    earlier, started = replaced(outdir), time.time()
     if earlier:
         print(earlier, file=sys.stderr)
     runs = run_prepared(scenario, paths, descriptions, values, outdir, progress, jobs, dask, before)
-    return scenario, runs, write_results(scenario, runs, outdir, charts)
+    written = write_results(scenario, runs, outdir, charts)
+    if earlier and left_over(outdir, started):
+        print(left_over(outdir, started), file=sys.stderr)
+    return scenario, runs, written
 
 
 def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=True, jobs=None, dask=None,

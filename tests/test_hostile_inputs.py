@@ -521,3 +521,14 @@ def test_build_and_headline_folders_that_are_none_are_refused_naming_them(tmp_pa
     assert status == 1 and f"build error: {tmp_path / 'file'}: is a file, not a folder" in err, err
     status, _, err = _cli(tmp_path, "--from", tmp_path / "nope", command="headline")
     assert status == 1 and "headline error: " in err and "No such file or directory" in err, err
+
+
+def test_files_an_earlier_run_left_that_this_one_did_not_rewrite_are_named(tmp_path):
+    """A run with --charts none into the folder of one with charts said "this run replaces
+    them" and left the earlier run's charts beside its own report, unsaid."""
+    status, _, err = _cli(tmp_path, "paper_manoeuvre", "--ci", "--quiet", "--out", tmp_path / "o")
+    assert status == 0 and "not this run's" not in err, err
+    charts = sorted(p.name for p in (tmp_path / "o" / "paper_manoeuvre").glob("*.png"))
+    status, _, err = _cli(tmp_path, "paper_manoeuvre", "--ci", "--quiet", "--charts", "none", "--out", tmp_path / "o")
+    assert status == 0 and charts and all(name in err for name in charts) and "are not this run's" in err, err
+    assert "metrics.json" not in err.splitlines()[-1] and "report.md" not in err.splitlines()[-1], err
