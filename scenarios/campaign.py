@@ -325,6 +325,7 @@ class CampaignJobs:
         self.campaign = campaign
         self._bound = {}            # top-level overrides -> (scenario, values, descriptions, digests)
         self.files = {}             # sha256 -> FMU path
+        self.flags = {}             # run label -> the flags of its motion (check), each run gets its own
         self.base = self._bind({})[0]   # the FMUs, built and hashed before anything runs
 
     def __len__(self):
@@ -368,18 +369,21 @@ class CampaignJobs:
     def __iter__(self):
         for case in self.campaign.cases:
             scenario, params, _, digests = self._case(case)
-            yield engine.Job(case.label, scenario, params, digests, self.campaign.keep_records)
+            yield engine.Job(case.label, scenario, params, digests, self.campaign.keep_records,
+                             self.flags.get(case.label, ()))
 
     def check(self):
         """Each run's settings together, as a scenario file's are checked before it runs:
         what the models refuse (the telescope's profile over the run; once per distinct
-        run) and a step beyond the predicted stability limit (a campaign runs no step
+        run; the flags of its motion are kept for its Job: a slew unfinished at the stop
+        time) and a step beyond the predicted stability limit (a campaign runs no step
         beyond it; predicted once per time grid, master and extrapolation, at the first
         run's values, as a scenario's is at its own values and not per sweep value: a
         prediction costs ~15 ms, a run ~0.2 s). Every refused run is told."""
-        source, refused, seen, predicted = self.campaign.source, {}, {}, {}   # refused: problem -> run labels
+        source, refused, seen, predicted, motion = self.campaign.source, {}, {}, {}, {}   # refused: problem -> labels
         for case in self.campaign.cases:
             scenario, params, descriptions, digests = self._case(case)
+            paths = {inst: self.files[digest] for inst, digest in digests.items()}
             grid = repr((scenario.start_time, scenario.stop_time, scenario.step, scenario.master,
                          scenario.extrapolation))
             marker = repr((grid, sorted((i, sorted(p.items())) for i, p in params.items())))
@@ -389,13 +393,14 @@ class CampaignJobs:
                 try:
                     spec._check_models(source, "run", scenario, variables, params, written)
                     seen[marker] = ""
+                    motion[marker] = tuple(flags.motion_flags(scenario, paths, descriptions, params))
                 except spec.ScenarioError as exc:
                     seen[marker] = "; ".join(p for _, _, p in exc.problems)
             if seen[marker]:            # the model refuses it: no motion to predict along
                 refused.setdefault(seen[marker], []).append(case.label)
                 continue
+            self.flags[case.label] = motion[marker]
             if grid not in predicted:
-                paths = {inst: self.files[digest] for inst, digest in digests.items()}
                 try:
                     flags.check(scenario, flags.predict(scenario, paths, descriptions, params))
                     predicted[grid] = ""

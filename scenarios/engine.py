@@ -123,7 +123,8 @@ class Job:
     scenario: object
     parameters: dict
     fmus: dict                      # instance -> sha256 of its FMU file
-    keep_record: bool = True        # store the recorded variables (CSV) too
+    keep_record: bool = True        # store the recorded variables too
+    flags: tuple = ()               # scenarios.flags.Flag known before the run (its motion's); not in the key
     key: str = ""
 
     def __post_init__(self):
@@ -199,7 +200,7 @@ def execute(job, blobs):
             paths = {inst: _local_fmu(digest, blobs) for inst, digest in job.fmus.items()}
             run_cpu = time.process_time()
             partial = master.run(job.scenario, paths, job.parameters, None, "run",
-                                 [metrics.make(m) for m in job.scenario.metrics])
+                                 [metrics.make(m) for m in job.scenario.metrics], flags=job.flags)
             out.update(status="ok", run_cpu_s=time.process_time() - run_cpu, **_outcome(partial))
         except Exception as exc:          # the run's failure is a result; others go on
             partial = getattr(exc, "run", None)   # what a run that stopped early did

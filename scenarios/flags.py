@@ -155,22 +155,45 @@ def predict(scenario, paths, descriptions, values, ci=False):
         return None
     plant, controller, loop, gains = found
     poses, flags = HOME_POSE[None, :], []
-    teles = [s for s in _sources(scenario, f"{controller}.reference_pose") if scenario.fmus[s] == "telescope"]
-    if teles:
-        motion = scene_fidelity.scene_motion(scenario, paths, values, teles[0])
-        reference, base_rate = motion[0], motion[4]
-        poses = reference[np.linspace(0, len(reference) - 1, POSES).round().astype(int)]
-        profile = scenario.parameters.get(teles[0], {}).get("profile", "slew")
-        turning = float(np.linalg.norm(base_rate[-1][3:]))
-        if profile in ("slew", "paper") and turning > MOVING and not ci:
-            flags.append(Flag("motion_unfinished", f"the {profile} of {teles[0]!r} has not ended at the stop time "
-                                                   f"{scenario.stop_time:g} s: the base still turns at "
-                                                   f"{math.degrees(turning):.3g} deg/s"))
+    telescope = _telescope(scenario, controller)
+    if telescope:
+        motion = scene_fidelity.scene_motion(scenario, paths, values, telescope)
+        poses = motion[0][np.linspace(0, len(motion[0]) - 1, POSES).round().astype(int)]
+        flags = [] if ci else _unfinished(scenario, telescope, motion[4])
     level = values.get(plant, {}).get("fidelity", _value(values, descriptions, plant, "fidelity"))
     fidelity = FIDELITIES[level] if isinstance(level, int) else level
     masses = _merge(leg_masses(plant_params(values, descriptions, plant), poses, loop, fidelity))
     limit = design.step_limit(masses, gains, loop)
     return Prediction(limit, scenario.step, loop, gains, masses, tuple(flags))
+
+
+def motion_flags(scenario, paths, descriptions, values):
+    """The flags of the scene's motion alone (a slew unfinished at the stop time): what
+    ``predict`` flags per scenario, for each run of a campaign, whose limit is predicted
+    once for many runs."""
+    found = _loop(scenario, descriptions, values)
+    telescope = found and _telescope(scenario, found[1])
+    if not telescope:
+        return []
+    return _unfinished(scenario, telescope, scene_fidelity.scene_motion(scenario, paths, values, telescope)[4])
+
+
+def _telescope(scenario, controller):
+    """The telescope instance feeding the controller's reference pose, or None."""
+    return next((s for s in _sources(scenario, f"{controller}.reference_pose") if scenario.fmus[s] == "telescope"),
+                None)
+
+
+def _unfinished(scenario, telescope, base_rate):
+    """[motion_unfinished] if the slew (or paper manoeuvre) still turns the base at the
+    stop time (``base_rate`` along the run), else []."""
+    profile = scenario.parameters.get(telescope, {}).get("profile", "slew")
+    turning = float(np.linalg.norm(base_rate[-1][3:]))
+    if profile in ("slew", "paper") and turning > MOVING:
+        return [Flag("motion_unfinished", f"the {profile} of {telescope!r} has not ended at the stop time "
+                                          f"{scenario.stop_time:g} s: the base still turns at "
+                                          f"{math.degrees(turning):.3g} deg/s")]
+    return []
 
 
 def _describe(loop, extrapolation=None):

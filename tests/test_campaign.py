@@ -6,7 +6,7 @@ import csv
 
 import pytest
 
-from movingbase.scenarios import campaign, master, metrics, runner, spec
+from movingbase.scenarios import campaign, flags, master, metrics, runner, spec
 from movingbase.scenarios.units import to_si
 
 HEAD = 'name = "t"\nscenario = "telescope_slew"\n'
@@ -105,7 +105,12 @@ def test_campaign_runs_equal_the_scenario_run_directly(tmp_path):
         params = {inst: dict(v) for inst, v in values.items()}
         params["controller"]["feedforward"] = 1
         params["base"]["start_elevation"] = to_si(f"{el} deg", "rad")
-        run = master.run(scenario, paths, params, tmp_path, "direct", [metrics.make(m) for m in scenario.metrics])
+        before = runner.pre_run_flags(scenario, paths, descriptions, params)   # what `movingbase run` flags
+        run = master.run(scenario, paths, params, tmp_path, "direct", [metrics.make(m) for m in scenario.metrics],
+                         flags=before)
+        # the slew begins at 5 s: at 5.3 s it has not ended, a run of it says so wherever its numbers are
+        assert [f.kind for f in before] == ["motion_unfinished"]
+        assert row["flags"] == flags.summary(run.flags) and "motion_unfinished" in row["flags"]
         assert float(row["pose error peak"]) == run.metrics["pose error"]["peak"]
         assert float(row["leg error rms"]) == run.metrics["leg error"]["rms"]
         assert 0 < run.cpu_time <= run.wall_time + 1e-3   # one thread's CPU time: never above the wall time it spans

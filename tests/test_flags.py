@@ -258,15 +258,21 @@ def test_the_issues_high_slew_at_2_ms_grows_in_the_fixed_base_run(tmp_path):
 
 
 def test_a_campaigns_summary_has_a_flags_column(tmp_path):
-    """A step of 5 ms in a campaign (no pre-run refusal there): the detectors flag it in
-    summary.csv; the 1 ms case has an empty flags cell."""
+    """A campaign's runs carry their flags into summary.csv: a force limit under the
+    slew's load saturates (the detectors, on the worker), a stop time before the slew ends
+    leaves its motion unfinished (the pre-run check, as `movingbase run` flags it); the run
+    with neither has an empty cell."""
     import csv
     from movingbase.scenarios import campaign
     path = tmp_path / "c.toml"
-    path.write_text('name = "t"\nscenario = "telescope_slew"\nset = { stop_time = "6 s", '
-                    '"controller.feedforward" = "moving_base" }\n[grid]\nstep = ["1 ms", "5 ms"]\n')
+    path.write_text('name = "t"\nscenario = "telescope_slew"\nset = { "controller.feedforward" = "moving_base", '
+                    '"base.target_azimuth" = "0.2 deg", "base.target_elevation" = "30.2 deg" }\n'
+                    '[[cases]]\nlabel = "plain"\nstop_time = "9 s"\n'
+                    '[[cases]]\nlabel = "limited"\nstop_time = "9 s"\n"controller.force_limit" = "1 kN"\n'
+                    '[[cases]]\nlabel = "cut"\nstop_time = "5.5 s"\n')
     summary = campaign.run_campaign(path, tmp_path / "out", jobs_=1, progress=False)[4]
     with open(summary) as f:
-        table = {row["step"]: row for row in csv.DictReader(f)}
-    assert table["1 ms"]["flags"] == ""
-    assert "saturated" in table["5 ms"]["flags"]
+        table = {row["label"]: row for row in csv.DictReader(f)}
+    assert table["plain"]["flags"] == ""
+    assert "saturated" in table["limited"]["flags"] and "motion_unfinished" not in table["limited"]["flags"]
+    assert table["cut"]["flags"].startswith("motion_unfinished")
