@@ -68,6 +68,7 @@ class Campaign:
     cases: list                     # every run, in file order
     varying: list                   # keys that differ between cases (summary columns)
     keep_records: bool = False
+    ci: bool = False                # its [ci] version: runs cut short on purpose (no motion_unfinished)
 
 
 def _flat(value, prefix=""):
@@ -289,7 +290,7 @@ def parse(text, source="<string>", base_dir=".", ci=False):
     keep = data.get("keep_records", False)
     if not isinstance(keep, bool):
         raise CampaignError(source, "keep_records", "expected true or false")
-    return Campaign(source, name, data.get("description", ""), path, runs, varying, keep)
+    return Campaign(source, name, data.get("description", ""), path, runs, varying, keep, ci)
 
 
 def _descriptions(scenario):
@@ -393,7 +394,8 @@ class CampaignJobs:
                 try:
                     spec._check_models(source, "run", scenario, variables, params, written)
                     seen[marker] = ""
-                    motion[marker] = tuple(flags.motion_flags(scenario, paths, descriptions, params))
+                    motion[marker] = () if self.campaign.ci else tuple(
+                        flags.motion_flags(scenario, paths, descriptions, params))
                 except spec.ScenarioError as exc:
                     seen[marker] = "; ".join(p for _, _, p in exc.problems)
             if seen[marker]:            # the model refuses it: no motion to predict along
