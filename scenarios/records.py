@@ -121,21 +121,35 @@ class Block:
 
 
 def read_records(path: str | os.PathLike[str]) -> Records:
-    """The one reader of a recorded run's file (what Records.save wrote)."""
+    """The one reader of a recorded run's file (what Records.save wrote). Anything else (an
+    .npy array, a CSV renamed, columns of other lengths or types, times that are not
+    finite and increasing) is a ValueError naming the file and what is wrong with it."""
     path = pathlib.Path(path)
     try:
+        with open(path, "rb") as file:
+            magic = file.read(4)
+        if magic not in (b"PK\x03\x04", b"PK\x05\x06"):   # np.load would take any other bytes for a pickle
+            what = "one array (an .npy file)" if magic == b"\x93NUM" else "not an npz archive"
+            raise ValueError(f"{what}; a run's records are an npz of columns (a CSV export is not read back)")
         with np.load(path, allow_pickle=False) as data:
             titles = list(data.files)
             columns = [data[t] for t in titles]
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, EOFError) as exc:
         raise ValueError(f"{path}: cannot read recorded data: {exc}") from None
     matched = [_HEADER.fullmatch(t) for t in titles[1:]]
     if not titles or titles[0] != TIME or not all(matched):
         raise ValueError(f"{path}: not a run's records (expected {TIME!r}, then 'inst.var [unit]' columns; "
                          f"found {', '.join(titles[:3]) or 'none'})")
+    bad = [t for t, c in zip(titles, columns) if c.ndim != 1 or c.dtype.kind != "f" or len(c) != len(columns[0])]
+    if bad:
+        raise ValueError(f"{path}: not a run's records: columns {', '.join(map(repr, bad[:3]))} are not floats of "
+                         f"the {len(columns[0])} times of {TIME!r}")
+    time = columns[0]
+    if not np.isfinite(time).all() or (np.diff(time) <= 0).any():
+        raise ValueError(f"{path}: not a run's records: its times are not finite and increasing")
     parts = [m.groups() for m in matched if m]
-    return Records.of(columns[0], [n for n, _ in parts], [u for _, u in parts],
-                      np.column_stack(columns[1:]) if parts else np.empty((len(columns[0]), 0)))
+    return Records.of(time, [n for n, _ in parts], [u for _, u in parts],
+                      np.column_stack(columns[1:]) if parts else np.empty((len(time), 0)))
 
 
 def run_records(run: Any) -> Records | None:

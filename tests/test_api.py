@@ -217,14 +217,26 @@ def test_a_campaign_s_table_holds_the_numbers_of_its_runs_run_one_by_one(tmp_pat
     (b"time [s],x [m]\r\n0.0,1.0\r\n", "cannot read recorded data"),                  # a CSV, not npz
     ({"t": np.zeros(2)}, "not a run's records .*found t"),                              # no time column
     ({"time [s]": np.zeros(2), "plant.x": np.ones(2)}, "not a run's records .*plant.x"),  # no unit
+    (b"time [s],x [m]\r\n0.0,1.0\r\n", "cannot read recorded data: not an npz archive"),  # not "pickled data"
+    (np.zeros(3), r"cannot read recorded data: one array \(an .npy file\)"),             # np.save's file
+    ({"time [s]": np.arange(3.0), "p.x [m]": np.zeros(2)}, "not a run's records: columns 'p.x .m.' are not floats"),
+    ({"time [s]": np.array(["a", "b"]), "p.x [m]": np.zeros(2)}, "not a run's records: columns 'time"),  # text times
+    ({"time [s]": np.array([0.0, np.nan]), "p.x [m]": np.zeros(2)}, "its times are not finite and increasing"),
+    ({"time [s]": np.array([1.0, 0.0]), "p.x [m]": np.zeros(2)}, "its times are not finite and increasing"),
 ])
 def test_a_file_that_is_not_records_is_refused_naming_it(content, problem, tmp_path):
+    """Whatever a user hands read_records that a run did not write: one ValueError naming
+    the file and what is wrong (an .npy file was a TypeError, a CSV renamed "pickled data",
+    columns of other lengths numpy's concatenate error; text or NaN times were read)."""
     path = tmp_path / "bad.npz"
     if isinstance(content, bytes):
         path.write_bytes(content)
+    elif isinstance(content, np.ndarray):
+        with open(path, "wb") as f:
+            np.save(f, content)
     else:
         np.savez(path, **content)
-    with pytest.raises(ValueError, match=f"{path}: {problem}"):
+    with pytest.raises(ValueError, match=f"{path}: (not a run's records: )?{problem}"):
         read_records(path)
 
 
