@@ -670,9 +670,15 @@ def bind(scenario, model_descriptions):
     values = {inst: {} for inst in scenario.fmus}
     fed = set()
     for inst, params in scenario.parameters.items():
+        owners = {}     # variable -> the key that set it: a vector and one of its elements both set, the later won
         for name, raw in params.items():
             key = f"fmus.{inst}.parameters.{name}"
             with problems.part():
+                for var in scalars(key, f"{inst}.{name}")[1]:
+                    if var.name in owners:
+                        raise ScenarioError(src, key, f"sets {var.name}, which {owners[var.name]} sets too: "
+                                                      "set each value once")
+                    owners[var.name] = key
                 _bind_parameter(src, key, inst, name, raw, scalars, values, fed)
     with problems.part():
         _check_links(src, values)

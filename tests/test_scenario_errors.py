@@ -321,6 +321,9 @@ def test_a_path_without_toml_resolves_to_the_file(tmp_path, monkeypatch):
     (('measured = "plant.pose"', 'measured = "base.axis"'), "metrics[1].measured",
      ["base.axis has 2 values; a pose_tracking metric needs 6"]),
     (('"base.axis", "base.axis_rate"', '"base.axes", "base.axis_rate"'), "record.variables", ["has no variable 'axes'"]),
+    (('initial_pose = "@base.reference_pose"', 'initial_pose = "@base.reference_pose", "initial_pose[3]" = "0.1 m"'),
+     "fmus.plant.parameters.initial_pose[3]",       # the vector and one element: the later silently won
+     ["sets initial_pose[3], which fmus.plant.parameters.initial_pose sets too: set each value once"]),
 ])
 def test_unit_and_variable_mistakes_name_what_was_expected(descriptions, change, key, parts):
     refused(edited(SLEW, change), key, *parts, descriptions=descriptions)
