@@ -5,4 +5,4 @@
 from movingbase.fmu_src.builder import main
 
 if __name__ == "__main__":
-    main()
+    main(prog="python build.py")

@@ -245,8 +245,8 @@ def _import_path():
         sys.path.insert(0, folder)
 
 
-def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv=None, prog="movingbase build"):
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=str(OUT), help="output folder")
     parser.add_argument("names", nargs="*", default=available(),
                         help="FMU scripts to build (default: all)")

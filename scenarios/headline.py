@@ -77,7 +77,7 @@ def rewrite_readme(store, readme=README):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="movingbase headline", description=__doc__.splitlines()[0])
     parser.add_argument("--from", dest="out", metavar="DIR", help="take the metrics of the full runs in DIR first")
     args = parser.parse_args(argv)
     if args.out:
