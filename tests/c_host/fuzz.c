@@ -1,0 +1,853 @@
+/* A random FMI 2.0 host held against a model of the standard: from a seed, one or two
+ * instances of an FMU take N random calls over the whole co-simulation API (calls out of
+ * sequence, bad times and steps, invalid, duplicated and huge value references and counts,
+ * NaN/inf/1e308/denormal values, FMU states of either instance, freed and corrupted
+ * states, Reset/Terminate/FreeInstance at any time, logging with odd categories), and a
+ * model of the FMI 2.0 call sequence (the standard's state tables, as the Reference FMUs'
+ * masks read them, plus the kit's rules of docs/fmu-rules.md) runs beside the FMU.
+ *
+ * Why: a hand-written misuse script (misuse.c) finds what its author imagined; a random
+ * sequence finds the rest. "No crash" is not enough of a truth, so each call is checked:
+ * - the status is one the model allows (a call out of sequence answers fmi2Error, a
+ *   doStep after a Discard fmi2Discard, an initialization with a parameter outside its
+ *   declared range fmi2Error, ...);
+ * - every status other than fmi2OK comes with a log line at that status (the logger here);
+ * - a pure function of the accepted calls: the calls that changed an instance, replayed on
+ *   a fresh instance, give the same answers and the same values bit for bit; an FMU state
+ *   restored gives the values read when it was saved; fmi2LastSuccessfulTime is the
+ *   model's time; no Real output is read non-finite with fmi2OK.
+ * What it never feeds (undefined for the host under any FMU): a pointer to freed memory
+ * (an instance after fmi2FreeInstance, a state of a freed instance: freed with it), an
+ * array shorter than its count, a NULL fmi2CallbackFunctions or logger.
+ *
+ * Usage: fuzz UNZIPDIR MODEL_IDENTIFIER GUID SEED NCALLS VARS
+ *   VARS: "vr:t:c:start:min:max;..." per variable, t r (Real) or i (Integer/Enumeration),
+ *   c p (parameter), i (input), o (output), x (other); min/max "-" when not declared.
+ * Prints one line per call ("K INSTANCE CALL ARGS -> STATUS"), then "fuzz ok ..." and
+ * exit 0, or "VIOLATION ..." and exit 1. The same arguments replay the same calls.
+ */
+#include <dlfcn.h>
+#include <float.h>
+#include <limits.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmi2Functions.h"
+
+/* ------------------------------------------------------------------ randomness */
+static uint64_t rng_state;
+static uint64_t next_random(void)   /* splitmix64 */
+{
+    uint64_t z = (rng_state += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+static int below(int n) { return (int)(next_random() % (uint64_t)n); }
+static double unit(void) { return (double)(next_random() >> 11) * 0x1.0p-53; }
+static int chance(double p) { return unit() < p; }
+
+/* -------------------------------------------------------------- the variables */
+enum { C_PARAM, C_INPUT, C_OUTPUT, C_OTHER };
+typedef struct {
+    unsigned vr;
+    int integer, causality, has_min, has_max;
+    double start, min, max;
+} Var;
+#define MAXV 512
+static Var vars[MAXV];
+static int nvars;
+static unsigned max_vr;
+
+static void parse_vars(char *spec)
+{
+    for (char *item = strtok(spec, ";"); item && nvars < MAXV; item = strtok(NULL, ";")) {
+        Var *v = &vars[nvars++];
+        char t, c, mn[64], mx[64];
+        if (sscanf(item, "%u:%c:%c:%lf:%63[^:]:%63s", &v->vr, &t, &c, &v->start, mn, mx) != 6) {
+            fprintf(stderr, "fuzz: bad variable '%s'\n", item);
+            exit(10);
+        }
+        v->integer = t == 'i';
+        v->causality = c == 'p' ? C_PARAM : c == 'i' ? C_INPUT : c == 'o' ? C_OUTPUT : C_OTHER;
+        v->has_min = strcmp(mn, "-") != 0;
+        v->has_max = strcmp(mx, "-") != 0;
+        v->min = v->has_min ? strtod(mn, NULL) : 0;
+        v->max = v->has_max ? strtod(mx, NULL) : 0;
+        if (v->vr > max_vr) max_vr = v->vr;
+    }
+}
+
+static int var_of(unsigned vr)
+{
+    for (int k = 0; k < nvars; k++)
+        if (vars[k].vr == vr) return k;
+    return -1;
+}
+
+/* ------------------------------------------------------------------ the model */
+/* The FMI 2.0 co-simulation states; FAILED is stepFailed (after a Discard) and the state
+   after a failed initialization (the kit answers both alike, docs/fmu-rules.md). */
+enum { S_INSTANTIATED, S_INIT, S_STEP, S_FAILED, S_TERMINATED };
+static const char *const STATE_NAME[] = {"Instantiated", "InitializationMode", "StepComplete", "StepFailed",
+                                         "Terminated"};
+typedef struct {
+    int st, failed, stop_defined;
+    double time, tstop;
+    double value[MAXV];   /* every variable's value as set (Integers as doubles) */
+} Model;
+
+/* The calls that changed an instance since it was instantiated: replayed on a fresh one. */
+enum { OP_SETUP, OP_ENTER, OP_EXIT, OP_SETR, OP_SETI, OP_STEP, OP_TERM };
+typedef struct {
+    int kind, status, stop_defined;
+    double a, b;
+    size_t n;
+    fmi2ValueReference *vr;
+    double *x;
+    fmi2Integer *iv;
+} Op;
+static Op *arena;   /* every op ever recorded (immutable); a history is a list of indices */
+static int narena, arena_cap;
+typedef struct { int *op; int n, cap; } History;
+
+static void history_add(History *h, int op)
+{
+    if (h->n == h->cap) {
+        h->cap = h->cap ? 2 * h->cap : 64;
+        h->op = realloc(h->op, (size_t)h->cap * sizeof *h->op);
+    }
+    h->op[h->n++] = op;
+}
+static void history_copy(History *to, const History *from)
+{
+    to->n = 0;
+    for (int k = 0; k < from->n; k++) history_add(to, from->op[k]);
+}
+static int record(Op op)
+{
+    if (narena == arena_cap) {
+        arena_cap = arena_cap ? 2 * arena_cap : 256;
+        arena = realloc(arena, (size_t)arena_cap * sizeof *arena);
+    }
+    arena[narena] = op;
+    return narena++;
+}
+
+typedef struct { int status; double v; } Reading;
+
+typedef struct {
+    fmi2Component c;
+    Model m;
+    History h;
+} Instance;
+
+typedef struct {
+    fmi2FMUstate s;
+    int owner;   /* the instance whose call allocated it */
+    Model m;
+    History h;
+    int readable;
+    Reading r[MAXV];
+} Slot;
+
+typedef struct {
+    unsigned char *data;
+    size_t size;
+    Model m;
+    History h;
+    int readable;
+    Reading r[MAXV];
+} Blob;
+
+#define NINST 2
+#define NSLOT 3
+#define NBLOB 2
+static Instance inst[NINST];
+static Slot slot[NSLOT];
+static Blob blob[NBLOB];
+static Model start_model;
+
+/* ------------------------------------------------------------------- the FMU */
+static void *lib;
+static const char *guid;
+static char resources[4200];
+#define F(name) static fmi2##name##TYPE *name;
+F(Instantiate) F(FreeInstance) F(SetDebugLogging) F(SetupExperiment) F(EnterInitializationMode)
+F(ExitInitializationMode) F(Terminate) F(Reset) F(DoStep) F(CancelStep) F(SetReal) F(GetReal) F(SetInteger)
+F(GetInteger) F(SetBoolean) F(GetBoolean) F(SetString) F(GetString) F(GetFMUstate) F(SetFMUstate)
+F(FreeFMUstate) F(SerializedFMUstateSize) F(SerializeFMUstate) F(DeSerializeFMUstate) F(GetStatus)
+F(GetRealStatus) F(GetIntegerStatus) F(GetBooleanStatus) F(GetStringStatus) F(SetRealInputDerivatives)
+F(GetRealOutputDerivatives) F(GetDirectionalDerivative) F(GetTypesPlatform) F(GetVersion) F(SetTime)
+F(EnterEventMode)
+#undef F
+
+static const char *STATUS[] = {"OK", "Warning", "Discard", "Error", "Fatal", "Pending"};
+static const char *status_name(int s) { return s >= 0 && s <= fmi2Pending ? STATUS[s] : "?"; }
+
+static long call_no;
+static int current;   /* the instance of the call under way */
+static char seen_call[600];
+static int seen_state, seen_failed;
+static int last_log = -1;   /* the status of the last log line of the call under way */
+static char last_text[600];
+
+static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status, fmi2String category,
+                   fmi2String message, ...)
+{
+    (void)env, (void)name, (void)category;
+    va_list ap;
+    va_start(ap, message);
+    vsnprintf(last_text, sizeof last_text, message, ap);   /* a C host: the message is a format */
+    va_end(ap);
+    last_log = status;
+}
+static const fmi2CallbackFunctions CALLBACKS = {logger, calloc, free, NULL, NULL};
+
+static void violation(const char *fmt, ...)
+{
+    va_list ap;
+    printf("\nVIOLATION at call %ld (%s): ", call_no, seen_call);
+    va_start(ap, fmt);
+    vprintf(fmt, ap);
+    va_end(ap);
+    printf("\nthe model's state of instance %d before the call: %s%s\nlast log line: %s\n", current,
+           STATE_NAME[seen_state], seen_failed ? " (failed)" : "", last_log >= 0 ? last_text : "(none)");
+    fflush(stdout);
+    exit(1);
+}
+
+static void begin(int i, const char *fmt, ...)
+{
+    va_list ap;
+    int n = snprintf(seen_call, sizeof seen_call, "%d ", i);
+    current = i;
+    seen_state = inst[i].m.st;
+    seen_failed = inst[i].m.failed;
+    va_start(ap, fmt);
+    vsnprintf(seen_call + n, sizeof seen_call - (size_t)n, fmt, ap);
+    va_end(ap);
+    call_no++;
+    printf("%ld %s -> ", call_no, seen_call);
+    fflush(stdout);
+    last_log = -1;
+}
+
+enum { OK = 1 << fmi2OK, DISCARD = 1 << fmi2Discard, ERROR = 1 << fmi2Error };
+static long answered[6];
+
+/* The answer against the model's set of allowed statuses, and its log line. */
+static int check(int status, int allowed)
+{
+    printf("%s\n", status_name(status));
+    if (status >= 0 && status <= fmi2Pending) answered[status]++;
+    if (status < 0 || status > fmi2Pending || !(allowed & (1 << status)))
+        violation("answered %s, the model allows only%s%s%s", status_name(status), allowed & OK ? " OK" : "",
+                  allowed & DISCARD ? " Discard" : "", allowed & ERROR ? " Error" : "");
+    if (status != fmi2OK && last_log != status)
+        violation("answered %s without a log line at %s (last line at %s)", status_name(status),
+                  status_name(status), last_log >= 0 ? status_name(last_log) : "none");
+    return status;
+}
+
+/* ------------------------------------------------------------ values to feed */
+static const double ODD[] = {NAN, INFINITY, -INFINITY, 1e308, -1e308, DBL_MAX, -DBL_MAX, 5e-324, -5e-324,
+                             2.2250738585072014e-308, 0.0, -0.0, 1e-300, 1e300, -1e300, 1.0, -1.0, 1e9, -1e9};
+#define NODD ((int)(sizeof ODD / sizeof ODD[0]))
+
+static double real_for(const Var *v)
+{
+    int k = below(10);
+    if (k < 6) return v->start * (1 + 0.01 * (unit() - 0.5)) + (v->causality == C_INPUT ? 0.01 * (unit() - 0.5) : 0);
+    if (k < 7 && (v->has_min || v->has_max)) {
+        double edge = v->has_min && (!v->has_max || chance(0.5)) ? v->min : v->max;
+        return chance(0.5) ? edge : edge + (edge == v->min ? -1 : 1) * (fabs(edge) * 1e-6 + 1e-9);
+    }
+    return ODD[below(NODD)];
+}
+
+static int int_for(const Var *v)
+{
+    switch (below(8)) {
+    case 0: return INT_MIN;
+    case 1: return INT_MAX;
+    case 2: return v->has_min ? (int)v->min - 1 : -1;
+    case 3: return v->has_max ? (int)v->max + (v->max < INT_MAX) : 7;
+    case 4: return below(5) - 2;
+    default: return (int)v->start;
+    }
+}
+
+/* A random variable of the kind (Real or Integer), preferring a causality when >= 0. */
+static int pick_var(int integer, int causality)
+{
+    int found[MAXV], n = 0;
+    for (int k = 0; k < nvars; k++)
+        if (vars[k].integer == integer && (causality < 0 || vars[k].causality == causality)) found[n++] = k;
+    if (!n) return -1;
+    return found[below(n)];
+}
+
+/* Value references for a get or set: mostly a few valid ones of the kind, sometimes
+   none, a huge count with duplicates, or invalid ones (past the last, UINT_MAX, of the
+   other kind, an output to set). */
+static size_t pick_refs(int integer, int set, fmi2ValueReference *vr, size_t cap)
+{
+    size_t n = chance(0.05) ? 0 : chance(0.05) ? (size_t)(500 + below(3000)) : (size_t)(1 + below(4));
+    if (n > cap) n = cap;
+    int wanted = set ? (chance(0.5) ? C_INPUT : C_PARAM) : -1;
+    for (size_t k = 0; k < n; k++) {
+        int j = pick_var(integer, chance(0.8) ? wanted : -1);
+        vr[k] = j >= 0 ? vars[j].vr : 0;
+        if (chance(0.03)) {
+            static const fmi2ValueReference BAD[] = {UINT_MAX, 0x80000000u, 100000u};
+            int other = pick_var(!integer, -1);
+            int b = below(5);
+            vr[k] = b < 3 ? BAD[b] : b == 3 ? max_vr + 1 : (other >= 0 ? vars[other].vr : max_vr + 1);
+        }
+    }
+    return n;
+}
+
+/* ---------------------------------------------------------- reading everything */
+static int readable(const Model *m) { return m->st != S_INSTANTIATED; }
+
+static void read_all(fmi2Component c, Reading *out)
+{
+    for (int k = 0; k < nvars; k++) {
+        fmi2ValueReference vr = vars[k].vr;
+        if (vars[k].integer) {
+            fmi2Integer x = 0;
+            out[k].status = GetInteger(c, &vr, 1, &x);
+            out[k].v = x;
+        } else {
+            double x = 0;
+            out[k].status = GetReal(c, &vr, 1, &x);
+            out[k].v = x;
+        }
+        if (out[k].status != fmi2OK) out[k].v = 0;
+    }
+}
+
+static void compare(const Reading *a, const Reading *b, const char *what)
+{
+    for (int k = 0; k < nvars; k++)
+        if (a[k].status != b[k].status || memcmp(&a[k].v, &b[k].v, sizeof(double)) != 0)
+            violation("%s: value reference %u reads %s %.17g, expected %s %.17g", what, vars[k].vr,
+                      status_name(b[k].status), b[k].v, status_name(a[k].status), a[k].v);
+}
+
+/* ------------------------------------------------------------------ the calls */
+static void instantiate(int i)
+{
+    static const char *const NAMES[] = {"fuzz", "%s%n%s", "", "a name with spaces", "\xff\xfe"};
+    const char *name = NAMES[below(5)];
+    int kind = below(10);   /* 0: a wrong GUID, 1: no GUID, 2: model exchange, else right */
+    const char *g = kind == 0 ? "{00000000-%s-%n}" : kind == 1 ? NULL : guid;
+    fmi2Type type = kind == 2 ? fmi2ModelExchange : fmi2CoSimulation;
+    fmi2Boolean on = (fmi2Boolean)below(2);
+    begin(i, "fmi2Instantiate(name '%s', %s, GUID %s, loggingOn %d)", name, type == fmi2CoSimulation ? "CS" : "ME",
+          kind == 0 ? "wrong" : kind == 1 ? "NULL" : "right", on);
+    fmi2Component c = Instantiate(name, type, g, resources, &CALLBACKS, fmi2False, on);
+    printf("%s\n", c ? "instance" : "NULL");
+    if ((c != NULL) != (kind > 2)) violation("fmi2Instantiate answered %s", c ? "an instance" : "NULL");
+    if (!c && last_log != fmi2Error) violation("fmi2Instantiate answered NULL without a log line at Error");
+    inst[i].c = c;
+    inst[i].m = start_model;
+    inst[i].h.n = 0;
+}
+
+static void free_slot(int i, int k)
+{
+    begin(i, "fmi2FreeFMUstate(slot %d)", k);
+    check(FreeFMUstate(inst[i].c, &slot[k].s), OK);
+    if (slot[k].s) violation("fmi2FreeFMUstate left the state pointer set");
+}
+
+static void free_instance(int i)
+{
+    for (int k = 0; k < NSLOT; k++)   /* a state of a freed instance is gone with it */
+        if (slot[k].s && slot[k].owner == i) free_slot(i, k);
+    begin(i, "fmi2FreeInstance");
+    FreeInstance(inst[i].c);
+    printf("done\n");
+    inst[i].c = NULL;
+}
+
+static void setup(int i)
+{
+    static const double T0[] = {0.0, 0.0, 0.0, 1.5, -5.0, 1e9, 1e300, NAN, INFINITY, 5e-324};
+    Model *m = &inst[i].m;
+    double t0 = T0[below(10)], stop = 0;
+    int stop_defined = chance(0.3);
+    if (stop_defined) {
+        static const double AFTER[] = {0.005, 1.0, INFINITY, NAN, -1.0, 0.0};
+        stop = t0 + AFTER[below(6)];
+    }
+    begin(i, "fmi2SetupExperiment(startTime %.17g, stopTimeDefined %d, stopTime %.17g)", t0, stop_defined, stop);
+    int ok = m->st == S_INSTANTIATED && isfinite(t0) && (!stop_defined || stop >= t0);
+    int s = check(SetupExperiment(inst[i].c, fmi2False, 0, t0, (fmi2Boolean)stop_defined, stop), ok ? OK : ERROR);
+    if (s == fmi2OK) {
+        m->time = t0;
+        m->stop_defined = stop_defined;
+        m->tstop = stop;
+        history_add(&inst[i].h, record((Op){.kind = OP_SETUP, .status = s, .a = t0, .b = stop,
+                                            .stop_defined = stop_defined}));
+    }
+}
+
+static void enter(int i)
+{
+    Model *m = &inst[i].m;
+    begin(i, "fmi2EnterInitializationMode");
+    if (check(EnterInitializationMode(inst[i].c), m->st == S_INSTANTIATED ? OK : ERROR) == fmi2OK) {
+        m->st = S_INIT;
+        history_add(&inst[i].h, record((Op){.kind = OP_ENTER, .status = fmi2OK}));
+    }
+}
+
+/* A parameter outside its declared range or a Real input that is not finite: the
+   initialization must fail (fmi2Error). */
+static int surely_invalid(const Model *m)
+{
+    for (int k = 0; k < nvars; k++) {
+        const Var *v = &vars[k];
+        double x = m->value[k];
+        if (v->causality == C_PARAM && ((v->has_min && !(x >= v->min)) || (v->has_max && !(x <= v->max)))) return 1;
+        if (v->causality == C_INPUT && !v->integer && !isfinite(x)) return 1;
+    }
+    return 0;
+}
+
+static void exit_init(int i)
+{
+    Model *m = &inst[i].m;
+    begin(i, "fmi2ExitInitializationMode");
+    int allowed = m->st != S_INIT ? ERROR : surely_invalid(m) ? ERROR : OK | ERROR;
+    int s = check(ExitInitializationMode(inst[i].c), allowed);
+    if (m->st == S_INIT) {   /* the kit: a failed initialization leaves the instance failed */
+        m->st = s == fmi2OK ? S_STEP : S_FAILED;
+        m->failed = s != fmi2OK;
+        history_add(&inst[i].h, record((Op){.kind = OP_EXIT, .status = s}));
+    }
+}
+
+static void terminate(int i)
+{
+    Model *m = &inst[i].m;
+    begin(i, "fmi2Terminate");
+    int ok = m->st == S_STEP || m->st == S_FAILED;
+    if (check(Terminate(inst[i].c), ok ? OK : ERROR) == fmi2OK) {
+        m->st = S_TERMINATED;
+        history_add(&inst[i].h, record((Op){.kind = OP_TERM, .status = fmi2OK}));
+    }
+}
+
+static void reset(int i)
+{
+    begin(i, "fmi2Reset");
+    check(Reset(inst[i].c), OK);
+    inst[i].m = start_model;
+    inst[i].h.n = 0;
+}
+
+#define TOLERANCE 1e-9   /* docs/fmu-rules.md: the communication point to 1e-9 relative to max(1 s, |t|) */
+static void step(int i)
+{
+    Model *m = &inst[i].m;
+    static const double ODD_H[] = {0.0, -1e-3, NAN, INFINITY, -INFINITY, 5e-324, 1e308, 1e9, 1e6, 1e-300};
+    double h = chance(0.85) ? (chance(0.6) ? 1e-3 : pow(10, -5 + 3 * unit())) : ODD_H[below(10)];
+    double t = m->time;
+    if (chance(0.12)) {
+        static const double OFF[] = {1e-3, -1e-3, 5.0, 1e-12, NAN, INFINITY, 1e300, -1e300};
+        double off = OFF[below(8)];
+        t = off == 1e-12 ? t + off : off == 1e-3 || off == -1e-3 ? t + off * fmax(1.0, fabs(t)) : off;
+    }
+    begin(i, "fmi2DoStep(%.17g, %.17g)", t, h);
+    int allowed;
+    if (m->st == S_FAILED) allowed = DISCARD;
+    else if (m->st != S_STEP) allowed = ERROR;
+    else if (!(isfinite(h) && h > 0) || !(fabs(t - m->time) <= TOLERANCE * fmax(1.0, fabs(m->time))) || t + h == t ||
+             (m->stop_defined && t + h > m->tstop + TOLERANCE * fmax(1.0, fabs(m->tstop))))
+        allowed = ERROR;
+    else allowed = OK | DISCARD;
+    int s = check(DoStep(inst[i].c, t, h, (fmi2Boolean)below(2)), allowed);
+    if (m->st == S_STEP && s != fmi2Error) {
+        if (s == fmi2OK) m->time = t + h;
+        else m->st = S_FAILED, m->failed = 1;
+        history_add(&inst[i].h, record((Op){.kind = OP_STEP, .status = s, .a = t, .b = h}));
+    }
+}
+
+static fmi2ValueReference refs[4096];
+
+static void set_values(int i, int integer)
+{
+    Model *m = &inst[i].m;
+    size_t n = pick_refs(integer, 1, refs, sizeof refs / sizeof refs[0]);
+    int null_refs = n && chance(0.02), null_values = n && chance(0.02);
+    double *x = calloc(n + 1, sizeof *x);
+    fmi2Integer *iv = calloc(n + 1, sizeof *iv);
+    int valid = m->st == S_INSTANTIATED || m->st == S_INIT || m->st == S_STEP;
+    for (size_t k = 0; k < n; k++) {
+        int j = var_of(refs[k]);
+        if (j >= 0 && !vars[j].integer) x[k] = real_for(&vars[j]);
+        else if (j >= 0) iv[k] = int_for(&vars[j]);
+        else x[k] = ODD[below(NODD)], iv[k] = INT_MIN;
+        valid &= j >= 0 && vars[j].integer == integer &&
+                 (vars[j].causality == C_INPUT || (vars[j].causality == C_PARAM && m->st != S_STEP));
+    }
+    valid &= !null_refs && !null_values;
+    begin(i, "fmi2Set%s(%zu refs%s%s: %u = %.17g, ...)", integer ? "Integer" : "Real", n, null_refs ? ", NULL vr" : "",
+          null_values ? ", NULL values" : "", n ? (unsigned)refs[0] : 0, n ? (integer ? iv[0] : x[0]) : 0.0);
+    const fmi2ValueReference *vr = null_refs ? NULL : refs;
+    int s = integer ? check(SetInteger(inst[i].c, vr, n, null_values ? NULL : iv), valid ? OK : ERROR)
+                    : check(SetReal(inst[i].c, vr, n, null_values ? NULL : x), valid ? OK : ERROR);
+    if (s == fmi2OK) {
+        Op op = {.kind = integer ? OP_SETI : OP_SETR, .status = s, .n = n};
+        op.vr = malloc((n + 1) * sizeof *op.vr);
+        memcpy(op.vr, refs, n * sizeof *op.vr);
+        if (integer) op.iv = iv, iv = NULL;
+        else op.x = x, x = NULL;
+        history_add(&inst[i].h, record(op));
+        for (size_t k = 0; k < n; k++) m->value[var_of(refs[k])] = integer ? op.iv[k] : op.x[k];
+    }
+    free(x);
+    free(iv);
+}
+
+static void get_values(int i, int integer)
+{
+    Model *m = &inst[i].m;
+    size_t n = pick_refs(integer, 0, refs, sizeof refs / sizeof refs[0]);
+    int null_refs = n && chance(0.02), null_values = n && chance(0.02);
+    double *x = calloc(n + 1, sizeof *x);
+    fmi2Integer *iv = calloc(n + 1, sizeof *iv);
+    int valid = !null_refs && !null_values, has_output = 0;
+    for (size_t k = 0; k < n; k++) {
+        int j = var_of(refs[k]);
+        valid &= j >= 0 && vars[j].integer == integer;
+        has_output |= j >= 0 && vars[j].causality == C_OUTPUT;
+    }
+    begin(i, "fmi2Get%s(%zu refs%s%s, first %u)", integer ? "Integer" : "Real", n, null_refs ? ", NULL vr" : "",
+          null_values ? ", NULL values" : "", n ? (unsigned)refs[0] : 0);
+    int allowed = !readable(m) || !valid ? ERROR : (m->failed && has_output) ? OK | ERROR : OK;
+    const fmi2ValueReference *vr = null_refs ? NULL : refs;
+    int s = integer ? check(GetInteger(inst[i].c, vr, n, null_values ? NULL : iv), allowed)
+                    : check(GetReal(inst[i].c, vr, n, null_values ? NULL : x), allowed);
+    if (s == fmi2OK && !integer)
+        for (size_t k = 0; k < n; k++)
+            if (vars[var_of(refs[k])].causality == C_OUTPUT && !isfinite(x[k]))
+                violation("output %u read %g with fmi2OK", (unsigned)refs[k], x[k]);
+    free(x);
+    free(iv);
+}
+
+/* Boolean and String: the kit's FMUs have none; an empty call is fine where allowed. */
+static void other_types(int i)
+{
+    Model *m = &inst[i].m;
+    size_t n = chance(0.5) ? 0 : 1 + (size_t)below(3);
+    fmi2ValueReference vr[4] = {0, 1, 2, 3};
+    fmi2Boolean b[4] = {0};
+    fmi2String str[4] = {"a", "%s", "", "b"};
+    int which = below(4);
+    int get_ok = readable(m), set_ok = m->st == S_INSTANTIATED || m->st == S_INIT || m->st == S_STEP;
+    static const char *const NAME[] = {"GetBoolean", "SetBoolean", "GetString", "SetString"};
+    begin(i, "fmi2%s(%zu refs)", NAME[which], n);
+    int allowed = n == 0 && (which % 2 ? set_ok : get_ok) ? OK : ERROR;
+    switch (which) {
+    case 0: check(GetBoolean(inst[i].c, vr, n, b), allowed); break;
+    case 1: check(SetBoolean(inst[i].c, vr, n, b), allowed); break;
+    case 2: check(GetString(inst[i].c, vr, n, str), allowed); break;
+    default: check(SetString(inst[i].c, vr, n, str), allowed); break;
+    }
+}
+
+static void status_query(int i)
+{
+    Model *m = &inst[i].m;
+    int ok_state = m->st == S_STEP || m->st == S_FAILED || m->st == S_TERMINATED;
+    int kind = chance(0.8) ? below(4) : (chance(0.5) ? 99 : -1);
+    int which = below(5);
+    static const char *const NAME[] = {"GetStatus", "GetRealStatus", "GetIntegerStatus", "GetBooleanStatus",
+                                       "GetStringStatus"};
+    begin(i, "fmi2%s(kind %d)", NAME[which], kind);
+    fmi2StatusKind k = (fmi2StatusKind)kind;
+    if (which == 0) {
+        fmi2Status v = fmi2Fatal;
+        if (check(GetStatus(inst[i].c, k, &v), ok_state && k == fmi2DoStepStatus ? OK : ERROR) == fmi2OK &&
+            v != (m->failed ? fmi2Discard : fmi2OK))
+            violation("fmi2DoStepStatus is %s, the model says %s", status_name(v), m->failed ? "Discard" : "OK");
+    } else if (which == 1) {
+        double t = -1;
+        if (check(GetRealStatus(inst[i].c, k, &t), ok_state && k == fmi2LastSuccessfulTime ? OK : ERROR) == fmi2OK &&
+            memcmp(&t, &m->time, sizeof t) != 0)
+            violation("fmi2LastSuccessfulTime is %.17g, the model's time %.17g", t, m->time);
+    } else if (which == 2) {
+        fmi2Integer v;
+        check(GetIntegerStatus(inst[i].c, k, &v), ERROR);
+    } else if (which == 3) {
+        fmi2Boolean v = 7;
+        if (check(GetBooleanStatus(inst[i].c, k, &v), ok_state && k == fmi2Terminated ? OK : ERROR) == fmi2OK &&
+            v != (m->failed ? fmi2True : fmi2False))
+            violation("fmi2Terminated is %d, the model says %d", v, m->failed);
+    } else {
+        fmi2String v;
+        check(GetStringStatus(inst[i].c, k, &v), ERROR);
+    }
+}
+
+static void logging(int i)
+{
+    static const char *const CATS[] = {"logStatusWarning", "logStatusDiscard", "logStatusError", "logStatusFatal",
+                                       "logAll", "", "%s%n%s", "logEvents", NULL};
+    fmi2String cats[4];
+    size_t n = (size_t)below(4);
+    int known = 1, null_array = n && chance(0.1);
+    for (size_t k = 0; k < n; k++) {
+        int c = chance(0.7) ? below(5) : 5 + below(4);
+        cats[k] = CATS[c];
+        known &= c < 5;
+    }
+    fmi2Boolean on = (fmi2Boolean)below(2);
+    begin(i, "fmi2SetDebugLogging(%d, %zu categories%s, first '%s')", on, n, null_array ? ", NULL array" : "",
+          n && cats[0] ? cats[0] : "(null)");
+    check(SetDebugLogging(inst[i].c, on, n, null_array ? NULL : cats), known && !null_array ? OK : ERROR);
+}
+
+static void not_offered(int i)
+{
+    fmi2ValueReference vr = 0;
+    fmi2Integer order = 1;
+    double x = 0, y = 0;
+    int which = below(6);
+    static const char *const NAME[] = {"CancelStep", "SetRealInputDerivatives", "GetRealOutputDerivatives",
+                                       "GetDirectionalDerivative", "SetTime", "EnterEventMode"};
+    begin(i, "fmi2%s", NAME[which]);
+    fmi2Component c = inst[i].c;
+    switch (which) {
+    case 0: check(CancelStep(c), ERROR); break;
+    case 1: check(SetRealInputDerivatives(c, &vr, 1, &order, &x), ERROR); break;
+    case 2: check(GetRealOutputDerivatives(c, &vr, 1, &order, &x), ERROR); break;
+    case 3: check(GetDirectionalDerivative(c, &vr, 1, &vr, 1, &x, &y), ERROR); break;
+    case 4: check(SetTime(c, 0.0), ERROR); break;
+    default: check(EnterEventMode(c), ERROR); break;
+    }
+}
+
+/* ------------------------------------------------------------------ FMU states */
+static void save(int i)
+{
+    int k = below(NSLOT);
+    int null_pointer = chance(0.03);
+    begin(i, "fmi2GetFMUstate(slot %d%s%s)", k, slot[k].s ? ", reused" : "", null_pointer ? ", NULL pointer" : "");
+    int fresh = !slot[k].s;
+    if (check(GetFMUstate(inst[i].c, null_pointer ? NULL : &slot[k].s), null_pointer ? ERROR : OK) != fmi2OK) return;
+    if (fresh) slot[k].owner = i;
+    slot[k].m = inst[i].m;
+    history_copy(&slot[k].h, &inst[i].h);
+    slot[k].readable = readable(&inst[i].m);
+    if (slot[k].readable) read_all(inst[i].c, slot[k].r);
+}
+
+static void restore(int i)
+{
+    int k = below(NSLOT);
+    begin(i, "fmi2SetFMUstate(slot %d%s)", k, slot[k].s ? "" : ", NULL");
+    if (check(SetFMUstate(inst[i].c, slot[k].s), slot[k].s ? OK : ERROR) != fmi2OK) return;
+    inst[i].m = slot[k].m;
+    history_copy(&inst[i].h, &slot[k].h);
+    if (slot[k].readable) {
+        Reading now[MAXV];
+        read_all(inst[i].c, now);
+        compare(slot[k].r, now, "a restored FMU state");
+    }
+}
+
+static void serialize(int i)
+{
+    int k = below(NSLOT), b = below(NBLOB);
+    size_t size = 0;
+    begin(i, "fmi2SerializedFMUstateSize(slot %d%s)", k, slot[k].s ? "" : ", NULL");
+    if (check(SerializedFMUstateSize(inst[i].c, slot[k].s, &size), slot[k].s ? OK : OK | ERROR) != fmi2OK) return;
+    int short_buffer = chance(0.1);
+    size_t given = short_buffer && size ? size - 1 : size;
+    unsigned char *data = malloc(size + 1);
+    begin(i, "fmi2SerializeFMUstate(slot %d%s, %zu of %zu bytes)", k, slot[k].s ? "" : ", NULL", given, size);
+    if (check(SerializeFMUstate(inst[i].c, slot[k].s, (fmi2Byte *)data, given),
+              slot[k].s && !short_buffer ? OK : ERROR) != fmi2OK) {
+        free(data);
+        return;
+    }
+    free(blob[b].data);
+    blob[b].data = data;
+    blob[b].size = size;
+    blob[b].m = slot[k].m;
+    history_copy(&blob[b].h, &slot[k].h);
+    blob[b].readable = slot[k].readable;
+    memcpy(blob[b].r, slot[k].r, sizeof blob[b].r);
+}
+
+static void deserialize(int i)
+{
+    int b = below(NBLOB), k = below(NSLOT);
+    if (!blob[b].data) return;
+    size_t size = blob[b].size;
+    unsigned char *data = malloc(size + 1);
+    memcpy(data, blob[b].data, size);
+    data[size] = (unsigned char)below(256);
+    int how = below(8);   /* 0-3: intact; 4: a byte flipped; 5: truncated; 6: one byte more; 7: NULL */
+    size_t at = 0;
+    if (how == 4) {
+        at = (size_t)below((int)size);
+        data[at] ^= (unsigned char)(1 + below(255));
+    }
+    size_t given = how == 5 ? size - 1 : how == 6 ? size + 1 : how == 7 && chance(0.5) ? 0 : size;
+    static const char *const HOW[] = {"intact", "intact", "intact", "intact", "a byte flipped", "truncated",
+                                      "one byte more", "NULL"};
+    begin(i, "fmi2DeSerializeFMUstate(blob %d %s%s%zu, %zu bytes, into slot %d%s)", b, HOW[how],
+          how == 4 ? " at " : "", how == 4 ? at : 0, given, k, slot[k].s ? ", reused" : "");
+    int fresh = !slot[k].s;
+    int s = check(DeSerializeFMUstate(inst[i].c, how == 7 ? NULL : (fmi2Byte *)data, given, &slot[k].s),
+                  how < 4 ? OK : ERROR);
+    free(data);
+    if (s != fmi2OK) return;
+    if (fresh) slot[k].owner = i;
+    slot[k].m = blob[b].m;
+    history_copy(&slot[k].h, &blob[b].h);
+    slot[k].readable = blob[b].readable;
+    memcpy(slot[k].r, blob[b].r, sizeof slot[k].r);
+}
+
+/* --------------------------------------------------- the pure-function check */
+/* The instance's history replayed on a fresh instance: every call answers as it did,
+   and every value reads the same, bit for bit. */
+static void replay_check(int i)
+{
+    if (!inst[i].c || !readable(&inst[i].m)) return;
+    begin(i, "(replay of %d calls on a fresh instance)", inst[i].h.n);
+    fmi2Component c = Instantiate("replay", fmi2CoSimulation, guid, resources, &CALLBACKS, fmi2False, fmi2False);
+    if (!c) violation("a fresh instance could not be made");
+    for (int k = 0; k < inst[i].h.n; k++) {
+        const Op *op = &arena[inst[i].h.op[k]];
+        int s = op->kind == OP_SETUP ? SetupExperiment(c, fmi2False, 0, op->a, (fmi2Boolean)op->stop_defined, op->b)
+              : op->kind == OP_ENTER ? EnterInitializationMode(c)
+              : op->kind == OP_EXIT ? ExitInitializationMode(c)
+              : op->kind == OP_SETR ? SetReal(c, op->vr, op->n, op->x)
+              : op->kind == OP_SETI ? SetInteger(c, op->vr, op->n, op->iv)
+              : op->kind == OP_STEP ? DoStep(c, op->a, op->b, fmi2True)
+              : Terminate(c);
+        if (s != op->status)
+            violation("replayed call %d of %d (kind %d) answered %s, first %s", k + 1, inst[i].h.n, op->kind,
+                      status_name(s), status_name(op->status));
+    }
+    Reading a[MAXV], b[MAXV];
+    read_all(inst[i].c, a);
+    read_all(c, b);
+    compare(a, b, "the replay on a fresh instance");
+    FreeInstance(c);
+    printf("same\n");
+}
+
+/* ------------------------------------------------------------------------ main */
+static void *sym(const char *name)
+{
+    void *f = dlsym(lib, name);
+    if (!f) {
+        fprintf(stderr, "fuzz: missing symbol %s\n", name);
+        exit(11);
+    }
+    return f;
+}
+
+/* One random call on instance i: mostly what the state leads to, the rest anything. */
+static void one_call(int i)
+{
+    if (!inst[i].c) {
+        instantiate(i);
+        return;
+    }
+    const Model *m = &inst[i].m;
+    int action = below(100);
+    if (chance(0.6)) {   /* the sensible next call, so that runs get somewhere */
+        if (m->st == S_INSTANTIATED) action = chance(0.5) ? 0 : 1;
+        else if (m->st == S_INIT) action = chance(0.3) ? 2 : chance(0.7) ? 10 : 12;
+        else if (m->st == S_STEP) action = chance(0.7) ? 20 : chance(0.5) ? 10 : 12;
+    }
+    if (action < 1) setup(i);
+    else if (action < 2) enter(i);
+    else if (action < 3) exit_init(i);
+    else if (action < 5) terminate(i);
+    else if (action < 6) reset(i);
+    else if (action < 7) free_instance(i);
+    else if (action < 12) set_values(i, chance(0.2));
+    else if (action < 18) get_values(i, chance(0.2));
+    else if (action < 19) other_types(i);
+    else if (action < 30) step(i);
+    else if (action < 34) status_query(i);
+    else if (action < 36) logging(i);
+    else if (action < 37) not_offered(i);
+    else if (action < 42) save(i);
+    else if (action < 46) restore(i);
+    else if (action < 48) free_slot(i, below(NSLOT));
+    else if (action < 51) serialize(i);
+    else if (action < 54) deserialize(i);
+    else if (action < 56) replay_check(i);
+    else step(i);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 7) {
+        fprintf(stderr, "usage: %s UNZIPDIR MODEL_IDENTIFIER GUID SEED NCALLS VARS\n", argv[0]);
+        return 10;
+    }
+    char path[4096];
+    snprintf(path, sizeof path, "%s/binaries/linux64/%s.so", argv[1], argv[2]);
+    snprintf(resources, sizeof resources, "file://%s/resources", argv[1]);
+    guid = argv[3];
+    rng_state = strtoull(argv[4], NULL, 10);
+    long ncalls = atol(argv[5]);
+    parse_vars(argv[6]);
+    lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!lib) {
+        fprintf(stderr, "fuzz: dlopen %s: %s\n", path, dlerror());
+        return 11;
+    }
+#define F(name) name = (fmi2##name##TYPE *)sym("fmi2" #name);
+    F(Instantiate) F(FreeInstance) F(SetDebugLogging) F(SetupExperiment) F(EnterInitializationMode)
+    F(ExitInitializationMode) F(Terminate) F(Reset) F(DoStep) F(CancelStep) F(SetReal) F(GetReal) F(SetInteger)
+    F(GetInteger) F(SetBoolean) F(GetBoolean) F(SetString) F(GetString) F(GetFMUstate) F(SetFMUstate)
+    F(FreeFMUstate) F(SerializedFMUstateSize) F(SerializeFMUstate) F(DeSerializeFMUstate) F(GetStatus)
+    F(GetRealStatus) F(GetIntegerStatus) F(GetBooleanStatus) F(GetStringStatus) F(SetRealInputDerivatives)
+    F(GetRealOutputDerivatives) F(GetDirectionalDerivative) F(GetTypesPlatform) F(GetVersion) F(SetTime)
+    F(EnterEventMode)
+#undef F
+    if (strcmp(GetVersion(), "2.0") != 0 || strcmp(GetTypesPlatform(), "default") != 0)
+        violation("fmi2GetVersion '%s', fmi2GetTypesPlatform '%s'", GetVersion(), GetTypesPlatform());
+    start_model.st = S_INSTANTIATED;
+    for (int k = 0; k < nvars; k++) start_model.value[k] = vars[k].start;
+    while (call_no < ncalls) {
+        int i = chance(0.8) ? 0 : 1;
+        one_call(i);
+    }
+    for (int i = 0; i < NINST; i++) replay_check(i);
+    for (int i = 0; i < NINST; i++)
+        if (inst[i].c) free_instance(i);
+    for (int k = 0; k < NSLOT; k++)   /* states whose instance was freed went with it */
+        if (slot[k].s) violation("slot %d outlived its instance", k);
+    for (int b = 0; b < NBLOB; b++) free(blob[b].data);
+    for (int k = 0; k < narena; k++) free(arena[k].vr), free(arena[k].x), free(arena[k].iv);
+    free(arena);
+    for (int i = 0; i < NINST; i++) free(inst[i].h.op);
+    for (int k = 0; k < NSLOT; k++) free(slot[k].h.op);
+    for (int b = 0; b < NBLOB; b++) free(blob[b].h.op);
+    printf("fuzz ok: %ld calls, %ld OK, %ld Discard, %ld Error\n", call_no, answered[fmi2OK], answered[fmi2Discard],
+           answered[fmi2Error]);
+    return 0;
+}
