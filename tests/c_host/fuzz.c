@@ -22,7 +22,10 @@
  *
  * Usage: fuzz UNZIPDIR MODEL_IDENTIFIER GUID SEED NCALLS VARS
  *   VARS: "vr:t:c:start:min:max;..." per variable, t r (Real) or i (Integer/Enumeration),
- *   c p (parameter), i (input), o (output), x (other); min/max "-" when not declared.
+ *   c p (parameter), i (input), o (output), x (other); min/max "-" when not declared; an
+ *   optional 7th field, a floor: no valid value below it is fed (max_step at its minimum
+ *   1e-9 makes each 1 ms step a million substeps, seconds within the work bound: the
+ *   budget of a run, not a defect).
  * Prints one line per call ("K INSTANCE CALL ARGS -> STATUS"), then "fuzz ok ..." and
  * exit 0, or "VIOLATION ..." and exit 1. The same arguments replay the same calls.
  */
@@ -57,6 +60,7 @@ typedef struct {
     unsigned vr;
     int integer, causality, has_min, has_max;
     double start, min, max;
+    double floor;   /* > 0: no finite value in [min, floor) is fed (a cost, not a rule: see VARS) */
 } Var;
 #define MAXV 512
 static Var vars[MAXV];
@@ -68,7 +72,8 @@ static void parse_vars(char *spec)
     for (char *item = strtok(spec, ";"); item && nvars < MAXV; item = strtok(NULL, ";")) {
         Var *v = &vars[nvars++];
         char t, c, mn[64], mx[64];
-        if (sscanf(item, "%u:%c:%c:%lf:%63[^:]:%63s", &v->vr, &t, &c, &v->start, mn, mx) != 6) {
+        int n = sscanf(item, "%u:%c:%c:%lf:%63[^:]:%63[^:]:%lf", &v->vr, &t, &c, &v->start, mn, mx, &v->floor);
+        if (n != 6 && n != 7) {
             fprintf(stderr, "fuzz: bad variable '%s'\n", item);
             exit(10);
         }
@@ -259,7 +264,7 @@ static const double ODD[] = {NAN, INFINITY, -INFINITY, 1e308, -1e308, DBL_MAX, -
                              2.2250738585072014e-308, 0.0, -0.0, 1e-300, 1e300, -1e300, 1.0, -1.0, 1e9, -1e9};
 #define NODD ((int)(sizeof ODD / sizeof ODD[0]))
 
-static double real_for(const Var *v)
+static double odd_or_edge(const Var *v)
 {
     int k = below(10);
     if (k < 6) return v->start * (1 + 0.01 * (unit() - 0.5)) + (v->causality == C_INPUT ? 0.01 * (unit() - 0.5) : 0);
@@ -268,6 +273,12 @@ static double real_for(const Var *v)
         return chance(0.5) ? edge : edge + (edge == v->min ? -1 : 1) * (fabs(edge) * 1e-6 + 1e-9);
     }
     return ODD[below(NODD)];
+}
+
+static double real_for(const Var *v)
+{
+    double x = odd_or_edge(v);
+    return v->floor > 0 && x > 0 && x < v->floor && !(v->has_min && x < v->min) ? v->floor : x;
 }
 
 static int int_for(const Var *v)
@@ -455,24 +466,25 @@ static void reset(int i)
     inst[i].h.n = 0;
 }
 
+static double bigger(double a, double b) { return a > b ? a : b; }   /* fmax, without libm (the host links none) */
 #define TOLERANCE 1e-9   /* docs/fmu-rules.md: the communication point to 1e-9 relative to max(1 s, |t|) */
 static void step(int i)
 {
     Model *m = &inst[i].m;
-    static const double ODD_H[] = {0.0, -1e-3, NAN, INFINITY, -INFINITY, 5e-324, 1e308, 1e9, 1e6, 1e-300};
-    double h = chance(0.85) ? (chance(0.6) ? 1e-3 : pow(10, -5 + 3 * unit())) : ODD_H[below(10)];
+    static const double ODD_H[] = {0.0, -1e-3, NAN, INFINITY, -INFINITY, 5e-324, 1e308, 1e9, 1e7, 1e-300};
+    double h = chance(0.85) ? (chance(0.6) ? 1e-3 : (1e-5 + 1e-2 * unit() * unit() * unit())) : ODD_H[below(10)];
     double t = m->time;
     if (chance(0.12)) {
         static const double OFF[] = {1e-3, -1e-3, 5.0, 1e-12, NAN, INFINITY, 1e300, -1e300};
         double off = OFF[below(8)];
-        t = off == 1e-12 ? t + off : off == 1e-3 || off == -1e-3 ? t + off * fmax(1.0, fabs(t)) : off;
+        t = off == 1e-12 ? t + off : off == 1e-3 || off == -1e-3 ? t + off * bigger(1.0, fabs(t)) : off;
     }
     begin(i, "fmi2DoStep(%.17g, %.17g)", t, h);
     int allowed;
     if (m->st == S_FAILED) allowed = DISCARD;
     else if (m->st != S_STEP) allowed = ERROR;
-    else if (!(isfinite(h) && h > 0) || !(fabs(t - m->time) <= TOLERANCE * fmax(1.0, fabs(m->time))) || t + h == t ||
-             (m->stop_defined && t + h > m->tstop + TOLERANCE * fmax(1.0, fabs(m->tstop))))
+    else if (!(isfinite(h) && h > 0) || !(fabs(t - m->time) <= TOLERANCE * bigger(1.0, fabs(m->time))) || t + h == t ||
+             (m->stop_defined && t + h > m->tstop + TOLERANCE * bigger(1.0, fabs(m->tstop))))
         allowed = ERROR;
     else allowed = OK | DISCARD;
     int s = check(DoStep(inst[i].c, t, h, (fmi2Boolean)below(2)), allowed);
