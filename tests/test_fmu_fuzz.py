@@ -23,7 +23,7 @@ from fmpy import read_model_description
 
 from movingbase.fmu_src import builder, native_build
 from tests.c_host import MISUSE, compile_host, extract
-from tests.test_fmu_misuse import MODELS, Fmu, run
+from tests.test_fmu_misuse import INIT3, MODELS, Fmu, native3, run, run3  # noqa: F401 (native3: a fixture)
 
 FUZZ = MISUSE.with_name("fuzz.c")
 SEEDS = [1, 2, 3, 4]
@@ -162,4 +162,50 @@ def test_every_byte_of_the_serialised_identifier_counts(scripted):
     blob[8 + 8 + len(fmu.id) + 3] ^= 0x5A     # MAGIC, size, then the identifier's padding
     with pytest.raises(FMICallException):
         slave.deSerializeFMUstate(bytes(blob))
+    slave.freeInstance()
+
+
+def test_a_refused_set_sets_nothing(scripted):
+    """fmi2SetReal of an input and then an output answered fmi2Error having set the input."""
+    from fmpy.fmi2 import FMU2Slave
+    from fmpy.fmi1 import FMICallException
+    fmu = scripted["LegSensor"]
+    inp, out = fmu.vr("leg_length[1]"), fmu.vr("measured_length[1]")
+    slave = FMU2Slave(guid=fmu.md.guid, unzipDirectory=str(fmu.folder), modelIdentifier=fmu.id)
+    slave.instantiate()
+    with pytest.raises(FMICallException):
+        slave.setReal([inp, out], [2.5, 1.0])
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    assert slave.getReal([inp]) == [float(fmu.vars["leg_length[1]"].start)]
+    slave.freeInstance()
+
+
+# ------------------------------------------------------------------ FMI 3.0 layer
+@pytest.mark.parametrize("model", ["HexapodPlant", "Wind"])
+def test_fmi3_every_byte_of_a_serialised_state_counts(native3, model):
+    """The FMI 3.0 layer's 16 bytes before the inner state (the instance state, the start
+    time) had no checksum: byte 0 xor 0x0c turned StepMode (4) into StepDiscarded (8) and
+    was restored; a changed start time too. Now a checksum of their own refuses both."""
+    fmu = native3[model]
+    answers = run3(fmu, "inst", "-", "-", *INIT3, "step", 0.0, 1e-3, "save", "bytes", "load-flipped-at", 0,
+                   "load-flipped-at", 9, "load", "restore", "step", 1e-3, 1e-3)
+    assert answers.statuses("fmi3DeserializeFMUState") == ["Error", "Error", "OK"], answers.lines
+    assert answers.statuses("fmi3DoStep") == ["OK", "OK"], answers.lines
+
+
+def test_fmi3_a_refused_set_sets_nothing(native3):
+    """fmi3SetFloat64 of an input and an output in one call (two runs of value references)
+    answered fmi3Error having set the input."""
+    from fmpy.fmi3 import FMU3Slave
+    from fmpy.fmi1 import FMICallException
+    fmu = native3["LegSensor"]
+    inp, out = fmu.vr("leg_length"), fmu.vr("measured_length")
+    slave = FMU3Slave(guid=fmu.md.guid, unzipDirectory=str(fmu.folder), modelIdentifier=fmu.id)
+    slave.instantiate()
+    slave.enterInitializationMode()
+    start = slave.getFloat64([inp], nValues=6)
+    with pytest.raises(FMICallException):
+        slave.setFloat64([inp, out], [2.5] * 6 + [1.0] * 6)
+    assert slave.getFloat64([inp], nValues=6) == start
     slave.freeInstance()
