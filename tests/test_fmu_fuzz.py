@@ -13,6 +13,7 @@ layer before their fix): a NULL value array with a count crashed the host; a ref
 fmi2SetReal/SetInteger had set the values before the bad reference; outputs after a
 refused initialization were what the last read in initialization mode had computed; and
 the scripted cases below."""
+import math
 import os
 import pathlib
 import shlex
@@ -47,21 +48,28 @@ def fmus(tmp_path_factory):
 
 
 def variables(folder):
-    """fuzz.c's VARS argument from the model description: vr:type:causality:start:min:max[:floor]."""
+    """fuzz.c's VARS argument from the model description: vr:type[count]:causality:start:min:max[:floor]."""
+    md = read_model_description(str(pathlib.Path(folder) / "modelDescription.xml"))
     items = []
-    for v in read_model_description(str(pathlib.Path(folder) / "modelDescription.xml")).modelVariables:
-        kind = "i" if v.type in ("Integer", "Enumeration") else "r"
+    for v in md.modelVariables:
+        if md.fmiVersion == "3.0":
+            kind = {"Int32": "i", "Enumeration": "e"}.get(v.type, "r")
+            count = math.prod(int(d.start) for d in v.dimensions or [])
+            kind += str(count) if v.dimensions else ""
+        else:
+            kind = "i" if v.type in ("Integer", "Enumeration") else "r"
         causality = {"parameter": "p", "input": "i", "output": "o"}.get(v.causality, "x")
         bounds = [repr(float(b)) if b is not None else "-" for b in (v.min, v.max)]
         floor = [repr(FLOORS[v.name])] if v.name in FLOORS else []
-        items.append(":".join([str(v.valueReference), kind, causality, repr(float(v.start or 0)), *bounds, *floor]))
+        start = float(str(v.start).split()[0]) if v.start is not None else 0.0
+        items.append(":".join([str(v.valueReference), kind, causality, repr(start), *bounds, *floor]))
     return ";".join(items)
 
 
 def fuzz(folder, seed, calls=CALLS):
     md = read_model_description(str(pathlib.Path(folder) / "modelDescription.xml"))
     args = [str(compile_host(source=FUZZ)), str(folder), md.coSimulation.modelIdentifier, md.guid, str(seed),
-            str(calls), variables(folder)]
+            str(calls), variables(folder), *(["3"] if md.fmiVersion == "3.0" else [])]
     p = subprocess.run(args, capture_output=True, text=True, errors="backslashreplace", timeout=300)
     replay = "replay: " + shlex.join(args)
     assert p.returncode == 0 and "Sanitizer" not in p.stderr and "runtime error" not in p.stderr, \
@@ -70,10 +78,31 @@ def fuzz(folder, seed, calls=CALLS):
     return p.stdout
 
 
+@pytest.fixture(scope="module")
+def fmus3(tmp_path_factory):
+    """The FMI 3.0 native FMUs, extracted: build/fmu/native3 (rebuilt when stale), or
+    MOVINGBASE_MISUSE_FMUS3 (the sanitizer builds)."""
+    given = os.environ.get("MOVINGBASE_MISUSE_FMUS3")
+    if given:
+        return {model: pathlib.Path(given) / model for model in MODELS}
+    out = tmp_path_factory.mktemp("fuzz3")
+    return {path.stem: extract(path, out / path.stem)
+            for path in native_build.ensure_native3(builder.available()).values()}
+
+
 @pytest.mark.parametrize("seed", SEEDS)
 @pytest.mark.parametrize("model", MODELS)
 def test_random_calls_answer_as_the_model_of_fmi2_says(fmus, model, seed):
-    out = fuzz(fmus[model], seed)
+    check_counts(fuzz(fmus[model], seed))
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("model", MODELS)
+def test_random_calls_answer_as_the_model_of_fmi3_says(fmus3, model, seed):
+    check_counts(fuzz(fmus3[model], seed))
+
+
+def check_counts(out):
     last = out.rstrip().splitlines()[-1]
     ok, discard, error = (int(w) for w in last.replace(",", "").split()[4:9:2])
     assert ok > CALLS // 5 and error > CALLS // 10, last   # the runs step, and they misuse
@@ -82,8 +111,9 @@ def test_random_calls_answer_as_the_model_of_fmi2_says(fmus, model, seed):
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", SLOW_SEEDS)
 @pytest.mark.parametrize("model", MODELS)
-def test_more_seeds(fmus, model, seed):
+def test_more_seeds(fmus, fmus3, model, seed):
     fuzz(fmus[model], seed, calls=2 * CALLS)
+    fuzz(fmus3[model], seed, calls=2 * CALLS)
 
 
 def test_the_oracle_catches_a_wrong_answer(fmus, tmp_path):

@@ -23,12 +23,17 @@
 #include "crc32.h"
 #include "fmi3_variables.h"   /* generated: the FMI 3 variables (arrays, kinds) by FMI 2 value reference */
 
-enum phase3 { P_INSTANTIATED = 1, P_INITIALIZATION = 2, P_STEP = 4, P_STEP_DISCARDED = 8, P_TERMINATED = 16 };
+/* P_INIT_FAILED: the error state after fmi3ExitInitializationMode answered fmi3Error; only
+   reads (for diagnosis), fmi3Reset, fmi3FreeInstance and the FMU-state calls lead on
+   (fuzz.c: fmi3SetFloat64 and the other setters of no values answered fmi3OK there). */
+enum phase3 { P_INSTANTIATED = 1, P_INITIALIZATION = 2, P_STEP = 4, P_STEP_DISCARDED = 8, P_TERMINATED = 16,
+              P_INIT_FAILED = 32 };
 static const char *phase_name(int p)
 {
     switch (p) {
     case P_INSTANTIATED: return "Instantiated";
     case P_INITIALIZATION: return "InitializationMode";
+    case P_INIT_FAILED: return "InitializationMode after a failed initialization (the error state)";
     case P_STEP: return "StepMode";
     case P_STEP_DISCARDED: return "StepDiscarded";
     default: return "Terminated";
@@ -286,7 +291,7 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance instance)
 {
     INSTANCE("fmi3ExitInitializationMode", P_INITIALIZATION)
     fmi2Status s = fmi2ExitInitializationMode(inst->inner);
-    if (s <= fmi2Warning) inst->phase = P_STEP;
+    inst->phase = s <= fmi2Warning ? P_STEP : P_INIT_FAILED;
     return (fmi3Status)s;
 }
 
@@ -308,7 +313,7 @@ fmi3Status fmi3Reset(fmi3Instance instance)
 }
 
 /* ---------------------------------------------------------------- get and set */
-enum { GETTABLE = P_INITIALIZATION | P_STEP | P_STEP_DISCARDED | P_TERMINATED,
+enum { GETTABLE = P_INITIALIZATION | P_INIT_FAILED | P_STEP | P_STEP_DISCARDED | P_TERMINATED,
        SETTABLE = P_INSTANTIATED | P_INITIALIZATION | P_STEP };
 
 /* Check the value references (each an FMI 3 variable of ``kind``) and the values
@@ -408,7 +413,7 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
     if (!p) return fmi3Error;
     for (size_t k = 0; k < p->nruns; k++) {
         if (p->first[k] == VR_TIME) {   /* fmi2GetRealStatus answers only after initialization */
-            if (inst->phase == P_INSTANTIATED || inst->phase == P_INITIALIZATION) *values++ = inst->start_time;
+            if (inst->phase & (P_INSTANTIATED | P_INITIALIZATION | P_INIT_FAILED)) *values++ = inst->start_time;
             else fmi2GetRealStatus(inst->inner, fmi2LastSuccessfulTime, values++);
             continue;
         }
@@ -704,7 +709,7 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte seriali
     }
     if (!FMUState || !serializedState || size < HEADER3 || crc != mb_crc32(serializedState, 16) ||
         (phase != P_INSTANTIATED && phase != P_INITIALIZATION && phase != P_STEP && phase != P_STEP_DISCARDED &&
-         phase != P_TERMINATED))
+         phase != P_TERMINATED && phase != P_INIT_FAILED))
         return FAIL(inst, "fmi3DeserializeFMUState: the bytes are not a serialised %s state (%zu bytes)",
                     MB_MODEL.identifier, size);
     state3 *st = *FMUState;

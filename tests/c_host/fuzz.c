@@ -1,31 +1,35 @@
-/* A random FMI 2.0 host held against a model of the standard: from a seed, one or two
- * instances of an FMU take N random calls over the whole co-simulation API (calls out of
- * sequence, bad times and steps, invalid, duplicated and huge value references and counts,
- * NaN/inf/1e308/denormal values, FMU states of either instance, freed and corrupted
- * states, Reset/Terminate/FreeInstance at any time, logging with odd categories), and a
- * model of the FMI 2.0 call sequence (the standard's state tables, as the Reference FMUs'
- * masks read them, plus the kit's rules of docs/fmu-rules.md) runs beside the FMU.
+/* A random FMI 2.0 or FMI 3.0 host held against a model of the standard: from a seed, one
+ * or two instances of an FMU take N random calls over the whole co-simulation API (calls
+ * out of sequence, bad times and steps, invalid, duplicated and huge value references and
+ * counts, wrong nValues, NULL arrays, NaN/inf/1e308/denormal values, FMU states of either
+ * instance, freed and corrupted states, Reset/Terminate/FreeInstance at any time, logging
+ * with odd categories), and a model of the call sequence (the standard's state tables, as
+ * the Reference FMUs' masks read them, plus the kit's rules of docs/fmu-rules.md) runs
+ * beside the FMU.
  *
- * Why: a hand-written misuse script (misuse.c) finds what its author imagined; a random
- * sequence finds the rest. "No crash" is not enough of a truth, so each call is checked:
- * - the status is one the model allows (a call out of sequence answers fmi2Error, a
- *   doStep after a Discard fmi2Discard, an initialization with a parameter outside its
- *   declared range fmi2Error, ...);
- * - every status other than fmi2OK comes with a log line at that status (the logger here);
+ * Why: a hand-written misuse script (misuse.c, misuse3.c) finds what its author imagined;
+ * a random sequence finds the rest. "No crash" is not enough of a truth, so each call is
+ * checked:
+ * - the status is one the model allows (a call out of sequence answers Error, an FMI 2.0
+ *   doStep after a Discard Discard, an initialization with a parameter outside its
+ *   declared range Error, ...);
+ * - every status other than OK comes with a log line at that status (the logger here);
  * - a pure function of the accepted calls: the calls that changed an instance, replayed on
  *   a fresh instance, give the same answers and the same values bit for bit; an FMU state
- *   restored gives the values read when it was saved; fmi2LastSuccessfulTime is the
- *   model's time; no Real output is read non-finite with fmi2OK.
+ *   restored gives the values read when it was saved; the last successful time is the
+ *   model's; no output is read non-finite with OK.
  * What it never feeds (undefined for the host under any FMU): a pointer to freed memory
- * (an instance after fmi2FreeInstance, a state of a freed instance: freed with it), an
- * array shorter than its count, a NULL fmi2CallbackFunctions or logger.
+ * (an instance after FreeInstance, a state of a freed instance: freed with it), an array
+ * shorter than its count, a NULL callback structure or logger.
  *
- * Usage: fuzz UNZIPDIR MODEL_IDENTIFIER GUID SEED NCALLS VARS
- *   VARS: "vr:t:c:start:min:max;..." per variable, t r (Real) or i (Integer/Enumeration),
- *   c p (parameter), i (input), o (output), x (other); min/max "-" when not declared; an
- *   optional 7th field, a floor: no valid value below it is fed (max_step at its minimum
- *   1e-9 makes each 1 ms step a million substeps, seconds within the work bound: the
- *   budget of a run, not a defect).
+ * Usage: fuzz UNZIPDIR MODEL_IDENTIFIER GUID SEED NCALLS VARS [3]
+ *   VARS: "vr:t:c:start:min:max[:floor];..." per variable: t r (Real/Float64), i
+ *   (Integer, Enumeration in FMI 2.0; Int32 in FMI 3.0), e (an FMI 3.0 Enumeration, read
+ *   as Int64), followed by the number of elements of an FMI 3.0 array (r6); c p
+ *   (parameter), i (input), o (output), x (other: the independent time); min/max "-" when
+ *   not declared; a floor: no valid value below it is fed (max_step at its minimum 1e-9
+ *   makes each 1 ms step a million substeps, seconds within the work bound: the budget of
+ *   a run, not a defect). A last argument 3: the FMU is FMI 3.0.
  * Prints one line per call ("K INSTANCE CALL ARGS -> STATUS"), then "fuzz ok ..." and
  * exit 0, or "VIOLATION ..." and exit 1. The same arguments replay the same calls.
  */
@@ -40,6 +44,7 @@
 #include <string.h>
 
 #include "fmi2Functions.h"
+#include "fmi3Functions.h"
 
 /* ------------------------------------------------------------------ randomness */
 static uint64_t rng_state;
@@ -54,11 +59,14 @@ static int below(int n) { return (int)(next_random() % (uint64_t)n); }
 static double unit(void) { return (double)(next_random() >> 11) * 0x1.0p-53; }
 static int chance(double p) { return unit() < p; }
 
+static int v3;   /* the FMU is FMI 3.0 */
+
 /* -------------------------------------------------------------- the variables */
 enum { C_PARAM, C_INPUT, C_OUTPUT, C_OTHER };
+enum { K_REAL, K_INT, K_INT64 };   /* how a variable is read and set: Real/Float64, Integer/Int32, Int64 */
 typedef struct {
     unsigned vr;
-    int integer, causality, has_min, has_max;
+    int kind, count, causality, has_min, has_max;
     double start, min, max;
     double floor;   /* > 0: no finite value in [min, floor) is fed (a cost, not a rule: see VARS) */
 } Var;
@@ -71,13 +79,14 @@ static void parse_vars(char *spec)
 {
     for (char *item = strtok(spec, ";"); item && nvars < MAXV; item = strtok(NULL, ";")) {
         Var *v = &vars[nvars++];
-        char t, c, mn[64], mx[64];
-        int n = sscanf(item, "%u:%c:%c:%lf:%63[^:]:%63[^:]:%lf", &v->vr, &t, &c, &v->start, mn, mx, &v->floor);
+        char t[16], c, mn[64], mx[64];
+        int n = sscanf(item, "%u:%15[^:]:%c:%lf:%63[^:]:%63[^:]:%lf", &v->vr, t, &c, &v->start, mn, mx, &v->floor);
         if (n != 6 && n != 7) {
             fprintf(stderr, "fuzz: bad variable '%s'\n", item);
             exit(10);
         }
-        v->integer = t == 'i';
+        v->kind = t[0] == 'i' ? K_INT : t[0] == 'e' ? K_INT64 : K_REAL;
+        v->count = t[1] ? atoi(t + 1) : 1;
         v->causality = c == 'p' ? C_PARAM : c == 'i' ? C_INPUT : c == 'o' ? C_OUTPUT : C_OTHER;
         v->has_min = strcmp(mn, "-") != 0;
         v->has_max = strcmp(mx, "-") != 0;
@@ -95,26 +104,27 @@ static int var_of(unsigned vr)
 }
 
 /* ------------------------------------------------------------------ the model */
-/* The FMI 2.0 co-simulation states; FAILED is stepFailed (after a Discard) and the state
-   after a failed initialization (the kit answers both alike, docs/fmu-rules.md). */
+/* The co-simulation states. FAILED: FMI 2.0 stepFailed (after a Discard) and the state
+   after a failed initialization (the kit answers both alike, docs/fmu-rules.md); FMI 3.0
+   StepDiscarded. A failed FMI 3.0 initialization stays in INIT with failed set (the
+   standard's error state: reads, Reset, FreeInstance and the state calls lead on). */
 enum { S_INSTANTIATED, S_INIT, S_STEP, S_FAILED, S_TERMINATED };
-static const char *const STATE_NAME[] = {"Instantiated", "InitializationMode", "StepComplete", "StepFailed",
-                                         "Terminated"};
+static const char *const STATE_NAME[] = {"Instantiated", "InitializationMode", "StepComplete/StepMode",
+                                         "StepFailed/StepDiscarded", "Terminated"};
 typedef struct {
     int st, failed, stop_defined;
-    double time, tstop;
-    double value[MAXV];   /* every variable's value as set (Integers as doubles) */
+    double start, time, tstop;
+    double value[MAXV];   /* every scalar variable's value as set (Integers as doubles) */
 } Model;
 
 /* The calls that changed an instance since it was instantiated: replayed on a fresh one. */
-enum { OP_SETUP, OP_ENTER, OP_EXIT, OP_SETR, OP_SETI, OP_STEP, OP_TERM };
+enum { OP_SETUP, OP_ENTER, OP_EXIT, OP_SET, OP_STEP, OP_TERM };
 typedef struct {
-    int kind, status, stop_defined;
+    int kind, status, stop_defined, type;
     double a, b;
-    size_t n;
-    fmi2ValueReference *vr;
-    double *x;
-    fmi2Integer *iv;
+    size_t n, nvalues;
+    unsigned *vr;
+    void *values;
 } Op;
 static Op *arena;   /* every op ever recorded (immutable); a history is a list of indices */
 static int narena, arena_cap;
@@ -143,16 +153,17 @@ static int record(Op op)
     return narena++;
 }
 
-typedef struct { int status; double v; } Reading;
+/* One variable read: its status, the first element, and a hash of every element's bits. */
+typedef struct { int status; double first; uint64_t hash; } Reading;
 
 typedef struct {
-    fmi2Component c;
+    void *c;   /* fmi2Component or fmi3Instance */
     Model m;
     History h;
 } Instance;
 
 typedef struct {
-    fmi2FMUstate s;
+    void *s;   /* fmi2FMUstate or fmi3FMUState */
     int owner;   /* the instance whose call allocated it */
     Model m;
     History h;
@@ -180,7 +191,7 @@ static Model start_model;
 /* ------------------------------------------------------------------- the FMU */
 static void *lib;
 static const char *guid;
-static char resources[4200];
+static char resources[4200], resource_path[4200];
 #define F(name) static fmi2##name##TYPE *name;
 F(Instantiate) F(FreeInstance) F(SetDebugLogging) F(SetupExperiment) F(EnterInitializationMode)
 F(ExitInitializationMode) F(Terminate) F(Reset) F(DoStep) F(CancelStep) F(SetReal) F(GetReal) F(SetInteger)
@@ -190,6 +201,14 @@ F(GetRealStatus) F(GetIntegerStatus) F(GetBooleanStatus) F(GetStringStatus) F(Se
 F(GetRealOutputDerivatives) F(GetDirectionalDerivative) F(GetTypesPlatform) F(GetVersion) F(SetTime)
 F(EnterEventMode)
 #undef F
+#define G(name) static fmi3##name##TYPE *name##3;
+G(InstantiateCoSimulation) G(InstantiateModelExchange) G(FreeInstance) G(SetDebugLogging)
+G(EnterInitializationMode) G(ExitInitializationMode) G(Terminate) G(Reset) G(DoStep) G(GetFloat64)
+G(SetFloat64) G(GetInt32) G(SetInt32) G(GetInt64) G(SetInt64) G(GetBoolean) G(SetBoolean) G(GetString)
+G(SetString) G(GetFloat32) G(SetUInt8) G(GetFMUState) G(SetFMUState) G(FreeFMUState) G(SerializedFMUStateSize)
+G(SerializeFMUState) G(DeserializeFMUState) G(EnterEventMode) G(EnterStepMode) G(EnterConfigurationMode)
+G(SetTime) G(GetDirectionalDerivative) G(GetVersion)
+#undef G
 
 static const char *STATUS[] = {"OK", "Warning", "Discard", "Error", "Fatal", "Pending"};
 static const char *status_name(int s) { return s >= 0 && s <= fmi2Pending ? STATUS[s] : "?"; }
@@ -213,6 +232,13 @@ static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status sta
 }
 static const fmi2CallbackFunctions CALLBACKS = {logger, calloc, free, NULL, NULL};
 
+static void logger3(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category, fmi3String message)
+{
+    (void)env, (void)category;
+    snprintf(last_text, sizeof last_text, "%s", message ? message : "(null)");   /* FMI 3.0: text */
+    last_log = status;
+}
+
 static void violation(const char *fmt, ...)
 {
     va_list ap;
@@ -229,7 +255,7 @@ static void violation(const char *fmt, ...)
 static void begin(int i, const char *fmt, ...)
 {
     va_list ap;
-    int n = snprintf(seen_call, sizeof seen_call, "%d ", i);
+    int n = snprintf(seen_call, sizeof seen_call, "%d fmi%d", i, v3 ? 3 : 2);
     current = i;
     seen_state = inst[i].m.st;
     seen_failed = inst[i].m.failed;
@@ -281,42 +307,44 @@ static double real_for(const Var *v)
     return v->floor > 0 && x > 0 && x < v->floor && !(v->has_min && x < v->min) ? v->floor : x;
 }
 
-static int int_for(const Var *v)
+static long long int_for(const Var *v)
 {
-    switch (below(8)) {
+    switch (below(9)) {
     case 0: return INT_MIN;
     case 1: return INT_MAX;
-    case 2: return v->has_min ? (int)v->min - 1 : -1;
-    case 3: return v->has_max ? (int)v->max + (v->max < INT_MAX) : 7;
+    case 2: return v->has_min ? (long long)v->min - 1 : -1;
+    case 3: return v->has_max ? (long long)v->max + 1 : 7;
     case 4: return below(5) - 2;
-    default: return (int)v->start;
+    case 5: return v->kind == K_INT64 ? (chance(0.5) ? LLONG_MIN : 1ll << 40) : (long long)v->start;
+    default: return (long long)v->start;
     }
 }
 
-/* A random variable of the kind (Real or Integer), preferring a causality when >= 0. */
-static int pick_var(int integer, int causality)
+/* A random variable of the kind, of a causality when >= 0. */
+static int pick_var(int kind, int causality)
 {
     int found[MAXV], n = 0;
     for (int k = 0; k < nvars; k++)
-        if (vars[k].integer == integer && (causality < 0 || vars[k].causality == causality)) found[n++] = k;
+        if (vars[k].kind == kind && (causality < 0 || vars[k].causality == causality)) found[n++] = k;
     if (!n) return -1;
     return found[below(n)];
 }
 
 /* Value references for a get or set: mostly a few valid ones of the kind, sometimes
-   none, a huge count with duplicates, or invalid ones (past the last, UINT_MAX, of the
-   other kind, an output to set). */
-static size_t pick_refs(int integer, int set, fmi2ValueReference *vr, size_t cap)
+   none, a huge count with duplicates, or invalid ones (past the last, UINT_MAX, of
+   another kind). */
+static size_t pick_refs(int kind, int set, unsigned *vr, size_t cap)
 {
     size_t n = chance(0.05) ? 0 : chance(0.05) ? (size_t)(500 + below(3000)) : (size_t)(1 + below(4));
     if (n > cap) n = cap;
     int wanted = set ? (chance(0.5) ? C_INPUT : C_PARAM) : -1;
     for (size_t k = 0; k < n; k++) {
-        int j = pick_var(integer, chance(0.8) ? wanted : -1);
-        vr[k] = j >= 0 ? vars[j].vr : 0;
+        int j = pick_var(kind, chance(0.8) ? wanted : -1);
+        if (j < 0) j = pick_var(kind, -1);
+        vr[k] = j >= 0 ? vars[j].vr : max_vr + 1;
         if (chance(0.03)) {
-            static const fmi2ValueReference BAD[] = {UINT_MAX, 0x80000000u, 100000u};
-            int other = pick_var(!integer, -1);
+            static const unsigned BAD[] = {UINT_MAX, 0x80000000u, 100000u};
+            int other = pick_var((kind + 1 + below(2)) % 3, -1);
             int b = below(5);
             vr[k] = b < 3 ? BAD[b] : b == 3 ? max_vr + 1 : (other >= 0 ? vars[other].vr : max_vr + 1);
         }
@@ -324,32 +352,95 @@ static size_t pick_refs(int integer, int set, fmi2ValueReference *vr, size_t cap
     return n;
 }
 
+static int element_count(const unsigned *vr, size_t n, int kind, int *valid)
+{
+    size_t total = 0;
+    for (size_t k = 0; k < n; k++) {
+        int j = var_of(vr[k]);
+        if (j < 0 || vars[j].kind != kind) *valid = 0;
+        else total += (size_t)vars[j].count;
+    }
+    return (int)total;
+}
+
+/* ------------------------------------------------------ calls of either version */
+static size_t elem_size(int kind) { return kind == K_REAL ? sizeof(double) : kind == K_INT ? sizeof(int) : sizeof(long long); }
+
+static int api_get(void *c, int kind, const unsigned *vr, size_t n, void *values, size_t nvalues)
+{
+    if (!v3) {
+        if (kind == K_REAL) return GetReal(c, vr, n, values);
+        return GetInteger(c, vr, n, values);
+    }
+    if (kind == K_REAL) return GetFloat643(c, vr, n, values, nvalues);
+    if (kind == K_INT) return GetInt323(c, vr, n, values, nvalues);
+    return GetInt643(c, vr, n, values, nvalues);
+}
+
+static int api_set(void *c, int kind, const unsigned *vr, size_t n, const void *values, size_t nvalues)
+{
+    if (!v3) {
+        if (kind == K_REAL) return SetReal(c, vr, n, values);
+        return SetInteger(c, vr, n, values);
+    }
+    if (kind == K_REAL) return SetFloat643(c, vr, n, values, nvalues);
+    if (kind == K_INT) return SetInt323(c, vr, n, values, nvalues);
+    return SetInt643(c, vr, n, values, nvalues);
+}
+
+static int api_step(void *c, double t, double h, int null_out, int *terminate, double *last)
+{
+    if (!v3) return DoStep(c, t, h, fmi2True);
+    fmi3Boolean event = 7, term = 7, early = 7;
+    double l = NAN;
+    int s = DoStep3(c, t, h, fmi3True, null_out ? NULL : &event, &term, &early, &l);
+    *terminate = term;
+    *last = l;
+    if (s <= fmi3Discard && !null_out && (event || early))
+        violation("fmi3DoStep: eventHandlingNeeded %d, earlyReturn %d (the FMU has neither)", event, early);
+    return s;
+}
+
+static int api_enter(void *c, double t0, int stop_defined, double stop)
+{
+    if (!v3) return EnterInitializationMode(c);
+    return EnterInitializationMode3(c, fmi3False, 0, t0, (fmi3Boolean)stop_defined, stop);
+}
+
+static void *fresh_instance(const char *name)
+{
+    if (!v3) return Instantiate(name, fmi2CoSimulation, guid, resources, &CALLBACKS, fmi2False, fmi2False);
+    return InstantiateCoSimulation3(name, guid, resource_path, fmi3False, fmi3False, fmi3False, fmi3False, NULL, 0,
+                                    NULL, logger3, NULL);
+}
+
 /* ---------------------------------------------------------- reading everything */
 static int readable(const Model *m) { return m->st != S_INSTANTIATED; }
 
-static void read_all(fmi2Component c, Reading *out)
+static void read_all(void *c, Reading *out)
 {
     for (int k = 0; k < nvars; k++) {
-        fmi2ValueReference vr = vars[k].vr;
-        if (vars[k].integer) {
-            fmi2Integer x = 0;
-            out[k].status = GetInteger(c, &vr, 1, &x);
-            out[k].v = x;
-        } else {
-            double x = 0;
-            out[k].status = GetReal(c, &vr, 1, &x);
-            out[k].v = x;
-        }
-        if (out[k].status != fmi2OK) out[k].v = 0;
+        unsigned vr = vars[k].vr;
+        size_t n = (size_t)vars[k].count;
+        unsigned char bytes[1024 * 8] = {0};
+        if (n > 1024) n = 1024;
+        out[k].status = api_get(c, vars[k].kind, &vr, 1, bytes, n);
+        uint64_t hash = 1469598103934665603ull;   /* FNV-1a of every element's bytes */
+        for (size_t b = 0; out[k].status == fmi2OK && b < n * elem_size(vars[k].kind); b++)
+            hash = (hash ^ bytes[b]) * 1099511628211ull;
+        out[k].hash = out[k].status == fmi2OK ? hash : 0;
+        out[k].first = vars[k].kind == K_REAL ? *(double *)bytes
+                     : vars[k].kind == K_INT ? *(int *)bytes : (double)*(long long *)bytes;
+        if (out[k].status != fmi2OK) out[k].first = 0;
     }
 }
 
 static void compare(const Reading *a, const Reading *b, const char *what)
 {
     for (int k = 0; k < nvars; k++)
-        if (a[k].status != b[k].status || memcmp(&a[k].v, &b[k].v, sizeof(double)) != 0)
-            violation("%s: value reference %u reads %s %.17g, expected %s %.17g", what, vars[k].vr,
-                      status_name(b[k].status), b[k].v, status_name(a[k].status), a[k].v);
+        if (a[k].status != b[k].status || a[k].hash != b[k].hash)
+            violation("%s: value reference %u reads %s %.17g..., expected %s %.17g...", what, vars[k].vr,
+                      status_name(b[k].status), b[k].first, status_name(a[k].status), a[k].first);
 }
 
 /* ------------------------------------------------------------------ the calls */
@@ -357,16 +448,22 @@ static void instantiate(int i)
 {
     static const char *const NAMES[] = {"fuzz", "%s%n%s", "", "a name with spaces", "\xff\xfe"};
     const char *name = NAMES[below(5)];
-    int kind = below(10);   /* 0: a wrong GUID, 1: no GUID, 2: model exchange, else right */
+    int kind = below(12);   /* 0: a wrong GUID/token, 1: none, 2: model exchange, 3: (FMI 3) event mode, else right */
     const char *g = kind == 0 ? "{00000000-%s-%n}" : kind == 1 ? NULL : guid;
-    fmi2Type type = kind == 2 ? fmi2ModelExchange : fmi2CoSimulation;
-    fmi2Boolean on = (fmi2Boolean)below(2);
-    begin(i, "fmi2Instantiate(name '%s', %s, GUID %s, loggingOn %d)", name, type == fmi2CoSimulation ? "CS" : "ME",
+    int on = below(2);
+    begin(i, "Instantiate(name '%s', %s, GUID %s, loggingOn %d)", name,
+          kind == 2 ? "ME" : kind == 3 && v3 ? "CS with event mode" : "CS",
           kind == 0 ? "wrong" : kind == 1 ? "NULL" : "right", on);
-    fmi2Component c = Instantiate(name, type, g, resources, &CALLBACKS, fmi2False, on);
+    void *c;
+    if (!v3) c = Instantiate(name, kind == 2 ? fmi2ModelExchange : fmi2CoSimulation, g, resources, &CALLBACKS,
+                             fmi2False, (fmi2Boolean)on);
+    else if (kind == 2) c = InstantiateModelExchange3(name, g, resource_path, fmi3False, (fmi3Boolean)on, NULL, logger3);
+    else c = InstantiateCoSimulation3(name, g, resource_path, fmi3False, (fmi3Boolean)on, kind == 3, fmi3False, NULL, 0,
+                                      NULL, logger3, NULL);
+    int expected = kind > 3 || (kind == 3 && !v3);
     printf("%s\n", c ? "instance" : "NULL");
-    if ((c != NULL) != (kind > 2)) violation("fmi2Instantiate answered %s", c ? "an instance" : "NULL");
-    if (!c && last_log != fmi2Error) violation("fmi2Instantiate answered NULL without a log line at Error");
+    if ((c != NULL) != expected) violation("Instantiate answered %s", c ? "an instance" : "NULL");
+    if (!c && last_log != fmi2Error) violation("Instantiate answered NULL without a log line at Error");
     inst[i].c = c;
     inst[i].m = start_model;
     inst[i].h.n = 0;
@@ -374,21 +471,23 @@ static void instantiate(int i)
 
 static void free_slot(int i, int k)
 {
-    begin(i, "fmi2FreeFMUstate(slot %d)", k);
-    check(FreeFMUstate(inst[i].c, &slot[k].s), OK);
-    if (slot[k].s) violation("fmi2FreeFMUstate left the state pointer set");
+    begin(i, "FreeFMUstate(slot %d)", k);
+    check(v3 ? FreeFMUState3(inst[i].c, &slot[k].s) : FreeFMUstate(inst[i].c, &slot[k].s), OK);
+    if (slot[k].s) violation("FreeFMUstate left the state pointer set");
 }
 
 static void free_instance(int i)
 {
     for (int k = 0; k < NSLOT; k++)   /* a state of a freed instance is gone with it */
         if (slot[k].s && slot[k].owner == i) free_slot(i, k);
-    begin(i, "fmi2FreeInstance");
-    FreeInstance(inst[i].c);
+    begin(i, "FreeInstance");
+    if (v3) FreeInstance3(inst[i].c);
+    else FreeInstance(inst[i].c);
     printf("done\n");
     inst[i].c = NULL;
 }
 
+/* FMI 2.0 fmi2SetupExperiment, or (FMI 3.0) the same arguments to fmi3EnterInitializationMode. */
 static void setup(int i)
 {
     static const double T0[] = {0.0, 0.0, 0.0, 1.5, -5.0, 1e9, 1e300, NAN, INFINITY, 5e-324};
@@ -399,37 +498,45 @@ static void setup(int i)
         static const double AFTER[] = {0.005, 1.0, INFINITY, NAN, -1.0, 0.0};
         stop = t0 + AFTER[below(6)];
     }
-    begin(i, "fmi2SetupExperiment(startTime %.17g, stopTimeDefined %d, stopTime %.17g)", t0, stop_defined, stop);
+    begin(i, "%s(startTime %.17g, stopTimeDefined %d, stopTime %.17g)", v3 ? "EnterInitializationMode" :
+          "SetupExperiment", t0, stop_defined, stop);
     int ok = m->st == S_INSTANTIATED && isfinite(t0) && (!stop_defined || stop >= t0);
-    int s = check(SetupExperiment(inst[i].c, fmi2False, 0, t0, (fmi2Boolean)stop_defined, stop), ok ? OK : ERROR);
+    int s = check(v3 ? api_enter(inst[i].c, t0, stop_defined, stop)
+                     : (int)SetupExperiment(inst[i].c, fmi2False, 0, t0, (fmi2Boolean)stop_defined, stop), ok ? OK : ERROR);
     if (s == fmi2OK) {
-        m->time = t0;
+        m->start = m->time = t0;
         m->stop_defined = stop_defined;
         m->tstop = stop;
-        history_add(&inst[i].h, record((Op){.kind = OP_SETUP, .status = s, .a = t0, .b = stop,
+        if (v3) m->st = S_INIT;
+        history_add(&inst[i].h, record((Op){.kind = v3 ? OP_ENTER : OP_SETUP, .status = s, .a = t0, .b = stop,
                                             .stop_defined = stop_defined}));
     }
 }
 
 static void enter(int i)
 {
+    if (v3) {
+        setup(i);
+        return;
+    }
     Model *m = &inst[i].m;
-    begin(i, "fmi2EnterInitializationMode");
+    begin(i, "EnterInitializationMode");
     if (check(EnterInitializationMode(inst[i].c), m->st == S_INSTANTIATED ? OK : ERROR) == fmi2OK) {
         m->st = S_INIT;
         history_add(&inst[i].h, record((Op){.kind = OP_ENTER, .status = fmi2OK}));
     }
 }
 
-/* A parameter outside its declared range or a Real input that is not finite: the
-   initialization must fail (fmi2Error). */
+/* A scalar parameter outside its declared range or a scalar Real input that is not
+   finite: the initialization must fail (Error). */
 static int surely_invalid(const Model *m)
 {
     for (int k = 0; k < nvars; k++) {
         const Var *v = &vars[k];
         double x = m->value[k];
+        if (v->count != 1) continue;
         if (v->causality == C_PARAM && ((v->has_min && !(x >= v->min)) || (v->has_max && !(x <= v->max)))) return 1;
-        if (v->causality == C_INPUT && !v->integer && !isfinite(x)) return 1;
+        if (v->causality == C_INPUT && v->kind == K_REAL && !isfinite(x)) return 1;
     }
     return 0;
 }
@@ -437,11 +544,12 @@ static int surely_invalid(const Model *m)
 static void exit_init(int i)
 {
     Model *m = &inst[i].m;
-    begin(i, "fmi2ExitInitializationMode");
-    int allowed = m->st != S_INIT ? ERROR : surely_invalid(m) ? ERROR : OK | ERROR;
-    int s = check(ExitInitializationMode(inst[i].c), allowed);
-    if (m->st == S_INIT) {   /* the kit: a failed initialization leaves the instance failed */
-        m->st = s == fmi2OK ? S_STEP : S_FAILED;
+    begin(i, "ExitInitializationMode");
+    int may = m->st == S_INIT && !m->failed;
+    int allowed = !may ? ERROR : surely_invalid(m) ? ERROR : OK | ERROR;
+    int s = check(v3 ? ExitInitializationMode3(inst[i].c) : ExitInitializationMode(inst[i].c), allowed);
+    if (may) {   /* a failed initialization: FMI 2.0 (the kit) failed; FMI 3.0 the error state */
+        m->st = s == fmi2OK ? S_STEP : v3 ? S_INIT : S_FAILED;
         m->failed = s != fmi2OK;
         history_add(&inst[i].h, record((Op){.kind = OP_EXIT, .status = s}));
     }
@@ -450,9 +558,9 @@ static void exit_init(int i)
 static void terminate(int i)
 {
     Model *m = &inst[i].m;
-    begin(i, "fmi2Terminate");
+    begin(i, "Terminate");
     int ok = m->st == S_STEP || m->st == S_FAILED;
-    if (check(Terminate(inst[i].c), ok ? OK : ERROR) == fmi2OK) {
+    if (check(v3 ? Terminate3(inst[i].c) : Terminate(inst[i].c), ok ? OK : ERROR) == fmi2OK) {
         m->st = S_TERMINATED;
         history_add(&inst[i].h, record((Op){.kind = OP_TERM, .status = fmi2OK}));
     }
@@ -460,8 +568,8 @@ static void terminate(int i)
 
 static void reset(int i)
 {
-    begin(i, "fmi2Reset");
-    check(Reset(inst[i].c), OK);
+    begin(i, "Reset");
+    check(v3 ? Reset3(inst[i].c) : Reset(inst[i].c), OK);
     inst[i].m = start_model;
     inst[i].h.n = 0;
 }
@@ -472,141 +580,186 @@ static void step(int i)
 {
     Model *m = &inst[i].m;
     static const double ODD_H[] = {0.0, -1e-3, NAN, INFINITY, -INFINITY, 5e-324, 1e308, 1e9, 1e7, 1e-300};
-    double h = chance(0.85) ? (chance(0.6) ? 1e-3 : (1e-5 + 1e-2 * unit() * unit() * unit())) : ODD_H[below(10)];
+    double h = chance(0.85) ? (chance(0.6) ? 1e-3 : 1e-5 + 1e-2 * unit() * unit() * unit()) : ODD_H[below(10)];
     double t = m->time;
     if (chance(0.12)) {
         static const double OFF[] = {1e-3, -1e-3, 5.0, 1e-12, NAN, INFINITY, 1e300, -1e300};
         double off = OFF[below(8)];
         t = off == 1e-12 ? t + off : off == 1e-3 || off == -1e-3 ? t + off * bigger(1.0, fabs(t)) : off;
     }
-    begin(i, "fmi2DoStep(%.17g, %.17g)", t, h);
+    int null_out = v3 && chance(0.03);
+    begin(i, "DoStep(%.17g, %.17g%s)", t, h, null_out ? ", NULL out argument" : "");
     int allowed;
-    if (m->st == S_FAILED) allowed = DISCARD;
-    else if (m->st != S_STEP) allowed = ERROR;
+    if (m->st == S_FAILED && !v3) allowed = DISCARD;   /* the kit: a failed instance refuses every step */
+    else if (m->st != S_STEP || null_out) allowed = ERROR;
     else if (!(isfinite(h) && h > 0) || !(fabs(t - m->time) <= TOLERANCE * bigger(1.0, fabs(m->time))) || t + h == t ||
              (m->stop_defined && t + h > m->tstop + TOLERANCE * bigger(1.0, fabs(m->tstop))))
         allowed = ERROR;
     else allowed = OK | DISCARD;
-    int s = check(DoStep(inst[i].c, t, h, (fmi2Boolean)below(2)), allowed);
+    int terminate_simulation = 0;
+    double last = 0;
+    int s = check(api_step(inst[i].c, t, h, null_out, &terminate_simulation, &last), allowed);
     if (m->st == S_STEP && s != fmi2Error) {
+        double before = m->time;
         if (s == fmi2OK) m->time = t + h;
         else m->st = S_FAILED, m->failed = 1;
         history_add(&inst[i].h, record((Op){.kind = OP_STEP, .status = s, .a = t, .b = h}));
+        if (v3 && (terminate_simulation != (s == fmi2Discard) || memcmp(&last, s == fmi2OK ? &m->time : &before,
+                                                                        sizeof last) != 0))
+            violation("fmi3DoStep: terminateSimulation %d, lastSuccessfulTime %.17g; the model says %d, %.17g",
+                      terminate_simulation, last, s == fmi2Discard, s == fmi2OK ? m->time : before);
     }
 }
 
-static fmi2ValueReference refs[4096];
+static unsigned refs[4096];
 
-static void set_values(int i, int integer)
+static void set_values(int i, int kind)
 {
     Model *m = &inst[i].m;
-    size_t n = pick_refs(integer, 1, refs, sizeof refs / sizeof refs[0]);
+    size_t n = pick_refs(kind, 1, refs, sizeof refs / sizeof refs[0]);
     int null_refs = n && chance(0.02), null_values = n && chance(0.02);
-    double *x = calloc(n + 1, sizeof *x);
-    fmi2Integer *iv = calloc(n + 1, sizeof *iv);
-    int valid = m->st == S_INSTANTIATED || m->st == S_INIT || m->st == S_STEP;
+    int valid = (m->st == S_INSTANTIATED || m->st == S_INIT || m->st == S_STEP) && !m->failed;
+    int kinds_ok = 1;
+    size_t total = (size_t)element_count(refs, n, kind, &kinds_ok), given = total;
+    if (v3 && chance(0.05)) given = total + 1 - 2 * (size_t)(total > 0 && chance(0.5));
+    size_t cap = (total > given ? total : given) + n + 1, at = 0;   /* FMI 2.0: one value per reference, valid or not */
+    unsigned char *values = calloc(cap, 8);
     for (size_t k = 0; k < n; k++) {
         int j = var_of(refs[k]);
-        if (j >= 0 && !vars[j].integer) x[k] = real_for(&vars[j]);
-        else if (j >= 0) iv[k] = int_for(&vars[j]);
-        else x[k] = ODD[below(NODD)], iv[k] = INT_MIN;
-        valid &= j >= 0 && vars[j].integer == integer &&
+        int count = j >= 0 && vars[j].kind == kind ? vars[j].count : v3 ? 0 : 1;
+        for (int e = 0; e < count; e++, at++) {
+            if (kind == K_REAL) ((double *)values)[at] = j >= 0 ? real_for(&vars[j]) : ODD[below(NODD)];
+            else {
+                long long x = j >= 0 ? int_for(&vars[j]) : INT_MIN;
+                if (kind == K_INT) ((int *)values)[at] = (int)(x < INT_MIN ? INT_MIN : x > INT_MAX ? INT_MAX : x);
+                else ((long long *)values)[at] = x, valid &= x >= INT_MIN && x <= INT_MAX;
+            }
+        }
+        valid &= j >= 0 && vars[j].kind == kind &&
                  (vars[j].causality == C_INPUT || (vars[j].causality == C_PARAM && m->st != S_STEP));
     }
-    valid &= !null_refs && !null_values;
-    begin(i, "fmi2Set%s(%zu refs%s%s: %u = %.17g, ...)", integer ? "Integer" : "Real", n, null_refs ? ", NULL vr" : "",
-          null_values ? ", NULL values" : "", n ? (unsigned)refs[0] : 0, n ? (integer ? iv[0] : x[0]) : 0.0);
-    const fmi2ValueReference *vr = null_refs ? NULL : refs;
-    int s = integer ? check(SetInteger(inst[i].c, vr, n, null_values ? NULL : iv), valid ? OK : ERROR)
-                    : check(SetReal(inst[i].c, vr, n, null_values ? NULL : x), valid ? OK : ERROR);
+    valid &= kinds_ok && !null_refs && !null_values && given == total;
+    begin(i, "Set%s(%zu refs, %zu values%s%s: %u, ...)", kind == K_REAL ? "Real/Float64" : kind == K_INT ?
+          "Integer/Int32" : "Int64", n, given, null_refs ? ", NULL vr" : "", null_values ? ", NULL values" : "",
+          n ? refs[0] : 0);
+    int s = check(api_set(inst[i].c, kind, null_refs ? NULL : refs, n, null_values ? NULL : values, given),
+                  valid ? OK : ERROR);
     if (s == fmi2OK) {
-        Op op = {.kind = integer ? OP_SETI : OP_SETR, .status = s, .n = n};
+        Op op = {.kind = OP_SET, .status = s, .type = kind, .n = n, .nvalues = given, .values = values};
         op.vr = malloc((n + 1) * sizeof *op.vr);
         memcpy(op.vr, refs, n * sizeof *op.vr);
-        if (integer) op.iv = iv, iv = NULL;
-        else op.x = x, x = NULL;
         history_add(&inst[i].h, record(op));
-        for (size_t k = 0; k < n; k++) m->value[var_of(refs[k])] = integer ? op.iv[k] : op.x[k];
+        at = 0;
+        for (size_t k = 0; k < n; k++) {
+            int j = var_of(refs[k]);
+            m->value[j] = kind == K_REAL ? ((double *)values)[at] : kind == K_INT ? ((int *)values)[at]
+                                                                   : (double)((long long *)values)[at];
+            at += (size_t)vars[j].count;
+        }
+        values = NULL;
     }
-    free(x);
-    free(iv);
+    free(values);
 }
 
-static void get_values(int i, int integer)
+static void get_values(int i, int kind)
 {
     Model *m = &inst[i].m;
-    size_t n = pick_refs(integer, 0, refs, sizeof refs / sizeof refs[0]);
+    size_t n = pick_refs(kind, 0, refs, sizeof refs / sizeof refs[0]);
     int null_refs = n && chance(0.02), null_values = n && chance(0.02);
-    double *x = calloc(n + 1, sizeof *x);
-    fmi2Integer *iv = calloc(n + 1, sizeof *iv);
     int valid = !null_refs && !null_values, has_output = 0;
+    size_t total = (size_t)element_count(refs, n, kind, &valid), given = total;
+    if (v3 && chance(0.05)) given = total + 1 - 2 * (size_t)(total > 0 && chance(0.5));
+    valid &= given == total;
     for (size_t k = 0; k < n; k++) {
         int j = var_of(refs[k]);
-        valid &= j >= 0 && vars[j].integer == integer;
         has_output |= j >= 0 && vars[j].causality == C_OUTPUT;
     }
-    begin(i, "fmi2Get%s(%zu refs%s%s, first %u)", integer ? "Integer" : "Real", n, null_refs ? ", NULL vr" : "",
-          null_values ? ", NULL values" : "", n ? (unsigned)refs[0] : 0);
-    int allowed = !readable(m) || !valid ? ERROR : (m->failed && has_output) ? OK | ERROR : OK;
-    const fmi2ValueReference *vr = null_refs ? NULL : refs;
-    int s = integer ? check(GetInteger(inst[i].c, vr, n, null_values ? NULL : iv), allowed)
-                    : check(GetReal(inst[i].c, vr, n, null_values ? NULL : x), allowed);
-    if (s == fmi2OK && !integer)
-        for (size_t k = 0; k < n; k++)
-            if (vars[var_of(refs[k])].causality == C_OUTPUT && !isfinite(x[k]))
-                violation("output %u read %g with fmi2OK", (unsigned)refs[k], x[k]);
-    free(x);
-    free(iv);
+    unsigned char *values = calloc((total > given ? total : given) + 1, 8);
+    begin(i, "Get%s(%zu refs, %zu values%s%s, first %u)", kind == K_REAL ? "Real/Float64" : kind == K_INT ?
+          "Integer/Int32" : "Int64", n, given, null_refs ? ", NULL vr" : "", null_values ? ", NULL values" : "",
+          n ? refs[0] : 0);
+    int allowed = !valid ? ERROR
+                : m->st == S_INSTANTIATED ? (v3 ? OK | ERROR : ERROR)   /* FMI 3.0 allows it, the kit refuses */
+                : m->failed && has_output ? OK | ERROR                  /* a failed initialization's outputs */
+                : m->st == S_FAILED && v3 ? OK | ERROR                  /* StepDiscarded: the kit answers */
+                : OK;
+    int s = check(api_get(inst[i].c, kind, null_refs ? NULL : refs, n, null_values ? NULL : values, given), allowed);
+    if (s == fmi2OK && kind == K_REAL) {
+        size_t at = 0;
+        for (size_t k = 0; k < n; k++) {
+            int j = var_of(refs[k]);
+            for (int e = 0; e < vars[j].count; e++, at++)
+                if (vars[j].causality == C_OUTPUT && !isfinite(((double *)values)[at]))
+                    violation("output %u read %g with OK", refs[k], ((double *)values)[at]);
+        }
+    }
+    free(values);
 }
 
-/* Boolean and String: the kit's FMUs have none; an empty call is fine where allowed. */
+/* The types the kit's FMUs have no variables of: an empty call is fine where allowed. */
 static void other_types(int i)
 {
     Model *m = &inst[i].m;
     size_t n = chance(0.5) ? 0 : 1 + (size_t)below(3);
-    fmi2ValueReference vr[4] = {0, 1, 2, 3};
-    fmi2Boolean b[4] = {0};
-    fmi2String str[4] = {"a", "%s", "", "b"};
-    int which = below(4);
-    int get_ok = readable(m), set_ok = m->st == S_INSTANTIATED || m->st == S_INIT || m->st == S_STEP;
-    static const char *const NAME[] = {"GetBoolean", "SetBoolean", "GetString", "SetString"};
-    begin(i, "fmi2%s(%zu refs)", NAME[which], n);
-    int allowed = n == 0 && (which % 2 ? set_ok : get_ok) ? OK : ERROR;
-    switch (which) {
-    case 0: check(GetBoolean(inst[i].c, vr, n, b), allowed); break;
-    case 1: check(SetBoolean(inst[i].c, vr, n, b), allowed); break;
-    case 2: check(GetString(inst[i].c, vr, n, str), allowed); break;
-    default: check(SetString(inst[i].c, vr, n, str), allowed); break;
+    unsigned vr[4] = {0, 1, 2, 3};
+    unsigned char buffer[64] = {0};
+    const char *str[4] = {"a", "%s", "", "b"};
+    int which = below(v3 ? 6 : 4);
+    int get_ok = readable(m) && (!v3 || m->st != S_FAILED);
+    int set_ok = (m->st == S_INSTANTIATED || m->st == S_INIT || m->st == S_STEP) && !m->failed;
+    int get_maybe = v3 && (m->st == S_INSTANTIATED || m->st == S_FAILED || m->failed);   /* standard vs kit */
+    int set_maybe = v3 && m->st == S_TERMINATED;
+    static const char *const NAME[] = {"GetBoolean", "SetBoolean", "GetString", "SetString", "GetFloat32", "SetUInt8"};
+    begin(i, "%s(%zu refs)", NAME[which], n);
+    int ok = which % 2 ? set_ok : get_ok, maybe = which % 2 ? set_maybe : get_maybe;
+    int allowed = n ? ERROR : ok ? OK : maybe ? OK | ERROR : ERROR;
+    void *c = inst[i].c;
+    int s;
+    if (!v3) {
+        s = which == 0 ? GetBoolean(c, vr, n, (fmi2Boolean *)buffer) : which == 1 ? SetBoolean(c, vr, n, (fmi2Boolean *)buffer)
+          : which == 2 ? GetString(c, vr, n, str) : SetString(c, vr, n, str);
+    } else {
+        s = which == 0 ? GetBoolean3(c, vr, n, (fmi3Boolean *)buffer, n) : which == 1 ? SetBoolean3(c, vr, n, (fmi3Boolean *)buffer, n)
+          : which == 2 ? GetString3(c, vr, n, str, n) : which == 3 ? SetString3(c, vr, n, str, n)
+          : which == 4 ? GetFloat323(c, vr, n, (fmi3Float32 *)buffer, n) : SetUInt83(c, vr, n, buffer, n);
     }
+    check(s, allowed);
 }
 
+/* FMI 2.0's status queries (FMI 3.0 has none: the call of what the FMU does not offer instead). */
+static void not_offered(int i);
 static void status_query(int i)
 {
+    if (v3) {
+        not_offered(i);
+        return;
+    }
     Model *m = &inst[i].m;
     int ok_state = m->st == S_STEP || m->st == S_FAILED || m->st == S_TERMINATED;
     int kind = chance(0.8) ? below(4) : (chance(0.5) ? 99 : -1);
-    int which = below(5);
+    int which = below(5), null_value = chance(0.03);
     static const char *const NAME[] = {"GetStatus", "GetRealStatus", "GetIntegerStatus", "GetBooleanStatus",
                                        "GetStringStatus"};
-    begin(i, "fmi2%s(kind %d)", NAME[which], kind);
+    begin(i, "%s(kind %d%s)", NAME[which], kind, null_value ? ", NULL value" : "");
     fmi2StatusKind k = (fmi2StatusKind)kind;
+    ok_state &= !null_value;
     if (which == 0) {
         fmi2Status v = fmi2Fatal;
-        if (check(GetStatus(inst[i].c, k, &v), ok_state && k == fmi2DoStepStatus ? OK : ERROR) == fmi2OK &&
-            v != (m->failed ? fmi2Discard : fmi2OK))
+        if (check(GetStatus(inst[i].c, k, null_value ? NULL : &v), ok_state && k == fmi2DoStepStatus ? OK : ERROR) ==
+                fmi2OK && v != (m->failed ? fmi2Discard : fmi2OK))
             violation("fmi2DoStepStatus is %s, the model says %s", status_name(v), m->failed ? "Discard" : "OK");
     } else if (which == 1) {
         double t = -1;
-        if (check(GetRealStatus(inst[i].c, k, &t), ok_state && k == fmi2LastSuccessfulTime ? OK : ERROR) == fmi2OK &&
-            memcmp(&t, &m->time, sizeof t) != 0)
+        if (check(GetRealStatus(inst[i].c, k, null_value ? NULL : &t), ok_state && k == fmi2LastSuccessfulTime ? OK :
+                  ERROR) == fmi2OK && memcmp(&t, &m->time, sizeof t) != 0)
             violation("fmi2LastSuccessfulTime is %.17g, the model's time %.17g", t, m->time);
     } else if (which == 2) {
         fmi2Integer v;
         check(GetIntegerStatus(inst[i].c, k, &v), ERROR);
     } else if (which == 3) {
         fmi2Boolean v = 7;
-        if (check(GetBooleanStatus(inst[i].c, k, &v), ok_state && k == fmi2Terminated ? OK : ERROR) == fmi2OK &&
-            v != (m->failed ? fmi2True : fmi2False))
+        if (check(GetBooleanStatus(inst[i].c, k, null_value ? NULL : &v), ok_state && k == fmi2Terminated ? OK : ERROR)
+                == fmi2OK && v != (m->failed ? fmi2True : fmi2False))
             violation("fmi2Terminated is %d, the model says %d", v, m->failed);
     } else {
         fmi2String v;
@@ -618,7 +771,7 @@ static void logging(int i)
 {
     static const char *const CATS[] = {"logStatusWarning", "logStatusDiscard", "logStatusError", "logStatusFatal",
                                        "logAll", "", "%s%n%s", "logEvents", NULL};
-    fmi2String cats[4];
+    const char *cats[4];
     size_t n = (size_t)below(4);
     int known = 1, null_array = n && chance(0.1);
     for (size_t k = 0; k < n; k++) {
@@ -626,22 +779,41 @@ static void logging(int i)
         cats[k] = CATS[c];
         known &= c < 5;
     }
-    fmi2Boolean on = (fmi2Boolean)below(2);
-    begin(i, "fmi2SetDebugLogging(%d, %zu categories%s, first '%s')", on, n, null_array ? ", NULL array" : "",
+    int on = below(2);
+    begin(i, "SetDebugLogging(%d, %zu categories%s, first '%s')", on, n, null_array ? ", NULL array" : "",
           n && cats[0] ? cats[0] : "(null)");
-    check(SetDebugLogging(inst[i].c, on, n, null_array ? NULL : cats), known && !null_array ? OK : ERROR);
+    const char **given = null_array ? NULL : cats;
+    check(v3 ? SetDebugLogging3(inst[i].c, (fmi3Boolean)on, n, given) : SetDebugLogging(inst[i].c, (fmi2Boolean)on, n, given),
+          known && !null_array ? OK : ERROR);
 }
 
 static void not_offered(int i)
 {
-    fmi2ValueReference vr = 0;
+    unsigned vr = 0;
     fmi2Integer order = 1;
     double x = 0, y = 0;
     int which = below(6);
-    static const char *const NAME[] = {"CancelStep", "SetRealInputDerivatives", "GetRealOutputDerivatives",
-                                       "GetDirectionalDerivative", "SetTime", "EnterEventMode"};
-    begin(i, "fmi2%s", NAME[which]);
-    fmi2Component c = inst[i].c;
+    static const char *const NAME2[] = {"CancelStep", "SetRealInputDerivatives", "GetRealOutputDerivatives",
+                                        "GetDirectionalDerivative", "SetTime", "EnterEventMode"};
+    static const char *const NAME3[] = {"EnterEventMode", "EnterStepMode", "EnterConfigurationMode",
+                                        "GetDirectionalDerivative", "SetTime", "InstantiateModelExchange"};
+    void *c = inst[i].c;
+    if (v3) {
+        begin(i, "%s", NAME3[which]);
+        if (which == 5) {
+            void *me = InstantiateModelExchange3("me", guid, resource_path, fmi3False, fmi3False, NULL, logger3);
+            printf("%s\n", me ? "instance" : "NULL");
+            if (me || last_log != fmi2Error) violation("a co-simulation FMU instantiated as model exchange answered "
+                                                       "%s, %s a log line at Error", me ? "an instance" : "NULL",
+                                                       last_log == fmi2Error ? "with" : "without");
+            return;
+        }
+        int s = which == 0 ? EnterEventMode3(c) : which == 1 ? EnterStepMode3(c) : which == 2 ? EnterConfigurationMode3(c)
+              : which == 3 ? GetDirectionalDerivative3(c, &vr, 1, &vr, 1, &x, 1, &y, 1) : SetTime3(c, 0.0);
+        check(s, ERROR);
+        return;
+    }
+    begin(i, "%s", NAME2[which]);
     switch (which) {
     case 0: check(CancelStep(c), ERROR); break;
     case 1: check(SetRealInputDerivatives(c, &vr, 1, &order, &x), ERROR); break;
@@ -657,9 +829,11 @@ static void save(int i)
 {
     int k = below(NSLOT);
     int null_pointer = chance(0.03);
-    begin(i, "fmi2GetFMUstate(slot %d%s%s)", k, slot[k].s ? ", reused" : "", null_pointer ? ", NULL pointer" : "");
+    begin(i, "GetFMUstate(slot %d%s%s)", k, slot[k].s ? ", reused" : "", null_pointer ? ", NULL pointer" : "");
     int fresh = !slot[k].s;
-    if (check(GetFMUstate(inst[i].c, null_pointer ? NULL : &slot[k].s), null_pointer ? ERROR : OK) != fmi2OK) return;
+    void **where = null_pointer ? NULL : &slot[k].s;
+    if (check(v3 ? GetFMUState3(inst[i].c, where) : GetFMUstate(inst[i].c, where), null_pointer ? ERROR : OK) != fmi2OK)
+        return;
     if (fresh) slot[k].owner = i;
     slot[k].m = inst[i].m;
     history_copy(&slot[k].h, &inst[i].h);
@@ -670,8 +844,9 @@ static void save(int i)
 static void restore(int i)
 {
     int k = below(NSLOT);
-    begin(i, "fmi2SetFMUstate(slot %d%s)", k, slot[k].s ? "" : ", NULL");
-    if (check(SetFMUstate(inst[i].c, slot[k].s), slot[k].s ? OK : ERROR) != fmi2OK) return;
+    begin(i, "SetFMUstate(slot %d%s)", k, slot[k].s ? "" : ", NULL");
+    int s = v3 ? SetFMUState3(inst[i].c, slot[k].s) : SetFMUstate(inst[i].c, slot[k].s);
+    if (check(s, slot[k].s ? OK : ERROR) != fmi2OK) return;
     inst[i].m = slot[k].m;
     history_copy(&inst[i].h, &slot[k].h);
     if (slot[k].readable) {
@@ -685,14 +860,17 @@ static void serialize(int i)
 {
     int k = below(NSLOT), b = below(NBLOB);
     size_t size = 0;
-    begin(i, "fmi2SerializedFMUstateSize(slot %d%s)", k, slot[k].s ? "" : ", NULL");
-    if (check(SerializedFMUstateSize(inst[i].c, slot[k].s, &size), slot[k].s ? OK : OK | ERROR) != fmi2OK) return;
+    begin(i, "SerializedFMUstateSize(slot %d%s)", k, slot[k].s ? "" : ", NULL");
+    int s = v3 ? SerializedFMUStateSize3(inst[i].c, slot[k].s, &size)
+               : SerializedFMUstateSize(inst[i].c, slot[k].s, &size);
+    if (check(s, slot[k].s ? OK : OK | ERROR) != fmi2OK) return;
     int short_buffer = chance(0.1);
     size_t given = short_buffer && size ? size - 1 : size;
     unsigned char *data = malloc(size + 1);
-    begin(i, "fmi2SerializeFMUstate(slot %d%s, %zu of %zu bytes)", k, slot[k].s ? "" : ", NULL", given, size);
-    if (check(SerializeFMUstate(inst[i].c, slot[k].s, (fmi2Byte *)data, given),
-              slot[k].s && !short_buffer ? OK : ERROR) != fmi2OK) {
+    begin(i, "SerializeFMUstate(slot %d%s, %zu of %zu bytes)", k, slot[k].s ? "" : ", NULL", given, size);
+    s = v3 ? SerializeFMUState3(inst[i].c, slot[k].s, data, given)
+           : SerializeFMUstate(inst[i].c, slot[k].s, (fmi2Byte *)data, given);
+    if (check(s, slot[k].s && !short_buffer ? OK : ERROR) != fmi2OK) {
         free(data);
         return;
     }
@@ -722,11 +900,13 @@ static void deserialize(int i)
     size_t given = how == 5 ? size - 1 : how == 6 ? size + 1 : how == 7 && chance(0.5) ? 0 : size;
     static const char *const HOW[] = {"intact", "intact", "intact", "intact", "a byte flipped", "truncated",
                                       "one byte more", "NULL"};
-    begin(i, "fmi2DeSerializeFMUstate(blob %d %s%s%zu, %zu bytes, into slot %d%s)", b, HOW[how],
-          how == 4 ? " at " : "", how == 4 ? at : 0, given, k, slot[k].s ? ", reused" : "");
+    begin(i, "DeSerializeFMUstate(blob %d %s%s%zu, %zu bytes, into slot %d%s)", b, HOW[how], how == 4 ? " at " : "",
+          how == 4 ? at : 0, given, k, slot[k].s ? ", reused" : "");
     int fresh = !slot[k].s;
-    int s = check(DeSerializeFMUstate(inst[i].c, how == 7 ? NULL : (fmi2Byte *)data, given, &slot[k].s),
-                  how < 4 ? OK : ERROR);
+    const unsigned char *bytes = how == 7 ? NULL : data;
+    int s = v3 ? DeserializeFMUState3(inst[i].c, bytes, given, &slot[k].s)
+               : DeSerializeFMUstate(inst[i].c, (const fmi2Byte *)bytes, given, &slot[k].s);
+    check(s, how < 4 ? OK : ERROR);
     free(data);
     if (s != fmi2OK) return;
     if (fresh) slot[k].owner = i;
@@ -743,17 +923,18 @@ static void replay_check(int i)
 {
     if (!inst[i].c || !readable(&inst[i].m)) return;
     begin(i, "(replay of %d calls on a fresh instance)", inst[i].h.n);
-    fmi2Component c = Instantiate("replay", fmi2CoSimulation, guid, resources, &CALLBACKS, fmi2False, fmi2False);
+    void *c = fresh_instance("replay");
     if (!c) violation("a fresh instance could not be made");
     for (int k = 0; k < inst[i].h.n; k++) {
         const Op *op = &arena[inst[i].h.op[k]];
-        int s = op->kind == OP_SETUP ? SetupExperiment(c, fmi2False, 0, op->a, (fmi2Boolean)op->stop_defined, op->b)
-              : op->kind == OP_ENTER ? EnterInitializationMode(c)
-              : op->kind == OP_EXIT ? ExitInitializationMode(c)
-              : op->kind == OP_SETR ? SetReal(c, op->vr, op->n, op->x)
-              : op->kind == OP_SETI ? SetInteger(c, op->vr, op->n, op->iv)
-              : op->kind == OP_STEP ? DoStep(c, op->a, op->b, fmi2True)
-              : Terminate(c);
+        int terminate_simulation;
+        double last;
+        int s = op->kind == OP_SETUP ? (int)SetupExperiment(c, fmi2False, 0, op->a, (fmi2Boolean)op->stop_defined, op->b)
+              : op->kind == OP_ENTER ? api_enter(c, op->a, op->stop_defined, op->b)
+              : op->kind == OP_EXIT ? (v3 ? (int)ExitInitializationMode3(c) : (int)ExitInitializationMode(c))
+              : op->kind == OP_SET ? api_set(c, op->type, op->vr, op->n, op->values, op->nvalues)
+              : op->kind == OP_STEP ? api_step(c, op->a, op->b, 0, &terminate_simulation, &last)
+              : (v3 ? (int)Terminate3(c) : (int)Terminate(c));
         if (s != op->status)
             violation("replayed call %d of %d (kind %d) answered %s, first %s", k + 1, inst[i].h.n, op->kind,
                       status_name(s), status_name(op->status));
@@ -762,7 +943,8 @@ static void replay_check(int i)
     read_all(inst[i].c, a);
     read_all(c, b);
     compare(a, b, "the replay on a fresh instance");
-    FreeInstance(c);
+    if (v3) FreeInstance3(c);
+    else FreeInstance(c);
     printf("same\n");
 }
 
@@ -791,14 +973,15 @@ static void one_call(int i)
         else if (m->st == S_INIT) action = chance(0.3) ? 2 : chance(0.7) ? 10 : 12;
         else if (m->st == S_STEP) action = chance(0.7) ? 20 : chance(0.5) ? 10 : 12;
     }
+    int kind = chance(0.8) ? K_REAL : v3 && chance(0.5) ? K_INT64 : K_INT;
     if (action < 1) setup(i);
     else if (action < 2) enter(i);
     else if (action < 3) exit_init(i);
     else if (action < 5) terminate(i);
     else if (action < 6) reset(i);
     else if (action < 7) free_instance(i);
-    else if (action < 12) set_values(i, chance(0.2));
-    else if (action < 18) get_values(i, chance(0.2));
+    else if (action < 12) set_values(i, kind);
+    else if (action < 18) get_values(i, kind);
     else if (action < 19) other_types(i);
     else if (action < 30) step(i);
     else if (action < 34) status_query(i);
@@ -816,12 +999,14 @@ static void one_call(int i)
 int main(int argc, char **argv)
 {
     if (argc < 7) {
-        fprintf(stderr, "usage: %s UNZIPDIR MODEL_IDENTIFIER GUID SEED NCALLS VARS\n", argv[0]);
+        fprintf(stderr, "usage: %s UNZIPDIR MODEL_IDENTIFIER GUID SEED NCALLS VARS [3]\n", argv[0]);
         return 10;
     }
+    v3 = argc > 7 && strcmp(argv[7], "3") == 0;
     char path[4096];
-    snprintf(path, sizeof path, "%s/binaries/linux64/%s.so", argv[1], argv[2]);
+    snprintf(path, sizeof path, "%s/binaries/%s/%s.so", argv[1], v3 ? "x86_64-linux" : "linux64", argv[2]);
     snprintf(resources, sizeof resources, "file://%s/resources", argv[1]);
+    snprintf(resource_path, sizeof resource_path, "%s/resources/", argv[1]);
     guid = argv[3];
     rng_state = strtoull(argv[4], NULL, 10);
     long ncalls = atol(argv[5]);
@@ -831,17 +1016,29 @@ int main(int argc, char **argv)
         fprintf(stderr, "fuzz: dlopen %s: %s\n", path, dlerror());
         return 11;
     }
+    if (!v3) {
 #define F(name) name = (fmi2##name##TYPE *)sym("fmi2" #name);
-    F(Instantiate) F(FreeInstance) F(SetDebugLogging) F(SetupExperiment) F(EnterInitializationMode)
-    F(ExitInitializationMode) F(Terminate) F(Reset) F(DoStep) F(CancelStep) F(SetReal) F(GetReal) F(SetInteger)
-    F(GetInteger) F(SetBoolean) F(GetBoolean) F(SetString) F(GetString) F(GetFMUstate) F(SetFMUstate)
-    F(FreeFMUstate) F(SerializedFMUstateSize) F(SerializeFMUstate) F(DeSerializeFMUstate) F(GetStatus)
-    F(GetRealStatus) F(GetIntegerStatus) F(GetBooleanStatus) F(GetStringStatus) F(SetRealInputDerivatives)
-    F(GetRealOutputDerivatives) F(GetDirectionalDerivative) F(GetTypesPlatform) F(GetVersion) F(SetTime)
-    F(EnterEventMode)
+        F(Instantiate) F(FreeInstance) F(SetDebugLogging) F(SetupExperiment) F(EnterInitializationMode)
+        F(ExitInitializationMode) F(Terminate) F(Reset) F(DoStep) F(CancelStep) F(SetReal) F(GetReal) F(SetInteger)
+        F(GetInteger) F(SetBoolean) F(GetBoolean) F(SetString) F(GetString) F(GetFMUstate) F(SetFMUstate)
+        F(FreeFMUstate) F(SerializedFMUstateSize) F(SerializeFMUstate) F(DeSerializeFMUstate) F(GetStatus)
+        F(GetRealStatus) F(GetIntegerStatus) F(GetBooleanStatus) F(GetStringStatus) F(SetRealInputDerivatives)
+        F(GetRealOutputDerivatives) F(GetDirectionalDerivative) F(GetTypesPlatform) F(GetVersion) F(SetTime)
+        F(EnterEventMode)
 #undef F
-    if (strcmp(GetVersion(), "2.0") != 0 || strcmp(GetTypesPlatform(), "default") != 0)
-        violation("fmi2GetVersion '%s', fmi2GetTypesPlatform '%s'", GetVersion(), GetTypesPlatform());
+        if (strcmp(GetVersion(), "2.0") != 0 || strcmp(GetTypesPlatform(), "default") != 0)
+            violation("fmi2GetVersion '%s', fmi2GetTypesPlatform '%s'", GetVersion(), GetTypesPlatform());
+    } else {
+#define G(name) name##3 = (fmi3##name##TYPE *)sym("fmi3" #name);
+        G(InstantiateCoSimulation) G(InstantiateModelExchange) G(FreeInstance) G(SetDebugLogging)
+        G(EnterInitializationMode) G(ExitInitializationMode) G(Terminate) G(Reset) G(DoStep) G(GetFloat64)
+        G(SetFloat64) G(GetInt32) G(SetInt32) G(GetInt64) G(SetInt64) G(GetBoolean) G(SetBoolean) G(GetString)
+        G(SetString) G(GetFloat32) G(SetUInt8) G(GetFMUState) G(SetFMUState) G(FreeFMUState) G(SerializedFMUStateSize)
+        G(SerializeFMUState) G(DeserializeFMUState) G(EnterEventMode) G(EnterStepMode) G(EnterConfigurationMode)
+        G(SetTime) G(GetDirectionalDerivative) G(GetVersion)
+#undef G
+        if (strcmp(GetVersion3(), "3.0") != 0) violation("fmi3GetVersion '%s'", GetVersion3());
+    }
     start_model.st = S_INSTANTIATED;
     for (int k = 0; k < nvars; k++) start_model.value[k] = vars[k].start;
     while (call_no < ncalls) {
@@ -854,7 +1051,7 @@ int main(int argc, char **argv)
     for (int k = 0; k < NSLOT; k++)   /* states whose instance was freed went with it */
         if (slot[k].s) violation("slot %d outlived its instance", k);
     for (int b = 0; b < NBLOB; b++) free(blob[b].data);
-    for (int k = 0; k < narena; k++) free(arena[k].vr), free(arena[k].x), free(arena[k].iv);
+    for (int k = 0; k < narena; k++) free(arena[k].vr), free(arena[k].values);
     free(arena);
     for (int i = 0; i < NINST; i++) free(inst[i].h.op);
     for (int k = 0; k < NSLOT; k++) free(slot[k].h.op);
