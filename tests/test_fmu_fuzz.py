@@ -35,16 +35,25 @@ CALLS = int(os.environ.get("MOVINGBASE_FUZZ_CALLS", "5000"))
 FLOORS = {"max_step": 1e-5}
 
 
-@pytest.fixture(scope="module")
-def fmus(tmp_path_factory):
-    """The FMI 2.0 native FMUs, extracted: build/fmu/native (rebuilt when any source is
-    newer), or MOVINGBASE_MISUSE_FMUS (the sanitizer builds of .ci/sanitize.sh)."""
-    given = os.environ.get("MOVINGBASE_MISUSE_FMUS")
+def extracted(variable, ensure, tmp_path_factory):
+    """The native FMUs of one FMI version, extracted, by model identifier: ``ensure``'s
+    (build/fmu/native or native3, rebuilt when any source is newer), or the folder the
+    environment variable names (the sanitizer builds of .ci/sanitize.sh)."""
+    given = os.environ.get(variable)
     if given:
         return {model: pathlib.Path(given) / model for model in MODELS}
     out = tmp_path_factory.mktemp("fuzz")
-    return {path.stem: extract(path, out / path.stem)
-            for path in native_build.ensure_native(builder.available()).values()}
+    return {path.stem: extract(path, out / path.stem) for path in ensure(builder.available()).values()}
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory):
+    return extracted("MOVINGBASE_MISUSE_FMUS", native_build.ensure_native, tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def fmus3(tmp_path_factory):
+    return extracted("MOVINGBASE_MISUSE_FMUS3", native_build.ensure_native3, tmp_path_factory)
 
 
 def variables(folder):
@@ -76,18 +85,6 @@ def fuzz(folder, seed, calls=CALLS):
         f"{replay}\n... {p.stdout[-6000:]}\nexit {p.returncode}\n{p.stderr[-3000:]}"
     assert p.stdout.rstrip().splitlines()[-1].startswith("fuzz ok: "), p.stdout[-2000:]
     return p.stdout
-
-
-@pytest.fixture(scope="module")
-def fmus3(tmp_path_factory):
-    """The FMI 3.0 native FMUs, extracted: build/fmu/native3 (rebuilt when stale), or
-    MOVINGBASE_MISUSE_FMUS3 (the sanitizer builds)."""
-    given = os.environ.get("MOVINGBASE_MISUSE_FMUS3")
-    if given:
-        return {model: pathlib.Path(given) / model for model in MODELS}
-    out = tmp_path_factory.mktemp("fuzz3")
-    return {path.stem: extract(path, out / path.stem)
-            for path in native_build.ensure_native3(builder.available()).values()}
 
 
 @pytest.mark.parametrize("seed", SEEDS)

@@ -192,23 +192,26 @@ static Model start_model;
 static void *lib;
 static const char *guid;
 static char resources[4200], resource_path[4200];
-#define F(name) static fmi2##name##TYPE *name;
-F(Instantiate) F(FreeInstance) F(SetDebugLogging) F(SetupExperiment) F(EnterInitializationMode)
-F(ExitInitializationMode) F(Terminate) F(Reset) F(DoStep) F(CancelStep) F(SetReal) F(GetReal) F(SetInteger)
-F(GetInteger) F(SetBoolean) F(GetBoolean) F(SetString) F(GetString) F(GetFMUstate) F(SetFMUstate)
-F(FreeFMUstate) F(SerializedFMUstateSize) F(SerializeFMUstate) F(DeSerializeFMUstate) F(GetStatus)
-F(GetRealStatus) F(GetIntegerStatus) F(GetBooleanStatus) F(GetStringStatus) F(SetRealInputDerivatives)
-F(GetRealOutputDerivatives) F(GetDirectionalDerivative) F(GetTypesPlatform) F(GetVersion) F(SetTime)
-F(EnterEventMode)
-#undef F
-#define G(name) static fmi3##name##TYPE *name##3;
-G(InstantiateCoSimulation) G(InstantiateModelExchange) G(FreeInstance) G(SetDebugLogging)
-G(EnterInitializationMode) G(ExitInitializationMode) G(Terminate) G(Reset) G(DoStep) G(GetFloat64)
-G(SetFloat64) G(GetInt32) G(SetInt32) G(GetInt64) G(SetInt64) G(GetBoolean) G(SetBoolean) G(GetString)
-G(SetString) G(GetFloat32) G(SetUInt8) G(GetFMUState) G(SetFMUState) G(FreeFMUState) G(SerializedFMUStateSize)
-G(SerializeFMUState) G(DeserializeFMUState) G(EnterEventMode) G(EnterStepMode) G(EnterConfigurationMode)
-G(SetTime) G(GetDirectionalDerivative) G(GetVersion)
-#undef G
+/* The calls of each version, named once: declared here, looked up in main. */
+#define FMI2_CALLS(X)                                                                                          \
+    X(Instantiate) X(FreeInstance) X(SetDebugLogging) X(SetupExperiment) X(EnterInitializationMode)            \
+    X(ExitInitializationMode) X(Terminate) X(Reset) X(DoStep) X(CancelStep) X(SetReal) X(GetReal) X(SetInteger) \
+    X(GetInteger) X(SetBoolean) X(GetBoolean) X(SetString) X(GetString) X(GetFMUstate) X(SetFMUstate)           \
+    X(FreeFMUstate) X(SerializedFMUstateSize) X(SerializeFMUstate) X(DeSerializeFMUstate) X(GetStatus)          \
+    X(GetRealStatus) X(GetIntegerStatus) X(GetBooleanStatus) X(GetStringStatus) X(SetRealInputDerivatives)      \
+    X(GetRealOutputDerivatives) X(GetDirectionalDerivative) X(GetTypesPlatform) X(GetVersion) X(SetTime)        \
+    X(EnterEventMode)
+#define FMI3_CALLS(X)                                                                                          \
+    X(InstantiateCoSimulation) X(InstantiateModelExchange) X(FreeInstance) X(SetDebugLogging)                  \
+    X(EnterInitializationMode) X(ExitInitializationMode) X(Terminate) X(Reset) X(DoStep) X(GetFloat64)         \
+    X(SetFloat64) X(GetInt32) X(SetInt32) X(GetInt64) X(SetInt64) X(GetBoolean) X(SetBoolean) X(GetString)    \
+    X(SetString) X(GetFloat32) X(SetUInt8) X(GetFMUState) X(SetFMUState) X(FreeFMUState)                      \
+    X(SerializedFMUStateSize) X(SerializeFMUState) X(DeserializeFMUState) X(EnterEventMode) X(EnterStepMode)  \
+    X(EnterConfigurationMode) X(SetTime) X(GetDirectionalDerivative) X(GetVersion)
+#define DECLARE2(name) static fmi2##name##TYPE *name;
+#define DECLARE3(name) static fmi3##name##TYPE *name##3;
+FMI2_CALLS(DECLARE2)
+FMI3_CALLS(DECLARE3)
 
 static const char *STATUS[] = {"OK", "Warning", "Discard", "Error", "Fatal", "Pending"};
 static const char *status_name(int s) { return s >= 0 && s <= fmi2Pending ? STATUS[s] : "?"; }
@@ -1017,26 +1020,13 @@ int main(int argc, char **argv)
         return 11;
     }
     if (!v3) {
-#define F(name) name = (fmi2##name##TYPE *)sym("fmi2" #name);
-        F(Instantiate) F(FreeInstance) F(SetDebugLogging) F(SetupExperiment) F(EnterInitializationMode)
-        F(ExitInitializationMode) F(Terminate) F(Reset) F(DoStep) F(CancelStep) F(SetReal) F(GetReal) F(SetInteger)
-        F(GetInteger) F(SetBoolean) F(GetBoolean) F(SetString) F(GetString) F(GetFMUstate) F(SetFMUstate)
-        F(FreeFMUstate) F(SerializedFMUstateSize) F(SerializeFMUstate) F(DeSerializeFMUstate) F(GetStatus)
-        F(GetRealStatus) F(GetIntegerStatus) F(GetBooleanStatus) F(GetStringStatus) F(SetRealInputDerivatives)
-        F(GetRealOutputDerivatives) F(GetDirectionalDerivative) F(GetTypesPlatform) F(GetVersion) F(SetTime)
-        F(EnterEventMode)
-#undef F
+#define LOAD2(name) name = (fmi2##name##TYPE *)sym("fmi2" #name);
+        FMI2_CALLS(LOAD2)
         if (strcmp(GetVersion(), "2.0") != 0 || strcmp(GetTypesPlatform(), "default") != 0)
             violation("fmi2GetVersion '%s', fmi2GetTypesPlatform '%s'", GetVersion(), GetTypesPlatform());
     } else {
-#define G(name) name##3 = (fmi3##name##TYPE *)sym("fmi3" #name);
-        G(InstantiateCoSimulation) G(InstantiateModelExchange) G(FreeInstance) G(SetDebugLogging)
-        G(EnterInitializationMode) G(ExitInitializationMode) G(Terminate) G(Reset) G(DoStep) G(GetFloat64)
-        G(SetFloat64) G(GetInt32) G(SetInt32) G(GetInt64) G(SetInt64) G(GetBoolean) G(SetBoolean) G(GetString)
-        G(SetString) G(GetFloat32) G(SetUInt8) G(GetFMUState) G(SetFMUState) G(FreeFMUState) G(SerializedFMUStateSize)
-        G(SerializeFMUState) G(DeserializeFMUState) G(EnterEventMode) G(EnterStepMode) G(EnterConfigurationMode)
-        G(SetTime) G(GetDirectionalDerivative) G(GetVersion)
-#undef G
+#define LOAD3(name) name##3 = (fmi3##name##TYPE *)sym("fmi3" #name);
+        FMI3_CALLS(LOAD3)
         if (strcmp(GetVersion3(), "3.0") != 0) violation("fmi3GetVersion '%s'", GetVersion3());
     }
     start_model.st = S_INSTANTIATED;
