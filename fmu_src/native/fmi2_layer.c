@@ -30,7 +30,11 @@
      refused initialization left).
    - Work bound: a model integrating on substeps asks mb_substeps (model.h), which
      refuses a step needing more than MB_MAX_SUBSTEPS substeps (fmi2Discard, a line
-     saying how many it would need) instead of overflowing an int or running for hours. */
+     saying how many it would need) instead of overflowing an int or running for hours.
+   - A refused call changes nothing (every value reference is checked before any value
+     is set; a NULL array with a count is refused), and what a read returns is a
+     function of the values set, never of earlier reads: tests/c_host/fuzz.c replays the
+     calls an instance accepted on a fresh one and compares every value bit for bit. */
 #include <float.h>
 #include <math.h>
 #include <stdarg.h>

@@ -390,7 +390,7 @@ static const plan *plan_of(instance3 *inst, plan *p, const char *function, const
             p->count[p->nruns] = run_of(inst, vr, nvr, k, &nvars);
         }
     }
-    memcpy(p->vr, vr, nvr * sizeof *vr);
+    if (nvr) memcpy(p->vr, vr, nvr * sizeof *vr);   /* fuzz.c under UBSan: no value references, p->vr NULL */
     p->nvr = nvr;
     p->nValues = nValues;
     return p;

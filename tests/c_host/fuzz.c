@@ -689,11 +689,15 @@ static void get_values(int i, int kind)
     int s = check(api_get(inst[i].c, kind, null_refs ? NULL : refs, n, null_values ? NULL : values, given), allowed);
     if (s == fmi2OK && kind == K_REAL) {
         size_t at = 0;
+        double now = m->st == S_INIT ? m->start : m->time;
         for (size_t k = 0; k < n; k++) {
             int j = var_of(refs[k]);
-            for (int e = 0; e < vars[j].count; e++, at++)
-                if (vars[j].causality == C_OUTPUT && !isfinite(((double *)values)[at]))
-                    violation("output %u read %g with OK", refs[k], ((double *)values)[at]);
+            for (int e = 0; e < vars[j].count; e++, at++) {
+                double x = ((double *)values)[at];
+                if (vars[j].causality == C_OUTPUT && !isfinite(x)) violation("output %u read %g with OK", refs[k], x);
+                if (v3 && vars[j].causality == C_OTHER && memcmp(&x, &now, sizeof x) != 0)   /* the independent time */
+                    violation("time (value reference %u) reads %.17g, the model's %.17g", refs[k], x, now);
+            }
         }
     }
     free(values);
