@@ -30,7 +30,11 @@
      refused initialization left).
    - Work bound: a model integrating on substeps asks mb_substeps (model.h), which
      refuses a step needing more than MB_MAX_SUBSTEPS substeps (fmi2Discard, a line
-     saying how many it would need) instead of overflowing an int or running for hours. */
+     saying how many it would need) instead of overflowing an int or running for hours.
+   - A refused call changes nothing (every value reference is checked before any value
+     is set; a NULL array with a count is refused), and what a read returns is a
+     function of the values set, never of earlier reads: tests/c_host/fuzz.c replays the
+     calls an instance accepted on a fresh one and compares every value bit for bit. */
 #include <float.h>
 #include <math.h>
 #include <stdarg.h>
@@ -109,6 +113,8 @@ enum access {
     A_SET_ALWAYS = 4,   /* a Real input: fmi2SetReal sets it in any state that allows the call */
     A_SET_EARLY = 8     /* a Real input or parameter: settable before the end of initialization */
 };
+
+static void set_outputs(mb_instance *inst, int start);
 
 static size_t align16(size_t n) { return (n + 15) & ~(size_t)15; }
 
@@ -327,6 +333,10 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
         for (int k = 0; k < NCAT; k++) inst->category_on[k] = loggingOn;
         return fmi2OK;
     }
+    if (!categories) {
+        logf_(inst, fmi2Error, CAT_ERROR, "fmi2SetDebugLogging: categories is NULL for %zu categories", nCategories);
+        return fmi2Error;
+    }
     for (size_t n = 0; n < nCategories; n++) {
         int found = 0;
         for (int k = 0; k < NCAT; k++) {
@@ -534,6 +544,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c)
     PHASE(inst) = STEPPING;
     layer_state *s = LAYER(inst);
     if (check_start(inst) || MODEL_INIT(inst, s->start_time) || nonfinite_outputs(inst)) {
+        set_outputs(inst, 0);
         record_failure(inst, "in initialization", fmi2Error);
         return fmi2Error;
     }
@@ -562,17 +573,38 @@ fmi2Status fmi2Reset(fmi2Component c)
 static void save_model(mb_instance *inst) { memcpy(inst->backup, inst->block + inst->r_off, inst->size - inst->r_off); }
 static void restore_model(mb_instance *inst) { memcpy(inst->block + inst->r_off, inst->backup, inst->size - inst->r_off); }
 
+/* Every Real output to its start value (start = 1) or to NaN (0 after a failed
+   initialization: read, each answers fmi2Error naming the failure). What a read returns
+   is a function of the values set, never of earlier reads (fuzz.c: after a refused
+   initialization the outputs held whatever the last read in initialization mode had
+   computed, and a replay of the same sets without those reads read other numbers). */
+static void set_outputs(mb_instance *inst, int start)
+{
+    double *r = REALS(inst);
+    for (int vr = 0; vr < MB_MODEL.nvars; vr++)
+        if (MB_MODEL.vars[vr].type == MB_REAL && MB_MODEL.vars[vr].causality == MB_OUTPUT)
+            r[vr] = start ? MB_MODEL.vars[vr].start : NAN;
+}
+
 /* Outputs read in initialization mode are computed from the parameters and inputs set so
    far (as the Reference FMUs do), so that an importer that propagates values during
    initialization (libcosim) starts every FMU from its neighbours' initial outputs. If the
-   model cannot compute them yet, they keep their start values; fmi2ExitInitializationMode
+   model cannot compute them yet, they read their start values; fmi2ExitInitializationMode
    reports the problem. */
 static void evaluate_initial(mb_instance *inst)
 {
     if (PHASE(inst) != INITIALIZATION || !inst->dirty) return;
     inst->dirty = 0;
-    save_model(inst);
-    if (MODEL_INIT(inst, LAYER(inst)->start_time) || nonfinite_outputs(inst)) restore_model(inst);
+    if (MODEL_INIT(inst, LAYER(inst)->start_time) || nonfinite_outputs(inst)) set_outputs(inst, 1);
+}
+
+/* A count of values with no array to hold them (fuzz.c: a NULL array crashed the host): fmi2Error. */
+static int arrays_given(mb_instance *inst, const char *function, size_t nvr, const void *vr, const void *value)
+{
+    if (nvr == 0 || (vr && value)) return 1;
+    logf_(inst, fmi2Error, CAT_ERROR, "%s: %s is NULL for %zu values", function, vr ? "the values array" :
+          "the value reference array", nvr);
+    return 0;
 }
 
 static int valid_vr(mb_instance *inst, const char *function, fmi2ValueReference vr, int type)
@@ -617,7 +649,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 {
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
-    if (!allowed(inst, "fmi2GetReal", READABLE)) return fmi2Error;
+    if (!allowed(inst, "fmi2GetReal", READABLE) || !arrays_given(inst, "fmi2GetReal", nvr, vr, value)) return fmi2Error;
     evaluate_initial(inst);
     const double *r = REALS(inst);
     const unsigned char *access = inst->access;
@@ -645,7 +677,8 @@ fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
 {
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
-    if (!allowed(inst, "fmi2GetInteger", READABLE)) return fmi2Error;
+    if (!allowed(inst, "fmi2GetInteger", READABLE) || !arrays_given(inst, "fmi2GetInteger", nvr, vr, value))
+        return fmi2Error;
     evaluate_initial(inst);
     const int *iv = INTS(inst);
     for (size_t k = 0; k < nvr; k++) {
@@ -659,18 +692,21 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 {
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
-    if (!allowed(inst, "fmi2SetReal", INSTANTIATED | INITIALIZATION | STEPPING) || !unfailed(inst, "fmi2SetReal"))
+    if (!allowed(inst, "fmi2SetReal", INSTANTIATED | INITIALIZATION | STEPPING) || !unfailed(inst, "fmi2SetReal") ||
+        !arrays_given(inst, "fmi2SetReal", nvr, vr, value))
         return fmi2Error;
     double *r = REALS(inst);
     const unsigned char *access = inst->access;
     int settable_now = PHASE(inst) & (INSTANTIATED | INITIALIZATION) ? A_SET_EARLY : A_SET_ALWAYS;
+    /* every value reference checked before any value is set: a refused call sets nothing
+       (fuzz.c: the values before a bad reference were set, with fmi2Error) */
     for (size_t k = 0; k < nvr; k++) {
         if (!(vr[k] < (fmi2ValueReference)MB_MODEL.nvars && (access[vr[k]] & settable_now))) {
             if (valid_vr(inst, "fmi2SetReal", vr[k], MB_REAL)) settable(inst, "fmi2SetReal", vr[k]);   /* its line */
             return fmi2Error;
         }
-        r[vr[k]] = value[k];
     }
+    for (size_t k = 0; k < nvr; k++) r[vr[k]] = value[k];
     inst->dirty = 1;
     return fmi2OK;
 }
@@ -680,22 +716,21 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
     if (!allowed(inst, "fmi2SetInteger", INSTANTIATED | INITIALIZATION | STEPPING) ||
-        !unfailed(inst, "fmi2SetInteger"))
+        !unfailed(inst, "fmi2SetInteger") || !arrays_given(inst, "fmi2SetInteger", nvr, vr, value))
         return fmi2Error;
     int *iv = INTS(inst);
-    for (size_t k = 0; k < nvr; k++) {
-        if (!valid_vr(inst, "fmi2SetInteger", vr[k], MB_INTEGER) ||
-            !settable(inst, "fmi2SetInteger", vr[k]))
+    for (size_t k = 0; k < nvr; k++)   /* all checked first: a refused call sets nothing */
+        if (!valid_vr(inst, "fmi2SetInteger", vr[k], MB_INTEGER) || !settable(inst, "fmi2SetInteger", vr[k]))
             return fmi2Error;
-        iv[vr[k]] = value[k];
-    }
+    for (size_t k = 0; k < nvr; k++) iv[vr[k]] = value[k];
     inst->dirty = 1;
     return fmi2OK;
 }
 
 static fmi2Status no_variables(fmi2Component c, const char *function, size_t nvr, const char *type, int mask)
 {
-    if (!usable(c) || !allowed(c, function, mask)) return fmi2Error;
+    /* a setter, like fmi2SetReal, not in the failed state (fuzz.c: fmi2SetBoolean of no values answered OK there) */
+    if (!usable(c) || !allowed(c, function, mask) || ((mask & INSTANTIATED) && !unfailed(c, function))) return fmi2Error;
     if (nvr == 0) return fmi2OK;
     logf_(c, fmi2Error, CAT_ERROR, "%s: %s has no %s variables", function, MB_MODEL.identifier, type);
     return fmi2Error;
@@ -788,7 +823,8 @@ fmi2Status fmi2CancelStep(fmi2Component c)
 
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value)
 {
-    if (!usable(c) || !allowed(c, "fmi2GetStatus", STEPPING | TERMINATED)) return fmi2Error;
+    if (!usable(c) || !allowed(c, "fmi2GetStatus", STEPPING | TERMINATED) || !arrays_given(c, "fmi2GetStatus", 1, value, value))
+        return fmi2Error;
     if (s == fmi2DoStepStatus) {   /* doStep is synchronous: the last one is done */
         *value = LAYER((mb_instance *)c)->failed ? fmi2Discard : fmi2OK;
         return fmi2OK;
@@ -799,7 +835,8 @@ fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *va
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value)
 {
-    if (!usable(c) || !allowed(c, "fmi2GetRealStatus", STEPPING | TERMINATED)) return fmi2Error;
+    if (!usable(c) || !allowed(c, "fmi2GetRealStatus", STEPPING | TERMINATED) || !arrays_given(c, "fmi2GetRealStatus", 1, value, value))
+        return fmi2Error;
     if (s == fmi2LastSuccessfulTime) {
         *value = LAYER((mb_instance *)c)->time;
         return fmi2OK;
@@ -818,7 +855,8 @@ fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Int
 
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value)
 {
-    if (!usable(c) || !allowed(c, "fmi2GetBooleanStatus", STEPPING | TERMINATED)) return fmi2Error;
+    if (!usable(c) || !allowed(c, "fmi2GetBooleanStatus", STEPPING | TERMINATED) || !arrays_given(c, "fmi2GetBooleanStatus", 1, value, value))
+        return fmi2Error;
     if (s == fmi2Terminated) {   /* a failed instance has ended its simulation */
         *value = LAYER((mb_instance *)c)->failed ? fmi2True : fmi2False;
         return fmi2OK;
@@ -866,8 +904,12 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
 /* ------------------------------------------------------------------- FMU states */
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
 {
-    if (!usable(c) || !FMUstate) return fmi2Error;
+    if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
+    if (!FMUstate) {   /* fuzz.c: this fmi2Error came without a log line */
+        logf_(inst, fmi2Error, CAT_ERROR, "fmi2GetFMUstate: FMUstate is NULL");
+        return fmi2Error;
+    }
     saved_state *st = *FMUstate;
     if (st && st->size != inst->size) {
         logf_(inst, fmi2Error, CAT_ERROR, "fmi2GetFMUstate: the given state is not one of this FMU's");
@@ -893,6 +935,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
         return fmi2Error;
     }
     memcpy(inst->block, st->data, inst->size);   /* the state's phase with it */
+    inst->dirty = 1;   /* fuzz.c: outputs read in initialization mode came from the inputs before the restore */
     return fmi2OK;
 }
 
@@ -912,8 +955,13 @@ enum { ID_BYTES = 64, CRC_AT = sizeof MAGIC + 8 + ID_BYTES, HEADER = CRC_AT + 8 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
 {
     if (!usable(c)) return fmi2Error;
-    (void)FMUstate;
-    *size = HEADER + ((mb_instance *)c)->size;
+    mb_instance *inst = c;
+    const saved_state *st = FMUstate;
+    if (!size || !st || st->size != inst->size) {
+        logf_(inst, fmi2Error, CAT_ERROR, "fmi2SerializedFMUstateSize: %s", size ? "no state of this FMU" : "size is NULL");
+        return fmi2Error;
+    }
+    *size = HEADER + inst->size;
     return fmi2OK;
 }
 
@@ -922,7 +970,7 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byt
     if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
     saved_state *st = FMUstate;
-    if (!st || st->size != inst->size || size < HEADER + st->size) {
+    if (!st || st->size != inst->size || size < HEADER + st->size || !serializedState) {
         logf_(inst, fmi2Error, CAT_ERROR, "fmi2SerializeFMUstate: no state of this FMU, or the buffer is too small");
         return fmi2Error;
     }
@@ -940,22 +988,32 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byt
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
                                    fmi2FMUstate *FMUstate)
 {
-    if (!usable(c) || !FMUstate) return fmi2Error;
+    if (!usable(c)) return fmi2Error;
     mb_instance *inst = c;
+    if (!FMUstate) {
+        logf_(inst, fmi2Error, CAT_ERROR, "fmi2DeSerializeFMUstate: FMUstate is NULL");
+        return fmi2Error;
+    }
     unsigned long long n = 0, crc = 0;
+    char id[ID_BYTES] = {0};   /* the identifier as serialised: zero padded, every byte compared */
+    strncpy(id, MB_MODEL.identifier, ID_BYTES - 1);
+    if (!serializedState) size = 0;   /* fuzz.c: NULL bytes of the right size were read */
     if (size >= HEADER) {
         memcpy(&n, serializedState + sizeof MAGIC, 8);
         memcpy(&crc, serializedState + CRC_AT, 8);
     }
     if (size != HEADER + inst->size || memcmp(serializedState, MAGIC, sizeof MAGIC) != 0 || n != inst->size ||
-        strncmp((const char *)serializedState + sizeof MAGIC + 8, MB_MODEL.identifier, ID_BYTES) != 0 ||
+        memcmp(serializedState + sizeof MAGIC + 8, id, ID_BYTES) != 0 ||
         crc != mb_crc32(serializedState + HEADER, inst->size)) {
         logf_(inst, fmi2Error, CAT_ERROR, "fmi2DeSerializeFMUstate: the bytes are not a serialised %s state (%zu bytes%s)",
               MB_MODEL.identifier, size, size == HEADER + inst->size ? ", or damaged: header or checksum" : "");
         return fmi2Error;
     }
     saved_state *st = *FMUstate;
-    if (st && st->size != inst->size) return fmi2Error;
+    if (st && st->size != inst->size) {
+        logf_(inst, fmi2Error, CAT_ERROR, "fmi2DeSerializeFMUstate: the given state is not one of this FMU's");
+        return fmi2Error;
+    }
     if (!st) {
         st = calloc(1, sizeof *st + inst->size);
         if (!st) return fmi2Error;

@@ -20,14 +20,20 @@
 #include "fmi2Functions.h"
 #include "fmi3Functions.h"
 #include "model.h"
+#include "crc32.h"
 #include "fmi3_variables.h"   /* generated: the FMI 3 variables (arrays, kinds) by FMI 2 value reference */
 
-enum phase3 { P_INSTANTIATED = 1, P_INITIALIZATION = 2, P_STEP = 4, P_STEP_DISCARDED = 8, P_TERMINATED = 16 };
+/* P_INIT_FAILED: the error state after fmi3ExitInitializationMode answered fmi3Error; only
+   reads (for diagnosis), fmi3Reset, fmi3FreeInstance and the FMU-state calls lead on
+   (fuzz.c: fmi3SetFloat64 and the other setters of no values answered fmi3OK there). */
+enum phase3 { P_INSTANTIATED = 1, P_INITIALIZATION = 2, P_STEP = 4, P_STEP_DISCARDED = 8, P_TERMINATED = 16,
+              P_INIT_FAILED = 32 };
 static const char *phase_name(int p)
 {
     switch (p) {
     case P_INSTANTIATED: return "Instantiated";
     case P_INITIALIZATION: return "InitializationMode";
+    case P_INIT_FAILED: return "InitializationMode after a failed initialization (the error state)";
     case P_STEP: return "StepMode";
     case P_STEP_DISCARDED: return "StepDiscarded";
     default: return "Terminated";
@@ -285,7 +291,7 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance instance)
 {
     INSTANCE("fmi3ExitInitializationMode", P_INITIALIZATION)
     fmi2Status s = fmi2ExitInitializationMode(inst->inner);
-    if (s <= fmi2Warning) inst->phase = P_STEP;
+    inst->phase = s <= fmi2Warning ? P_STEP : P_INIT_FAILED;
     return (fmi3Status)s;
 }
 
@@ -307,7 +313,7 @@ fmi3Status fmi3Reset(fmi3Instance instance)
 }
 
 /* ---------------------------------------------------------------- get and set */
-enum { GETTABLE = P_INITIALIZATION | P_STEP | P_STEP_DISCARDED | P_TERMINATED,
+enum { GETTABLE = P_INITIALIZATION | P_INIT_FAILED | P_STEP | P_STEP_DISCARDED | P_TERMINATED,
        SETTABLE = P_INSTANTIATED | P_INITIALIZATION | P_STEP };
 
 /* Check the value references (each an FMI 3 variable of ``kind``) and the values
@@ -384,10 +390,19 @@ static const plan *plan_of(instance3 *inst, plan *p, const char *function, const
             p->count[p->nruns] = run_of(inst, vr, nvr, k, &nvars);
         }
     }
-    memcpy(p->vr, vr, nvr * sizeof *vr);
+    if (nvr) memcpy(p->vr, vr, nvr * sizeof *vr);   /* fuzz.c under UBSan: no value references, p->vr NULL */
     p->nvr = nvr;
     p->nValues = nValues;
     return p;
+}
+
+/* May the FMI 2 element vr be set in the instance's state? (the inner layer's rule:
+   inputs always, parameters before the end of initialization, outputs never) */
+static int settable_now(const instance3 *inst, fmi3ValueReference vr)
+{
+    int causality = MB_MODEL.vars[vr].causality;
+    return causality == MB_INPUT ||
+           (causality == MB_PARAMETER && (inst->phase & (P_INSTANTIATED | P_INITIALIZATION)));
 }
 
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Float64 values[],
@@ -398,7 +413,7 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
     if (!p) return fmi3Error;
     for (size_t k = 0; k < p->nruns; k++) {
         if (p->first[k] == VR_TIME) {   /* fmi2GetRealStatus answers only after initialization */
-            if (inst->phase == P_INSTANTIATED || inst->phase == P_INITIALIZATION) *values++ = inst->start_time;
+            if (inst->phase & (P_INSTANTIATED | P_INITIALIZATION | P_INIT_FAILED)) *values++ = inst->start_time;
             else fmi2GetRealStatus(inst->inner, fmi2LastSuccessfulTime, values++);
             continue;
         }
@@ -416,6 +431,17 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
     const plan *p = plan_of(inst, &inst->set_plan, "fmi3SetFloat64", vr, nvr, values, nValues);
     if (!p) return fmi3Error;
     if (p->has_time) return FAIL(inst, "fmi3SetFloat64: time is the independent variable, it cannot be set");
+    /* every element settable before any is set: a refused call sets nothing (fuzz.c: the
+       runs before a refused one were set, with fmi3Error). The refused element goes to the
+       inner layer alone, which refuses it with its line. */
+    const fmi3Float64 *at = values;
+    for (size_t k = 0; k < p->nruns; k++)
+        for (size_t e = 0; e < p->count[k]; e++, at++)
+            if (!settable_now(inst, p->first[k] + (fmi3ValueReference)e)) {
+                fmi2Status s = fmi2SetReal(inst->inner, &inst->vr2[p->first[k] + e], 1, at);
+                return s > fmi2Warning ? (fmi3Status)s : FAIL(inst, "fmi3SetFloat64: value reference %u cannot be set now",
+                                                              (unsigned)(p->first[k] + e));
+            }
     for (size_t k = 0; k < p->nruns; k++) {
         fmi2Status s = fmi2SetReal(inst->inner, &inst->vr2[p->first[k]], p->count[k], values);
         if (s > fmi2Warning) return (fmi3Status)s;
@@ -424,7 +450,8 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
     return fmi3OK;
 }
 
-/* Int32 variables and (as Int64) Enumerations: the inner layer's Integers, element by element. */
+/* Int32 variables and (as Int64) Enumerations: the inner layer's Integers, element by
+   element, every element checked (range, settable) before any is set. */
 #define INTEGER_ACCESS(NAME, TYPE, KIND)                                                                         \
     fmi3Status fmi3Get##NAME(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, TYPE values[],    \
                              size_t nValues)                                                                     \
@@ -450,12 +477,23 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
         if (!check_refs(inst, "fmi3Set" #NAME, vr, nvr, values, nValues, KIND)) return fmi3Error;                        \
         size_t at = 0;                                                                                           \
         for (size_t k = 0; k < nvr; k++)                                                                         \
-            for (int e = 0; e < inst->count3[vr[k]]; e++) {                                                            \
+            for (int e = 0; e < inst->count3[vr[k]]; e++) {                                                      \
                 TYPE v = values[at++];                                                                           \
                 if (v < -2147483647 - 1 || v > 2147483647)                                                       \
                     return FAIL(inst, "fmi3Set" #NAME ": %s = %lld is outside the Int32 range",                 \
                                 MB_MODEL.vars[vr[k]].name, (long long)v);                                        \
-                fmi2Integer w = (fmi2Integer)v;                                                                  \
+                if (!settable_now(inst, vr[k] + (fmi3ValueReference)e)) {                                       \
+                    fmi2Integer w = (fmi2Integer)v;   /* the inner layer refuses it, with its line */            \
+                    inst->integer_call = "fmi3Set" #NAME;                                                        \
+                    fmi2Status s = fmi2SetInteger(inst->inner, &inst->vr2[vr[k] + (fmi3ValueReference)e], 1, &w);\
+                    inst->integer_call = NULL;                                                                   \
+                    return s > fmi2Warning ? (fmi3Status)s : FAIL(inst, "fmi3Set" #NAME ": cannot be set now");  \
+                }                                                                                                \
+            }                                                                                                    \
+        at = 0;                                                                                                  \
+        for (size_t k = 0; k < nvr; k++)                                                                         \
+            for (int e = 0; e < inst->count3[vr[k]]; e++) {                                                      \
+                fmi2Integer w = (fmi2Integer)values[at++];                                                       \
                 inst->integer_call = "fmi3Set" #NAME;                                                            \
                 fmi2Status s = fmi2SetInteger(inst->inner, &inst->vr2[vr[k] + (fmi3ValueReference)e], 1, &w);     \
                 inst->integer_call = NULL;                                                                       \
@@ -622,9 +660,11 @@ fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
 }
 
 /* Serialised: the FMI 3 layer's part in HEADER3 bytes (the instance state: 8 bytes; the
-   start time: 8 bytes, this platform's double), then the inner layer's serialised state
-   (its magic, identifier and checksum; the stopTime in it). */
-enum { HEADER3 = 16 };
+   start time: 8 bytes, this platform's double; the CRC-32 of those 16 bytes: 8 bytes),
+   then the inner layer's serialised state (its magic, identifier and checksum; the
+   stopTime in it). Without the checksum of its own (fuzz.c), a byte changed in the
+   instance state (StepMode 4 ^ 0x0c = StepDiscarded 8) or in the start time was accepted. */
+enum { HEADER3 = 24 };
 fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState, size_t *size)
 {
     instance3 *inst = instance;
@@ -648,6 +688,8 @@ fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState, f
     long long phase = st->phase;
     memcpy(serializedState, &phase, 8);
     memcpy(serializedState + 8, &st->start_time, 8);
+    unsigned long long crc = mb_crc32(serializedState, 16);
+    memcpy(serializedState + 16, &crc, 8);
     return (fmi3Status)fmi2SerializeFMUstate(inst->inner, st->inner, (fmi2Byte *)serializedState + HEADER3,
                                              size - HEADER3);
 }
@@ -659,13 +701,15 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte seriali
     if (!inst) return fmi3Error;
     long long phase = 0;
     double start_time = 0;
+    unsigned long long crc = 0;
     if (serializedState && size >= HEADER3) {
         memcpy(&phase, serializedState, 8);
         memcpy(&start_time, serializedState + 8, 8);
+        memcpy(&crc, serializedState + 16, 8);
     }
-    if (!FMUState || !serializedState || size < HEADER3 ||
+    if (!FMUState || !serializedState || size < HEADER3 || crc != mb_crc32(serializedState, 16) ||
         (phase != P_INSTANTIATED && phase != P_INITIALIZATION && phase != P_STEP && phase != P_STEP_DISCARDED &&
-         phase != P_TERMINATED))
+         phase != P_TERMINATED && phase != P_INIT_FAILED))
         return FAIL(inst, "fmi3DeserializeFMUState: the bytes are not a serialised %s state (%zu bytes)",
                     MB_MODEL.identifier, size);
     state3 *st = *FMUState;

@@ -29,9 +29,10 @@
  *   bytes               serialize the slot; keeps the blob; "bytes N CRC" (CRC-32)
  *   short               serialize the slot into a buffer one byte short
  *   load                deserialize the kept blob into the slot
- *   load-truncated | load-flipped | load-garbage N
+ *   load-truncated | load-flipped | load-garbage N | load-flipped-at K
  *                       deserialize the kept blob less its last byte / with one byte of its
- *                       block flipped / N bytes of a pattern
+ *                       block flipped / N bytes of a pattern / byte K xor 0x0c (K 0: the
+ *                       instance state, StepMode 4 becomes StepDiscarded 8)
  *   unsupported         every call this co-simulation FMU does not offer, each printed
  *   threads N STEPS H   N threads, each its own instance through init and STEPS doSteps;
  *                       prints "thread K OK|failed HASH" (of every Float64 after the run)
@@ -305,6 +306,10 @@ int main(int argc, char **argv)
                 bytes = realloc(bytes, n ? n : 1);   /* exactly n bytes: ASan sees a read past them */
             } else if (!strcmp(cmd, "load-flipped") && n) {
                 bytes[n - 1] ^= 0x40;
+            } else if (!strcmp(cmd, "load-flipped-at")) {
+                size_t at = strtoul(ARG(1), NULL, 10);
+                if (at < n) bytes[at] ^= 0x0c;
+                i++;
             } else if (!strcmp(cmd, "load-garbage")) {
                 n = strtoul(ARG(1), NULL, 10);
                 free(bytes);

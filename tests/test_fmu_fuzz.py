@@ -1,0 +1,247 @@
+"""Every native FMU under random FMI 2.0 call sequences (tests/c_host/fuzz.c), each call
+held against a model of the FMI 2.0 call sequence, the log rule and replays on a fresh
+instance (what fuzz.c checks: docs/fmu-rules.md). A failing seed prints the command that
+replays it and the calls up to the violation.
+
+Default: a fixed list of seeds per FMU, a few seconds each; more seeds and longer runs
+with -m slow. .ci/sanitize.sh runs this file on its ASan/UBSan builds
+(MOVINGBASE_MISUSE_FMUS, with the host built with the same sanitizers) with
+MOVINGBASE_FUZZ_CALLS for a larger budget.
+
+Regressions of the defects the fuzzer found (seeds 1 and 2 found the first four on the
+layer before their fix): a NULL value array with a count crashed the host; a refused
+fmi2SetReal/SetInteger had set the values before the bad reference; outputs after a
+refused initialization were what the last read in initialization mode had computed; and
+the scripted cases below."""
+import math
+import os
+import pathlib
+import shlex
+import subprocess
+
+import pytest
+from fmpy import read_model_description
+
+from movingbase.fmu_src import builder, native_build
+from tests.c_host import MISUSE, compile_host, extract
+from tests.test_fmu_misuse import INIT3, MODELS, Fmu, native3, run, run3  # noqa: F401 (native3: a fixture)
+
+FUZZ = MISUSE.with_name("fuzz.c")
+SEEDS = [1, 2, 3, 4]
+SLOW_SEEDS = range(10, 40)
+CALLS = int(os.environ.get("MOVINGBASE_FUZZ_CALLS", "5000"))
+# Parameters whose valid values the fuzzer keeps above a floor: max_step at its minimum
+# 1e-9 s makes a 1 ms step a million RK4 substeps (seconds, within the work bound).
+FLOORS = {"max_step": 1e-5}
+
+
+def extracted(variable, ensure, tmp_path_factory):
+    """The native FMUs of one FMI version, extracted, by model identifier: ``ensure``'s
+    (build/fmu/native or native3, rebuilt when any source is newer), or the folder the
+    environment variable names (the sanitizer builds of .ci/sanitize.sh)."""
+    given = os.environ.get(variable)
+    if given:
+        return {model: pathlib.Path(given) / model for model in MODELS}
+    out = tmp_path_factory.mktemp("fuzz")
+    return {path.stem: extract(path, out / path.stem) for path in ensure(builder.available()).values()}
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory):
+    return extracted("MOVINGBASE_MISUSE_FMUS", native_build.ensure_native, tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def fmus3(tmp_path_factory):
+    return extracted("MOVINGBASE_MISUSE_FMUS3", native_build.ensure_native3, tmp_path_factory)
+
+
+def variables(folder):
+    """fuzz.c's VARS argument from the model description: vr:type[count]:causality:start:min:max[:floor]."""
+    md = read_model_description(str(pathlib.Path(folder) / "modelDescription.xml"))
+    items = []
+    for v in md.modelVariables:
+        if md.fmiVersion == "3.0":
+            kind = {"Int32": "i", "Enumeration": "e"}.get(v.type, "r")
+            count = math.prod(int(d.start) for d in v.dimensions or [])
+            kind += str(count) if v.dimensions else ""
+        else:
+            kind = "i" if v.type in ("Integer", "Enumeration") else "r"
+        causality = {"parameter": "p", "input": "i", "output": "o"}.get(v.causality, "x")
+        bounds = [repr(float(b)) if b is not None else "-" for b in (v.min, v.max)]
+        floor = [repr(FLOORS[v.name])] if v.name in FLOORS else []
+        start = float(str(v.start).split()[0]) if v.start is not None else 0.0
+        items.append(":".join([str(v.valueReference), kind, causality, repr(start), *bounds, *floor]))
+    return ";".join(items)
+
+
+def fuzz(folder, seed, calls=CALLS):
+    md = read_model_description(str(pathlib.Path(folder) / "modelDescription.xml"))
+    args = [str(compile_host(source=FUZZ)), str(folder), md.coSimulation.modelIdentifier, md.guid, str(seed),
+            str(calls), variables(folder), *(["3"] if md.fmiVersion == "3.0" else [])]
+    p = subprocess.run(args, capture_output=True, text=True, errors="backslashreplace", timeout=300)
+    replay = "replay: " + shlex.join(args)
+    assert p.returncode == 0 and "Sanitizer" not in p.stderr and "runtime error" not in p.stderr, \
+        f"{replay}\n... {p.stdout[-6000:]}\nexit {p.returncode}\n{p.stderr[-3000:]}"
+    assert p.stdout.rstrip().splitlines()[-1].startswith("fuzz ok: "), p.stdout[-2000:]
+    return p.stdout
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("model", MODELS)
+def test_random_calls_answer_as_the_model_of_fmi2_says(fmus, model, seed):
+    check_counts(fuzz(fmus[model], seed))
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("model", MODELS)
+def test_random_calls_answer_as_the_model_of_fmi3_says(fmus3, model, seed):
+    check_counts(fuzz(fmus3[model], seed))
+
+
+def check_counts(out):
+    last = out.rstrip().splitlines()[-1]
+    ok, discard, error = (int(w) for w in last.replace(",", "").split()[4:9:2])
+    assert ok > CALLS // 5 and error > CALLS // 10, last   # the runs step, and they misuse
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", SLOW_SEEDS)
+@pytest.mark.parametrize("model", MODELS)
+def test_more_seeds(fmus, fmus3, model, seed):
+    fuzz(fmus[model], seed, calls=2 * CALLS)
+    fuzz(fmus3[model], seed, calls=2 * CALLS)
+
+
+def test_the_oracle_catches_a_wrong_answer(fmus, tmp_path):
+    """The model is a truth that can fail: a build whose doStep answers fmi2OK where it
+    must refuse (the time check removed) is reported with the call."""
+    folder = pathlib.Path(fmus["LegSensor"])
+    sources = folder / "sources"
+    broken = tmp_path / "LegSensor"
+    (broken / "binaries" / "linux64").mkdir(parents=True)
+    (broken / "modelDescription.xml").write_bytes((folder / "modelDescription.xml").read_bytes())
+    layer = (sources / "fmi2_layer.c").read_text()
+    check = "if (!(fabs(t - s->time) <= STEP_TIME_TOLERANCE * fmax(1.0, fabs(s->time)))) {"
+    assert check in layer
+    patched = tmp_path / "src"
+    patched.mkdir()
+    for f in sources.iterdir():
+        (patched / f.name).write_bytes(f.read_bytes())
+    (patched / "fmi2_layer.c").write_text(layer.replace(check, "if (0) {"))
+    native_build.compile_binary(patched, sorted(p.name for p in patched.glob("*.c")),
+                                broken / "binaries" / "linux64" / "LegSensor.so")
+    with pytest.raises(AssertionError, match="VIOLATION .*fmi2DoStep.*answered OK, the model allows only Error"):
+        for seed in SEEDS:
+            fuzz(broken, seed)
+
+
+# ------------------------------------------------- scripted regressions (misuse.c)
+# fmpy loads an FMU into this Python process, which has no sanitizer runtime: not on the
+# sanitizer builds (.ci/sanitize.sh runs the C hosts on those).
+in_process = pytest.mark.skipif(bool(os.environ.get("MOVINGBASE_MISUSE_FMUS")),
+                                reason="sanitizer builds load only into sanitized hosts")
+
+@pytest.fixture(scope="module")
+def scripted(fmus):
+    return {model: Fmu(folder) for model, folder in fmus.items()}
+
+
+def test_a_restored_state_reads_its_own_initial_outputs(scripted):
+    """A state saved in initialization mode after an input was set, then the input set
+    otherwise and read, then the state restored: the outputs read are those of the
+    state's input (they were those computed for the other input: the instance's flag
+    "inputs set since the outputs were computed" was not restored with the block)."""
+    fmu, inp, out = scripted["HexapodPlant"], "initial_pose[3]", "leg_length[1]"
+    x = float(fmu.vars[inp].start or 0) + 0.01
+    answers = run(fmu, "inst", "-", "-", "setup", 0.0, "enter", "setr", ("vr", inp), x, "save", "getr", ("vr", out),
+                  "setr", ("vr", inp), x + 0.01, "getr", ("vr", out), "restore", "getr", ("vr", out))
+    values = [float(line.split()[2]) for line in answers.lines if line.startswith("value ")]
+    assert values[0] != values[1], values   # the output depends on that input
+    assert values[2] == values[0], values
+
+
+@in_process
+def test_set_calls_are_refused_in_the_failed_state(scripted):
+    """fmi2SetReal answered Error after a Discard; fmi2SetBoolean and fmi2SetString of no
+    values answered OK there. Now all refuse (read through fmpy's calls)."""
+    from fmpy.fmi2 import FMU2Slave
+    from fmpy.fmi1 import FMICallException
+    fmu = scripted["HexapodPlant"]
+    slave = FMU2Slave(guid=fmu.md.guid, unzipDirectory=str(fmu.folder), modelIdentifier=fmu.id)
+    slave.instantiate()
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+    with pytest.raises(FMICallException):
+        slave.doStep(0.0, 1e7)   # past the work bound: Discard
+    for call in (lambda: slave.setBoolean([], []), lambda: slave.setString([], [])):
+        with pytest.raises(FMICallException):
+            call()
+    slave.terminate()
+    slave.freeInstance()
+
+
+@in_process
+def test_every_byte_of_the_serialised_identifier_counts(scripted):
+    """The identifier field of a serialised state is zero padded to 64 bytes; a byte
+    changed after the identifier's end was accepted (strncmp stopped at the NUL)."""
+    from fmpy.fmi2 import FMU2Slave
+    from fmpy.fmi1 import FMICallException
+    fmu = scripted["LegSensor"]
+    slave = FMU2Slave(guid=fmu.md.guid, unzipDirectory=str(fmu.folder), modelIdentifier=fmu.id)
+    slave.instantiate()
+    blob = bytearray(slave.serializeFMUstate(slave.getFMUstate()))
+    slave.deSerializeFMUstate(bytes(blob))   # intact: accepted
+    blob[8 + 8 + len(fmu.id) + 3] ^= 0x5A     # MAGIC, size, then the identifier's padding
+    with pytest.raises(FMICallException):
+        slave.deSerializeFMUstate(bytes(blob))
+    slave.freeInstance()
+
+
+@in_process
+def test_a_refused_set_sets_nothing(scripted):
+    """fmi2SetReal of an input and then an output answered fmi2Error having set the input."""
+    from fmpy.fmi2 import FMU2Slave
+    from fmpy.fmi1 import FMICallException
+    fmu = scripted["LegSensor"]
+    inp, out = fmu.vr("leg_length[1]"), fmu.vr("measured_length[1]")
+    slave = FMU2Slave(guid=fmu.md.guid, unzipDirectory=str(fmu.folder), modelIdentifier=fmu.id)
+    slave.instantiate()
+    with pytest.raises(FMICallException):
+        slave.setReal([inp, out], [2.5, 1.0])
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    assert slave.getReal([inp]) == [float(fmu.vars["leg_length[1]"].start)]
+    slave.freeInstance()
+
+
+# ------------------------------------------------------------------ FMI 3.0 layer
+@pytest.mark.parametrize("model", ["HexapodPlant", "Wind"])
+def test_fmi3_every_byte_of_a_serialised_state_counts(native3, model):
+    """The FMI 3.0 layer's 16 bytes before the inner state (the instance state, the start
+    time) had no checksum: byte 0 xor 0x0c turned StepMode (4) into StepDiscarded (8) and
+    was restored; a changed start time too. Now a checksum of their own refuses both."""
+    fmu = native3[model]
+    answers = run3(fmu, "inst", "-", "-", *INIT3, "step", 0.0, 1e-3, "save", "bytes", "load-flipped-at", 0,
+                   "load-flipped-at", 9, "load", "restore", "step", 1e-3, 1e-3)
+    assert answers.statuses("fmi3DeserializeFMUState") == ["Error", "Error", "OK"], answers.lines
+    assert answers.statuses("fmi3DoStep") == ["OK", "OK"], answers.lines
+
+
+@in_process
+def test_fmi3_a_refused_set_sets_nothing(native3):
+    """fmi3SetFloat64 of an input and an output in one call (two runs of value references)
+    answered fmi3Error having set the input."""
+    from fmpy.fmi3 import FMU3Slave
+    from fmpy.fmi1 import FMICallException
+    fmu = native3["LegSensor"]
+    inp, out = fmu.vr("leg_length"), fmu.vr("measured_length")
+    slave = FMU3Slave(guid=fmu.md.guid, unzipDirectory=str(fmu.folder), modelIdentifier=fmu.id)
+    slave.instantiate()
+    slave.enterInitializationMode()
+    start = slave.getFloat64([inp], nValues=6)
+    with pytest.raises(FMICallException):
+        slave.setFloat64([inp, out], [2.5] * 6 + [1.0] * 6)
+    assert slave.getFloat64([inp], nValues=6) == start
+    slave.freeInstance()
