@@ -13,7 +13,9 @@ the wall times measured (with the load) beside it.
     python -m benchmarks.bench_campaign [--runs 8] [--stop 30] [--max-workers 2] [--campaign 500]
 
 --campaign N also runs a real N-run campaign (``movingbase campaign``'s path,
-scenarios.campaign.run_campaign) on 2 workers and prints its wall time and the load.
+scenarios.campaign.run_campaign) on 1 worker, then on 2, and prints their wall times, the
+load, and the parallel efficiency (1 worker's time over 2 x 2 workers', and the sequential
+runs' over 2 x 2 workers').
 Every run is a different start elevation (distinct keys, nothing found on disk).
 """
 import argparse
@@ -127,15 +129,20 @@ def main(argv=None):
           f"s CPU / {workers} = {estimate:.0f} s ({estimate / 60:.1f} min) plus the cluster's start")
 
     if args.campaign:
-        with tempfile.TemporaryDirectory() as tmp:
-            path = _sky_campaign(args.campaign, tmp)
-            load = os.getloadavg()[0]
-            began = time.perf_counter()
-            _, job_list, _, outcome, _ = campaign.run_campaign(path, tmp, jobs_=workers, progress=True)
-            wall = time.perf_counter() - began
-            print(f"real campaign, {len(job_list)} runs of 30 s on {workers} workers: {wall:.0f} s ({wall / 60:.1f} "
-                  f"min, cluster start included), {len(outcome.failed)} failed; load {load:.1f} before, "
-                  f"{os.getloadavg()[0]:.1f} after")
+        walls = {}
+        for count in (1, workers):     # the same campaign (nothing on disk) on 1 worker, then on all
+            with tempfile.TemporaryDirectory() as tmp:
+                path = _sky_campaign(args.campaign, tmp)
+                load = os.getloadavg()[0]
+                began = time.perf_counter()
+                _, job_list, _, outcome, _ = campaign.run_campaign(path, tmp, jobs_=count, progress=False)
+                walls[count] = time.perf_counter() - began
+                print(f"real campaign, {len(job_list)} runs of 30 s on {count} worker(s): {walls[count]:.0f} s "
+                      f"({walls[count] / 60:.1f} min, cluster start included), {len(outcome.failed)} failed; load "
+                      f"{load:.1f} before, {os.getloadavg()[0]:.1f} after")
+        print(f"  parallel efficiency on {workers} workers by wall time: {walls[1] / (workers * walls[workers]):.0%} "
+              f"(1 worker {walls[1]:.0f} s / ({workers} x {walls[workers]:.0f} s)); against the sequential runs of "
+              f"this process: {len(job_list) * sequential / args.runs / (workers * walls[workers]):.0%}")
 
 
 if __name__ == "__main__":
