@@ -63,7 +63,7 @@ from xml.etree import ElementTree
 import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability
 from pythonfmu.enums import Fmi2Status
-from pythonfmu.variables import Integer, Real
+from pythonfmu.variables import Boolean, Integer, Real, String
 
 from movingbase.plant.errors import InvalidInputError
 
@@ -180,6 +180,8 @@ class GuardedSlave(Fmi2Slave):
         self._flat_views = {}
         self._initializing = False   # between enter_ and exit_initialization_mode
         self._stale = False          # initialization mode: set since the outputs were computed
+        self._stepping = False       # past fmi2ExitInitializationMode: parameters are fixed
+        self._initialized = False    # initialize() has run to its end: extra_state() has a state to give
 
     # ---------------------------------------------------------------- variables
     def real(self, name, causality, description, unit, start=0.0, getter=None, setter=None, valid=None):
@@ -227,10 +229,28 @@ class GuardedSlave(Fmi2Slave):
         try:
             values = [array.item(i) for array, i in map(self.slots.__getitem__, vrs)]
         except KeyError:
+            if self._refused("fmi2GetReal", vrs, Real):
+                return [0.0] * len(vrs)
             values = super().get_real(vrs)
         if self.failure:   # only a refused initialization leaves an output NaN/inf (a refused step puts them back)
             self._name_nonfinite_outputs(vrs, values)
         return values
+
+    def _refused(self, call, vrs, kind, setting=False):
+        """True, with an Error line, for a value reference that is not a variable of the
+        type, or (``setting``) an output or a parameter after initialization: the shim then
+        answers fmi2Error (pythonfmu's own methods raised: fmi2Fatal, a dead instance) and
+        nothing is set (the native layer's rules, fmi2_layer.c valid_vr and settable)."""
+        for vr in vrs:
+            var = self.vars.get(vr)
+            why = (f"no {kind.__name__} variable has value reference {vr}" if not isinstance(var, kind)
+                   else f"{var.name} is an output and cannot be set" if setting and var.causality not in (INPUT, PARAMETER)
+                   else f"parameter {var.name} cannot be set after initialization"
+                   if setting and var.causality == PARAMETER and self._stepping else "")
+            if why:
+                self.log(f"{call}: {why}", Fmi2Status.error, "logStatusError")
+                return True
+        return False
 
     def _name_nonfinite_outputs(self, vrs, values):
         """An Error line naming the first output read that is not finite: the shim
@@ -244,11 +264,13 @@ class GuardedSlave(Fmi2Slave):
     def set_real(self, vrs, values):
         """Vector inputs written array by array; the plan per list of value references is
         made once (a master writes the same list every step)."""
-        self._stale = self._initializing
-        key = tuple(vrs)
+        key = (tuple(vrs), self._stepping)   # parameters are settable until the initialization ends
         plan = self._plans.get(key)
         if plan is None:
-            plan = self._plans[key] = self._plan(key)
+            if self._refused("fmi2SetReal", vrs, Real, setting=True):
+                return
+            plan = self._plans[key] = self._plan(key[0])
+        self._stale = self._initializing
         if plan is False:
             return super().set_real(vrs, values)
         values = np.asarray(values, dtype=float)
@@ -258,11 +280,26 @@ class GuardedSlave(Fmi2Slave):
     def get_integer(self, vrs):
         if self._stale:
             self._evaluate_initial()
-        return super().get_integer(vrs)
+        return [0] * len(vrs) if self._refused("fmi2GetInteger", vrs, Integer) else super().get_integer(vrs)
 
     def set_integer(self, vrs, values):
-        self._stale = self._initializing
-        super().set_integer(vrs, values)
+        if not self._refused("fmi2SetInteger", vrs, Integer, setting=True):
+            self._stale = self._initializing
+            super().set_integer(vrs, values)
+
+    def get_boolean(self, vrs):
+        return [False] * len(vrs) if self._refused("fmi2GetBoolean", vrs, Boolean) else super().get_boolean(vrs)
+
+    def get_string(self, vrs):
+        return [""] * len(vrs) if self._refused("fmi2GetString", vrs, String) else super().get_string(vrs)
+
+    def set_boolean(self, vrs, values):
+        if not self._refused("fmi2SetBoolean", vrs, Boolean, setting=True):
+            super().set_boolean(vrs, values)
+
+    def set_string(self, vrs, values):
+        if not self._refused("fmi2SetString", vrs, String, setting=True):
+            super().set_string(vrs, values)
 
     def _plan(self, vrs):
         """[(array, element indices, positions in vrs)] or False if some vr is not a
@@ -374,15 +411,18 @@ class GuardedSlave(Fmi2Slave):
         try:
             self.check_start()
             self.initialize()
+            self._initialized = True
             self.check_outputs()
         except Exception:   # noqa: BLE001 - reported by exit_initialization_mode, see module doc
             self._restore_outputs()
 
     def exit_initialization_mode(self):
         self._initializing = self._stale = False
+        self._stepping = True
         try:
             self.check_start()
             self.initialize()
+            self._initialized = True
             self.check_outputs()
         except Exception as exc:   # noqa: BLE001 - reported through FMI status, see module doc
             self.fail(exc, "in initialization")
@@ -454,21 +494,36 @@ class GuardedSlave(Fmi2Slave):
 
     # -------------------------------------------------------------------- state
     def _get_fmu_state(self):
+        """The variables, the arrays, and the model's internal state once initialize() has
+        built it (before, there is none: a state saved in the instantiated state answered
+        fmi2Fatal from BaseSensor's and TelescopeBase's extra_state, fuzz.c)."""
         state = super()._get_fmu_state()
         state["__arrays__"] = {k: v.copy() for k, v in self.arrays.items()}
-        state["__extra__"] = self.extra_state()
+        state["__extra__"] = self.extra_state() if self._initialized else None
         state["__failure__"] = self.failure
         state["__slave__"] = type(self).__name__   # the FMU's model identifier, for the blob's header
+        state["__phase__"] = [self._initializing, self._stepping]   # restored with the shim's phase
         return state
 
     def _set_fmu_state(self, state):
+        """Into any instance of the FMU: one never initialized runs initialize() on the
+        state's parameters and inputs first, to build the objects the internal state fills."""
         state = dict(state)
-        for k, v in state.pop("__arrays__").items():
-            self.arrays[k][:] = v
-        self.set_extra_state(state.pop("__extra__"))
+        arrays, extra = state.pop("__arrays__"), state.pop("__extra__")
         self.failure = state.pop("__failure__")
         state.pop("__slave__")
+        self._initializing, self._stepping = state.pop("__phase__")
+        self._stale = self._initializing   # initialization mode: the outputs of the restored inputs
+        for k, v in arrays.items():
+            self.arrays[k][:] = v
         super()._set_fmu_state(state)
+        if extra is not None:
+            if not self._initialized:
+                self.initialize()
+                self._initialized = True
+                for k, v in arrays.items():   # initialize() computed outputs: the state's, again
+                    self.arrays[k][:] = v
+            self.set_extra_state(extra)
 
     @staticmethod
     def _fmu_state_to_bytes(state):

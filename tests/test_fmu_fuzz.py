@@ -23,7 +23,7 @@ import pytest
 from fmpy import read_model_description
 
 from movingbase.fmu_src import builder, native_build
-from tests.c_host import MISUSE, compile_host, extract
+from tests.c_host import MISUSE, compile_host, extract, pythonfmu_env
 from tests.test_fmu_misuse import INIT3, MODELS, Fmu, native3, run, run3  # noqa: F401 (native3: a fixture)
 
 FUZZ = MISUSE.with_name("fuzz.c")
@@ -75,11 +75,12 @@ def variables(folder):
     return ";".join(items)
 
 
-def fuzz(folder, seed, calls=CALLS):
+def fuzz(folder, seed, calls=CALLS, env=None):
+    """Run fuzz.c; ``env``: pythonfmu_env() for a pythonfmu FMU (then fuzz.c's option pythonfmu)."""
     md = read_model_description(str(pathlib.Path(folder) / "modelDescription.xml"))
     args = [str(compile_host(source=FUZZ)), str(folder), md.coSimulation.modelIdentifier, md.guid, str(seed),
-            str(calls), variables(folder), *(["3"] if md.fmiVersion == "3.0" else [])]
-    p = subprocess.run(args, capture_output=True, text=True, errors="backslashreplace", timeout=300)
+            str(calls), variables(folder), *(["3"] if md.fmiVersion == "3.0" else []), *(["pythonfmu"] if env else [])]
+    p = subprocess.run(args, capture_output=True, text=True, errors="backslashreplace", timeout=300, env=env)
     replay = "replay: " + shlex.join(args)
     assert p.returncode == 0 and "Sanitizer" not in p.stderr and "runtime error" not in p.stderr, \
         f"{replay}\n... {p.stdout[-6000:]}\nexit {p.returncode}\n{p.stderr[-3000:]}"
@@ -245,3 +246,47 @@ def test_fmi3_a_refused_set_sets_nothing(native3):
         slave.setFloat64([inp, out], [2.5] * 6 + [1.0] * 6)
     assert slave.getFloat64([inp], nValues=6) == start
     slave.freeInstance()
+
+
+# ------------------------------------------------------------------ pythonfmu FMUs
+# The same host on the pythonfmu FMUs, through fmu_src/pythonfmu_shim.c and GuardedSlave,
+# with fuzz.c's option pythonfmu (the differences docs/fmu-rules.md's pythonfmu column
+# names: in initialization mode and after a refused initialization the outputs are not
+# compared on replays). Each run embeds a Python: LegSensor by default, every FMU with
+# -m slow. Seeds 1 to 4 of 1,000 calls found, before their fixes: a non-ASCII instance
+# name crashed the host; model exchange and a wrong or NULL GUID made an instance; a
+# set of an output, of a parameter after initialization, or of an unknown value
+# reference answered fmi2Fatal (a dead instance) or fmi2OK; a NULL array or FMU state
+# answered fmi2Fatal; status queries answered fmi2Discard; fmi2CancelStep and the
+# derivative calls answered fmi2Error without a line; with loggingOn false no line at
+# all reached the host; a NaN startTime was accepted; a restored state stepped from an
+# unchecked time, in the phase of the moment, not its own.
+PY_CALLS = 1000
+PY_SEEDS = [1, 2, 3, 4]
+
+
+@pytest.fixture(scope="module")
+def python_fuzz_fmus(tmp_path_factory):
+    """The pythonfmu FMUs, built from this checkout's shim and slave (builder.ensure_built
+    rebuilds when they are newer), extracted, by model identifier."""
+    built = builder.ensure_built(builder.available(), tmp_path_factory.mktemp("pyfmu"))
+    out = tmp_path_factory.mktemp("pyfuzz")
+    return {path.stem: extract(path, out / path.stem) for path in built.values()}
+
+
+PY_MODELS = [m if m == "LegSensor" else pytest.param(m, marks=pytest.mark.slow) for m in MODELS]
+
+
+@pytest.mark.parametrize("seed", PY_SEEDS)
+@pytest.mark.parametrize("model", PY_MODELS)
+def test_pythonfmu_random_calls_answer_as_the_model_of_fmi2_says(python_fuzz_fmus, model, seed):
+    last = fuzz(python_fuzz_fmus[model], seed, calls=PY_CALLS, env=pythonfmu_env()).rstrip().splitlines()[-1]
+    ok, discard, error = (int(w) for w in last.replace(",", "").split()[4:9:2])
+    assert ok > PY_CALLS // 5 and error > PY_CALLS // 10, last
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", SLOW_SEEDS)
+@pytest.mark.parametrize("model", MODELS)
+def test_pythonfmu_more_seeds(python_fuzz_fmus, model, seed):
+    fuzz(python_fuzz_fmus[model], seed, calls=2 * PY_CALLS, env=pythonfmu_env())
