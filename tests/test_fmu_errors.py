@@ -238,11 +238,12 @@ def _trace(path):
 
 def test_the_shim_changes_only_the_failed_initialization_status_and_last_time(fmus, tmp_path):
     """The same calls through the shim and on pythonfmu's wrapper directly: the same
-    statuses and answers (doStep up to the Discard and the refused ones after it,
-    fmi2GetStatus, which the wrapper does not support), except fmi2ExitInitializationMode's
-    failure (Error instead of Fatal) and fmi2GetRealStatus(fmi2LastSuccessfulTime) after
-    refused steps: the shim answers the end of the last accepted step, the wrapper the
-    start of the latest refused one (it moves on as the host keeps stepping)."""
+    statuses and answers (doStep up to the Discard and the refused ones after it), except
+    fmi2ExitInitializationMode's failure (Error instead of Fatal),
+    fmi2GetRealStatus(fmi2LastSuccessfulTime) after refused steps (the shim answers the end
+    of the last accepted step, the wrapper the start of the latest refused one: it moves on
+    as the host keeps stepping) and fmi2GetStatus, which the wrapper does not support and
+    the shim answers itself (fmi2OK: no step pending)."""
     shimmed = _trace(fmus["hexapod_plant_fmu"])
     direct = _trace(_unshimmed(fmus["hexapod_plant_fmu"], tmp_path))
     assert (direct.pop("exitInitializationMode"), shimmed.pop("exitInitializationMode")) == (FATAL, ERROR)
@@ -250,4 +251,6 @@ def test_the_shim_changes_only_the_failed_initialization_status_and_last_time(fm
     assert accepted > 0 and set(shimmed["doStep"][accepted:]) == {DISCARD}
     assert shimmed.pop("lastSuccessfulTime") == (accepted - 1) * 1e-3 + 1e-3
     assert direct.pop("lastSuccessfulTime") == pytest.approx((len(direct["doStep"]) - 1) * 1e-3)
+    assert direct.pop("getStatus") == (ERROR, "[ERROR] FMI function not supported: fmi2GetStatus")
+    assert shimmed.pop("getStatus")[0] == 0
     assert shimmed == direct

@@ -329,8 +329,8 @@ PYTHON_MODELS = [m if m == "LegSensor" else pytest.param(m, marks=pytest.mark.sl
 @pytest.mark.parametrize("model", PYTHON_MODELS)
 def test_pythonfmu_host_strings_with_conversions_are_printed_not_read(python_fmus, model):
     """The pythonfmu wrapper passes every message as the format; the shim doubles the '%'.
-    pythonfmu checks no GUID: a wrong one is accepted. A missing resource location crashed
-    the wrapper (it finds no slave class): the shim refuses it."""
+    A missing resource location crashed the wrapper (it finds no slave class): the shim
+    refuses it."""
     fmu = python_fmus[model]
     answers = run(fmu, "inst", "-", "%s%n%s", "log", "%s%s%n%n%s", *INIT, "step", 0.0, 1e-3, "term", timeout=120)
     assert answers.statuses("fmi2DoStep") == ["OK"]
