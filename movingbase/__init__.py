@@ -4,7 +4,7 @@ One import name over the repository's folders, one job each (the data flows one 
 
 - ``movingbase.plant``: rigid-body models (6-UPS hexapod, 3T mechanism, telescope base), C kernel;
 - ``movingbase.controller``: PID leg control with model feedforward, its design;
-- ``movingbase.fmu_src``: the FMUs (pythonfmu and native C, FMI 2.0);
+- ``movingbase.fmu_src``: the FMUs (pythonfmu FMI 2.0, native C FMI 2.0 and 3.0);
 - ``movingbase.scenarios``: scenario files, the co-simulation master, results and reports.
 
 Command line: ``movingbase run telescope_slew`` (or ``python -m movingbase run ...``).
@@ -12,18 +12,28 @@ In Python (notebooks): ``movingbase.run("telescope_slew", ci=True)`` returns a R
 (time series as numpy arrays or pandas, metrics, flags, charts); ``movingbase.campaign``
 the same for campaign files (scenarios/api.py).
 """
-from typing import TYPE_CHECKING, Any
+import typing as _typing
 
 __version__ = "0.2.0"
-__all__ = ["run", "campaign", "load_scenario", "Result", "RunResult", "CampaignResult", "__version__"]
+__all__ = ["run", "campaign", "load_scenario", "Result", "RunResult", "CampaignResult", "RunWarning",
+           "ScenarioError", "__version__"]
 
-if TYPE_CHECKING:
-    from .scenarios.api import CampaignResult, Result, RunResult, campaign, load_scenario, run
+if _typing.TYPE_CHECKING:
+    from .scenarios.api import CampaignResult, Result, RunResult, RunWarning, campaign, load_scenario, run
+    from .scenarios.spec import ScenarioError
 
 
-def __getattr__(name: str) -> Any:
+def __dir__() -> list[str]:
+    """The API for tab completion (``movingbase.ru<TAB>``), not the module's helpers."""
+    return sorted(__all__)
+
+
+def __getattr__(name: str) -> _typing.Any:
     """The API on first use: ``movingbase --version`` and the command line do not pay
     for importing matplotlib and the master (PEP 562)."""
+    if name == "ScenarioError":
+        from .scenarios.spec import ScenarioError
+        return ScenarioError
     if name in __all__:
         from .scenarios import api
         return getattr(api, name)

@@ -22,6 +22,7 @@ import io
 import os
 import pathlib
 import time
+import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, Union
 
@@ -122,7 +123,8 @@ class RunResult:
         self.run = run
         self.label: str = run.label
         self.metrics: dict = run.metrics
-        self.flags: list[Flag] = list(run.flags)
+        self.flags: list[Flag] = run_flags.by_severity(run.flags)
+        self.failure: str | None = run.failure   # why an FMU stopped the run before its stop time
         self.steps: int = run.steps
         self.wall_time: float = run.wall_time
         self.sim_time: float = run.sim_time
@@ -131,8 +133,19 @@ class RunResult:
 
     @property
     def ok(self) -> bool:
-        """True if nothing flagged the run."""
+        """True if nothing flagged the run (as ``solve_ivp``'s ``success``)."""
         return not self.flags
+
+    @property
+    def status(self) -> str:
+        """"failed" (cut short: an FMU stopped it), "flagged" (ran to its stop time, but its
+        numbers are not results) or "ok"."""
+        return "failed" if self.failure else "flagged" if self.flags else "ok"
+
+    @property
+    def message(self) -> str:
+        """What went wrong, worst first ('' for a clean run)."""
+        return run_flags.summary(self.flags)
 
     @property
     def time(self) -> np.ndarray:
@@ -184,9 +197,11 @@ class RunResult:
         return self.records.to_csv(path)
 
     def __repr__(self) -> str:
-        state = "ok" if self.ok else "flagged: " + "; ".join(f.kind for f in self.flags)
-        return (f"<RunResult {self.label!r}: {len(self.time)} rows x {len(self.names)} variables, "
-                f"{self.sim_time:g} s simulated, {state}>")
+        kinds = "; ".join(f.kind for f in self.flags)
+        state = {"ok": "ok", "flagged": f"flagged: {kinds}",
+                 "failed": f"FAILED at t = {self.sim_time:g} s: {kinds}"}[self.status]
+        return (f"<RunResult {self.label!r}: {state}; {len(self.time)} rows x {len(self.names)} variables, "
+                f"{self.sim_time:g} s simulated>")
 
 
 class Result:
@@ -226,7 +241,8 @@ class Result:
         ("flags", "") saying what went wrong with a run ('' if nothing): a flagged run's
         numbers are not results, and the table says so where they stand."""
         pd = _pandas()
-        rows = {label: {**{(m, k): v for m, values in r.metrics.items() for k, v in values.items() if k != "unit"},
+        rows = {label: {("status", ""): r.status.upper() if r.status == "failed" else r.status,
+                        **{(m, k): v for m, values in r.metrics.items() for k, v in values.items() if k != "unit"},
                         ("flags", ""): run_flags.summary(r.flags)}
                 for label, r in self.runs.items()}
         return pd.DataFrame.from_dict(rows, orient="index")
@@ -264,9 +280,17 @@ class Result:
             print(runner.left_over(folder, started), flush=True)
         return written
 
+    @property
+    def ok(self) -> bool:
+        """True if no run was flagged or failed."""
+        return all(r.ok for r in self)
+
     def __repr__(self) -> str:
-        flagged = f", flagged: {', '.join(self.flags)}" if self.flags else ""
-        return f"<Result {self.scenario.name!r}: runs {', '.join(self.runs)}{flagged}>"
+        failed = [label for label, r in self.runs.items() if r.status == "failed"]
+        flagged = [label for label, r in self.runs.items() if r.status == "flagged"]
+        state = (f"{', FAILED: ' + ', '.join(failed) if failed else ''}"
+                 f"{', flagged: ' + ', '.join(flagged) if flagged else ''}")
+        return f"<Result {self.scenario.name!r}: runs {', '.join(self.runs)}{state or ', all ok'}>"
 
 
 def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: bool = False,
@@ -291,7 +315,15 @@ def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: boo
     result = Result(prepared, runs, runner.write_results(prepared, runs, outdir) if outdir else None)
     if earlier and runner.left_over(outdir, started):
         print(runner.left_over(outdir, started), flush=True)
+    for r in result:     # shown in a notebook as a warning: a failed run is no result
+        if not r.ok:
+            said = r.message if r.status == "failed" else f"flagged: {r.message}"
+            warnings.warn(f"run {r.label!r} {said}", RunWarning, stacklevel=2)
     return result
+
+
+class RunWarning(UserWarning):
+    """A run of ``movingbase.run`` failed or was flagged: its numbers are not results."""
 
 
 # ------------------------------------------------------------------------ campaigns

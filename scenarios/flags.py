@@ -59,9 +59,23 @@ def from_dicts(items):
     return [Flag(d["kind"], d["message"]) for d in items or []]
 
 
+# the kinds, worst first: a run that did not reach its stop time is no result at all, so
+# its cause is said before any symptom it showed on the way (reprs, tables, summaries)
+SEVERITY = ("cut_short", "non_finite", "step_beyond_limit", "unstable", "saturated", "stroke",
+            "motion_unfinished", "fmu_warning")
+
+
+def by_severity(flags):
+    """The flags, worst kind first (kinds not in SEVERITY last, in their order)."""
+    rank = {kind: i for i, kind in enumerate(SEVERITY)}
+    return sorted(flags, key=lambda f: rank.get(f.kind, len(SEVERITY)))
+
+
 def summary(flags):
-    """One line of a run's flags ('' if none)."""
-    return "; ".join(f"{f.kind}: {f.message}" for f in flags)
+    """One line of a run's flags, worst first ('' if none); a cut-short run starts FAILED."""
+    ordered = by_severity(flags)
+    text = "; ".join(f"{f.kind}: {f.message}" for f in ordered)
+    return f"FAILED ({text})" if ordered and ordered[0].kind == "cut_short" else text
 
 
 # ------------------------------------------------------------------ before the run

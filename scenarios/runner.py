@@ -239,6 +239,9 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
         except master.RunFailed as failed:   # keep what it did; the other runs still run
             failed.run.failure = f"{scenario.source}: scene {scenario.name}, run {label}: {failed.run.failure}"
             runs.append(failed.run)
+            bar.set_description_str(f"{desc} FAILED at t = {failed.run.sim_time:g} s", refresh=False)
+            bar.close()                      # where it stopped, not 100 %
+            continue
         except BaseException:                # Ctrl-C, or an error that ends the command
             bar.close()                      # where it stopped, not 100 %
             raise

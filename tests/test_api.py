@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import movingbase
-from movingbase.scenarios import runner, spec
+from movingbase.scenarios import flags, runner, spec
 from movingbase.scenarios.records import read_records
 
 NAME = "paper_manoeuvre"      # [ci]: 3 runs of 4 s at 1 ms, the shortest shipped scene with a sweep
@@ -332,3 +332,34 @@ def test_a_run_that_failed_before_recording_says_so_where_its_series_is_asked():
     assert not run.ok and len(run.time) == 0 and ran.to_pandas().shape[0] == 0
     with pytest.raises(KeyError, match="nothing was recorded, the run failed before its first row: .*exitInitial"):
         run["plant.pose"]
+
+
+# ------------------------------------------------------------------ a failed run is plain to see
+@pytest.fixture(scope="module")
+def cut_short():
+    """telescope_slew [ci] with a 1000 km lever arm: every run stops at 5.01 s of 8 s
+    (the plant's stroke error), after saturating on the way."""
+    with pytest.warns(movingbase.RunWarning) as said:
+        result = movingbase.run("telescope_slew", ci=True, set={"base.lever_arm": "1e6 m"}, progress=False)
+    return result, [str(w.message) for w in said]
+
+
+def test_a_cut_short_run_says_failed_first_everywhere(cut_short):
+    result, said = cut_short
+    assert not result.ok and len(said) == len(result) == 3
+    for run, message in zip(result, said):
+        assert run.status == "failed" and run.failure and run.sim_time < 8.0
+        assert run.flags[0].kind == "cut_short"            # the cause before the symptoms
+        assert [f.kind for f in run.flags] == sorted((f.kind for f in run.flags), key=flags.SEVERITY.index)
+        assert message.startswith(f"run {run.label!r} FAILED (cut_short")
+        assert repr(run).startswith(f"<RunResult {run.label!r}: FAILED at t = {run.sim_time:g} s: cut_short")
+    assert "FAILED: none, fixed_base, moving_base" in repr(result)
+    table = result.metrics_table()
+    assert list(table[("status", "")]) == ["FAILED"] * 3 and table.columns[0] == ("status", "")
+    assert all(cell.startswith("FAILED (cut_short: stopped at t = 5.01 s") for cell in table[("flags", "")])
+
+
+def test_tab_completion_offers_the_api():
+    assert {"run", "campaign", "load_scenario", "ScenarioError"} <= set(dir(movingbase))
+    assert not {"Any", "TYPE_CHECKING", "plant", "scenarios"} & set(dir(movingbase))
+    assert movingbase.ScenarioError is spec.ScenarioError

@@ -226,9 +226,17 @@ def both(scenario, paths, values, tmp_path):
     return results
 
 
-@pytest.mark.parametrize("implementation", ["native", "python"])
-@pytest.mark.parametrize("master_kind, extrapolation", MASTERS)
-@pytest.mark.parametrize("name", SHIPPED)
+def _loop_cases():
+    """Every shipped scene x master on the native FMUs; on the pythonfmu FMUs (~5 s each)
+    one scene in the default run, all with -m slow (the default run's 10-minute budget)."""
+    for name in SHIPPED:
+        for master_kind, extrapolation in MASTERS:
+            yield pytest.param(name, master_kind, extrapolation, "native")
+            slow = [] if name == SHIPPED[0] else [pytest.mark.slow]
+            yield pytest.param(name, master_kind, extrapolation, "python", marks=slow)
+
+
+@pytest.mark.parametrize("name, master_kind, extrapolation, implementation", _loop_cases())
 def test_the_c_loop_gives_byte_identical_csvs(name, master_kind, extrapolation, implementation, tmp_path):
     scenario, paths, values = prepared(name, implementation, master_kind, extrapolation)
     (ref, ref_csv), (c, c_csv) = both(scenario, paths, values, tmp_path)
