@@ -38,6 +38,7 @@ POSES = 9             # poses along the reference motion at which the leg-space 
 WINDOW = 1.0          # s: the detectors' envelope window (shorter for short runs, see Watch.window)
 GROWTH = 10.0         # an envelope that grows by this factor ...
 GROWTH_WINDOWS = 6    # ... steadily over at least this many windows is unstable
+PERSIST = 3.0         # a growth that ends at its peak counts if the envelope after it stays above peak / PERSIST
 FLOORS = (50.0, 1e-7)     # N, m: oscillation envelopes below these are noise, not growth
 NEAR_STROKE = 0.9     # a leg beyond this fraction of its half stroke is near its end
 MOVING = 1e-6         # rad/s: a base still turning faster than this at stop has not arrived
@@ -385,13 +386,16 @@ def growth(times, envelope, floor):
     """(t0, t1, e0, e1) if the envelope (floored at ``floor``) grows GROWTH-fold with a
     steady exponential trend (least squares on its log, R^2 >= 0.8) over GROWTH_WINDOWS
     or more windows that end at the last window or at the envelope's peak (where a growth
-    stops at the force limit), else None. Steady: a slew's transients raise the
+    stops at the force limit, and the envelope stays near it after), else None. Steady: a slew's transients raise the
     envelope for a window or two, an unstable loop every window."""
     env = np.maximum(np.asarray(envelope[1:-1], dtype=float), floor)   # first and last window: partial
     t = np.asarray(times[1:-1], dtype=float)
-    for end in dict.fromkeys((len(env), int(np.argmax(env)) + 1 if len(env) else 0)):   # to the end, to the peak
+    peak = int(np.argmax(env)) + 1 if len(env) else 0
+    for end in dict.fromkeys((len(env), peak)):   # to the end, to the peak
         if end < GROWTH_WINDOWS:
             continue
+        if end < len(env) and np.median(env[end:]) < env[end - 1] / PERSIST:
+            continue   # it died away after its peak: a transient (a slew's acceleration step), not a growth
         for n in np.unique(np.geomspace(end, GROWTH_WINDOWS, 16).round().astype(int))[::-1]:   # longest first
             x, y = t[end - n:end], np.log(env[end - n:end])
             slope, icept = np.polyfit(x, y, 1)
