@@ -11,6 +11,7 @@ win64 DLL pythonfmu ships stays as it is. The CLI also builds each FMU's native 
 <out>/native/ (fmu_src/native_build.py).
 """
 import argparse
+import hashlib
 import importlib
 import json
 import os
@@ -29,7 +30,7 @@ from fmpy.validation import validate_fmu
 from pythonfmu.builder import FmuBuilder
 
 from movingbase import __version__
-from movingbase.fmu_src import native_build
+from movingbase.fmu_src import atomic, native_build
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent   # the checkout, or site-packages
 PYPROJECT = ROOT / "pyproject.toml"
@@ -193,7 +194,9 @@ EXTRA_RESOURCES = {"leg_controller_fmu": {"leg_controller_defaults.json": contro
 
 
 def build(script, out):
-    """Build one FMU from fmu_src/<script>.py; returns its path."""
+    """Build one FMU from fmu_src/<script>.py; returns its path. It is made and validated
+    in a temporary folder and moved into ``out`` whole (a build killed part-way leaves the
+    FMU that was there, never a torn one)."""
     path = ROOT / "fmu_src" / f"{script}.py"
     with tempfile.TemporaryDirectory() as tmp:
         files = {"requirements.txt": requirements}
@@ -201,14 +204,38 @@ def build(script, out):
         project_files = []
         for name, make in files.items():
             project_files.append(pathlib.Path(tmp) / name)
-            project_files[-1].write_text(make())
-        fmu = FmuBuilder.build_FMU(path, dest=out, project_files=project_files, canGetAndSetFMUstate=True,
+            atomic.write_text(project_files[-1], make())
+        made = pathlib.Path(tmp) / "fmu"
+        fmu = FmuBuilder.build_FMU(path, dest=made, project_files=project_files, canGetAndSetFMUstate=True,
                                    canSerializeFMUstate=True)
         _rewrite(fmu, *_recorded(fmu), compile_shim(tmp))
-    problems = validate_fmu(str(fmu))
-    if problems:
-        raise RuntimeError(f"{fmu.name} fails fmpy validation:\n" + "\n".join(problems))
-    return fmu
+        problems = validate_fmu(str(fmu))
+        if problems:
+            raise RuntimeError(f"{fmu.name} fails fmpy validation:\n" + "\n".join(problems))
+        return atomic.write_bytes(pathlib.Path(out) / fmu.name, fmu.read_bytes())
+
+
+def file_sha256(path):
+    """SHA-256 of a file's bytes (what a stamp vouches for)."""
+    return hashlib.sha256(pathlib.Path(path).read_bytes()).hexdigest()
+
+
+def stamped(stamp, newest):
+    """The FMU path a stamp vouches for, or None: a stamp older than ``newest`` (the
+    sources changed), unreadable, or whose FMU is missing or not the bytes it stamped
+    (a build killed part-way, an FMU edited or truncated) is not trusted."""
+    try:
+        if stamp.stat().st_mtime < newest:
+            return None
+        path, digest = stamp.read_text(encoding="utf-8").splitlines()
+        return pathlib.Path(path) if file_sha256(path) == digest else None
+    except (OSError, ValueError):
+        return None
+
+
+def write_stamp(stamp, fmu):
+    """The stamp of a built FMU, written last and atomically: its path and SHA-256."""
+    atomic.write_text(stamp, f"{fmu}\n{file_sha256(fmu)}\n")
 
 
 def available():
@@ -228,13 +255,11 @@ def ensure_built(scripts, out=OUT):
     newest = max(p.stat().st_mtime for p in _sources())
     paths = {}
     for script in scripts:
-        stamp = out / f"{script}.built"
-        if stamp.exists() and stamp.stat().st_mtime >= newest and pathlib.Path(stamp.read_text()).exists():
-            paths[script] = pathlib.Path(stamp.read_text())
-            continue
-        _import_path()
-        paths[script] = build(script, out)
-        stamp.write_text(str(paths[script]))
+        paths[script] = stamped(out / f"{script}.built", newest)
+        if paths[script] is None:
+            _import_path()
+            paths[script] = build(script, out)
+            write_stamp(out / f"{script}.built", paths[script])
     return paths
 
 
@@ -256,6 +281,7 @@ def main(argv=None, prog="movingbase build"):
     _import_path()
     for name in args.names:
         fmu = build(name, out)
+        write_stamp(out / f"{name}.built", fmu)
         print(f"built {fmu}")
         print(f"built {native_build.build_native(fmu, out / 'native')}")
     print(f"FMUs are in {out}")

@@ -24,6 +24,8 @@ import fmpy
 import numpy as np
 from fmpy.validation import validate_fmu
 
+from movingbase.fmu_src import atomic
+
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 NATIVE = ROOT / "fmu_src" / "native"
 KERNELS = (ROOT / "plant" / "c", ROOT / "controller" / "c")
@@ -232,15 +234,18 @@ def build_native(python_fmu, out, empty=False):
 
 
 def pack(folder, fmu):
-    """Zip the FMU's ``folder`` into ``fmu`` and validate it with fmpy; returns ``fmu``."""
-    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as z:
-        for path in sorted(folder.rglob("*")):
-            if path.is_file():
-                z.write(path, path.relative_to(folder).as_posix())
-    problems = validate_fmu(str(fmu))
+    """Zip the FMU's ``folder``, validate it with fmpy, and move it into ``fmu`` whole
+    (fmu_src.atomic: the file's date is the build's stamp, so a build killed part-way
+    must not leave a newer, torn FMU); returns ``fmu``."""
+    members = sorted(p for p in folder.rglob("*") if p.is_file())
+    packed = folder / fmu.name
+    with zipfile.ZipFile(packed, "w", zipfile.ZIP_DEFLATED) as z:
+        for path in members:
+            z.write(path, path.relative_to(folder).as_posix())
+    problems = validate_fmu(str(packed))
     if problems:
         raise RuntimeError(f"native {fmu.name} fails fmpy validation:\n" + "\n".join(problems))
-    return fmu
+    return atomic.write_bytes(fmu, packed.read_bytes())
 
 
 def _inputs():

@@ -37,6 +37,8 @@ import pathlib
 import sys
 from dataclasses import dataclass
 
+from movingbase.fmu_src import atomic
+
 from . import engine, flags, resources, spec
 from .fmi import FmuFileError, description
 from .runner import OutputError, fmu_paths, output_folder, resolve
@@ -367,6 +369,20 @@ class CampaignJobs:
                 params[inst][target] = spec._value(self.campaign.source, key, variables[target], item)
         return scenario, params, descriptions, digests
 
+    def cost(self):
+        """What the runs will cost (resources.estimate), each at its own top-level settings
+        (a campaign's set.stop_time, a grid of steps), with the recorded vectors' sizes."""
+        counts = {}                 # top-level overrides -> (them, runs)
+        for case in self.campaign.cases:
+            top = {k: v for k, v in case.values.items() if k in SCENARIO_KEYS}
+            marker = repr(sorted(top.items()))
+            counts[marker] = (top, counts.get(marker, (None, 0))[1] + 1)
+        estimates = []
+        for top, runs in counts.values():
+            scenario, _, descriptions, _ = self._bind(top)
+            estimates.append(resources.estimate(scenario, descriptions, runs, self.campaign.keep_records))
+        return resources.combined(estimates)
+
     def __iter__(self):
         for case in self.campaign.cases:
             scenario, params, _, digests = self._case(case)
@@ -434,7 +450,7 @@ def results(campaign, store, job_list):
 def write_summary(campaign, store, job_list, path):
     """summary.csv streamed from the result files: case values, status, flags (scenarios.flags:
     '' for a run nothing was seen wrong in), every metric."""
-    with open(path, "w", newline="") as file:
+    with atomic.replacing(path, text=True, newline="") as file:
         writer = None
         for case, record in results(campaign, store, job_list):
             row = {"label": case.label, **{k: case.values.get(k) for k in campaign.varying}}
@@ -456,7 +472,7 @@ def run_campaign(path, out="out", ci=False, jobs_=None, address=None, progress=T
     Returns (campaign, job list, store, outcome, summary path)."""
     campaign = load(path, ci)
     job_list, files = jobs(campaign)
-    cost = resources.estimate(job_list.base, runs=len(campaign.cases), keep_records=campaign.keep_records)
+    cost = job_list.cost()
     warning = resources.check(cost, out, campaign.source)
     if warning:
         print(warning, file=sys.stderr)

@@ -47,11 +47,12 @@ import sys
 import tempfile
 import threading
 import time
-import zipfile
 from itertools import islice
 
 import numpy as np
 from tqdm import tqdm
+
+from movingbase.fmu_src.atomic import replacing, write_bytes
 
 from . import flags, master, metrics
 from .fmi import content_digest
@@ -228,23 +229,33 @@ class Store:
         self.damaged = {}           # key -> what is wrong with its files (run again)
 
     def status(self, key):
-        """'ok', 'failed' or None: not run yet, or its files are truncated or corrupt
-        (then named in ``damaged`` and run again, never taken as good)."""
+        """'ok', 'failed' or None: not run yet, or one of its files is missing, truncated or
+        corrupt (every file the JSON names is checked against its digest; the fault is
+        named in ``damaged`` and the run is run again, never taken as good)."""
         path = self.path(key, ".json")
         if not path.exists():
             return None
         try:
-            status = json.loads(path.read_text())["status"]
+            record = json.loads(path.read_text(encoding="utf-8"))
+            status = record["status"]
         except (ValueError, KeyError, TypeError, UnicodeDecodeError) as exc:
             self.damaged[key] = f"{path}: unreadable ({type(exc).__name__}: {exc})"
             return None
-        series = self.path(key, ".npz")
         if status not in ("ok", "failed"):
             self.damaged[key] = f"{path}: unknown status {status!r}"
             return None
-        if status == "ok" and not zipfile.is_zipfile(series):
-            self.damaged[key] = f"{series}: {'missing' if not series.exists() else 'truncated or corrupt'}"
+        files = record.get("files")
+        if not isinstance(files, dict) or (status == "ok" and ".npz" not in files):
+            self.damaged[key] = f"{path}: names no digests of its files (written by an older kit, or damaged)"
             return None
+        for suffix, digest in files.items():
+            other = self.path(key, suffix)
+            if not other.is_file():
+                self.damaged[key] = f"{other}: missing"
+                return None
+            if _sha256(other) != digest:
+                self.damaged[key] = f"{other}: truncated or corrupt (its SHA-256 is not the one {path.name} names)"
+                return None
         return status
 
     def keys(self):
@@ -252,7 +263,7 @@ class Store:
         return {p.name.removesuffix(".json") for p in self.folder.glob("*.json")}
 
     def read(self, key):
-        return json.loads(self.path(key, ".json").read_text())
+        return json.loads(self.path(key, ".json").read_text(encoding="utf-8"))
 
     def series(self, key):
         """{metric: (t, values)} of a run (a failed one: as far as it got, if at all)."""
@@ -260,26 +271,30 @@ class Store:
             names = sorted({k.rsplit("/", 1)[0] for k in data.files})
             return {n: (data[f"{n}/t"], data[f"{n}/values"]) for n in names}
 
-    def _atomic(self, path, data):
-        tmp = path.with_name(path.name + ".part")
-        tmp.write_bytes(data)
-        os.replace(tmp, path)
-
     def write(self, job, result):
-        key = job.key
+        """The run's files, each atomically (fmu_src.atomic), then <key>.json last: it names
+        every other file with its SHA-256 (``files``), so a file damaged later is found."""
+        key, files = job.key, {}
         if "record" in result:
-            tmp = self.path(key, ".part.npz")
-            result.pop("record").save(tmp)
-            os.replace(tmp, self.path(key, RECORDS))
+            files[RECORDS] = result.pop("record").save(self.path(key, RECORDS))
         if "series" in result:
             series = result.pop("series")
-            with tempfile.NamedTemporaryFile(dir=self.folder, suffix=".npz", delete=False) as tmp:
+            with replacing(self.path(key, ".npz")) as tmp:
                 np.savez(tmp, **{f"{n}/{part}": a for n, (t, v) in series.items()
                                  for part, a in (("t", t), ("values", v))})
-            os.replace(tmp.name, self.path(key, ".npz"))
+            files[".npz"] = self.path(key, ".npz")
         record = {**result, "scenario": job.scenario.name,
-                  "parameters": {i: {k: _plain(v) for k, v in p.items()} for i, p in job.parameters.items()}}
-        self._atomic(self.path(key, ".json"), json.dumps(record, indent=1, default=float).encode())
+                  "parameters": {i: {k: _plain(v) for k, v in p.items()} for i, p in job.parameters.items()},
+                  "files": {suffix: _sha256(path) for suffix, path in files.items()}}
+        write_bytes(self.path(key, ".json"), json.dumps(record, indent=1, default=float).encode())
+
+
+def _sha256(path):
+    digest = hashlib.sha256()
+    with open(path, "rb") as file:
+        for block in iter(lambda: file.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 # ------------------------------------------------------------------------ the engine
@@ -494,7 +509,7 @@ def run_sweep(scenario, paths, descriptions, values, items, outdir, jobs=None, a
         record, record_path = store.read(job.key), None    # no records: refused before the first row
         if store.path(job.key, RECORDS).exists():
             record_path = pathlib.Path(outdir) / f"{job.label}.npz"
-            shutil.copyfile(store.path(job.key, RECORDS), record_path)
+            write_bytes(record_path, store.path(job.key, RECORDS).read_bytes())
         run = master.Run(job.label, record_path, record.get("steps", 0), record.get("run_time_s", 0.0),
                          record.get("sim_time_s", 0.0), record.get("metrics", {}),
                          store.series(job.key) if store.path(job.key, ".npz").exists() else {})

@@ -15,10 +15,13 @@ from __future__ import annotations
 import os
 import pathlib
 import re
+import zipfile
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+
+from movingbase.fmu_src.atomic import replacing
 
 TIME = "time [s]"
 _HEADER = re.compile(r"(.*) \[(.*)\]")
@@ -76,16 +79,20 @@ class Records:
         return self._data[:self.count, 1 + self.names.index(name)]
 
     def save(self, path: str | os.PathLike[str]) -> pathlib.Path:
-        """Write the npz file (one array per column, keyed by its header cell)."""
+        """Write the npz file (one array per column, keyed by its header cell), atomically
+        (fmu_src.atomic: a reader never finds a torn file); ".npz" is added as numpy would."""
         path = pathlib.Path(path)
+        if path.suffix != ".npz":
+            path = path.with_name(path.name + ".npz")
         columns: dict[str, Any] = self.columns
-        np.savez(path, **columns)
+        with replacing(path) as file:
+            np.savez(file, **columns)
         return path
 
     def to_csv(self, path: str | os.PathLike[str]) -> pathlib.Path:
         """Export as CSV: the header with units, each float as its shortest repr."""
         path = pathlib.Path(path)
-        with open(path, "w", newline="") as f:
+        with replacing(path, text=True, newline="") as f:
             f.write(",".join(self.header) + "\r\n")
             f.writelines(",".join(map(repr, row)) + "\r\n" for row in self._data[:self.count].tolist())
         return path
@@ -134,7 +141,7 @@ def read_records(path: str | os.PathLike[str]) -> Records:
         with np.load(path, allow_pickle=False) as data:
             titles = list(data.files)
             columns = [data[t] for t in titles]
-    except (OSError, ValueError, EOFError) as exc:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:    # truncated, bit-flipped
         raise ValueError(f"{path}: cannot read recorded data: {exc}") from None
     matched = [_HEADER.fullmatch(t) for t in titles[1:]]
     if not titles or titles[0] != TIME or not all(matched):

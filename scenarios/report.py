@@ -8,6 +8,8 @@ the README's generated headline (``scenarios.headline``) uses too: one source fo
 number."""
 import numpy as np
 
+from movingbase.fmu_src import atomic
+
 from .records import run_records
 from .style import (FLOOR, FLOOR_NOTE, MARKS_UM, draw_marks, fmt, length, plain_log_axis, ratio,  # noqa: F401
                     run_colour, save)
@@ -388,7 +390,7 @@ def write(scenario, runs, outdir, charts="all"):
     lines += [f"Results per run: {', '.join(f'`{r.record_path.name}`' for r in runs if r.record_path)} "
               "(npz, one array per column named with its unit: `pandas.DataFrame(dict(numpy.load(file)))`)."]
     path = outdir / "report.md"
-    path.write_text("\n".join(lines) + "\n")
+    atomic.write_text(path, "\n".join(lines) + "\n")
     return path
 
 

@@ -14,7 +14,7 @@ from .spec import expand
 # native 0.42 s, pythonfmu 2.70 s) and per recorded row (CSV formatting, ~35 us)
 STEP_SECONDS = {"native": 4.7e-6, "python": 30e-6}
 ROW_SECONDS = 35e-6
-CSV_BYTES_PER_VALUE = 20       # a float's shortest repr and its comma
+BYTES_PER_VALUE = 8            # a float64 in memory (Records, preallocated per run) and in its npz
 WORKER_BYTES = 300 << 20       # one worker process with its FMUs loaded
 REFUSE_SECONDS = 30 * 86400    # longer than this is no run anyone waits for
 WARN_SECONDS = 600
@@ -33,6 +33,7 @@ class Estimate:
     columns: int
     seconds: float              # all runs, on one core
     disk_bytes: float           # all runs' records
+    run_bytes: float = 0.0      # one run's records in memory (the largest run's)
 
     def text(self):
         steps = f"{self.steps:,}" if self.steps < 1e15 else f"{self.steps:.3g}"    # not 300 digits
@@ -67,8 +68,17 @@ def estimate(scenario, descriptions=None, runs=1, keep_records=True):
     per_step = sum(STEP_SECONDS.get(scenario.implementations.get(i, "native"), STEP_SECONDS["python"])
                    for i in scenario.fmus)
     seconds = runs * (steps * per_step + rows * ROW_SECONDS)
-    disk = runs * rows * (columns + 1) * CSV_BYTES_PER_VALUE if keep_records else 0
-    return Estimate(runs, steps, rows, columns, seconds, disk)
+    memory = rows * (columns + 1) * BYTES_PER_VALUE
+    return Estimate(runs, steps, rows, columns, seconds, runs * memory if keep_records else 0, memory)
+
+
+def combined(estimates):
+    """One Estimate of runs of several settings (a campaign's top-level settings vary per
+    run): times and disk add up, steps, rows and a run's memory are the largest run's."""
+    return Estimate(sum(e.runs for e in estimates), max(e.steps for e in estimates),
+                    max(e.rows for e in estimates), max(e.columns for e in estimates),
+                    sum(e.seconds for e in estimates), sum(e.disk_bytes for e in estimates),
+                    max(e.run_bytes for e in estimates))
 
 
 def free_bytes(folder):
@@ -85,6 +95,11 @@ def check(cost, out, what):
     if cost.disk_bytes > free:
         raise ResourceError(f"{what}: {cost.text()}; the records need more than the {_size(free)} free under "
                             f"{out}: shorten stop_time, record fewer variables or a longer record.interval")
+    memory = available_memory()
+    if memory is not None and cost.run_bytes > memory:
+        raise ResourceError(f"{what}: {cost.text()}; one run's records need ~{_size(cost.run_bytes)} of memory, "
+                            f"{_size(memory)} is available: shorten stop_time, record fewer variables or a longer "
+                            "record.interval")
     if cost.seconds > REFUSE_SECONDS:
         raise ResourceError(f"{what}: {cost.text()}: it would not finish; shorten stop_time or lengthen step")
     if cost.seconds > WARN_SECONDS or cost.disk_bytes > WARN_BYTES:

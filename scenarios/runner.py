@@ -2,6 +2,7 @@
 sweep value with a progress bar, and write results, charts and the report. A run an FMU
 stops is kept with its partial results and marked; the other sweep values still run."""
 import difflib
+import fcntl
 import json
 import os
 import pathlib
@@ -10,6 +11,7 @@ import time
 
 from tqdm import tqdm
 
+from movingbase.fmu_src import atomic
 from movingbase.fmu_src.builder import ensure_built
 from movingbase.fmu_src.native_build import ensure_native, ensure_native3
 from movingbase.plant.stewart import FIDELITIES
@@ -59,7 +61,32 @@ def output_folder(out, path):
     if stem in ("", ".", ".."):       # "..toml", "...toml": out itself or its parent, not a folder under it
         raise OutputError(f"file name {pathlib.Path(path).name!r}: without .toml, {stem!r} cannot name its output "
                           f"folder under {out} (it would write into {out / stem}); rename the file")
-    return make_folder(out / stem)
+    return lock_folder(make_folder(out / stem))
+
+
+LOCK = ".movingbase.lock"
+_LOCKS = {}                     # folder -> the open lock file this process holds (until it exits)
+
+
+def lock_folder(folder):
+    """``folder``, locked for this process (fcntl.flock on ``folder``/.movingbase.lock, held
+    until the process exits): a second process writing the same results (two runs into one
+    --out) is refused naming the first, instead of mixing its files with the other's."""
+    key = os.path.realpath(folder)
+    if key in _LOCKS:
+        return folder
+    fd = os.open(os.path.join(key, LOCK), os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        holder = os.read(fd, 200).decode("utf-8", "replace").strip() or "another process"
+        os.close(fd)
+        raise OutputError(f"output folder {folder} is in use by {holder}, which writes its results there; "
+                          "wait for it to end or choose another output folder") from None
+    os.ftruncate(fd, 0)
+    os.write(fd, f"process {os.getpid()} ({' '.join(sys.argv)[:120]})".encode())
+    _LOCKS[key] = fd
+    return folder
 
 
 def _named(folder):
@@ -258,7 +285,7 @@ def write_results(scenario, runs, outdir, charts="all"):
                          "flags": flags.as_dicts(r.flags)}
                for r in runs}
     outdir.mkdir(parents=True, exist_ok=True)
-    (outdir / "metrics.json").write_text(json.dumps(_no_nan(summary), indent=2, default=float))
+    atomic.write_text(outdir / "metrics.json", json.dumps(_no_nan(summary), indent=2, default=float))
     return report.write(scenario, runs, outdir, charts)
 
 

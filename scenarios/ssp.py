@@ -64,6 +64,8 @@ import zipfile
 
 import numpy as np
 
+from movingbase.fmu_src import atomic
+
 from . import spec
 from .fmi import element_count, unpack
 from .master import start, step_order
@@ -294,7 +296,7 @@ def export_ssp(scenario, fmu_paths, parameters, path):
     ET.indent(root)
     text = ET.tostring(root, encoding="utf-8", xml_declaration=True)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with zipfile.ZipFile(path, "w") as z:
+    with atomic.replacing(path) as file, zipfile.ZipFile(file, "w") as z:   # a full disk keeps the old SSP
         z.writestr("SystemStructure.ssd", text, compress_type=zipfile.ZIP_DEFLATED)
         for name, fmu in files.items():
             data = integer_choices(fmu) if unpack(fmu)[0].fmiVersion.startswith("2") else fmu.read_bytes()

@@ -1,0 +1,62 @@
+"""The one way the kit writes a file: to a temporary name beside it, then moved into place.
+
+A reader (another process, a later run reusing a cache) sees the old file or the whole
+new one, never a torn one: a full disk, a kill or an exception part-way leaves the file
+that was there before and no temporary behind. Text is UTF-8 whatever the locale (a
+Latin-1 locale could not write the units' micro sign). The file ends with the mode a
+plain open() would give it (0666 less the umask; mkstemp alone gives 0600).
+
+Here, in fmu_src, because the FMU builds write stamps too and the data flows one way
+(fmu_src -> scenarios): the scenarios import it from here.
+"""
+import contextlib
+import os
+import pathlib
+import tempfile
+
+
+def _umask():
+    """This process's umask, read without changing it (Linux /proc), else by setting it back."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except OSError:
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+@contextlib.contextmanager
+def replacing(path, text=False, newline=None):
+    """A file object writing ``path`` anew (text: UTF-8); the file is in place, whole,
+    when the block ends, and untouched if it raises (KeyboardInterrupt and SystemExit too)."""
+    path = pathlib.Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".part")
+    try:
+        os.fchmod(fd, 0o666 & ~_umask())
+        with os.fdopen(fd, "w" if text else "wb", **({"encoding": "utf-8", "newline": newline} if text else {})) as f:
+            yield f
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def write_bytes(path, data):
+    """``path`` holds ``data``, written atomically (replacing)."""
+    with replacing(path) as f:
+        f.write(data)
+    return pathlib.Path(path)
+
+
+def write_text(path, text):
+    """``path`` holds ``text`` in UTF-8, written atomically (replacing)."""
+    with replacing(path, text=True) as f:
+        f.write(text)
+    return pathlib.Path(path)
