@@ -116,7 +116,7 @@ def make_folder(folder):
 
 def replaced(folder):
     """What an earlier run left in ``folder`` that this run replaces, as one line, or ""."""
-    earlier = sorted(p.name for p in pathlib.Path(folder).iterdir() if p.is_file())
+    earlier = sorted(p.name for p in pathlib.Path(folder).iterdir() if p.is_file() and p.name != LOCK)
     if not earlier:
         return ""
     when = max(pathlib.Path(folder, n).stat().st_mtime for n in earlier)
@@ -129,7 +129,8 @@ def left_over(folder, since):
     """The files in ``folder`` this run did not rewrite (older than ``since``, its start),
     as one line, or "": an earlier run's charts beside this run's report (--charts none,
     another sweep) are not its results."""
-    kept = sorted(p.name for p in pathlib.Path(folder).iterdir() if p.is_file() and p.stat().st_mtime < since)
+    kept = sorted(p.name for p in pathlib.Path(folder).iterdir()
+                  if p.is_file() and p.name != LOCK and p.stat().st_mtime < since)
     if not kept:
         return ""
     shown = ", ".join(kept[:6]) + (f" and {len(kept) - 6} more" if len(kept) > 6 else "")
