@@ -45,8 +45,9 @@ def _pandas() -> Any:
     try:
         import pandas
     except ModuleNotFoundError:
-        raise ModuleNotFoundError("to_pandas needs pandas, which movingbase does not install: "
-                                  "pip install pandas (or the arrays: .time, .values, .names, .units)") from None
+        raise ModuleNotFoundError("tables (metrics_table, to_pandas, CampaignResult.table) need pandas, a "
+                                  "dependency of movingbase that is missing here: pip install pandas (or the "
+                                  "arrays: .time, .values, .names, .units)") from None
     return pandas
 
 
