@@ -178,6 +178,10 @@ class RunResult:
                            f"{', '.join(self.records.names) or 'nothing (the scenario records no variable)'}")
         return np.column_stack([self.records[n] for n in parts])
 
+    def _ipython_key_completions_(self) -> list[str]:
+        """Completion inside ``run["...``: every recorded variable, vectors by their name."""
+        return list(dict.fromkeys([n.split("[", 1)[0] for n in self.records.names] + self.records.names))
+
     def to_pandas(self) -> pandas.DataFrame:
         """The recorded series as a DataFrame indexed by time [s], one column per
         variable; the units in ``frame.attrs["units"]``."""
@@ -216,10 +220,18 @@ class Result:
         self.runs: dict[str, RunResult] = {r.label: RunResult(r) for r in self._runs}
         self.report_path = report_path     # where ``out`` wrote the report, if it was given
 
-    def __getitem__(self, label: str) -> RunResult:
+    def __getitem__(self, label: str | int) -> RunResult:
+        """A run by its label, or by its position in sweep order (as iteration gives them)."""
+        if isinstance(label, int) and not isinstance(label, bool):
+            if not -len(self.runs) <= label < len(self.runs):
+                raise IndexError(f"run {label} of {len(self.runs)} ({', '.join(self.runs)})")
+            return list(self.runs.values())[label]
         if label not in self.runs:
             raise KeyError(f"no run {label!r}; runs: {', '.join(self.runs)}")
         return self.runs[label]
+
+    def _ipython_key_completions_(self) -> list[str]:
+        return list(self.runs)
 
     def __iter__(self) -> Iterator[RunResult]:
         return iter(self.runs.values())

@@ -136,7 +136,7 @@ def test_to_pandas_holds_the_arrays(result, tmp_path):
 
 def test_to_pandas_without_pandas_says_what_to_install(result, monkeypatch):
     monkeypatch.setitem(sys.modules, "pandas", None)
-    with pytest.raises(ModuleNotFoundError, match="to_pandas needs pandas.*pip install pandas"):
+    with pytest.raises(ModuleNotFoundError, match=r"metrics_table, to_pandas, CampaignResult.table\) need pandas.*pip install pandas"):
         result["none"].to_pandas()
 
 
@@ -363,3 +363,14 @@ def test_tab_completion_offers_the_api():
     assert {"run", "campaign", "load_scenario", "ScenarioError"} <= set(dir(movingbase))
     assert not {"Any", "TYPE_CHECKING", "plant", "scenarios"} & set(dir(movingbase))
     assert movingbase.ScenarioError is spec.ScenarioError
+
+
+def test_runs_by_position_and_key_completion(cut_short):
+    result, _ = cut_short
+    assert [result[i].label for i in range(len(result))] == list(result.runs) and result[-1] is result["moving_base"]
+    with pytest.raises(IndexError, match="run 3 of 3"):
+        result[3]
+    assert result._ipython_key_completions_() == ["none", "fixed_base", "moving_base"]
+    keys = result[0]._ipython_key_completions_()
+    assert "plant.pose" in keys and "plant.pose[1]" in keys
+    assert result[0]["plant.pose"].shape[1] == 6
