@@ -386,8 +386,8 @@ def growth(times, envelope, floor):
     """(t0, t1, e0, e1) if the envelope (floored at ``floor``) grows GROWTH-fold with a
     steady exponential trend (least squares on its log, R^2 >= 0.8) over GROWTH_WINDOWS
     or more windows that end at the last window or at the envelope's peak (where a growth
-    stops at the force limit, and the envelope stays near it after), else None. Steady: a slew's transients raise the
-    envelope for a window or two, an unstable loop every window."""
+    stops at the force limit, and the envelope stays near it after), else None. Steady: a
+    slew's transients raise the envelope for a window or two, an unstable loop every window."""
     env = np.maximum(np.asarray(envelope[1:-1], dtype=float), floor)   # first and last window: partial
     t = np.asarray(times[1:-1], dtype=float)
     peak = int(np.argmax(env)) + 1 if len(env) else 0
