@@ -31,10 +31,10 @@ def realistic(tmp_path, step="1.6 ms", interval="9.6 ms", sweep=(KP, KP4), stop=
 
 def mechanism(tmp_path, step, master="jacobi", stop=25.1, record=()):
     """mechanism3t_paper at ``step`` under ``master``, recorded every step (with ``record``)."""
-    h = float(step.split()[0]) * 1e-3
+    ms = float(step.split()[0])
     text = MECHANISM.read_text().replace('interval = "50 ms"', f'interval = "{step}"').replace(
         'step = "1 ms"', f'step = "{step}"').replace('master = "jacobi"', f'master = "{master}"').replace(
-        'stop_time = "25.1 s"', f'stop_time = "{round(stop / h) * h:.6g} s"').replace(
+        'stop_time = "25.1 s"', f'stop_time = "{round(round(stop * 1e3 / ms) * ms, 9)!r} ms"').replace(
         'variables = ["plant.platform_position",', f'variables = [{"".join(repr(r) + ", " for r in record)}'
                                                  '"plant.platform_position",')
     path = tmp_path / f"m3t_{step.replace(' ', '')}_{master}.toml"
@@ -125,19 +125,22 @@ def test_a_force_held_at_the_plants_limit_is_saturated_with_its_share_and_a_touc
 
 
 # ------------------------------------------------------------------ items 3 and 4: the 3T loop
-# the true limits, bisected with real runs of mechanism3t_paper (issue 27): Jacobi 12.5-13 ms,
-# Gauss-Seidel 28-30 ms
-@pytest.mark.parametrize("master, true_low, true_high", [("jacobi", 12.5e-3, 13e-3), ("gauss-seidel", 28e-3, 30e-3)])
+# the true limits, bisected with 60 s runs of mechanism3t_paper (feedforward on; the sliders'
+# force oscillation decays at the lower step, grows or sits in a limit cycle at the upper):
+# Jacobi 12.80-12.85 ms, Gauss-Seidel 27.7-27.9 ms
+@pytest.mark.parametrize("master, true_low, true_high", [("jacobi", 12.8e-3, 12.85e-3),
+                                                         ("gauss-seidel", 27.7e-3, 27.9e-3)])
 def test_the_3t_limit_is_predicted_within_the_true_one(tmp_path, master, true_low, true_high):
-    """The slider loop's predicted limit lies within 0.9-1.05x the bisected true limit,
-    never above its upper bound; a step beyond it is refused, naming it, below it runs."""
+    """The slider loop's predicted limit lies within 0.98-1x the bisected true limit's
+    bounds, never above its upper bound; a step beyond it is refused for both runs of the
+    sweep, naming them, one below it is not."""
     below = mechanism(tmp_path, f"{true_low * 0.9 * 1e3:g} ms", master, stop=2.0)
     assert [f for each in pre_run(below).values() for f in each] == []
     beyond = mechanism(tmp_path, f"{true_high * 1e3:g} ms", master, stop=2.0)
     with pytest.raises(spec.ScenarioError) as refused:
         pre_run(beyond)
     limit = float(str(refused.value).split("predicted stability limit ")[1].split(" ms")[0]) * 1e-3
-    assert 0.9 * true_low <= limit <= true_high
+    assert 0.98 * true_low <= limit <= true_high
     assert "run 'off'" in str(refused.value) and "run 'on'" in str(refused.value)
 
 
