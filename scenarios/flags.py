@@ -160,8 +160,9 @@ def loops(scenario, descriptions, values):
         entry = spec.CONTROL_LOOPS.get(fmu)
         if entry is None:
             continue
+        force = f"{controller}.{entry['force']}"
         plant = next((inst for inst in _of_type(scenario, entry["plant"])
-                      if f"{controller}.{entry['force']}" in _targets(scenario, f"{inst}.{entry['plant_force']}")), None)
+                      if force in _targets(scenario, f"{inst}.{entry['plant_force']}")), None)
         if plant is None:
             continue
         feeds = _sources(scenario, f"{controller}.{entry['measured']}")
@@ -171,13 +172,15 @@ def loops(scenario, descriptions, values):
                                 float(get(controller, entry["limit"])))
         fields = {field: float(get(plant, name)) for field, name in entry["loop_model"].items()}
         if sensor:
-            fields.update({field: get(sensor, name) for field, name in spec.LOOP_SENSORS[scenario.fmus[sensor]][2].items()})
+            given = spec.LOOP_SENSORS[scenario.fmus[sensor]][2]
+            fields.update({field: get(sensor, name) for field, name in given.items()})
             fields["delay_steps"] = int(fields.get("delay_steps", 0))
         model = design.LoopModel(
             **fields, leg_sensor=sensor is not None,
             # "derivatives" extrapolates the loop's own signals (forces, lengths, rates: no FMU
             # of a loop gives derivatives) linearly, so the loop is the linear one
-            extrapolate=scenario.extrapolation in ("linear", "derivatives"), gauss_seidel=scenario.master == "gauss-seidel")
+            extrapolate=scenario.extrapolation in ("linear", "derivatives"),
+            gauss_seidel=scenario.master == "gauss-seidel")
         found.append(Loop(controller, plant, sensor, entry, gains, model))
     return found
 
@@ -246,7 +249,8 @@ def _key(scenario, values, loop, telescope):
         return repr(sorted(values.get(inst, {}).items())) if inst else ""
     own = {n: v for n, v in values.get(loop.controller, {}).items() if n.split("[", 1)[0] in loop.entry["motion"]}
     return repr((scenario.start_time, scenario.stop_time, scenario.step, scenario.master, scenario.extrapolation,
-                 loop.controller, loop.gains, repr(sorted(own.items())), of(loop.plant), of(loop.sensor), of(telescope)))
+                 loop.controller, loop.gains, repr(sorted(own.items())), of(loop.plant), of(loop.sensor),
+                 of(telescope)))
 
 
 def predict(scenario, paths, descriptions, values, ci=False, cache=None):
@@ -357,15 +361,14 @@ def check(scenario, prediction, allow_unstable=False):
 class Watched:
     """What Watch watches of one loop: its ``controller`` instance, the force command
     ``forces`` ("inst.var") and its limits ((what, N): the controller's and the plant's),
-    the measured plant output ``lengths`` and, where the plant has a stroke, the outputs'
-    ``home`` values and half ``stroke``."""
+    the measured plant output ``lengths`` and, where the plant has one, each element's
+    ``stroke`` (its ends: two arrays [m])."""
 
     controller: str
     forces: str
     lengths: str
     limits: tuple = ()
-    home: object = None
-    stroke: float = None
+    stroke: tuple = None
 
 
 class Watch:
@@ -383,8 +386,9 @@ class Watch:
         self.needs = list(dict.fromkeys(r for w in self.watched for r in (w.forces, w.lengths)))
         self.t0 = None
         self.env = {ref: np.zeros(0) for ref in self.needs}   # per window: largest |second difference|
-        self.held = {(w.forces, what): np.zeros(0) for w in self.watched for what, _ in w.limits}   # per window: rows at it
-        self.extent = {w.lengths: 0.0 for w in self.watched if w.stroke}   # largest |output - home| / half stroke
+        # per window: rows with the force at each limit
+        self.held = {(w.forces, what): np.zeros(0) for w in self.watched for what, _ in w.limits}
+        self.extent = {w.lengths: 0.0 for w in self.watched if w.stroke}   # largest |output - middle| / half stroke
         self.tail = {}                # the last two rows of each reference before this block
         self.non_finite = None        # time of the first non-finite row
         self.rows = 0
@@ -395,13 +399,10 @@ class Watch:
         """A Watch on every loop of the scenario (spec.CONTROL_LOOPS), or on non-finite values only."""
         watched = []
         for loop in loops(scenario, descriptions, values):
-            entry, home, stroke = loop.entry, None, None
-            if entry["stroke"] and scenario.fmus[loop.plant] in HOMES:
-                home = HOMES[scenario.fmus[loop.plant]](values, descriptions, loop.plant)
-                stroke = float(_value(values, descriptions, loop.plant, entry["stroke"]))
-            watched.append(Watched(loop.controller, f"{loop.controller}.{entry['force']}",
-                                   f"{loop.plant}.{entry['plant_measured']}", loop.limits(values, descriptions),
-                                   home, stroke))
+            stroke = STROKES.get(scenario.fmus[loop.plant])
+            watched.append(Watched(loop.controller, f"{loop.controller}.{loop.entry['force']}",
+                                   f"{loop.plant}.{loop.entry['plant_measured']}", loop.limits(values, descriptions),
+                                   stroke and stroke(values, descriptions, loop)))
         # WINDOW, or for a short run 1/40 of it but at least 20 recorded rows: enough windows to see a trend
         window = min(WINDOW, max(20 * scenario.record_interval, (scenario.stop_time - scenario.start_time) / 40))
         return cls(watched, window)
@@ -442,7 +443,8 @@ class Watch:
                 self.held[w.forces, what] = grow(self.held[w.forces, what])
                 np.add.at(self.held[w.forces, what], window, force >= limit * (1 - 1e-9))
             if w.stroke:
-                reach = np.abs(rows[:, self.slices[w.lengths]] - w.home).max() / w.stroke
+                low, high = w.stroke
+                reach = (np.abs(rows[:, self.slices[w.lengths]] - (low + high) / 2) / ((high - low) / 2)).max()
                 self.extent[w.lengths] = max(self.extent[w.lengths], float(np.nan_to_num(reach)))
 
     def flags(self, warnings=()):
@@ -453,8 +455,9 @@ class Watch:
         out = []
         if self.non_finite is not None:
             out.append(Flag("non_finite", f"non-finite values recorded from t = {self.non_finite:g} s"))
-        for ref, what, unit, scale, floor in [(w.forces, "force oscillation", "kN", 1e-3, FLOORS[0]) for w in self.watched] + \
-                [(w.lengths, "oscillation", "µm", 1e6, FLOORS[1]) for w in self.watched]:
+        signals = [(w.forces, "force oscillation", "kN", 1e-3, FLOORS[0]) for w in self.watched] + \
+            [(w.lengths, "oscillation", "µm", 1e6, FLOORS[1]) for w in self.watched]
+        for ref, what, unit, scale, floor in signals:
             grown = growth(self.t0 + self.window * np.arange(len(self.env[ref])), self.env[ref], floor)
             if grown:
                 t0, t1, e0, e1 = grown
@@ -473,16 +476,28 @@ class Watch:
                     out.append(Flag("saturated", f"{w.forces!r} at the +-{limit * 1e-3:g} kN limit ({what}) "
                                                  f"{100 * share:.3g} % of the recorded time (from t ~ {first:g} s)"))
             if w.stroke and self.extent[w.lengths] >= NEAR_STROKE:
+                half = (w.stroke[1] - w.stroke[0]) / 2
+                span = f"+-{half[0] * 1e3:g} mm" if np.ptp(half) == 0 else "half"
                 out.append(Flag("stroke", f"{w.lengths!r} reaches {100 * self.extent[w.lengths]:.3g} % of its "
-                                          f"+-{w.stroke * 1e3:g} mm stroke"))
+                                          f"{span} stroke"))
         controllers = {w.controller for w in self.watched}
         told = [(inst, line) for inst, line in warnings
                 if saturated or inst not in controllers or "saturated" not in line]
         return merged(out + warning_flags(told))
 
 
-# plant FMU -> the home values of its measured output (the middle of its stroke)
-HOMES = {"hexapod_plant": lambda values, descriptions, plant: plant_params(values, descriptions, plant).home_lengths}
+def _hexapod_stroke(values, descriptions, loop):
+    """The legs' ends: home length -+ the plant's half stroke."""
+    half = float(_value(values, descriptions, loop.plant, loop.entry["stroke"]))
+    home = plant_params(values, descriptions, loop.plant).home_lengths
+    return home - half, home + half
+
+
+# plant FMU -> the ends of its measured output's stroke (the 3T sliders: the actuator ranges)
+STROKES = {"hexapod_plant": _hexapod_stroke,
+           "mechanism3t_plant": lambda values, descriptions, loop: (
+               np.array(mechanism3t.Mechanism1Params.paper().rho_min),
+               np.array(mechanism3t.Mechanism1Params.paper().rho_max))}
 
 
 def merged(flags):

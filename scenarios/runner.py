@@ -214,7 +214,8 @@ def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None,
     """Run every sweep value of a scenario; returns (scenario, runs, report path).
     ``jobs`` worker processes or the Dask cluster at ``dask`` run the values in parallel;
     ``implementation`` and ``fmi_version`` as in prepare; ``charts`` as report.write. A step beyond the
-    predicted stability limit is refused (ScenarioError) unless ``allow_unstable``; then every run is flagged."""
+    predicted stability limit (each run's own, pre_run_flags) is refused (ScenarioError) unless
+    ``allow_unstable``; then the runs beyond their limit are flagged."""
     if progress:
         print(f"{pathlib.Path(str(path)).stem}: checking the scenario, building FMUs that are missing or stale "
               "(a first build takes ~10 s)", file=sys.stderr, flush=True)

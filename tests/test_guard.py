@@ -8,6 +8,8 @@ import pytest
 from movingbase.scenarios import campaign, flags, runner, spec
 from movingbase.scenarios.records import run_records
 
+STROKE = (np.full(6, -0.15), np.full(6, 0.15))   # a Watched loop's ends: +-150 mm
+
 REALISTIC = runner.SHIPPED / "telescope_slew_realistic.toml"
 MECHANISM = runner.SHIPPED / "mechanism3t_paper.toml"
 KP = 3726457.1097513535          # the leg controller's shipped kp (its start value)
@@ -66,8 +68,8 @@ def test_a_sweep_value_beyond_its_own_limit_is_refused_naming_the_run_and_its_li
     assert f"run '{KP4!r}'" in text and "predicted stability limit 1.372 ms" in text
     assert repr(KP) not in text
     plain = tmp_path / "plain.toml"    # the 4x kp as a plain parameter: the same limit
-    plain.write_text(path.read_text().replace('feedforward = "fixed_base" }', f'feedforward = "fixed_base", kp = {KP4!r} }}')
-                     .split("[sweep]")[0])
+    plain.write_text(path.read_text().replace('feedforward = "fixed_base" }',
+                                              f'feedforward = "fixed_base", kp = {KP4!r} }}').split("[sweep]")[0])
     with pytest.raises(spec.ScenarioError, match="predicted stability limit 1.372 ms"):
         pre_run(plain)
     found = pre_run(path, allow_unstable=True)
@@ -77,8 +79,9 @@ def test_a_sweep_value_beyond_its_own_limit_is_refused_naming_the_run_and_its_li
 
 def test_a_campaign_case_beyond_its_own_limit_is_refused_naming_it(tmp_path):
     """A campaign at 2 ms: the shipped kp runs (limit above 2 ms), a case at 4x kp does not
-    (limit 1.372 ms): refused by its label (crossed with the scene's sweep) and limit, though it shares the time grid, master
-    and extrapolation of the first case (once the only one predicted)."""
+    (limit 1.372 ms): refused by its label (crossed with the scene's sweep) and limit,
+    though it shares the time grid, master and extrapolation of the first case (once the
+    only one predicted)."""
     path = tmp_path / "c.toml"
     path.write_text(f'name = "kp"\nscenario = "{REALISTIC}"\nset = {{ step = "2 ms", stop_time = "6 s" }}\n'
                     '[[cases]]\nlabel = "x1"\n'
@@ -99,12 +102,12 @@ def test_the_catalogue_gives_every_loop_its_limits(tmp_path):
         scenario, _, descriptions, values = runner.prepare(path)
         (watched,) = flags.Watch.for_scenario(scenario, descriptions, values).watched
         assert watched.limits == want
-    assert (watched.forces, watched.lengths, watched.stroke) == ("controller.slider_force", "plant.slider_position",
-                                                                 None)
+    assert (watched.forces, watched.lengths) == ("controller.slider_force", "plant.slider_position")
+    assert np.array_equal(watched.stroke, ([-0.5, -1.0, -0.5], [0.6, 1.0, 0.5]))   # the actuator ranges
 
 
 def fed(limits, force, t):
-    watch = flags.Watch([flags.Watched("c", "c.f", "p.l", limits, np.zeros(6), 0.15)], window=0.5)
+    watch = flags.Watch([flags.Watched("c", "c.f", "p.l", limits, STROKE)], window=0.5)
     watch.bind({"c.f": slice(0, 6), "p.l": slice(6, 12)})
     watch.feed(t, np.c_[np.repeat(force[:, None], 6, axis=1), np.zeros((len(t), 6))])
     return watch.flags([("c", "[WARNING] leg forces saturated at +-25000 N at t=0.06 s (legs 1)")])
@@ -180,3 +183,15 @@ def test_the_issues_sweep_run_anyway_flags_the_4x_run_at_the_actuator_limit_only
     assert {f.kind for f in four.flags} == {"step_beyond_limit", "saturated"}
     assert f"+-25 kN limit (plant.actuator_force_limit) {100 * share:.3g} % of the recorded time" in saturated
     assert share == pytest.approx(0.767, abs=0.01)   # rows with some leg at 25 kN (the issue: 12 % of the values)
+
+
+def test_a_slider_near_the_end_of_its_range_is_flagged_stroke():
+    """The 3T sliders' stroke is their actuator range (x_A2: -0.5..0.6 m, its middle 0.05 m):
+    at 0.52 m a slider is 85.5 % of the way to its end (no flag), at 0.56 m 92.7 % (flag)."""
+    (watched,) = flags.Watch.for_scenario(*[runner.prepare(MECHANISM)[i] for i in (0, 2, 3)]).watched
+    t = np.arange(100) * 0.01
+    for x, want in ((0.52, []), (0.56, ["'plant.slider_position' reaches 92.7 % of its half stroke"])):
+        watch = flags.Watch([watched], window=0.2)
+        watch.bind({watched.forces: slice(0, 3), watched.lengths: slice(3, 6)})
+        watch.feed(t, np.c_[np.zeros((100, 3)), np.tile([x, 0.0, 0.0], (100, 1))])
+        assert [f.message for f in watch.flags()] == want
