@@ -439,6 +439,20 @@ def _radius(mass, gains, comm_step, loop):
     return float(np.abs(1 + comm_step * np.roots(closed_loop_polynomial(mass, gains, comm_step, loop))).max())
 
 
+def least_damped_period(masses, gains, comm_step, loop=IDEAL):
+    """Period [s] of the closed loop's least-damped oscillating pole (the largest |z| off
+    the real axis) over the modes ``masses`` [kg] at ``comm_step``: the oscillation of the
+    loop that lasts longest, or grows. inf if no pole oscillates."""
+    largest, period = -1.0, float("inf")
+    for mass in _distinct(np.sort(np.asarray(masses, dtype=float))):
+        z = 1 + comm_step * np.roots(closed_loop_polynomial(mass, gains, comm_step, loop))
+        turning = z[np.abs(np.angle(z)) > 1e-9]
+        if len(turning) and np.abs(turning).max() > largest:
+            pole = turning[np.argmax(np.abs(turning))]
+            largest, period = float(abs(pole)), float(2 * np.pi * comm_step / abs(np.angle(pole)))
+    return period
+
+
 def step_limit(masses, gains, loop=IDEAL, low=1e-5, high=0.2, rtol=1e-3):
     """The communication step [s] at which the first mode of ``masses`` goes unstable
     (each mode taken to be stable below a step and unstable above it, as the loops here

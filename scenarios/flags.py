@@ -44,9 +44,11 @@ from .records import Block
 from .spec import ScenarioError
 
 POSES = 9             # poses along the reference motion at which the leg-space masses are taken
-WINDOW = 1.0          # s: the detectors' envelope window (shorter for short runs, see Watch.window)
+WINDOW = 1.0          # s: the detectors' longest envelope window
 GROWTH = 10.0         # an envelope that grows by this factor ...
 GROWTH_WINDOWS = 6    # ... steadily over at least this many windows is unstable
+CYCLES = 5            # a window: this many periods of the loop's unstable oscillation (see Watch.for_scenario)
+EXCITED = 1e-3        # the reference's excitation envelope is floored at this share of its largest
 PERSIST = 3.0         # a growth that ends at its peak counts if the envelope after it stays above peak / PERSIST
 FLOORS = (50.0, 1e-7)     # N, m: oscillation envelopes below these are noise, not growth
 SATURATED = 0.01      # a force at a limit for this share of the recorded time or more is saturated (less: a touch)
@@ -362,13 +364,15 @@ class Watched:
     """What Watch watches of one loop: its ``controller`` instance, the force command
     ``forces`` ("inst.var") and its limits ((what, N): the controller's and the plant's),
     the measured plant output ``lengths`` and, where the plant has one, each element's
-    ``stroke`` (its ends: two arrays [m])."""
+    ``stroke`` (its ends: two arrays [m]); the reference it tracks, ``excitation``
+    (growth driven by the reference's own changes is no instability)."""
 
     controller: str
     forces: str
     lengths: str
     limits: tuple = ()
     stroke: tuple = None
+    excitation: str = None
 
 
 class Watch:
@@ -383,7 +387,7 @@ class Watch:
 
     def __init__(self, watched=(), window=WINDOW):
         self.watched, self.window = tuple(watched), window
-        self.needs = list(dict.fromkeys(r for w in self.watched for r in (w.forces, w.lengths)))
+        self.needs = list(dict.fromkeys(r for w in self.watched for r in (w.forces, w.lengths, w.excitation) if r))
         self.t0 = None
         self.env = {ref: np.zeros(0) for ref in self.needs}   # per window: largest |second difference|
         # per window: rows with the force at each limit
@@ -397,14 +401,23 @@ class Watch:
     @classmethod
     def for_scenario(cls, scenario, descriptions, values):
         """A Watch on every loop of the scenario (spec.CONTROL_LOOPS), or on non-finite values only."""
-        watched = []
+        watched, periods = [], []
         for loop in loops(scenario, descriptions, values):
             stroke = STROKES.get(scenario.fmus[loop.plant])
             watched.append(Watched(loop.controller, f"{loop.controller}.{loop.entry['force']}",
                                    f"{loop.plant}.{loop.entry['plant_measured']}", loop.limits(values, descriptions),
-                                   stroke and stroke(values, descriptions, loop)))
-        # WINDOW, or for a short run 1/40 of it but at least 20 recorded rows: enough windows to see a trend
-        window = min(WINDOW, max(20 * scenario.record_interval, (scenario.stop_time - scenario.start_time) / 40))
+                                   stroke and stroke(values, descriptions, loop),
+                                   f"{loop.controller}.{loop.entry['excitation']}"))
+            masses_of = MODAL_MASSES.get(scenario.fmus[loop.plant])
+            if masses_of:   # the modes at rest (no motion): the window needs the period's order only
+                masses = _merge(masses_of(scenario, None, descriptions, values, loop, None))
+                limit = design.step_limit(masses, loop.gains, loop.model)
+                at = limit if 0 < limit < math.inf else scenario.step
+                periods.append(design.least_damped_period(masses, loop.gains, at, loop.model))
+        # CYCLES periods of the oscillation with which the loop goes unstable (its least-damped
+        # pole at its step limit), but at least 20 recorded rows (an envelope needs rows) and at
+        # most WINDOW; not a share of the run
+        window = min(WINDOW, max(20 * scenario.record_interval, CYCLES * min(periods, default=math.inf)))
         return cls(watched, window)
 
     def bind(self, slices):
@@ -455,10 +468,11 @@ class Watch:
         out = []
         if self.non_finite is not None:
             out.append(Flag("non_finite", f"non-finite values recorded from t = {self.non_finite:g} s"))
-        signals = [(w.forces, "force oscillation", "kN", 1e-3, FLOORS[0]) for w in self.watched] + \
-            [(w.lengths, "oscillation", "µm", 1e6, FLOORS[1]) for w in self.watched]
-        for ref, what, unit, scale, floor in signals:
-            grown = growth(self.t0 + self.window * np.arange(len(self.env[ref])), self.env[ref], floor)
+        signals = [(w.forces, "force oscillation", "kN", 1e-3, FLOORS[0], w.excitation) for w in self.watched] + \
+            [(w.lengths, "oscillation", "µm", 1e6, FLOORS[1], w.excitation) for w in self.watched]
+        for ref, what, unit, scale, floor, excitation in signals:
+            grown = growth(self.t0 + self.window * np.arange(len(self.env[ref])), self.env[ref], floor,
+                           self.env.get(excitation))
             if grown:
                 t0, t1, e0, e1 = grown
                 out.append(Flag("unstable", f"the {what} of {ref!r} (second difference of the recorded values) grows "
@@ -525,14 +539,22 @@ def warning_flags(warnings):
     return out
 
 
-def growth(times, envelope, floor):
+def growth(times, envelope, floor, excitation=None):
     """(t0, t1, e0, e1) if the envelope (floored at ``floor``) grows GROWTH-fold with a
     steady exponential trend (least squares on its log, R^2 >= 0.8) over GROWTH_WINDOWS
     or more windows that end at the last window or at the envelope's peak (where a growth
     stops at the force limit, and the envelope stays near it after), else None. Steady: a
-    slew's transients raise the envelope for a window or two, an unstable loop every window."""
+    slew's transients raise the envelope for a window or two, an unstable loop every window.
+    Against the reference's own ``excitation`` (its envelope per window, floored at
+    EXCITED of its largest): a rise is counted only by how much more it grows than the
+    excitation over the same windows (a loop answering a reference that starts to move
+    grows with it; an unstable loop grows by itself)."""
     env = np.maximum(np.asarray(envelope[1:-1], dtype=float), floor)   # first and last window: partial
     t = np.asarray(times[1:-1], dtype=float)
+    driven = np.ones(len(env))
+    if excitation is not None and len(excitation) and np.nanmax(excitation) > 0:
+        excitation = np.asarray(excitation, dtype=float)
+        driven = np.maximum(excitation, EXCITED * np.nanmax(excitation))[1:-1]
     peak = int(np.argmax(env)) + 1 if len(env) else 0
     for end in dict.fromkeys((len(env), peak)):   # to the end, to the peak
         if end < GROWTH_WINDOWS:
@@ -545,7 +567,8 @@ def growth(times, envelope, floor):
             fit = slope * x + icept
             total = np.sum((y - y.mean()) ** 2)
             r2 = 1 - np.sum((y - fit) ** 2) / total if total > 0 else 0.0
-            if slope > 0 and math.exp(slope * (x[-1] - x[0])) >= GROWTH and r2 >= 0.8 and env[end - 1] >= GROWTH * floor:
+            alone = math.exp(slope * (x[-1] - x[0])) * driven[end - n:end - n + 2].max() / driven[end - 2:end].max()
+            if slope > 0 and alone >= GROWTH and r2 >= 0.8 and env[end - 1] >= GROWTH * floor:
                 return float(x[0]), float(x[-1]), float(env[end - n]), float(env[end - 1])
     return None
 

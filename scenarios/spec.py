@@ -43,14 +43,15 @@ FMU_SCRIPTS = {"hexapod_plant": "hexapod_plant_fmu", "telescope": "telescope_fmu
 # output feeds; the plant output it measures and its own input of it (directly or through a
 # sensor of LOOP_SENSORS); its gains and force-limit parameters; its reference input fed by
 # a telescope (the motion the loop's masses are taken along; None: the controller makes its
-# reference from its own ``motion`` parameters); the plant's force limit parameter (the plant
+# reference from its own ``motion`` parameters) and the variable of it whose changes excite
+# the loop (``excitation``: the reference it tracks); the plant's force limit parameter (the plant
 # clips its force input there; 0: none), stroke parameter (half stroke about the home value)
 # and the LoopModel fields (controller.design) its parameters give.
 CONTROL_LOOPS = {
     "leg_controller": {
         "plant": "hexapod_plant", "force": "leg_force", "plant_force": "leg_force",
         "measured": "leg_length", "plant_measured": "leg_length", "gains": ("kp", "ki", "kd"),
-        "limit": "force_limit", "reference": "reference_pose", "motion": (),
+        "limit": "force_limit", "reference": "reference_pose", "motion": (), "excitation": "reference_pose",
         "plant_limit": "actuator_force_limit", "stroke": "stroke",
         "loop_model": {"reflected_mass": "reflected_mass", "actuator_bandwidth": "actuator_bandwidth",
                        "viscous_friction": "viscous_friction"}},
@@ -58,6 +59,7 @@ CONTROL_LOOPS = {
         "plant": "mechanism3t_plant", "force": "slider_force", "plant_force": "slider_force",
         "measured": "slider_position", "plant_measured": "slider_position", "gains": ("kp", "ki", "kd"),
         "limit": "force_limit", "reference": None, "motion": ("initial_position", "amplitude", "omega"),
+        "excitation": "reference_position",
         "plant_limit": None, "stroke": None, "loop_model": {}},
 }
 # sensor FMU -> (its input of the plant's measured output, its measured output, the LoopModel

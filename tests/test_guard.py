@@ -192,6 +192,48 @@ def test_a_slider_near_the_end_of_its_range_is_flagged_stroke():
     t = np.arange(100) * 0.01
     for x, want in ((0.52, []), (0.56, ["'plant.slider_position' reaches 92.7 % of its half stroke"])):
         watch = flags.Watch([watched], window=0.2)
-        watch.bind({watched.forces: slice(0, 3), watched.lengths: slice(3, 6)})
-        watch.feed(t, np.c_[np.zeros((100, 3)), np.tile([x, 0.0, 0.0], (100, 1))])
+        watch.bind({watched.forces: slice(0, 3), watched.lengths: slice(3, 6), watched.excitation: slice(6, 9)})
+        watch.feed(t, np.c_[np.zeros((100, 3)), np.tile([x, 0.0, 0.0], (100, 1)), np.zeros((100, 3))])
         assert [f.message for f in watch.flags()] == want
+
+
+# ------------------------------------------------------------------ the growth detector
+def test_the_window_is_cycles_of_the_loops_unstable_oscillation_not_a_share_of_the_run():
+    """The realistic slew's window: CYCLES periods of the pole with which its loop goes
+    unstable (python-control's closed loops of its modes at the step limit: the oscillating
+    pole nearest the unit circle), the same for its 8 s [ci] run and its 60 s run."""
+    import control
+    from movingbase.controller import design
+    windows = []
+    for ci in (True, False):
+        scenario, _, descriptions, values = runner.prepare(REALISTIC, ci)
+        windows.append(flags.Watch.for_scenario(scenario, descriptions, values).window)
+    (loop,) = flags.loops(scenario, descriptions, values)
+    masses = flags._merge(flags.MODAL_MASSES["hexapod_plant"](scenario, None, descriptions, values, loop, None))
+    limit = design.step_limit(masses, loop.gains, loop.model)
+    poles = np.concatenate([control.feedback(design.mode_loop(m, loop.gains, limit, loop.model)).poles()
+                            for m in masses])
+    pole = poles[np.argmax(np.abs(poles) * (np.abs(np.angle(poles)) > 1e-9))]
+    period = 2 * np.pi * limit / abs(np.angle(pole))
+    assert windows[0] == windows[1] == pytest.approx(flags.CYCLES * period, rel=1e-3)
+    assert windows[0] == pytest.approx(0.2333, abs=1e-3)
+
+
+def test_a_rise_driven_by_the_references_own_excitation_is_no_growth():
+    """The same 0.1 -> 2.35 µm rise of the leg-length oscillation over 2-7 s, held after: with
+    the reference's excitation rising with it (a slew that starts: the reference's second
+    difference from rest to its cruise) it is the loop answering; with the excitation steady
+    it is a growth (unstable)."""
+    t = np.arange(0, 20, 0.01)
+    wiggle = (-1.0) ** np.arange(len(t))
+    rise = np.interp(t, [0, 2, 7, 20], [0.1, 0.1, 2.35, 2.35]) * 1e-6
+    moving = np.interp(t, [0, 2, 7, 20], [0.0, 0.0, 1e-6, 1e-6])
+    def fed(excitation):
+        watched = flags.Watched("c", "c.f", "p.l", (("c.force_limit", 1e9),), STROKE, "c.r")
+        watch = flags.Watch([watched], window=0.5)
+        watch.bind({"c.f": slice(0, 6), "p.l": slice(6, 12), "c.r": slice(12, 18)})
+        reference = np.repeat(np.cumsum(np.cumsum(excitation))[:, None], 6, axis=1)   # second difference: excitation
+        watch.feed(t, np.c_[np.zeros((len(t), 6)), np.repeat((wiggle * rise)[:, None], 6, axis=1), reference])
+        return {f.kind for f in watch.flags()}
+    assert fed(moving) == set()
+    assert fed(np.full(len(t), 1e-6)) == {"unstable"}
