@@ -20,10 +20,13 @@ Kinds of Flag:
 
 * ``step_beyond_limit``: run anyway beyond the predicted limit (the loop is unstable);
 * ``unstable``: a loop's force oscillation (second difference of the recorded forces,
-  which a smooth motion keeps small) or that of its measured output grows steadily;
+  which a smooth motion keeps small) or that of its measured output grows steadily, by
+  itself (per unit of the reference's excitation so far), over windows of CYCLES periods
+  of the loop's unstable oscillation;
 * ``saturated``: a loop's force command at one of its limits (the controller's, the
-  plant's actuator limit) for SATURATED (1 %) of the recorded time or more, with the
-  share; a shorter touch is no flag (a stable run's transient), and the controller's
+  plant's actuator limit) for SATURATED (1 %) of the recorded time or more, or for a
+  detector window on end (5 periods of the loop), with the share and the longest stay;
+  a shorter touch is no flag (a stable run's transient), and the controller's
   saturation warnings then neither (with a flag, they join it); other FMU warnings;
 * ``stroke``: a measured output within 10 % of the end of its stroke;
 * ``non_finite``: a recorded value is NaN or infinite;
@@ -51,7 +54,8 @@ CYCLES = 5            # a window: this many periods of the loop's unstable oscil
 EXCITED = 1e-3        # the reference's excitation envelope is floored at this share of its largest
 PERSIST = 3.0         # a growth that ends at its peak counts if the envelope after it stays above peak / PERSIST
 FLOORS = (50.0, 1e-7)     # N, m: oscillation envelopes below these are noise, not growth
-SATURATED = 0.01      # a force at a limit for this share of the recorded time or more is saturated (less: a touch)
+SATURATED = 0.01      # a force at a limit for this share of the recorded time or more, or for a window
+                      # on end, is saturated (less: a touch)
 NEAR_STROKE = 0.9     # a leg beyond this fraction of its half stroke is near its end
 MOVING = 1e-6         # rad/s: a base still turning faster than this at stop has not arrived
 
@@ -392,6 +396,8 @@ class Watch:
         self.env = {ref: np.zeros(0) for ref in self.needs}   # per window: largest |second difference|
         # per window: rows with the force at each limit
         self.held = {(w.forces, what): np.zeros(0) for w in self.watched for what, _ in w.limits}
+        self.since = dict.fromkeys(self.held)         # time the force reached the limit, while it stays there
+        self.longest = dict.fromkeys(self.held, 0.0)  # longest stay at the limit [s], first row to last
         self.extent = {w.lengths: 0.0 for w in self.watched if w.stroke}   # largest |output - middle| / half stroke
         self.tail = {}                # the last two rows of each reference before this block
         self.non_finite = None        # time of the first non-finite row
@@ -453,8 +459,16 @@ class Watch:
         for w in self.watched:
             force = np.abs(rows[:, self.slices[w.forces]]).max(axis=1)
             for what, limit in w.limits:
-                self.held[w.forces, what] = grow(self.held[w.forces, what])
-                np.add.at(self.held[w.forces, what], window, force >= limit * (1 - 1e-9))
+                key, at = (w.forces, what), force >= limit * (1 - 1e-9)
+                self.held[key] = grow(self.held[key])
+                np.add.at(self.held[key], window, at)
+                edges = np.flatnonzero(np.diff(np.r_[0, at.astype(np.int8), 0]))   # each stay: first row, row after
+                for begin, end in zip(edges[::2], edges[1::2]):
+                    since = self.since[key] if begin == 0 and self.since[key] is not None else float(t[begin])
+                    self.longest[key] = max(self.longest[key], float(t[end - 1]) - since)
+                    self.since[key] = since if end == n else None
+                if not at[-1]:
+                    self.since[key] = None
             if w.stroke:
                 low, high = w.stroke
                 reach = (np.abs(rows[:, self.slices[w.lengths]] - (low + high) / 2) / ((high - low) / 2)).max()
@@ -482,13 +496,14 @@ class Watch:
         saturated = False
         for w in self.watched:
             for what, limit in w.limits:
-                held = self.held[w.forces, what]
+                held, longest = self.held[w.forces, what], self.longest[w.forces, what]
                 share = held.sum() / max(1, self.rows)
-                if share >= SATURATED:
+                if share >= SATURATED or longest >= self.window:
                     saturated = True
                     first = self.t0 + self.window * np.flatnonzero(held)[0]
                     out.append(Flag("saturated", f"{w.forces!r} at the +-{limit * 1e-3:g} kN limit ({what}) "
-                                                 f"{100 * share:.3g} % of the recorded time (from t ~ {first:g} s)"))
+                                                 f"{100 * share:.3g} % of the recorded time (from t ~ {first:g} s; "
+                                                 f"at most {longest:.3g} s on end)"))
             if w.stroke and self.extent[w.lengths] >= NEAR_STROKE:
                 half = (w.stroke[1] - w.stroke[0]) / 2
                 span = f"+-{half[0] * 1e3:g} mm" if np.ptp(half) == 0 else "half"
@@ -546,17 +561,19 @@ def growth(times, envelope, floor, excitation=None):
     stops at the force limit, and the envelope stays near it after), else None. Steady: a
     slew's transients raise the envelope for a window or two, an unstable loop every window.
     Against the reference's own ``excitation`` (its envelope per window, floored at
-    EXCITED of its largest): a rise is counted only by how much more it grows than the
-    excitation over the same windows (a loop answering a reference that starts to move
-    grows with it; an unstable loop grows by itself)."""
-    env = np.maximum(np.asarray(envelope[1:-1], dtype=float), floor)   # first and last window: partial
+    EXCITED of its largest): the envelope is judged per unit of the largest excitation so
+    far (a stable loop answers what it was excited with, and its transients decay; an
+    unstable loop grows by itself), so a loop answering a reference that starts to move
+    does not grow."""
+    raw = np.maximum(np.asarray(envelope[1:-1], dtype=float), floor)   # first and last window: partial
     t = np.asarray(times[1:-1], dtype=float)
-    driven = np.ones(len(env))
-    if excitation is not None and len(excitation) and np.nanmax(excitation) > 0:
-        excitation = np.asarray(excitation, dtype=float)
-        driven = np.maximum(excitation, EXCITED * np.nanmax(excitation))[1:-1]
-    peak = int(np.argmax(env)) + 1 if len(env) else 0
-    for end in dict.fromkeys((len(env), peak)):   # to the end, to the peak
+    drive = np.ones(len(raw))
+    if excitation is not None and len(raw) and np.nanmax(excitation) > 0:
+        excited = np.nan_to_num(np.asarray(excitation, dtype=float)[1:-1])
+        drive = np.maximum.accumulate(np.maximum(excited, EXCITED * np.nanmax(excitation)))
+    env = raw / drive
+    peaks = (int(np.argmax(env)) + 1, int(np.argmax(raw)) + 1) if len(env) else ()
+    for end in dict.fromkeys((len(env), *peaks)):   # to the end, to the peak (per unit of excitation, or not)
         if end < GROWTH_WINDOWS:
             continue
         if end < len(env) and np.median(env[end:]) < env[end - 1] / PERSIST:
@@ -567,9 +584,9 @@ def growth(times, envelope, floor, excitation=None):
             fit = slope * x + icept
             total = np.sum((y - y.mean()) ** 2)
             r2 = 1 - np.sum((y - fit) ** 2) / total if total > 0 else 0.0
-            alone = math.exp(slope * (x[-1] - x[0])) * driven[end - n:end - n + 2].max() / driven[end - 2:end].max()
-            if slope > 0 and alone >= GROWTH and r2 >= 0.8 and env[end - 1] >= GROWTH * floor:
-                return float(x[0]), float(x[-1]), float(env[end - n]), float(env[end - 1])
+            grown = math.exp(slope * (x[-1] - x[0]))
+            if slope > 0 and grown >= GROWTH and r2 >= 0.8 and raw[end - 1] >= GROWTH * floor:
+                return float(x[0]), float(x[-1]), float(raw[end - n]), float(raw[end - 1])
     return None
 
 

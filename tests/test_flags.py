@@ -317,4 +317,4 @@ def test_saturated_says_the_share_of_rows_at_the_limit_in_percent():
     watch.bind({"f": slice(0, 6), "l": slice(6, 12)})
     watch.feed(t, np.c_[np.repeat(force[:, None], 6, axis=1), np.zeros((len(t), 6))])
     (flag,) = [f for f in watch.flags() if f.kind == "saturated"]
-    assert "limit (c.force_limit) 18.5 % of the recorded time (from t ~ 0.5 s)" in flag.message
+    assert "limit (c.force_limit) 18.5 % of the recorded time (from t ~ 0.5 s; at most 0.36 s on end)" in flag.message

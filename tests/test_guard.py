@@ -116,15 +116,23 @@ def fed(limits, force, t):
 def test_a_force_held_at_the_plants_limit_is_saturated_with_its_share_and_a_touch_is_not():
     """120 of 1000 rows beyond the plant's 25 kN (below the controller's 50 kN): saturated,
     12 %, said of the plant's limit, with the controller's warning; 3 rows (a stable run's
-    transient, under SATURATED): no flag, and its warning no flag either."""
+    transient, under SATURATED): no flag, and its warning no flag either. Under SATURATED,
+    a stay of a window (the loop's 5 periods) on end is saturated, as many rows apart not."""
     t = np.arange(1000) * 0.01
     limits = (("c.force_limit", 50e3), ("p.actuator_force_limit", 25e3))
     (flag,) = fed(limits, np.where(t >= 8.8, 3e4, 1e3), t)
     assert flag.kind == "saturated"
-    assert "+-25 kN limit (p.actuator_force_limit) 12 % of the recorded time (from t ~ 8.5 s)" in flag.message
+    assert ("+-25 kN limit (p.actuator_force_limit) 12 % of the recorded time (from t ~ 8.5 s; at most 1.19 s on "
+            "end)") in flag.message
     assert "c.force_limit" not in flag.message and "'c' logged 1 warning" in flag.message
     assert fed(limits, np.where((t > 0.05) & (t < 0.09), 3e4, 1e3), t) == []
     assert 3 / 1000 < flags.SATURATED
+    # over 100 s: 61 rows (0.61 %) on end, 0.6 s, longer than the 0.5 s window, is saturated;
+    # (across the Watch's blocks of 256 rows); the same 61 rows scattered (every 160th) are touches
+    t = np.arange(10000) * 0.01
+    (flag,) = fed(limits, np.where((t >= 30.5) & (t < 31.105), 3e4, 1e3), t)
+    assert "0.61 % of the recorded time (from t ~ 30.5 s; at most 0.6 s on end)" in flag.message
+    assert fed(limits, np.where(np.arange(10000) % 160 == 0, 3e4, 1e3)[:9760], t[:9760]) == []
 
 
 # ------------------------------------------------------------------ items 3 and 4: the 3T loop
