@@ -245,3 +245,23 @@ def test_a_rise_driven_by_the_references_own_excitation_is_no_growth():
         return {f.kind for f in watch.flags()}
     assert fed(moving) == set()
     assert fed(np.full(len(t), 1e-6)) == {"unstable"}
+
+
+def test_every_limit_an_fmu_declares_is_in_the_loop_catalogue():
+    """A limit or stroke parameter of any of the kit's FMUs (one a future FMU declares too)
+    belongs to a loop of spec.CONTROL_LOOPS, as the controller's limit or its plant's, so
+    the guard watches it; every loop's variables exist in its FMUs."""
+    paths = runner.ensure_native(sorted(spec.FMU_SCRIPTS.values()))
+    names = {fmu: {v.name.split("[", 1)[0]: v for v in runner.description(paths[script]).modelVariables}
+             for fmu, script in spec.FMU_SCRIPTS.items()}
+    watched = {(fmu, entry["limit"]) for fmu, entry in spec.CONTROL_LOOPS.items()} | {
+        (entry["plant"], entry[key]) for entry in spec.CONTROL_LOOPS.values() for key in ("plant_limit", "stroke")}
+    declared = {(fmu, name) for fmu, variables in names.items() for name, v in variables.items()
+                if v.causality == "parameter" and (name.endswith("limit") or name == "stroke")}
+    assert declared == watched - {(plant, None) for plant in spec.FMU_SCRIPTS}
+    assert declared == {("hexapod_plant", "stroke"), ("hexapod_plant", "actuator_force_limit"),
+                        ("leg_controller", "force_limit"), ("slider_controller", "force_limit")}
+    for fmu, entry in spec.CONTROL_LOOPS.items():
+        own = [entry["force"], entry["measured"], entry["limit"], entry["excitation"], *entry["gains"], *entry["motion"]]
+        plant = [entry["plant_force"], entry["plant_measured"], *entry["loop_model"].values()]
+        assert set(own) <= set(names[fmu]) and set(plant) <= set(names[entry["plant"]]), fmu
