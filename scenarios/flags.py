@@ -181,6 +181,8 @@ def loops(scenario, descriptions, values):
             given = spec.LOOP_SENSORS[scenario.fmus[sensor]][2]
             fields.update({field: get(sensor, name) for field, name in given.items()})
             fields["delay_steps"] = int(fields.get("delay_steps", 0))
+        if scenario.fmus[plant] in GRAVITY:
+            fields["gravity_rate"] = GRAVITY[scenario.fmus[plant]](values, descriptions, controller, plant, entry)
         model = design.LoopModel(
             **fields, leg_sensor=sensor is not None,
             # "derivatives" extrapolates the loop's own signals (forces, lengths, rates: no FMU
@@ -232,9 +234,25 @@ def _mechanism3t_masses(scenario, paths, descriptions, values, loop, motion):
         params, mechanism3t.paper_motion(t, centre, float(amplitude), float(omega))[0], mode)) for t in times])
 
 
-# plant FMU -> its loop's modal masses [kg] along the scene (the physics the catalogue cannot
-# carry); a plant not listed is watched but not predicted
+def _mechanism3t_gravity(values, descriptions, controller, plant, entry):
+    """The 3T sliders' largest destabilising gravity rate [1/s^2] (design.LoopModel) at the
+    centre of the controller's reference, held at rest by the static forces: from central
+    differences of the accelerations per slider displacement (~54, a pole at 7.4 rad/s)."""
+    params, mode = mechanism3t.Mechanism1Params.paper(), int(_value(values, descriptions, plant, "mode"))
+    centre = np.asarray(_value(values, descriptions, controller, entry["motion"][0]), dtype=float)
+    rest = np.zeros(3)
+    hold = mechanism3t.slider_forces(params, centre, rest, rest, mode)
+    step = 1e-6
+    rates = np.array([(mechanism3t.forward_dynamics(params, centre + step * e, rest, hold, mode)
+                       - mechanism3t.forward_dynamics(params, centre - step * e, rest, hold, mode)) / (2 * step)
+                      for e in np.eye(3)]).T
+    return max(0.0, float(np.linalg.eigvals(rates).real.max()))
+
+
+# plant FMU -> its loop's modal masses [kg] along the scene, and its gravity rate (the physics
+# the catalogue cannot carry); a plant not in MODAL_MASSES is watched but not predicted
 MODAL_MASSES = {"hexapod_plant": _hexapod_masses, "mechanism3t_plant": _mechanism3t_masses}
+GRAVITY = {"mechanism3t_plant": _mechanism3t_gravity}
 
 
 def _merge(masses, rtol=1e-3):

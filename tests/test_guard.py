@@ -265,3 +265,29 @@ def test_every_limit_an_fmu_declares_is_in_the_loop_catalogue():
         own = [entry["force"], entry["measured"], entry["limit"], entry["excitation"], *entry["gains"], *entry["motion"]]
         plant = [entry["plant_force"], entry["plant_measured"], *entry["loop_model"].values()]
         assert set(own) <= set(names[fmu]) and set(plant) <= set(names[entry["plant"]]), fmu
+
+
+def test_3t_gains_too_soft_for_gravity_are_refused_and_do_fall(tmp_path):
+    """Gravity pulls the 3T sliders away at 7.35 rad/s (rate 54 /s^2, from the plant's own
+    dynamics): the slider PID at 0.25x its gains (kp 2150 N/m, below the heaviest mode's
+    50 kg x 54 /s^2) holds no step; refused; run anyway, both runs fall out of reach of
+    the plant (cut short), while at 0.5x the feedforward run is clean."""
+    def scaled(factor):
+        path = mechanism(tmp_path, "1 ms", stop=4.0)
+        path.write_text(path.read_text().replace(
+            '[fmus.controller]\nfmu = "slider_controller"', '[fmus.controller]\nfmu = "slider_controller"\n'
+            f'parameters = {{ kp = {8.6e3 * factor}, ki = {1.6e4 * factor}, kd = {890 * factor} }}'))
+        return path
+    scenario, _, descriptions, values = runner.prepare(scaled(0.25))
+    (loop,) = flags.loops(scenario, descriptions, values)
+    assert loop.model.gravity_rate == pytest.approx(53.97, abs=0.05)
+    with pytest.raises(spec.ScenarioError, match="no step is stable with these gains"):
+        pre_run(scaled(0.25))
+    scenario, paths, descriptions, values = runner.prepare(scaled(0.25))
+    before = runner.pre_run_flags(scenario, paths, descriptions, values, allow_unstable=True)
+    runs = runner.run_prepared(scenario, paths, descriptions, values, None, False, before=before)
+    assert [bool(r.failure) for r in runs] == [True, True]
+    scenario, paths, descriptions, values = runner.prepare(scaled(0.5))
+    runs = runner.run_prepared(scenario, paths, descriptions, values, None, False,
+                               before=runner.pre_run_flags(scenario, paths, descriptions, values))
+    assert runs[1].label == "on" and not runs[1].failure and runs[1].flags == []
