@@ -32,7 +32,7 @@ The limit is where the first mode's closed loop (closed_loop_polynomial, the
 characteristic polynomial of mode_loop in w = (z - 1) / h) gets a pole outside the unit
 circle; scenarios.flags takes it over the modes along a scenario's motion before it runs.
 """
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np   # python-control (~1.3 s to import, with scipy) is imported in the functions that
                      # use it: a run's step-limit check (step_limit) needs numpy only
@@ -150,8 +150,13 @@ class LoopModel:
     ``gauss_seidel``: the master steps the FMUs one after the other, so of the loop's
     connections only the one into the FMU that steps first is stale (its source has not
     stepped yet: one step of delay, and the only input extrapolated); Jacobi: all stale.
-    Coulomb friction is left out (nonlinear: below its smoothing velocity it is a stiff
-    damper, above it a constant force, a disturbance), and so are quantisation and noise."""
+    ``gravity_rate`` [1/s^2]: the largest destabilising eigenvalue of the plant's
+    acceleration per displacement under gravity at rest (the 3T mechanism's sliders: a
+    real open-loop pole at sqrt of it), given every mode as a negative stiffness
+    (conservative: gravity's mode shapes are not the mass's); the hexapod's is left out
+    (its modal limit is the full linearised plant's). Coulomb friction is left out
+    (nonlinear: below its smoothing velocity it is a stiff damper, above it a constant
+    force, a disturbance), and so are quantisation and noise."""
 
     reflected_mass: float = 0.0
     actuator_bandwidth: float = 0.0
@@ -161,9 +166,10 @@ class LoopModel:
     delay_steps: int = 0
     extrapolate: bool = False
     gauss_seidel: bool = False
+    gravity_rate: float = 0.0
 
     def __post_init__(self):
-        for name in ("reflected_mass", "actuator_bandwidth", "viscous_friction", "rate_cutoff"):
+        for name in ("reflected_mass", "actuator_bandwidth", "viscous_friction", "rate_cutoff", "gravity_rate"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"loop model {name} must be finite and >= 0, got {value}")
@@ -198,11 +204,12 @@ def mode_loop(mass, gains, comm_step, loop=IDEAL):
     import control
     h = comm_step
     w_a = 2 * np.pi * loop.actuator_bandwidth
+    g = loop.gravity_rate
     if w_a > 0:   # states (F, l, dl/dt), input F_cmd
-        A = [[-w_a, 0, 0], [0, 0, 1], [1 / mass, 0, -loop.viscous_friction / mass]]
+        A = [[-w_a, 0, 0], [0, 0, 1], [1 / mass, g, -loop.viscous_friction / mass]]
         B, C = [[w_a], [0], [0]], [[0, 1, 0], [0, 0, 1]]
     else:
-        A, B, C = [[0, 1], [0, -loop.viscous_friction / mass]], [[0], [1 / mass]], np.eye(2)
+        A, B, C = [[0, 1], [g, -loop.viscous_friction / mass]], [[0], [1 / mass]], np.eye(2)
     plant = control.c2d(control.ss(A, B, C, 0), h, "zoh")   # outputs: length, exact rate
     pid = control.ss([[1.0]], [[h, 0.0]], [[gains.ki]], [[gains.kp + gains.ki * h, gains.kd]], h)
     z = control.tf([1, 0], [1], h)
@@ -396,11 +403,12 @@ def closed_loop_polynomial(mass, gains, comm_step, loop=IDEAL):
     than python-control's, for the step-limit search before every run."""
     h = comm_step
     w_a = 2 * np.pi * loop.actuator_bandwidth
+    g = loop.gravity_rate
     if w_a > 0:   # states (F, l, dl/dt), input F_cmd, as mode_loop
-        A = np.array([[-w_a, 0, 0], [0, 0, 1], [1 / mass, 0, -loop.viscous_friction / mass]])
+        A = np.array([[-w_a, 0, 0], [0, 0, 1], [1 / mass, g, -loop.viscous_friction / mass]])
         B, rows = np.array([w_a, 0, 0]), (np.array([0, 1.0, 0]), np.array([0, 0, 1.0]))
     else:
-        A = np.array([[0, 1.0], [0, -loop.viscous_friction / mass]])
+        A = np.array([[0, 1.0], [g, -loop.viscous_friction / mass]])
         B, rows = np.array([0, 1 / mass]), (np.array([1.0, 0]), np.array([0, 1.0]))
     n = len(A)
     block = np.zeros((n + 1, n + 1))
@@ -439,12 +447,35 @@ def _radius(mass, gains, comm_step, loop):
     return float(np.abs(1 + comm_step * np.roots(closed_loop_polynomial(mass, gains, comm_step, loop))).max())
 
 
+def least_damped_period(masses, gains, comm_step, loop=IDEAL):
+    """Period [s] of the closed loop's least-damped oscillating pole (the largest |z| off
+    the real axis) over the modes ``masses`` [kg] at ``comm_step``: the oscillation of the
+    loop that lasts longest, or grows. inf if no pole oscillates."""
+    largest, period = -1.0, float("inf")
+    for mass in _distinct(np.sort(np.asarray(masses, dtype=float))):
+        z = 1 + comm_step * np.roots(closed_loop_polynomial(mass, gains, comm_step, loop))
+        turning = z[np.abs(np.angle(z)) > 1e-9]
+        if len(turning) and np.abs(turning).max() > largest:
+            pole = turning[np.argmax(np.abs(turning))]
+            largest, period = float(abs(pole)), float(2 * np.pi * comm_step / abs(np.angle(pole)))
+    return period
+
+
 def step_limit(masses, gains, loop=IDEAL, low=1e-5, high=0.2, rtol=1e-3):
     """The communication step [s] at which the first mode of ``masses`` goes unstable
     (each mode taken to be stable below a step and unstable above it, as the loops here
     are): the lightest mode's boundary by a geometric scan (factor 1.5) from ``low`` and
     bisection to ``rtol``, then every mode checked just below it; a mode unstable there
-    is bisected next. 0.0 if unstable already at ``low``, inf if stable up to ``high``."""
+    is bisected next. 0.0 if unstable already at ``low``, inf if stable up to ``high``. With
+    a gravity rate, the lower of the limits with and without it (given every mode, it may
+    soften a light mode that gravity does not touch, and so raise its limit)."""
+    limit = _step_limit(masses, gains, loop, low, high, rtol)
+    if loop.gravity_rate > 0:
+        limit = min(limit, _step_limit(masses, gains, replace(loop, gravity_rate=0.0), low, high, rtol))
+    return limit
+
+
+def _step_limit(masses, gains, loop, low, high, rtol):
     masses = _distinct(np.sort(np.asarray(masses, dtype=float)))
     stable = lambda m, h: _radius(m, gains, h, loop) < 1
     good, bad, mode = low, None, masses[0]

@@ -34,6 +34,7 @@ The force limit 1 kN per slider is an assumption (the paper gives no actuator ra
 about 6x the largest force of the paper example (173.5 N on x_A2 in this model).
 """
 import numpy as np
+from pythonfmu.enums import Fmi2Status
 
 from movingbase.controller.pid import PIDGains, pid_update
 from movingbase.fmu_src.mechanism3t_fmu import POSITION_RANGE
@@ -98,10 +99,16 @@ class SliderController(GuardedSlave):
             raise InvalidInputError(f"feedforward must be 0 (off) or 1 (on), got {self.feedforward}")
         self.pid = PIDGains(**self.gains)
         self.integral[:] = 0.0
+        self.saturated = False
         self._update(self.start_time, None)
 
     def step(self, t, h):
         self._update(t, h)
+        at_limit = np.flatnonzero(np.abs(self.forces) >= self.pid.force_limit)
+        if len(at_limit) and not self.saturated:   # once per episode, as the leg controller says it
+            self.log(f"slider forces saturated at +-{self.pid.force_limit:g} N at t={t + h:.6g} s "
+                     f"(sliders {', '.join(SLIDERS[k] for k in at_limit)})", Fmi2Status.warning, "logStatusWarning")
+        self.saturated = bool(len(at_limit))
 
     def _update(self, t, h):
         """Reference, feedforward and forces at t; the integral advances only on a real step."""

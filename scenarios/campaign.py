@@ -394,9 +394,9 @@ class CampaignJobs:
         what the models refuse (the telescope's profile over the run; once per distinct
         run; the flags of its motion are kept for its Job: a slew unfinished at the stop
         time) and a step beyond the predicted stability limit (a campaign runs no step
-        beyond it; predicted once per time grid, master and extrapolation, at the first
-        run's values, as a scenario's is at its own values and not per sweep value: a
-        prediction costs ~15 ms, a run ~0.2 s). Every refused run is told."""
+        beyond it; predicted for every run at its own values, each distinct loop once:
+        its gains, plant, sensor, motion, time grid, master and extrapolation). Every
+        refused run is told, with its limit."""
         source, refused, seen, predicted, motion = self.campaign.source, {}, {}, {}, {}   # refused: problem -> labels
         for case in self.campaign.cases:
             scenario, params, descriptions, digests = self._case(case)
@@ -418,14 +418,11 @@ class CampaignJobs:
                 refused.setdefault(seen[marker], []).append(case.label)
                 continue
             self.flags[case.label] = motion[marker]
-            if grid not in predicted:
-                try:
-                    flags.check(scenario, flags.predict(scenario, paths, descriptions, params))
-                    predicted[grid] = ""
-                except spec.ScenarioError as exc:    # said of the scenario's step
-                    predicted[grid] = "; ".join(f"{k}: {p.split('; or run it anyway')[0]}" for _, k, p in exc.problems)
-            if predicted[grid]:
-                refused.setdefault(predicted[grid], []).append(case.label)
+            try:
+                flags.check(scenario, flags.predict(scenario, paths, descriptions, params, cache=predicted))
+            except spec.ScenarioError as exc:    # said of the scenario's step
+                problem = "; ".join(f"{k}: {p.split('; or run it anyway')[0]}" for _, k, p in exc.problems)
+                refused.setdefault(problem, []).append(case.label)
         if refused:
             raise CampaignError.joined([CampaignError(source, f"run {labels[0]!r}" + (
                 f" (and {len(labels) - 1} more: {', '.join(map(repr, labels[1:4]))}{', ...' if len(labels) > 4 else ''})"

@@ -214,7 +214,8 @@ def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None,
     """Run every sweep value of a scenario; returns (scenario, runs, report path).
     ``jobs`` worker processes or the Dask cluster at ``dask`` run the values in parallel;
     ``implementation`` and ``fmi_version`` as in prepare; ``charts`` as report.write. A step beyond the
-    predicted stability limit is refused (ScenarioError) unless ``allow_unstable``; then every run is flagged."""
+    predicted stability limit (each run's own, pre_run_flags) is refused (ScenarioError) unless
+    ``allow_unstable``; then the runs beyond their limit are flagged."""
     if progress:
         print(f"{pathlib.Path(str(path)).stem}: checking the scenario, building FMUs that are missing or stale "
               "(a first build takes ~10 s)", file=sys.stderr, flush=True)
@@ -235,23 +236,18 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
                  before=()):
     """Run every sweep value of a prepared scenario; returns the master.Run objects. Each
     run's records go to outdir/<label>.npz; with no ``outdir`` nothing is written (runs in
-    this process only: the engine stores its results on disk). ``before``: the flags
-    every run gets (pre_run_flags)."""
+    this process only: the engine stores its results on disk). ``before``: each run's
+    flags known before it runs, by label (pre_run_flags)."""
     if outdir is not None:
         outdir.mkdir(parents=True, exist_ok=True)
-    items = scenario.sweep[1] if scenario.sweep else [None]
-    runs = []
+    before = before or {}
+    runs, todo = [], list(sweep_runs(scenario, descriptions, values))
     if jobs or dask:   # the values on worker processes or a Dask cluster (scenarios.engine)
-        runs, items = engine.run_sweep(scenario, paths, descriptions, values, items, outdir, jobs, dask, progress), []
+        items = scenario.sweep[1] if scenario.sweep else [None]
+        runs, todo = engine.run_sweep(scenario, paths, descriptions, values, items, outdir, jobs, dask, progress), []
         for run in runs:
-            run.flags[:0] = before
-    for item in items:
-        params = {inst: dict(v) for inst, v in values.items()}
-        label = "run"
-        if item is not None:
-            inst, name, value = spec.sweep_value(scenario, descriptions, item)
-            params[inst][name] = value
-            label = spec.file_label(item)
+            run.flags[:0] = before.get(run.label, ())
+    for label, params in todo:
         desc = f"{scenario.name} [{label}]"
         bar = tqdm(total=100, desc=f"{desc} loading and initialising the FMUs", unit="%", disable=not progress,
                    bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
@@ -263,7 +259,7 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
             bar.update(round(100 * fraction) - bar.n)
         try:
             runs.append(master.run(scenario, paths, params, outdir, label,
-                                   [metrics.make(m) for m in scenario.metrics], update, before))
+                                   [metrics.make(m) for m in scenario.metrics], update, before.get(label, ())))
         except master.RunFailed as failed:   # keep what it did; the other runs still run
             failed.run.failure = f"{scenario.source}: scene {scenario.name}, run {label}: {failed.run.failure}"
             runs.append(failed.run)
@@ -290,11 +286,38 @@ def write_results(scenario, runs, outdir, charts="all"):
     return report.write(scenario, runs, outdir, charts)
 
 
+def sweep_runs(scenario, descriptions, values):
+    """(label, parameters) of every run of the scenario: one per sweep value, its value applied."""
+    for item in scenario.sweep[1] if scenario.sweep else [None]:
+        params = {inst: dict(v) for inst, v in values.items()}
+        if item is None:
+            yield "run", params
+            continue
+        inst, name, value = spec.sweep_value(scenario, descriptions, item)
+        params[inst][name] = value
+        yield spec.file_label(item), params
+
+
 def pre_run_flags(scenario, paths, descriptions, values, ci=False, allow_unstable=False):
-    """The stability prediction and the scene's own checks (scenarios.flags): raises
-    ScenarioError for a step beyond the predicted limit unless ``allow_unstable``;
-    returns the flags every run of the scenario gets."""
-    return flags.check(scenario, flags.predict(scenario, paths, descriptions, values, ci), allow_unstable)
+    """The stability prediction and the scene's own checks (scenarios.flags) of every run
+    at its own values (a sweep value can move the limit; each distinct loop is predicted
+    once): {label: the flags the run gets}. Raises ScenarioError before anything runs if
+    any run's step is beyond its own limit, naming each such run and its limit, unless
+    ``allow_unstable``: then exactly those runs are flagged."""
+    found, refused, cache = {}, [], {}
+    for label, params in sweep_runs(scenario, descriptions, values):
+        try:
+            found[label] = flags.check(scenario, flags.predict(scenario, paths, descriptions, params, ci, cache),
+                                       allow_unstable)
+        except spec.ScenarioError as exc:
+            refused.append((label, exc))
+    if refused and not scenario.sweep:
+        raise refused[0][1]
+    if refused:
+        raise spec.ScenarioError.joined([spec.ScenarioError(
+            scenario.source, "step", f"run {label!r} (sweep of {scenario.sweep[0]}): {problem}")
+            for label, exc in refused for _, _, problem in exc.problems])
+    return found
 
 
 def _no_nan(value):

@@ -38,6 +38,34 @@ FMU_SCRIPTS = {"hexapod_plant": "hexapod_plant_fmu", "telescope": "telescope_fmu
                "leg_controller": "leg_controller_fmu", "mechanism3t_plant": "mechanism3t_fmu",
                "slider_controller": "slider_controller_fmu", "leg_sensor": "leg_sensor_fmu",
                "base_sensor": "base_sensor_fmu", "wind": "wind_fmu"}
+# controller FMU -> the loop it closes, which the guard (scenarios.flags) predicts and watches
+# from this table alone: the plant FMU it drives; its force output and the plant input that
+# output feeds; the plant output it measures and its own input of it (directly or through a
+# sensor of LOOP_SENSORS); its gains and force-limit parameters; its reference input fed by
+# a telescope (the motion the loop's masses are taken along; None: the controller makes its
+# reference from its own ``motion`` parameters) and the variable of it whose changes excite
+# the loop (``excitation``: the reference it tracks); the plant's force limit parameter (the plant
+# clips its force input there; 0: none), stroke parameter (half stroke about the home value)
+# and the LoopModel fields (controller.design) its parameters give.
+CONTROL_LOOPS = {
+    "leg_controller": {
+        "plant": "hexapod_plant", "force": "leg_force", "plant_force": "leg_force",
+        "measured": "leg_length", "plant_measured": "leg_length", "gains": ("kp", "ki", "kd"),
+        "limit": "force_limit", "reference": "reference_pose", "motion": (), "excitation": "reference_pose",
+        "plant_limit": "actuator_force_limit", "stroke": "stroke",
+        "loop_model": {"reflected_mass": "reflected_mass", "actuator_bandwidth": "actuator_bandwidth",
+                       "viscous_friction": "viscous_friction"}},
+    "slider_controller": {
+        "plant": "mechanism3t_plant", "force": "slider_force", "plant_force": "slider_force",
+        "measured": "slider_position", "plant_measured": "slider_position", "gains": ("kp", "ki", "kd"),
+        "limit": "force_limit", "reference": None, "motion": ("initial_position", "amplitude", "omega"),
+        "excitation": "reference_position",
+        "plant_limit": None, "stroke": None, "loop_model": {}},
+}
+# sensor FMU -> (its input of the plant's measured output, its measured output, the LoopModel
+# fields its parameters give): a sensor between plant and controller in a loop of CONTROL_LOOPS
+LOOP_SENSORS = {"leg_sensor": ("leg_length", "measured_length", {"rate_cutoff": "rate_cutoff",
+                                                                  "delay_steps": "delay_steps"})}
 # inputs that may stay unconnected, held at their start value (0: the effect they feed is off)
 OPTIONAL_INPUTS = {"hexapod_plant": ("platform_wrench",)}
 # per instance: the native C FMU (no Python in the host) or the pythonfmu one; equal results

@@ -19,6 +19,8 @@ from movingbase.scenarios.fmi import unpack
 from movingbase.scenarios.records import run_records
 from studies.stability import GAINS, OFFSET, scenario_text, scaled
 
+STROKE = (np.full(6, -0.15), np.full(6, 0.15))   # a Watched loop's ends: +-150 mm
+
 PARAMS = StewartParams.paper()
 MASTERS = [("jacobi", "none"), ("jacobi", "linear"), ("gauss-seidel", "none"), ("gauss-seidel", "linear")]
 
@@ -154,7 +156,7 @@ def test_watch_sees_non_finite_values_and_steady_growth_only():
     oscillation of the same size (only the last is growth)."""
     t = np.arange(0, 20, 0.01)
     def fed(force):
-        watch = flags.Watch(1e9, np.zeros(6), 0.15, "f", "l", window=0.5)
+        watch = flags.Watch([flags.Watched("c", "f", "l", (("c.force_limit", 1e9),), STROKE)], window=0.5)
         watch.bind({"f": slice(0, 6), "l": slice(6, 12)})
         watch.feed(t, np.c_[np.repeat(force[:, None], 6, axis=1), np.zeros((len(t), 6))])
         return {f.kind for f in watch.flags()}
@@ -234,7 +236,9 @@ def test_a_slew_cut_before_its_end_is_flagged_before_it_runs(tmp_path):
     path = copied(tmp_path, "slew_short", **{'stop_time = "60 s"': 'stop_time = "20 s"'})
     scenario, paths, descriptions, values = runner.prepare(path)
     found = runner.pre_run_flags(scenario, paths, descriptions, values)
-    assert [f.kind for f in found] == ["motion_unfinished"] and "deg/s" in found[0].message
+    assert list(found) == ["none", "fixed_base", "moving_base"]      # every run of the sweep, by its label
+    for each in found.values():
+        assert [f.kind for f in each] == ["motion_unfinished"] and "deg/s" in each[0].message
 
 
 def test_compare_writes_no_ratio_when_either_run_is_flagged():
@@ -309,8 +313,8 @@ def test_saturated_says_the_share_of_rows_at_the_limit_in_percent():
     """37 of 200 rows at the force limit: 18.5 % of the recorded time, from its window (0.5 s)."""
     t = np.arange(200) * 0.01
     force = np.where((t >= 0.55) & (t < 0.92), 5e3, 1e3)
-    watch = flags.Watch(5e3, np.zeros(6), 0.15, "f", "l", window=0.1)
+    watch = flags.Watch([flags.Watched("c", "f", "l", (("c.force_limit", 5e3),), STROKE)], window=0.1)
     watch.bind({"f": slice(0, 6), "l": slice(6, 12)})
     watch.feed(t, np.c_[np.repeat(force[:, None], 6, axis=1), np.zeros((len(t), 6))])
     (flag,) = [f for f in watch.flags() if f.kind == "saturated"]
-    assert "limit 18.5 % of the recorded time (from t ~ 0.5 s)" in flag.message
+    assert "limit (c.force_limit) 18.5 % of the recorded time (from t ~ 0.5 s; at most 0.36 s on end)" in flag.message

@@ -16,6 +16,8 @@ import pytest
 from movingbase.scenarios import flags, master, metrics, runner, spec
 from movingbase.scenarios.fmi import Instance, Instance3
 
+STROKE = (np.full(6, -0.15), np.full(6, 0.15))   # a Watched loop's ends: +-150 mm
+
 
 def prepared(fmi_version=None, feedforward="moving_base"):
     """paper_manoeuvre [ci] (4 s at 1 ms, recorded every 10 ms, metrics from 2 s), native FMUs."""
@@ -119,14 +121,15 @@ def test_blocks_of_any_size_equal_rows_one_at_a_time(sizes, monkeypatch):
     assert [a.tobytes() for a in one.series()] == [a.tobytes() for a in pieces.series()]
 
     def watch():
-        w = flags.Watch(2e3, np.zeros(6), 0.15, "f", "l", window=0.5)
+        w = flags.Watch([flags.Watched("c", "f", "l", (("c.force_limit", 2e3),), STROKE)], window=0.5)
         w.bind({"f": slice(0, 6), "l": slice(6, 12)})
         return w
     single, many = watch(), watch()
     fed_in_pieces(single.feed, t, rows, [1])
     fed_in_pieces(many.feed, t, rows, sizes)
     assert single.flags() == many.flags() and single.flags()
-    assert single.rows == many.rows == len(t) and single.held.tobytes() == many.held.tobytes()
+    assert single.rows == many.rows == len(t) and all(
+        single.held[k].tobytes() == many.held[k].tobytes() for k in single.held)
     assert all(single.env[r].tobytes() == many.env[r].tobytes() for r in ("f", "l"))
 
 

@@ -2,6 +2,7 @@
    kernel's reference and feedforward (plant/c/mechanism3t.h, mb_m3t_reference_forces) and
    the PID of controller/c/pid.h, with the Python FMU's checks and messages. */
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "SliderController_vars.h"
@@ -54,9 +55,15 @@ static int update(mb_instance *inst, double *r, int *i, double t, int stepping, 
     return 0;
 }
 
+static const char *const SLIDERS[3] = {"x_A2", "y_A1", "y_A3"};
+
+typedef struct {
+    int saturated;
+} Model;
+
 static int init(mb_instance *inst, double *r, int *i, void *model, double start_time)
 {
-    (void)model;
+    ((Model *)model)->saturated = 0;
     if (i[VR_feedforward] != 0 && i[VR_feedforward] != 1) {
         mb_error(inst, "InvalidInputError", "feedforward must be 0 (off) or 1 (on), got %d", i[VR_feedforward]);
         return 1;
@@ -67,11 +74,26 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     return update(inst, r, i, start_time, 0, 0.0);
 }
 
+/* A step, then the Python FMU's saturation warning, once per episode as the leg controller says it. */
 static int step(mb_instance *inst, double *r, int *i, void *model, double t, double h)
 {
-    (void)model;
-    return update(inst, r, i, t, 1, h);
+    Model *m = model;
+    if (update(inst, r, i, t, 1, h)) return 1;
+    const double *forces = &r[VR_slider_force], limit = r[VR_force_limit];
+    char sliders[32] = "";
+    size_t used = 0;
+    int saturated = 0;
+    for (int k = 0; k < 3; k++) {
+        if (fabs(forces[k]) >= limit) {
+            used += (size_t)snprintf(sliders + used, sizeof sliders - used, "%s%s", saturated ? ", " : "", SLIDERS[k]);
+            saturated = 1;
+        }
+    }
+    if (saturated && !m->saturated)
+        mb_warning(inst, "slider forces saturated at +-%g N at t=%.6g s (sliders %s)", limit, t + h, sliders);
+    m->saturated = saturated;
+    return 0;
 }
 
-/* no state beyond the variables: the integral is an output */
-const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, 0, init, step};
+/* the integral is an output; the model keeps whether the forces were saturated (one warning per episode) */
+const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), init, step};
