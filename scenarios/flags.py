@@ -292,7 +292,8 @@ def predict(scenario, paths, descriptions, values, ci=False, cache=None):
         if key not in cache:
             motion = scene_fidelity.scene_motion(scenario, paths, values, telescope) if telescope else None
             masses = _merge(masses_of(scenario, paths, descriptions, values, loop, motion))
-            unfinished = tuple(_unfinished(scenario, telescope, motion[4])) if telescope else ()
+            unfinished = tuple(_unfinished(scenario, telescope, motion[4], _delay(values, descriptions, telescope))
+                               ) if telescope else ()
             cache[key] = (Prediction(design.step_limit(masses, loop.gains, loop.model), scenario.step, loop.model,
                                      loop.gains, masses, unfinished, loop.controller))
         found.append(cache[key])
@@ -309,7 +310,8 @@ def motion_flags(scenario, paths, descriptions, values):
     for loop in loops(scenario, descriptions, values):
         telescope = _telescope(scenario, loop)
         if telescope:
-            out += _unfinished(scenario, telescope, scene_fidelity.scene_motion(scenario, paths, values, telescope)[4])
+            out += _unfinished(scenario, telescope, scene_fidelity.scene_motion(scenario, paths, values, telescope)[4],
+                               _delay(values, descriptions, telescope))
     return out
 
 
@@ -321,12 +323,24 @@ def _telescope(scenario, loop):
                  if scenario.fmus[s] == "telescope"), None)
 
 
-def _unfinished(scenario, telescope, base_rate):
-    """[motion_unfinished] if the slew (or paper manoeuvre) still turns the base at the
-    stop time (``base_rate`` along the run), else []."""
+def _delay(values, descriptions, telescope):
+    """The telescope's start_delay [s]: its profile starts this late (absolute time)."""
+    return float(_value(values, descriptions, telescope, "start_delay"))
+
+
+def _unfinished(scenario, telescope, base_rate, delay=0.0):
+    """[motion_unfinished] if the slew (or paper manoeuvre) never starts (its ``delay`` at
+    or after the stop time: the run holds the start pointing throughout) or still turns
+    the base at the stop time (``base_rate`` along the run), else []."""
     profile = scenario.parameters.get(telescope, {}).get("profile", "slew")
+    if profile not in ("slew", "paper"):
+        return []
+    if delay >= scenario.stop_time:
+        return [Flag("motion_unfinished", f"the {profile} of {telescope!r} never starts: its start_delay "
+                                          f"{delay:g} s is at or after the stop time {scenario.stop_time:g} s, "
+                                          "so the base holds its start pointing for the whole run")]
     turning = float(np.linalg.norm(base_rate[-1][3:]))
-    if profile in ("slew", "paper") and turning > MOVING:
+    if turning > MOVING:
         return [Flag("motion_unfinished", f"the {profile} of {telescope!r} has not ended at the stop time "
                                           f"{scenario.stop_time:g} s: the base still turns at "
                                           f"{math.degrees(turning):.3g} deg/s")]

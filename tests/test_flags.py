@@ -241,6 +241,18 @@ def test_a_slew_cut_before_its_end_is_flagged_before_it_runs(tmp_path):
         assert [f.kind for f in each] == ["motion_unfinished"] and "deg/s" in each[0].message
 
 
+def test_a_slew_that_never_starts_is_flagged_before_it_runs(tmp_path):
+    # start_delay 7 s beyond a 6 s run: the base holds its start pointing throughout, and its
+    # rate at the stop time (zero) said nothing; a delay inside the run still flags the turning base
+    for delay, said in (("7 s", "never starts: its start_delay 7 s is at or after the stop time 6 s"),
+                        ("5 s", "has not ended at the stop time 6 s")):
+        path = copied(tmp_path, f"slew_{delay[0]}", **{'stop_time = "60 s"': 'stop_time = "6 s"',
+                                                      'start_delay = "5 s"': f'start_delay = "{delay}"'})
+        found = runner.pre_run_flags(*runner.prepare(path))
+        for each in found.values():
+            assert [f.kind for f in each] == ["motion_unfinished"] and said in each[0].message
+
+
 def test_compare_writes_no_ratio_when_either_run_is_flagged():
     metrics = {"fixed_base": {"e": {"rms": 10.0, "peak": 20.0}}, "moving_base": {"e": {"rms": 1.0, "peak": 2.0}}}
     assert "10x the RMS" in report.compare(metrics, "e")
