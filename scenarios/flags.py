@@ -111,7 +111,7 @@ class Prediction:
 
     @property
     def beyond(self):
-        return self.step > self.limit
+        return self.step > self.limit * (1 + 1e-9)   # "1.372 ms", as shown, parses an ulp above it
 
 
 def _of_type(scenario, kind):
@@ -356,8 +356,16 @@ def _describe(loop, extrapolation=None):
     return f"master {master}, extrapolation {'linear' if loop.extrapolate else 'none'}"
 
 
-def _ms(seconds):
-    return "no step (the gains are unstable)" if seconds == 0 else f"{seconds * 1e3:.4g} ms"
+def _ms(seconds, down=False):
+    """``seconds`` in ms to 4 significant digits; ``down``: rounded down, so that a step
+    written as shown is within the limit (a limit of 2.00093 ms reads 2 ms, not 2.001)."""
+    if seconds == 0:
+        return "no step (the gains are unstable)"
+    ms = seconds * 1e3
+    if down and math.isfinite(ms):
+        unit = 10.0 ** (math.floor(math.log10(ms)) - 3)
+        ms = math.floor(ms / unit * (1 + 1e-12)) * unit
+    return f"{ms:.4g} ms"
 
 
 def check(scenario, prediction, allow_unstable=False):
@@ -380,7 +388,7 @@ def check(scenario, prediction, allow_unstable=False):
         text = (f"{scenario.step * 1e3:g} ms is beyond the predicted stability limit {_ms(prediction.limit)} of "
                 f"this loop ({_describe(prediction.loop, scenario.extrapolation)}, its gains and plant, along the "
                 f"motion): the loop of {prediction.controller!r} would oscillate and grow")
-        hint = f"use a step below {_ms(prediction.limit)}"
+        hint = f"use a step of at most {_ms(prediction.limit, down=True)}"
     else:
         text = (f"no step is stable with these gains ({_describe(prediction.loop, scenario.extrapolation)}, "
                 f"along the motion): the loop of {prediction.controller!r} would drift or grow at "

@@ -313,10 +313,15 @@ def pre_run_flags(scenario, paths, descriptions, values, ci=False, allow_unstabl
             refused.append((label, exc))
     if refused and not scenario.sweep:
         raise refused[0][1]
-    if refused:
+    if refused:   # runs refused for the same reason (a sweep that leaves the loop as it is) told once
+        by_problem = {}
+        for label, exc in refused:
+            for _, _, problem in exc.problems:
+                by_problem.setdefault(problem, []).append(label)
         raise spec.ScenarioError.joined([spec.ScenarioError(
-            scenario.source, "step", f"run {label!r} (sweep of {scenario.sweep[0]}): {problem}")
-            for label, exc in refused for _, _, problem in exc.problems])
+            scenario.source, "step", f"run{'s' * (len(labels) > 1)} {', '.join(map(repr, labels))} "
+                                     f"(sweep of {scenario.sweep[0]}): {problem}")
+            for problem, labels in by_problem.items()])
     return found
 
 

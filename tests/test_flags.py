@@ -330,3 +330,13 @@ def test_saturated_says_the_share_of_rows_at_the_limit_in_percent():
     watch.feed(t, np.c_[np.repeat(force[:, None], 6, axis=1), np.zeros((len(t), 6))])
     (flag,) = [f for f in watch.flags() if f.kind == "saturated"]
     assert "limit (c.force_limit) 18.5 % of the recorded time (from t ~ 0.5 s; at most 0.36 s on end)" in flag.message
+
+
+def test_the_step_a_refusal_advises_is_within_the_limit():
+    # the advice was "a step below 2.001 ms" for a limit of 2.00093 ms: a step written as
+    # shown was beyond it, and one at exactly the limit runs; now the advice is rounded down
+    limits = np.r_[2.00093e-3, 1.372e-3, np.random.default_rng(7).uniform(1e-4, 0.05, 500)]
+    for limit in limits:
+        advised = float(flags._ms(limit, down=True).removesuffix(" ms")) * 1e-3
+        assert advised <= limit * (1 + 1e-9) and advised > limit * (1 - 1e-3)   # as Prediction.beyond
+    assert flags._ms(2.00093e-3, down=True) == "2 ms" and flags._ms(2.00093e-3) == "2.001 ms"
