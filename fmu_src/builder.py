@@ -14,6 +14,7 @@ import argparse
 import hashlib
 import importlib
 import json
+import logging
 import os
 import pathlib
 import subprocess
@@ -35,6 +36,7 @@ from movingbase.fmu_src import atomic, native_build
 ROOT = pathlib.Path(__file__).resolve().parent.parent   # the checkout, or site-packages
 PYPROJECT = ROOT / "pyproject.toml"
 OUT = (ROOT if PYPROJECT.exists() else pathlib.Path.cwd()) / "build" / "fmu"
+LOG = logging.getLogger("movingbase.build")    # each build as it starts (scenarios.runner says it on stderr)
 SHIM = ROOT / "fmu_src" / "pythonfmu_shim.c"
 SCRIPTS = ("hexapod_plant_fmu", "telescope_fmu", "leg_controller_fmu", "mechanism3t_fmu", "slider_controller_fmu",
            "leg_sensor_fmu", "base_sensor_fmu", "wind_fmu")
@@ -257,6 +259,7 @@ def ensure_built(scripts, out=OUT):
     for script in scripts:
         paths[script] = stamped(out / f"{script}.built", newest)
         if paths[script] is None:
+            LOG.info("building the pythonfmu FMU of %s (a first build takes ~10 s)", script)
             _import_path()
             paths[script] = build(script, out)
             write_stamp(out / f"{script}.built", paths[script])

@@ -267,6 +267,7 @@ def ensure_native(scripts, out=None):
     for script in scripts:
         target = out / python[script].name
         if not (target.exists() and target.stat().st_mtime >= max(newest, python[script].stat().st_mtime)):
+            builder.LOG.info("building the native FMI 2.0 FMU of %s", script)
             build_native(python[script], out)
         paths[script] = target
     return paths
@@ -528,6 +529,7 @@ def ensure_native3(scripts, out=None):
         target = out / native[script].name
         newest = max(native[script].stat().st_mtime, (NATIVE / "fmi3_layer.c").stat().st_mtime)
         if not (target.exists() and target.stat().st_mtime >= newest):
+            builder.LOG.info("building the native FMI 3.0 FMU of %s", script)
             build_native3(native[script], out)
         paths[script] = target
     return paths

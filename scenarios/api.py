@@ -71,6 +71,7 @@ def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = Non
                                      "scenario file only (load_scenario(path, set=..., ci=...)), not to a Scenario "
                                      "object; change its fields with dataclasses.replace")
         loaded = spec.parse_data(copy.deepcopy(spec.as_data(scenario)), scenario.source)
+        loaded.short = scenario.short
     elif not isinstance(scenario, (str, os.PathLike)):
         raise TypeError(f"scenario must be a shipped name, a file path or a Scenario, got "
                         f"{type(scenario).__name__} {scenario!r:.60}")
@@ -82,6 +83,7 @@ def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = Non
         overrides = {**(loaded.ci if ci else {}), **top}
         if overrides:
             loaded = spec.load(path, overrides=overrides)
+        loaded.short = bool(ci)
     for key, value in set.items():
         if "." not in key:
             continue
@@ -316,10 +318,9 @@ def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: boo
     then every run is flagged. Nothing is written to disk unless ``out`` is given: then
     the files of ``movingbase run --out OUT`` (OUT/<file stem>/)."""
     loaded = load_scenario(scenario, set=set, ci=ci)
-    if progress:
-        print(f"{loaded.name}: checking the scenario, building FMUs that are missing or stale", flush=True)
-    prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation, out)
-    before = runner.pre_run_flags(prepared, paths, descriptions, values, ci, allow_unstable)
+    with runner.announcing_builds(progress):
+        prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation, out)
+    before = runner.pre_run_flags(prepared, paths, descriptions, values, loaded.short, allow_unstable)
     outdir = None if out is None else runner.output_folder(out, prepared.source)
     earlier, started = outdir is not None and runner.replaced(outdir), time.time()
     if earlier:

@@ -1,9 +1,11 @@
 """Run a scenario file end to end: check it, build the FMUs it needs, co-simulate each
 sweep value with a progress bar, and write results, charts and the report. A run an FMU
 stops is kept with its partial results and marked; the other sweep values still run."""
+import contextlib
 import difflib
 import fcntl
 import json
+import logging
 import os
 import pathlib
 import sys
@@ -137,6 +139,25 @@ def left_over(folder, since):
     return f"{folder}: {shown} from the earlier run are not this run's (it wrote no such file); delete them"
 
 
+@contextlib.contextmanager
+def announcing_builds(on=True):
+    """While it lasts, every FMU build (the builders' "movingbase.build" log) is said on
+    stderr as it starts: a first build takes seconds, and nothing is said when none is due."""
+    if not on:
+        yield
+        return
+    said = logging.StreamHandler(sys.stderr)
+    said.setFormatter(logging.Formatter("%(message)s"))
+    log = logging.getLogger("movingbase.build")
+    level, log.level = log.level, logging.INFO
+    log.addHandler(said)
+    try:
+        yield
+    finally:
+        log.removeHandler(said)
+        log.setLevel(level)
+
+
 def prepare(path, ci=False, implementation=None, out=None, fmi_version=None):
     """Scenario, FMU paths per instance and checked parameter values: all checks done
     before anything runs. ``ci`` applies the file's [ci] overrides (a shorter run);
@@ -147,6 +168,7 @@ def prepare(path, ci=False, implementation=None, out=None, fmi_version=None):
     told = spec.sources_of(scenario.ci, "the value of [ci], for --ci") if ci else {}
     if told:
         scenario = spec.load(path, overrides=scenario.ci, told_as=told)
+    scenario.short = bool(ci)
     try:
         return prepare_loaded(scenario, implementation, out, fmi_version)
     except spec.ScenarioError as exc:
@@ -216,10 +238,8 @@ def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None,
     ``implementation`` and ``fmi_version`` as in prepare; ``charts`` as report.write. A step beyond the
     predicted stability limit (each run's own, pre_run_flags) is refused (ScenarioError) unless
     ``allow_unstable``; then the runs beyond their limit are flagged."""
-    if progress:
-        print(f"{pathlib.Path(str(path)).stem}: checking the scenario, building FMUs that are missing or stale "
-              "(a first build takes ~10 s)", file=sys.stderr, flush=True)
-    scenario, paths, descriptions, values = prepare(resolve(path), ci, implementation, out, fmi_version)
+    with announcing_builds(progress):
+        scenario, paths, descriptions, values = prepare(resolve(path), ci, implementation, out, fmi_version)
     before = pre_run_flags(scenario, paths, descriptions, values, ci, allow_unstable)
     outdir = output_folder(out, scenario.source)
     earlier, started = replaced(outdir), time.time()

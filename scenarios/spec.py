@@ -332,6 +332,7 @@ class Scenario:
     notes: list = field(default_factory=list)  # what the runner decided (shown in the report)
     implementations: dict = field(default_factory=dict)  # instance -> one of IMPLEMENTATIONS
     fmi_versions: dict = field(default_factory=dict)     # instance -> one of FMI_VERSIONS
+    short: bool = False         # its [ci] settings applied: a run cut short on purpose, not motion_unfinished
 
 
 def _time_span(step):

@@ -374,3 +374,32 @@ def test_runs_by_position_and_key_completion(cut_short):
     keys = result[0]._ipython_key_completions_()
     assert "plant.pose" in keys and "plant.pose[1]" in keys
     assert result[0]["plant.pose"].shape[1] == 6
+
+
+def test_a_scenario_loaded_for_ci_keeps_its_short_run_when_run():
+    # load_scenario(ci=True) then run(scenario): run() checked it as a full run, and the slew its
+    # [ci] stop time cuts on purpose was flagged motion_unfinished (the ci path never is); a
+    # copy (dataclasses.replace, a Scenario reloaded) keeps it too
+    import dataclasses
+    short = movingbase.load_scenario("telescope_slew", ci=True, set={"stop_time": "5.1 s"})
+    assert short.short and movingbase.load_scenario(dataclasses.replace(short, step=short.step)).short
+    ran = movingbase.run(short, progress=False)
+    assert ran.ok and all(r.flags == [] for r in ran)
+    full = movingbase.load_scenario("telescope_slew", set={"stop_time": "5.1 s"})
+    with pytest.warns(movingbase.RunWarning, match="motion_unfinished"):
+        assert not movingbase.run(full, progress=False).ok    # the same cut, asked as a full run
+
+
+def test_a_build_is_said_as_it_starts_and_nothing_when_none_is_due(tmp_path, capsys):
+    from movingbase.fmu_src.builder import ensure_built
+    from movingbase.fmu_src.native_build import ensure_native
+    ensure_built(["leg_sensor_fmu"])      # the pythonfmu FMU it is made from: built (if due) before
+    with runner.announcing_builds():
+        built = ensure_native(["leg_sensor_fmu"], out=tmp_path)["leg_sensor_fmu"]   # missing there: built
+        ensure_native(["leg_sensor_fmu"], out=tmp_path)      # up to date: nothing to say
+    said = capsys.readouterr().err.splitlines()
+    assert said == ["building the native FMI 2.0 FMU of leg_sensor_fmu"]
+    with runner.announcing_builds(False):
+        built.unlink()
+        ensure_native(["leg_sensor_fmu"], out=tmp_path)
+    assert capsys.readouterr().err == ""
