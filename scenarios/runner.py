@@ -299,6 +299,7 @@ def write_results(scenario, runs, outdir, charts="all"):
     the report's path."""
     summary = {r.label: {"metrics": r.metrics, "wall_time_s": r.wall_time, "steps": r.steps,
                          "real_time_factor": r.real_time_factor, **({"failed": r.failure} if r.failure else {}),
+                         **({"ci": True} if scenario.short else {}),     # a short run: no full run's numbers
                          "flags": flags.as_dicts(r.flags)}
                for r in runs}
     outdir.mkdir(parents=True, exist_ok=True)

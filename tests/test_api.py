@@ -403,3 +403,20 @@ def test_a_build_is_said_as_it_starts_and_nothing_when_none_is_due(tmp_path, cap
         built.unlink()
         ensure_native(["leg_sensor_fmu"], out=tmp_path)
     assert capsys.readouterr().err == ""
+
+
+def test_the_headline_refuses_the_metrics_of_ci_runs(cli, tmp_path):
+    # `movingbase headline --from` a folder of --ci runs rewrote the README's headline from
+    # runs cut short on purpose (and unflagged for it); their metrics.json says they are --ci
+    from movingbase.scenarios import headline
+    written = json.loads((cli / "metrics.json").read_text())
+    assert all(entry["ci"] is True for entry in written.values())
+    for scene in headline.SCENES:
+        (tmp_path / scene).mkdir()
+        (tmp_path / scene / "metrics.json").write_text(json.dumps(written))
+    with pytest.raises(headline.Flagged, match=r"a --ci run \(its \[ci\] settings"):
+        headline.collect(tmp_path)
+    full = {run: {k: v for k, v in entry.items() if k != "ci"} for run, entry in written.items()}
+    for scene in headline.SCENES:
+        (tmp_path / scene / "metrics.json").write_text(json.dumps(full))
+    assert set(headline.collect(tmp_path)) == set(headline.SCENES)    # the same numbers from full runs are taken
