@@ -647,9 +647,11 @@ def retold(error, sources):
 
 
 # ------------------------------------------------------------------- binding to the FMUs
-def _enumeration(description):
-    """{'slew': 0, ...} from an Integer parameter's description '... 0 slew, 1 sidereal'."""
-    return {name: int(i) for i, name in re.findall(r"(\d+) ([A-Za-z_][\w-]*)", description or "")}
+def _enumeration(var):
+    """{'slew': 0, ...}: the items an Enumeration variable's type declares ({} for any
+    other type: an Integer's description is prose, whose words ('+1 or -1') are no names)."""
+    items = var.declaredType.items if var.type == "Enumeration" and var.declaredType else ()
+    return {item.name: int(item.value) for item in items}
 
 
 def expand(md_variables, reference):
@@ -993,7 +995,7 @@ def _check_telescope(src, key, scenario, inst, md_variables, values, written):
                          f"{n} = {setting(n):.6g} {md_variables[n].unit or ''} (default)".replace("  ", " ")
                          for n in names)
 
-    profiles = _enumeration(md_variables["profile"].description)
+    profiles = _enumeration(md_variables["profile"])
     profile = next((p for p, i in profiles.items() if i == setting("profile")), None)
     names = {"slew": ("start_azimuth", "start_elevation", "target_azimuth", "target_elevation"),
              "sidereal": ("right_ascension", "declination", "utc_start", "latitude", "longitude"),
@@ -1035,7 +1037,7 @@ def _value(source, key, var, raw):
     """raw converted for var (SI float or integer index), within the FMU's declared range."""
     raw = plain(raw)
     if var.type in ("Integer", "Enumeration"):
-        choices = _enumeration(var.description)
+        choices = _enumeration(var)
         if isinstance(raw, str) and raw in choices:
             return choices[raw]
         if choices and (isinstance(raw, str) or raw not in choices.values()):

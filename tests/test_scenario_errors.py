@@ -448,3 +448,19 @@ def test_linear_extrapolation_against_a_ramp(descriptions, fmus, tmp_path):
     lead = yaw["linear"][cruise, 1] - yaw["linear"][cruise - 1, 0]
     np.testing.assert_allclose(lead, 0.5 * h * rate, rtol=0, atol=1e-12)          # +h/2 of the ramp
     np.testing.assert_allclose(yaw["gauss-seidel"][cruise, 1], yaw["gauss-seidel"][cruise, 0], rtol=0, atol=0)
+
+
+def test_an_integer_parameter_s_description_gives_no_names():
+    # the 3T plant's mode ('assembly mode, +1 or -1: ...'): its documented -1 was refused with
+    # "-1 is not one of or (or their numbers: 1 or)", the description's words read as names;
+    # names come from an Enumeration's declared items only
+    import movingbase
+    for value in (-1, 1):
+        scenario = movingbase.load_scenario("mechanism3t_paper", set={"plant.mode": value})
+        assert runner.prepare_loaded(scenario)[3]["plant"]["mode"] == value
+    with pytest.raises(spec.ScenarioError, match=r"'two' is not one of the allowed values: .*an integer|\[-1, 1\]") \
+            as refusal:
+        runner.prepare_loaded(movingbase.load_scenario("mechanism3t_paper", set={"plant.mode": "two"}))
+    assert "not one of or" not in str(refusal.value)
+    scenario = movingbase.load_scenario("keyhole_tracking")         # profile = "sidereal"
+    assert runner.prepare_loaded(scenario)[3]["base"]["profile"] == 1     # an Enumeration's names still count
