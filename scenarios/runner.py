@@ -3,6 +3,7 @@ sweep value with a progress bar, and write results, charts and the report. A run
 stops is kept with its partial results and marked; the other sweep values still run."""
 import contextlib
 import difflib
+import errno
 import fcntl
 import json
 import logging
@@ -106,14 +107,28 @@ def make_folder(folder):
     folder = pathlib.Path(_named(folder))
     try:
         folder.mkdir(parents=True, exist_ok=True)
-    except (FileExistsError, NotADirectoryError):
-        blocker = next(p for p in (folder, *folder.parents) if p.exists() and not p.is_dir())
-        raise OutputError(f"output folder {folder}: {blocker} is a file, not a folder; choose another folder") from None
     except OSError as exc:
-        raise OutputError(f"output folder {folder}: cannot be created ({exc.strerror})") from None
+        said = _blocker(folder) or f"cannot be created ({exc.strerror})"
+        raise OutputError(f"output folder {folder}: {said}; choose another folder") from None
     if not os.access(folder, os.W_OK | os.X_OK):
         raise OutputError(f"output folder {folder}: not writable; choose another folder")
     return folder
+
+
+def _blocker(folder):
+    """What stands where ``folder`` (or a folder above it) should be: a file, a link to
+    nothing, a link loop; None if nothing does."""
+    for path in (folder, *folder.parents):
+        if path.is_symlink() and not path.exists():
+            try:
+                path.resolve(strict=True)
+            except (RuntimeError, OSError) as exc:    # a loop: RuntimeError, or ELOOP from Python 3.13
+                if isinstance(exc, RuntimeError) or exc.errno == errno.ELOOP:
+                    return f"{path} is a symbolic link in a loop, not a folder"
+                return f"{path} is a symbolic link to {os.readlink(path)}, which does not exist"
+        if path.exists() and not path.is_dir():
+            return f"{path} is a file, not a folder"
+    return None
 
 
 def replaced(folder):

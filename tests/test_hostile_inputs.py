@@ -532,3 +532,15 @@ def test_files_an_earlier_run_left_that_this_one_did_not_rewrite_are_named(tmp_p
     status, _, err = _cli(tmp_path, "paper_manoeuvre", "--ci", "--quiet", "--charts", "none", "--out", tmp_path / "o")
     assert status == 0 and charts and all(name in err for name in charts) and "are not this run's" in err, err
     assert "metrics.json" not in err.splitlines()[-1] and "report.md" not in err.splitlines()[-1], err
+
+
+@pytest.mark.parametrize("make, said", [
+    (lambda d: (d / "out").symlink_to(d / "nowhere"), "out is a symbolic link to "),
+    (lambda d: (d / "out").symlink_to(d / "out"), "out is a symbolic link in a loop, not a folder"),
+    (lambda d: (d / "out").write_text(""), "out is a file, not a folder")])
+def test_an_output_folder_behind_a_dangling_link_or_a_loop_is_refused_naming_it(make, said, tmp_path):
+    # --out or report() onto a dangling symlink or a symlink loop ended in a bare StopIteration
+    make(tmp_path)
+    for folder in (tmp_path / "out", tmp_path / "out" / "deeper"):
+        with pytest.raises(runner.OutputError, match=f"output folder {folder}: {tmp_path / said}"):
+            runner.make_folder(folder)
