@@ -52,6 +52,14 @@ def _pandas() -> Any:
 
 
 # ------------------------------------------------------------------------ loading
+def _flags_given(**given: Any) -> None:
+    """Each of ``given`` is True or False (numpy's too), as a command-line switch is: a
+    string such as "false" or "no" would be taken as true and run what was not asked for."""
+    for name, value in given.items():
+        if not isinstance(value, (bool, np.bool_)):
+            raise TypeError(f"{name} must be True or False, got {type(value).__name__} {value!r:.60}")
+
+
 def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None,
                   ci: bool = False) -> spec.Scenario:
     """A checked Scenario from a shipped name, a file path or a Scenario (copied, the
@@ -61,6 +69,7 @@ def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = Non
     through the checks of a value written in the file (units, ranges, the model's own
     refusals) when the scenario is bound (``run``). ``ci`` applies the file's [ci] section.
     A Scenario's fields (changed in Python) are checked as the same values in a file."""
+    _flags_given(ci=ci)
     source = scenario.source if isinstance(scenario, spec.Scenario) else str(scenario)
     set = _overrides(source, set)
     top = {k: v for k, v in set.items() if "." not in k}
@@ -317,6 +326,7 @@ def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: boo
     the predicted stability limit is refused (ScenarioError) unless ``allow_unstable``;
     then every run is flagged. Nothing is written to disk unless ``out`` is given: then
     the files of ``movingbase run --out OUT`` (OUT/<file stem>/)."""
+    _flags_given(ci=ci, progress=progress, allow_unstable=allow_unstable)
     loaded = load_scenario(scenario, set=set, ci=ci)
     with runner.announcing_builds(progress):
         prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation, out)
@@ -391,6 +401,7 @@ def campaign(path: str | os.PathLike[str], *, out: str | os.PathLike[str] = "out
     """Run a campaign file as ``movingbase campaign`` does: on ``jobs`` worker processes,
     results in a store under out/<name>/ (so a campaign always writes: an interrupted one
     resumes, a finished one is read back)."""
+    _flags_given(ci=ci, progress=progress)
     warning = resources.check_jobs(jobs)     # 0 once meant "all cores", silently
     if warning:
         print(warning, flush=True)

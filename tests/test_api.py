@@ -420,3 +420,18 @@ def test_the_headline_refuses_the_metrics_of_ci_runs(cli, tmp_path):
     for scene in headline.SCENES:
         (tmp_path / scene / "metrics.json").write_text(json.dumps(full))
     assert set(headline.collect(tmp_path)) == set(headline.SCENES)    # the same numbers from full runs are taken
+
+
+@pytest.mark.parametrize("call, argument", [
+    (lambda v: movingbase.run(NAME, ci=v, progress=False), "ci"),
+    (lambda v: movingbase.run(NAME, ci=True, progress=False, allow_unstable=v), "allow_unstable"),
+    (lambda v: movingbase.run(NAME, ci=True, progress=v), "progress"),
+    (lambda v: movingbase.load_scenario(NAME, ci=v), "ci"),
+    (lambda v: movingbase.campaign("slew_sizes", ci=v), "ci")])
+@pytest.mark.parametrize("value", ["false", "no", 0, None])
+def test_a_switch_given_as_anything_but_true_or_false_is_refused(call, argument, value, tmp_path, monkeypatch):
+    # ci="false" ran the [ci] version and allow_unstable="no" ran beyond the limit (both true)
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(TypeError, match=f"{argument} must be True or False, got "):
+        call(value)
+    assert not (tmp_path / "out").exists()       # refused before anything ran or was written
