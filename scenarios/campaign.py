@@ -131,6 +131,9 @@ def parse(text, source="<string>", base_dir=".", ci=False):
     """Campaign from TOML text (``ci``: apply its [ci] replacements); the base scenario
     is loaded and every key and value checked against it and its FMUs."""
     data = spec.read_toml(text, source, CampaignError)
+    if "fmus" in data and "scenario" not in data:    # not a wall of unknown keys: the other kind of file
+        raise CampaignError(source, "file", "this is a scenario file (it has [fmus] and names no scenario), not "
+                                            "a campaign: run it with `movingbase run FILE` (movingbase.run)")
     problems = spec._Problems(CampaignError)
     for key, problem in spec.unknown_keys(set(data) - set(_TOP), _TOP):
         problems.errors.append(CampaignError(source, key, problem))

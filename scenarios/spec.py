@@ -396,6 +396,10 @@ def parse_data(data, source="<string>", overrides=None):
     if not data:
         raise ScenarioError(source, "file", f"empty (no TOML keys): {needs}")
     data = merged(data, overrides)
+    if "scenario" in data and "fmus" not in data:    # not a wall of unknown keys: the other kind of file
+        raise ScenarioError(source, "file", "this is a campaign file (it names a scenario and has no [fmus]), "
+                                            "not a scenario: run it with `movingbase campaign FILE` "
+                                            "(movingbase.campaign)")
     problems = _Problems()
     for key, problem in unknown_keys(set(data) - _TOP_KEYS, sorted(_TOP_KEYS)):
         problems.errors.append(ScenarioError(source, key, problem))

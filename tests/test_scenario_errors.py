@@ -464,3 +464,18 @@ def test_an_integer_parameter_s_description_gives_no_names():
     assert "not one of or" not in str(refusal.value)
     scenario = movingbase.load_scenario("keyhole_tracking")         # profile = "sidereal"
     assert runner.prepare_loaded(scenario)[3]["base"]["profile"] == 1     # an Enumeration's names still count
+
+
+def test_a_campaign_file_run_as_a_scenario_and_the_reverse_are_told_which_file_they_are():
+    # each was a wall of unknown and missing keys (8 lines), naming neither kind of file
+    import movingbase
+    from movingbase.scenarios import campaign
+    shipped_campaign = runner.SHIPPED.parent / "campaigns" / "slew_sizes.toml"
+    with pytest.raises(spec.ScenarioError) as as_scenario:
+        movingbase.load_scenario(shipped_campaign)
+    assert [p for _, _, p in as_scenario.value.problems] == [
+        "this is a campaign file (it names a scenario and has no [fmus]), not a scenario: run it with "
+        "`movingbase campaign FILE` (movingbase.campaign)"]
+    with pytest.raises(campaign.CampaignError) as as_campaign:
+        campaign.load(runner.resolve("telescope_slew"))
+    assert len(as_campaign.value.problems) == 1 and "this is a scenario file" in str(as_campaign.value)
