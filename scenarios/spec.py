@@ -676,10 +676,16 @@ def _check_derivatives(scenario, model_descriptions):
     giving = [inst for inst in sources if model_descriptions[inst].fmiVersion.startswith("3")
               and int(model_descriptions[inst].coSimulation.maxOutputDerivativeOrder or 0) > 0]
     if not giving:
+        telescopes = [inst for inst in sources if scenario.fmus.get(inst) == "telescope"]
+        if telescopes and all(scenario.implementations.get(t) == "python" for t in telescopes):
+            cause = ("the telescope instance is the pythonfmu FMU (implementation python, as "
+                     "--implementation python makes every instance), an FMI 2.0 FMU, which gives none: "
+                     "run it native with fmi_version = 3")
+        else:
+            cause = "set fmi_version = 3 on the telescope instance (the FMU that gives them)"
         raise ScenarioError(scenario.source, "extrapolation",
                             '"derivatives" takes the output derivatives of FMI 3 FMUs that give them, and no '
-                            "connection starts at one: set fmi_version = 3 on the telescope instance (the FMU "
-                            'that gives them), or use "linear"')
+                            f'connection starts at one: {cause}, or use "linear"')
 
 
 def bind(scenario, model_descriptions):

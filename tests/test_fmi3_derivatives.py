@@ -199,6 +199,12 @@ def test_extrapolation_derivatives_needs_a_source_that_gives_them(tmp_path):
         runner.prepare(scene)
     scene.write_text(text.replace("[fmus.base]", "[fmus.base]\nfmi_version = 3"))
     assert runner.prepare(scene)[0].extrapolation == "derivatives"
+    # --implementation python with fmi_version = 3 already set: told to set it (the cause is the
+    # pythonfmu telescope, FMI 2.0); now told so
+    with pytest.raises(runner.spec.ScenarioError, match=r"extrapolation: .*the telescope instance is the pythonfmu "
+                                                         r"FMU \(implementation python.*run it native with fmi_") as told:
+        runner.prepare(scene, implementation="python")
+    assert "set fmi_version = 3" not in str(told.value)
 
 
 def test_a_step_beyond_the_limit_is_refused_with_derivatives_as_with_linear(tmp_path):
