@@ -65,7 +65,8 @@ def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = Non
     """A checked Scenario from a shipped name, a file path or a Scenario (copied, the
     argument is left as it is). ``set`` overrides values as the file would give them:
     ``{"base.start_elevation": "60 deg"}`` sets an FMU instance's parameter,
-    ``{"stop_time": "10 s"}`` a top-level key (names and files only); every value goes
+    ``{"stop_time": "10 s"}`` a top-level key (names and files only); a bare number is SI
+    (``1.0`` for an angle is 1 rad, 57.3 deg: write ``"60 deg"``); every value goes
     through the checks of a value written in the file (units, ranges, the model's own
     refusals) when the scenario is bound (``run``). ``ci`` applies the file's [ci] section.
     A Scenario's fields (changed in Python) are checked as the same values in a file."""
@@ -321,7 +322,8 @@ def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: boo
         implementation: str | None = None, out: str | os.PathLike[str] | None = None,
         progress: bool = True, allow_unstable: bool = False) -> Result:
     """Run a scenario (a shipped name, a file path or a Scenario) as ``movingbase run``
-    does, every sweep value; ``set`` and ``ci`` as in ``load_scenario``;
+    does, every sweep value; ``set`` and ``ci`` as in ``load_scenario`` (a bare number in
+    ``set`` is SI: ``1.0`` for an angle is 1 rad; write ``"60 deg"``);
     ``implementation`` ("native" or "python") for every FMU. A communication step beyond
     the predicted stability limit is refused (ScenarioError) unless ``allow_unstable``;
     then every run is flagged. Nothing is written to disk unless ``out`` is given: then

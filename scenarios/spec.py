@@ -1063,9 +1063,21 @@ def _value(source, key, var, raw):
     if (low is not None and value < low) or (high is not None and value > high):
         converted = isinstance(raw, str) and split(raw)[1] not in (None, var.unit)
         shown = f"{raw!r} = {value:.6g} {var.unit or ''}".rstrip() if converted else repr(raw)
+        hint = ""
+        if _bare(raw) and var.unit:     # the rule (scenarios.units): a bare number is SI
+            number = float(raw) if not isinstance(raw, str) else split(raw)[0]
+            other = {"rad": "deg", "rad/s": "deg/s", "rad/s2": "deg/s2", "m": "mm"}.get(var.unit)
+            hint = (f" (a bare number is SI: {number:g} {var.unit}" +
+                    (f"; for {other} write '{number:g} {other}'" if other else "") + ")")
         raise ScenarioError(source, key, f"{shown} is outside the range of {var.name} declared by the FMU: "
-                            f"{_range_text(var, raw)}")
+                            f"{_range_text(var, raw)}{hint}")
     return value
+
+
+def _bare(raw):
+    """A number written without a unit (a number, or text of one)."""
+    return (isinstance(raw, (int, float)) and not isinstance(raw, bool)) or (isinstance(raw, str) and
+                                                                             split(raw)[1] is None)
 
 
 def _limits(var):

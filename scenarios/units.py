@@ -1,14 +1,18 @@
 """Quantities as people write them in scenario files ("1 ms", "30 deg", "2681.5 mm"),
-converted to SI at the edge. A bare number is taken as SI; the unit a variable declares
-is always accepted for it ("1.225 kg/m3" for a density in kg/m3); the micro prefix may
-be written u, µ (micro sign) or μ (Greek mu)."""
+converted to SI at the edge. The rule: a bare number is SI (seconds, metres, radians,
+newtons), as it is to the FMUs and in Python (numbers from numpy), and a value refused
+for its range says so with the unit to write ("60" for an angle: "write '60 deg'",
+scenarios.spec); the unit a variable declares is always accepted for it ("1.225 kg/m3"
+for a density in kg/m3). Units are written as in UNITS, in SI case ("mm" is not "Mm"); the micro prefix
+may be written u, µ (micro sign) or μ (Greek mu), and the unit words of WORDS in any
+case, singular or plural ("60°", "60 Deg", "60 degrees")."""
 import math
 import re
 
 # unit -> (SI factor, dimension)
 UNITS = {
     "s": (1.0, "s"), "ms": (1e-3, "s"), "us": (1e-6, "s"), "min": (60.0, "s"), "h": (3600.0, "s"),
-    "m": (1.0, "m"), "mm": (1e-3, "m"), "um": (1e-6, "m"), "µm": (1e-6, "m"),
+    "m": (1.0, "m"), "mm": (1e-3, "m"), "um": (1e-6, "m"),
     "rad": (1.0, "rad"), "deg": (math.pi / 180, "rad"), "mrad": (1e-3, "rad"), "urad": (1e-6, "rad"),
     "N": (1.0, "N"), "kN": (1e3, "N"),
     "m/s": (1.0, "m/s"), "mm/s": (1e-3, "m/s"),
@@ -18,7 +22,13 @@ UNITS = {
     "N/m": (1.0, "N/m"), "N/(m.s)": (1.0, "N/(m.s)"), "N.s/m": (1.0, "N.s/m"),
     "Hz": (1.0, "1/s"),
 }
-_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(\S+)?\s*$")
+# unit words, in any case and singular or plural, and the units they stand for
+WORDS = {"°": "deg", "degree": "deg", "degrees": "deg", "deg": "deg", "rad": "rad", "radian": "rad", "radians": "rad",
+         "°/s": "deg/s", "degree/s": "deg/s", "degrees/s": "deg/s", "°/s2": "deg/s2",
+         "second": "s", "seconds": "s", "sec": "s", "millisecond": "ms", "milliseconds": "ms",
+         "meter": "m", "meters": "m", "metre": "m", "metres": "m",
+         "millimeter": "mm", "millimeters": "mm", "millimetre": "mm", "millimetres": "mm"}
+_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(°(?:/s2?)?|\S+)?\s*$")
 
 
 _MICRO = re.compile("^[\u00b5\u03bc]")
@@ -34,6 +44,13 @@ class UnitError(ValueError):
 def units_of(dimension):
     """The units written for an SI dimension, e.g. 'rad, deg, mrad, urad' for "rad"."""
     return ", ".join(u for u, (_, d) in UNITS.items() if d == dimension) or dimension
+
+
+def spelled(unit):
+    """The UNITS name of a unit as written: micro as u ("µm", "μm"), a unit word in any case
+    or number ("Deg", "degrees", "°"); anything else as it is (refused if not in UNITS)."""
+    unit = _MICRO.sub("u", unit)
+    return WORDS.get(unit.lower(), unit) if unit not in UNITS else unit
 
 
 def split(value):
@@ -59,7 +76,7 @@ def to_si(value, dimension=None):
         if unit is not None and unit == dimension:
             pass                                   # the variable's own unit
         elif unit is not None:
-            unit = _MICRO.sub("u", unit) if _MICRO.sub("u", unit) in UNITS else unit
+            unit = spelled(unit)
             expected = f"; expected a quantity in {dimension} ({units_of(dimension)})" if dimension else ""
             if unit not in UNITS:
                 raise UnitError(f"unknown unit {unit!r} in {value!r}{expected or '; known: ' + ', '.join(UNITS)}")

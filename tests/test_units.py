@@ -12,7 +12,7 @@ from movingbase.scenarios.units import UnitError, to_si
 DEFINITIONS = {
     "s": (1.0, "s"), "ms": (constants.milli, "s"), "us": (constants.micro, "s"), "min": (constants.minute, "s"),
     "h": (constants.hour, "s"),
-    "m": (1.0, "m"), "mm": (constants.milli, "m"), "um": (constants.micro, "m"), "µm": (constants.micro, "m"),
+    "m": (1.0, "m"), "mm": (constants.milli, "m"), "um": (constants.micro, "m"),
     "rad": (1.0, "rad"), "deg": (constants.degree, "rad"), "mrad": (constants.milli, "rad"),
     "urad": (constants.micro, "rad"),
     "N": (1.0, "N"), "kN": (constants.kilo, "N"),
@@ -46,6 +46,39 @@ def test_bare_numbers_are_si_and_other_forms_are_refused():
                          ([1], "expected a number or a quantity string"), ("1e999 m", "is not a finite number")):
         with pytest.raises(UnitError, match=problem):
             to_si(bad, "m")
+
+
+@pytest.mark.parametrize("written, unit", [
+    ("2 µm", "um"), ("2 μm", "um"), ("2 um", "um"), ("2 µrad", "urad"), ("2 μs", "us"),
+    ("2°", "deg"), ("2 °", "deg"), ("2 Deg", "deg"), ("2 DEG", "deg"), ("2 degree", "deg"), ("2 degrees", "deg"),
+    ("2 Radians", "rad"), ("2 °/s", "deg/s"), ("2 °/s2", "deg/s2"), ("2 seconds", "s"), ("2 metres", "m"),
+    ("2 Millimeters", "mm")])
+def test_the_obvious_spellings_are_the_units_they_spell(written, unit):
+    # "60°", "60 Deg" and "60 degree" were refused; "µm" had an entry of its own that µ -> u made
+    # unreachable: every spelling of micro is one path to the u unit now
+    factor, dimension = DEFINITIONS[unit]
+    assert to_si(written, dimension) == pytest.approx(2 * factor, rel=1e-15)
+
+
+def test_si_case_is_kept_where_it_tells_units_apart():
+    for written in ("1 Mm", "1 MS", "1 Ms", "1 n"):       # megametre, not millimetre; and so on
+        with pytest.raises(UnitError, match="unknown unit"):
+            to_si(written)
+
+
+@pytest.mark.parametrize("value, taken", [(60, 60.0), ("60", 60.0), (" 100 ", 100.0), (-2, -2.0)])
+def test_a_bare_number_is_si_and_a_refusal_of_one_says_what_to_write(value, taken):
+    # 60 for an elevation was refused with no hint to write "60 deg": the rule (a bare number
+    # is SI) is said with the refusal, and the unit to write
+    import movingbase
+    with pytest.raises(spec.ScenarioError, match=f"start_elevation: {value!r} is outside the range .*"
+                                                 rf"\(a bare number is SI: {taken:g} rad; for deg write "
+                                                 f"'{taken:g} deg'\\)"):
+        runner.prepare_loaded(movingbase.load_scenario("telescope_slew", set={"base.start_elevation": value}))
+    bound = runner.prepare_loaded(movingbase.load_scenario("telescope_slew", set={
+        "base.start_elevation": 1.0, "base.target_elevation": "60°", "base.lever_arm": 20}))[3]
+    assert bound["base"]["start_elevation"] == 1.0 and bound["base"]["lever_arm"] == 20.0
+    assert bound["base"]["target_elevation"] == pytest.approx(constants.pi / 3)
 
 
 # dimension -> (shipped scenario, instance, parameter) that a user may set in that dimension
