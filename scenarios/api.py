@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import difflib
 import io
 import os
 import pathlib
@@ -99,13 +100,27 @@ def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = Non
             continue
         inst, name = key.split(".", 1)
         if inst not in loaded.fmus:
+            near = difflib.get_close_matches(inst, list(loaded.fmus), 1, 0.6)
             raise spec.ScenarioError(loaded.source, f"set[{key!r}]", f"unknown FMU instance {inst!r}; "
-                                     f"declared: {', '.join(loaded.fmus)} (top-level keys: no dot)")
+                                     + (f"did you mean {near[0]!r}? " if near else "")
+                                     + f"declared: {', '.join(loaded.fmus)} (top-level keys: no dot)")
         if loaded.sweep and loaded.sweep[0] == key:
             raise spec.ScenarioError(loaded.source, f"set[{key!r}]", "is the swept parameter; every run sets it "
                                      "from sweep.values")
         loaded.parameters[inst][name] = value
     return loaded
+
+
+def _as_set(error: spec.ScenarioError, given: Mapping[str, Any] | None) -> spec.ScenarioError:
+    """``error`` with each problem in a parameter that ``given`` (run's ``set``) set told as
+    ``set['inst.name']``, as set's own refusals are: the value is the caller's, not the file's."""
+    paths = {f"fmus.{k.split('.', 1)[0]}.parameters.{k.split('.', 1)[1]}": k for k in given or {} if "." in k}
+    told = []
+    for source, key, problem in error.problems:
+        path = next((p for p in paths if key == p or key.startswith(p + "[")), None)
+        told.append(spec.ScenarioError(source, key if path is None else f"set[{paths[path]!r}]{key[len(path):]}",
+                                       problem))
+    return spec.ScenarioError.joined(told)
 
 
 def _overrides(source: str, values: Any) -> dict[str, Any]:
@@ -330,8 +345,11 @@ def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: boo
     the files of ``movingbase run --out OUT`` (OUT/<file stem>/)."""
     _flags_given(ci=ci, progress=progress, allow_unstable=allow_unstable)
     loaded = load_scenario(scenario, set=set, ci=ci)
-    with runner.announcing_builds(progress):
-        prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation, out)
+    try:
+        with runner.announcing_builds(progress):
+            prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation, out)
+    except spec.ScenarioError as exc:
+        raise _as_set(exc, set) from None
     before = runner.pre_run_flags(prepared, paths, descriptions, values, loaded.short, allow_unstable)
     outdir = None if out is None else runner.output_folder(out, prepared.source)
     earlier, started = outdir is not None and runner.replaced(outdir), time.time()
