@@ -22,6 +22,7 @@ import difflib
 import io
 import os
 import pathlib
+import sys
 import time
 import warnings
 from collections.abc import Iterator, Mapping, Sequence
@@ -106,7 +107,8 @@ def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = Non
                                      + f"declared: {', '.join(loaded.fmus)} (top-level keys: no dot)")
         if loaded.sweep and loaded.sweep[0] == key:
             raise spec.ScenarioError(loaded.source, f"set[{key!r}]", "is the swept parameter; every run sets it "
-                                     "from sweep.values")
+                                     f"from sweep.values; to run one value: set={{'sweep': {{'parameter': {key!r}, "
+                                     f"'values': [{value!r}]}}}}")
         loaded.parameters[inst][name] = value
     return loaded
 
@@ -307,7 +309,7 @@ class Result:
         folder = runner.make_folder(path)
         earlier, started = runner.replaced(folder), time.time()
         if earlier:       # said, as the command says it
-            print(earlier, flush=True)
+            print(earlier, file=sys.stderr, flush=True)
         runs = []
         for run in self._runs:
             kept = self.runs[run.label].records
@@ -317,7 +319,7 @@ class Result:
             runs.append(run)
         written = runner.write_results(self.scenario, runs, folder)
         if earlier and runner.left_over(folder, started):
-            print(runner.left_over(folder, started), flush=True)
+            print(runner.left_over(folder, started), file=sys.stderr, flush=True)
         return written
 
     @property
@@ -354,11 +356,11 @@ def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: boo
     outdir = None if out is None else runner.output_folder(out, prepared.source)
     earlier, started = outdir is not None and runner.replaced(outdir), time.time()
     if earlier:
-        print(earlier, flush=True)
+        print(earlier, file=sys.stderr, flush=True)
     runs = runner.run_prepared(prepared, paths, descriptions, values, outdir, progress, before=before)
     result = Result(prepared, runs, runner.write_results(prepared, runs, outdir) if outdir else None)
     if earlier and runner.left_over(outdir, started):
-        print(runner.left_over(outdir, started), flush=True)
+        print(runner.left_over(outdir, started), file=sys.stderr, flush=True)
     for r in result:     # shown in a notebook as a warning: a failed run is no result
         if not r.ok:
             said = r.message if r.status == "failed" else f"flagged: {r.message}"
@@ -424,6 +426,6 @@ def campaign(path: str | os.PathLike[str], *, out: str | os.PathLike[str] = "out
     _flags_given(ci=ci, progress=progress)
     warning = resources.check_jobs(jobs)     # 0 once meant "all cores", silently
     if warning:
-        print(warning, flush=True)
+        print(warning, file=sys.stderr, flush=True)
     ran, job_list, store, _, summary = campaigns.run_campaign(path, out, ci=ci, jobs_=jobs, progress=progress)
     return CampaignResult(ran, job_list, store, summary)

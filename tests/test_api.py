@@ -100,7 +100,9 @@ def test_a_bad_set_value_is_refused_as_the_file_s_value_is(key, value, written, 
 
 @pytest.mark.parametrize("changes, problem", [
     ({"nobody.lever_arm": "1 m"}, "set['nobody.lever_arm']: unknown FMU instance 'nobody'"),
-    ({"controller.feedforward": "none"}, "is the swept parameter"),
+    ({"controller.feedforward": "none"}, "is the swept parameter; every run sets it from sweep.values; to run one "
+                                         "value: set={'sweep': {'parameter': 'controller.feedforward', 'values': "
+                                         "['none']}}"),
 ])
 def test_set_names_what_it_cannot_apply(changes, problem):
     with pytest.raises(spec.ScenarioError, match=problem.replace("[", r"\[").replace("]", r"\]")):
@@ -295,9 +297,10 @@ def test_report_into_a_file_or_an_empty_path_is_refused(result, tmp_path, capsys
     """report(path) onto a file ended in FileExistsError; report("") wrote into the current
     folder; a second report into one folder replaced the first without a word."""
     result.report(tmp_path / "twice")
-    assert capsys.readouterr().out == ""
+    assert capsys.readouterr() == ("", "")
     result.report(tmp_path / "twice")
-    assert "holds the results of an earlier run" in capsys.readouterr().out
+    said = capsys.readouterr()     # on stderr, as the CLI says it and the docs tell (it went to stdout)
+    assert "holds the results of an earlier run" in said.err and said.out == ""
     (tmp_path / "file").write_text("x")
     for path, problem in [(tmp_path / "file", "is a file, not a folder"), ("", "is empty"), (" ", "is empty"),
                           (123, "must be a path, got int")]:
