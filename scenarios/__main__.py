@@ -80,6 +80,9 @@ def _run(args, shipped):
     except (ResourceError, EngineError) as exc:
         sys.exit(f"command error: {exc}")
     if args.ssp:
+        if len(names) > 1:   # one file holds one scenario: the others were dropped without a word
+            sys.exit(f"command error: --ssp {args.ssp}: exports one scenario, {len(names)} given "
+                     f"({', '.join(names)}); run one --ssp per scenario")
         _export(args, names[0])
         return
     errors = []   # one line each; every scenario and every run is still tried

@@ -286,3 +286,12 @@ def test_command_line_exports_a_scenario(implementation, tmp_path, capsys):
     python = [any(f.endswith(".pythonfmu.so") for f in files) for files in inner]
     native = [any(f.startswith("sources/") and f.endswith(".c") for f in files) for files in inner]
     assert python == [implementation == "python"] * 3 and native == [implementation != "python"] * 3
+
+
+def test_two_scenarios_for_one_ssp_file_are_refused_naming_both(tmp_path):
+    """--ssp with two scenarios exported the first and dropped the second without a word."""
+    from movingbase.scenarios.__main__ import main
+    with pytest.raises(SystemExit, match=r"--ssp .*two.ssp: exports one scenario, 2 given \(telescope_slew, "
+                                         r"paper_manoeuvre\); run one --ssp per scenario"):
+        main(["telescope_slew", "paper_manoeuvre", "--ci", "--ssp", str(tmp_path / "two.ssp")])
+    assert not (tmp_path / "two.ssp").exists()
