@@ -164,7 +164,8 @@ def announcing_builds(on=True):
     said = logging.StreamHandler(sys.stderr)
     said.setFormatter(logging.Formatter("%(message)s"))
     log = logging.getLogger("movingbase.build")
-    level, log.level = log.level, logging.INFO
+    level = log.level
+    log.setLevel(logging.INFO)     # setLevel, not .level: it clears the logger's cache of what is enabled
     log.addHandler(said)
     try:
         yield

@@ -400,15 +400,17 @@ def test_a_build_is_said_as_it_starts_and_nothing_when_none_is_due(tmp_path, cap
     from movingbase.fmu_src.builder import ensure_built
     from movingbase.fmu_src.native_build import ensure_native
     ensure_built(["leg_sensor_fmu"])      # the pythonfmu FMU it is made from: built (if due) before
-    with runner.announcing_builds():
-        built = ensure_native(["leg_sensor_fmu"], out=tmp_path)["leg_sensor_fmu"]   # missing there: built
+    with runner.announcing_builds(False):     # a build not announced first (a run with progress off) ...
+        built = ensure_native(["leg_sensor_fmu"], out=tmp_path)["leg_sensor_fmu"]
+    assert capsys.readouterr().err == ""
+    built.unlink()
+    import logging
+    assert not logging.getLogger("movingbase.build").isEnabledFor(logging.INFO)   # as a build unannounced asks
+    with runner.announcing_builds():          # ... and the next announced one is said (the logger's cache)
+        ensure_native(["leg_sensor_fmu"], out=tmp_path)      # missing there: built
         ensure_native(["leg_sensor_fmu"], out=tmp_path)      # up to date: nothing to say
     said = capsys.readouterr().err.splitlines()
     assert said == ["building the native FMI 2.0 FMU of leg_sensor_fmu"]
-    with runner.announcing_builds(False):
-        built.unlink()
-        ensure_native(["leg_sensor_fmu"], out=tmp_path)
-    assert capsys.readouterr().err == ""
 
 
 def test_the_headline_refuses_the_metrics_of_ci_runs(cli, tmp_path):
