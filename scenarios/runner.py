@@ -47,7 +47,7 @@ def not_found(names):
     shipped = shipped_names()
     near = [difflib.get_close_matches(str(n).strip().lower(), shipped, 1, 0.6) for n in names]
     hints = "".join(f"; did you mean {m[0]!r} for {n!r}?" for n, m in zip(names, near) if m)
-    return (f"no scenario file or shipped scenario named {', '.join(map(repr, names))}{hints}; "
+    return (f"no scenario file or shipped scenario named {', '.join(repr(spec.shown(n)) for n in names)}{hints}; "
             f"shipped: {', '.join(shipped)}")
 
 

@@ -154,7 +154,7 @@ class ScenarioError(ValueError):
     (every problem found in the file, not only the first)."""
 
     def __init__(self, source, key, problem):
-        super().__init__(f"{source}: {key}: {problem}")
+        super().__init__(f"{shown(source)}: {key}: {problem}")
         self.problems = [(source, key, problem)]
 
     @classmethod
@@ -162,8 +162,16 @@ class ScenarioError(ValueError):
         """One error carrying every problem of ``errors``, in order."""
         error = cls(*errors[0].problems[0])
         error.problems = [p for e in errors for p in e.problems]
-        error.args = ("\n".join(f"{s}: {k}: {p}" for s, k, p in error.problems),)
+        error.args = ("\n".join(f"{shown(s)}: {k}: {p}" for s, k, p in error.problems),)
         return error
+
+
+def shown(text, most=160):
+    """``text`` (a path) as a message shows it: whole up to ``most`` characters, else its
+    start and end around an ellipsis (a 4,000-character path was echoed whole, each line);
+    the error's ``problems`` keep it whole."""
+    text = str(text)
+    return text if len(text) <= most else f"{text[:most // 3]}…{text[-(most - most // 3 - 1):]}"
 
 
 class _Problems:

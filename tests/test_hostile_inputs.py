@@ -544,3 +544,14 @@ def test_an_output_folder_behind_a_dangling_link_or_a_loop_is_refused_naming_it(
     for folder in (tmp_path / "out", tmp_path / "out" / "deeper"):
         with pytest.raises(runner.OutputError, match=f"output folder {folder}: {tmp_path / said}"):
             runner.make_folder(folder)
+
+
+def test_a_very_long_path_is_shortened_in_messages_and_kept_whole_in_the_error():
+    # a 4,000-character path was echoed back whole (twice per line): 7,290 characters
+    path = "/tmp/" + "a" * 250 + "/" + ("c" * 200 + "/") * 19 + "x.toml"
+    with pytest.raises(spec.ScenarioError) as refused:
+        api.load_scenario(path)
+    text = str(refused.value)
+    assert len(path) > 4000 and len(text) < 700 and "…" in text and text.count("x.toml") == 2
+    assert refused.value.problems[0][0] == path     # the whole path, for code that reads it
+    assert spec.shown("/short/path.toml") == "/short/path.toml"
