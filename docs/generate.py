@@ -3,7 +3,8 @@ from the code: the scenario-file reference from the checker's own rules
 (scenarios/spec.py KEYS and its constants, scenarios/units.py UNITS, the metric kinds of
 scenarios/metrics.py), the FMU reference from the FMUs' modelDescription.xml (built
 first if missing or stale, read with fmpy), and the headline section of docs/headline.md
-from docs/headline.json, as `movingbase headline` writes it into the README.
+from docs/headline.json, as `movingbase headline` writes it into the README. The
+reference pages are committed; a test fails when they differ from what this writes.
 
     python docs/generate.py        # .ci/docs.sh runs it before `mkdocs build --strict`
 """
@@ -124,9 +125,10 @@ def _signature(md):
 
 def fmu_reference():
     lines = ["# FMU reference", "", GENERATED, "",
-             "Read from each FMU's `modelDescription.xml` (FMI 2.0 co-simulation, built by `python build.py`). "
-             "Every FMU comes twice with the same variables: native C (`build/fmu/native/`, the default "
-             "`implementation`) and pythonfmu (`build/fmu/`). A vector is the scalars `name[1]` ... `name[n]`: "
+             "Read from each FMU's `modelDescription.xml` (co-simulation, built by `python build.py`; "
+             "`movingbase.fmus()` gives the files). Every FMU comes three times with the same variables: native C "
+             "as FMI 2.0 (`build/fmu/native/`, the default `implementation`) and as FMI 3.0 "
+             "(`build/fmu/native3/`, `fmi_version = 3`), and pythonfmu as FMI 2.0 (`build/fmu/`). A vector is the scalars `name[1]` ... `name[n]`: "
              "one row `name[1..n]` when its elements differ only in their index, else a row each. min/max are what the scenario checker enforces "
              "on parameter values.", ""]
     for fmu, script in spec.FMU_SCRIPTS.items():
@@ -146,10 +148,17 @@ def fmu_reference():
     return "\n".join(lines)
 
 
+def pages():
+    """{file name under docs/reference/: its text}. The pages are committed, so the links of
+    the docs work where the docs are read (GitHub, an editor); tests/test_docs.py checks
+    they are what this script writes."""
+    return {"scenario-file.md": scenario_reference(), "fmus.md": fmu_reference()}
+
+
 def main():
     headline.rewrite_readme(json.loads(headline.STORE.read_text()), readme=REFERENCE.parent / "headline.md")
     REFERENCE.mkdir(exist_ok=True)
-    for name, text in (("scenario-file.md", scenario_reference()), ("fmus.md", fmu_reference())):
+    for name, text in pages().items():
         (REFERENCE / name).write_text(text)
         print(f"wrote {(REFERENCE / name).relative_to(REFERENCE.parent.parent)}", file=sys.stderr)
 

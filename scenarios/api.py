@@ -16,9 +16,12 @@ FMUs and master, the same numbers bit for bit; ``out=`` writes the same files.
 """
 from __future__ import annotations
 
+import base64
 import copy
 import dataclasses
 import difflib
+import functools
+import html
 import io
 import os
 import pathlib
@@ -31,16 +34,31 @@ from typing import TYPE_CHECKING, Any, Union
 import numpy as np
 
 from . import campaign as campaigns
-from . import engine, master, report, resources, runner, spec
+from . import engine, master, report, resources, runner, spec, units
 from . import flags as run_flags
 from .flags import Flag
+from .metrics import key_unit
 from .records import Records, read_records, run_records
+from .units import UnitError, split
 
 if TYPE_CHECKING:   # pandas and matplotlib are imported where they are used
     import pandas
     from matplotlib.figure import Figure
 
 ScenarioLike = Union[str, "os.PathLike[str]", spec.Scenario]
+
+
+def _public(function: Any) -> Any:
+    """A refusal (ScenarioError) raised from the public call itself: a notebook shows the
+    call and the message (file, key, problem), not 30-60 lines of the checks it passed
+    through. Any other error keeps its whole traceback: that one is the kit's to fix."""
+    @functools.wraps(function)
+    def public(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return function(*args, **kwargs)
+        except spec.ScenarioError as exc:
+            raise exc.with_traceback(None) from None
+    return public
 
 
 def _pandas() -> Any:
@@ -62,6 +80,7 @@ def _flags_given(**given: Any) -> None:
             raise TypeError(f"{name} must be True or False, got {type(value).__name__} {value!r:.60}")
 
 
+@_public
 def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None,
                   ci: bool = False) -> spec.Scenario:
     """A checked Scenario from a shipped name, a file path or a Scenario (copied, the
@@ -141,6 +160,41 @@ def _overrides(source: str, values: Any) -> dict[str, Any]:
 
 
 # ------------------------------------------------------------------------ results
+class Charts(list["Figure"]):
+    """Figures that show themselves: a notebook cell ending in ``result.plot()`` draws
+    them (as python-control's ControlPlot does), a script saves them (``save``). A list of
+    matplotlib Figures (not pyplot's: drawing them leaves the caller's figures alone)."""
+
+    def _repr_html_(self) -> str:
+        images = []
+        for figure in self:
+            buffer = io.BytesIO()
+            figure.savefig(buffer, format="png", dpi=90)
+            images.append(f'<img src="data:image/png;base64,{base64.b64encode(buffer.getvalue()).decode()}"/>')
+        return "<br/>".join(images)
+
+    def save(self, folder: str | os.PathLike[str], stem: str = "chart") -> list[pathlib.Path]:
+        """Write each figure as ``folder/<stem>_<k>.png``; their paths."""
+        made: pathlib.Path = runner.make_folder(folder)
+        paths = [made / f"{stem}_{k}.png" for k in range(1, len(self) + 1)]
+        for figure, path in zip(self, paths):
+            figure.savefig(path, dpi=120)
+        return paths
+
+    def __repr__(self) -> str:
+        titles = "; ".join(t.split("\n")[0] for t in (f.get_suptitle() for f in self) if t)
+        return f"<Charts: {len(self)} figure{'s' * (len(self) != 1)}{': ' + titles if titles else ''}>"
+
+
+def _html_table(head: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    cells = "".join(f"<th>{html.escape(str(h))}</th>" for h in head)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>" for row in rows)
+    return f"<table><tr>{cells}</tr>{body}</table>"
+
+
+_STATUS_STYLE = {"ok": "", "flagged": "color:#b00020", "failed": "color:#b00020;font-weight:bold"}
+
+
 class RunResult:
     """One run: its recorded time series (SI units), metrics and flags.
 
@@ -149,8 +203,9 @@ class RunResult:
     ``to_pandas()`` the table, ``to_numpy()`` a structured array as FMPy's simulate_fmu
     returns. A run that failed holds what it recorded up to then (``flags`` says why)."""
 
-    def __init__(self, run: master.Run):
+    def __init__(self, run: master.Run, plotted: Sequence[str] = ()):
         self.run = run
+        self._plotted = list(plotted)    # what ``plot()`` draws by default: what the metrics read
         self.label: str = run.label
         self.metrics: dict = run.metrics
         self.flags: list[Flag] = run_flags.by_severity(run.flags)
@@ -230,6 +285,35 @@ class RunResult:
         """Export the records as CSV (header with units, each float exactly)."""
         return self.records.to_csv(path)
 
+    def plot(self, *names: str) -> Charts:
+        """Recorded variables against time, one panel each (a vector's components as
+        lines), the unit on each axis: ``run.plot("plant.pose", "controller.leg_force")``;
+        without names, the variables the scenario's metrics read. A failed or flagged run
+        says so in the title."""
+        chosen = list(names) or [n for n in self._plotted if n in self._ipython_key_completions_()]
+        if not chosen:
+            raise ValueError(f"run {self.label}: name the variables to plot; recorded: "
+                             f"{', '.join(dict.fromkeys(n.split('[', 1)[0] for n in self.names)) or 'nothing'}")
+        columns = []     # (label, unit, rows x n): a vector's components apart by unit (a pose: m and rad)
+        for name in chosen:
+            values = self[name].reshape(len(self.time), -1)
+            parts = [name] if name in self.records.names else [n for n in self.names if n.startswith(name + "[")]
+            for unit in dict.fromkeys(self.units[p] for p in parts):
+                mine = [k for k, p in enumerate(parts) if self.units[p] == unit]
+                shown = name if len(mine) == len(parts) else f"{name}[{mine[0] + 1}:{mine[-1] + 1}]"
+                columns.append((shown, unit, values[:, mine], [parts[k][len(name):] for k in mine]))
+        status = "" if self.ok else self.message if self.status == "failed" else f"FLAGGED: {self.message}"
+        return Charts([report.variables_chart(self.label, self.time, columns, status)])
+
+    def _repr_html_(self) -> str:
+        state = html.escape(self.status.upper() if self.status != "ok" else "ok")
+        said = f": {html.escape(self.message)}" if self.message else ""
+        rows = [(m, k, f"{v:.4g}" if isinstance(v, float) else v, key_unit(values, k))
+                for m, values in self.metrics.items() for k, v in values.items() if k != "unit"]
+        return (f'<p><b>run {html.escape(self.label)}</b>: <span style="{_STATUS_STYLE[self.status]}">{state}'
+                f'{said}</span>; {len(self.time)} rows x {len(self.names)} variables, {self.sim_time:g} s '
+                f'simulated</p>' + _html_table(("metric", "", "value", "unit"), rows))
+
     def __repr__(self) -> str:
         kinds = "; ".join(f.kind for f in self.flags)
         state = {"ok": "ok", "flagged": f"flagged: {kinds}",
@@ -246,7 +330,8 @@ class Result:
     def __init__(self, scenario: spec.Scenario, runs: Sequence[master.Run], report_path: pathlib.Path | None = None):
         self.scenario = scenario
         self._runs = list(runs)
-        self.runs: dict[str, RunResult] = {r.label: RunResult(r) for r in self._runs}
+        read = [v for m in scenario.metrics for v in m.args.values() if isinstance(v, str) and "." in v]
+        self.runs: dict[str, RunResult] = {r.label: RunResult(r, list(dict.fromkeys(read))) for r in self._runs}
         self.report_path = report_path     # where ``out`` wrote the report, if it was given
 
     def __getitem__(self, label: str | int) -> RunResult:
@@ -279,29 +364,36 @@ class Result:
         return {label: r.flags for label, r in self.runs.items() if r.flags}
 
     def metrics_table(self) -> pandas.DataFrame:
-        """One row per run, one column per (metric, key) number, and the column
-        ("flags", "") saying what went wrong with a run ('' if nothing): a flagged run's
-        numbers are not results, and the table says so where they stand."""
+        """One row per run, one column per (metric, key) number (floats; NaN where nothing
+        was counted), their units in ``table.attrs["units"]`` ({("leg error", "rms"): "µm"}),
+        and the columns ("status", "") and ("flags", "") saying what went wrong with a run
+        ('' if nothing): a flagged run's numbers are not results, and the table says so
+        where they stand."""
         pd = _pandas()
         rows = {label: {("status", ""): r.status.upper() if r.status == "failed" else r.status,
-                        **{(m, k): v for m, values in r.metrics.items() for k, v in values.items() if k != "unit"},
+                        **{(m, k): (float("nan") if v is None else v)
+                           for m, values in r.metrics.items() for k, v in values.items() if k != "unit"},
                         ("flags", ""): run_flags.summary(r.flags)}
                 for label, r in self.runs.items()}
-        return pd.DataFrame.from_dict(rows, orient="index")
+        table = pd.DataFrame.from_dict(rows, orient="index")
+        table.attrs["units"] = {(m, k): key_unit(values, k) for r in self.runs.values()
+                                for m, values in r.metrics.items() for k in values if k != "unit"}
+        return table
 
     def to_pandas(self) -> pandas.DataFrame:
         """Every run's recorded series in one DataFrame indexed by (run, time)."""
         pd = _pandas()
         return pd.concat({label: r.to_pandas() for label, r in self.runs.items()}, names=["run"])
 
-    def plot(self) -> list[Figure]:
-        """The report's charts as matplotlib figures: error against time per tracking
-        metric, and the summary bars when there are several runs."""
+    def plot(self) -> Charts:
+        """The report's charts (a notebook shows them; ``.save(folder)`` writes them): error
+        against time per tracking metric, and the summary bars when there are several
+        runs. One run's recorded variables: ``result[label].plot(...)``."""
         tracked = [m for m in self.scenario.metrics if m.kind in report.TRACKING]
         panels = [report._error_chart(self.scenario, self._runs, m, io.BytesIO()) for m in tracked]
         if tracked and len(self._runs) > 1:
             panels.append(report._summary_chart(self.scenario, self._runs, tracked, io.BytesIO()))
-        return [next(iter(p.values())).figure for p in panels]
+        return Charts(next(iter(p.values())).figure for p in panels)
 
     def report(self, path: str | os.PathLike[str]) -> pathlib.Path:
         """Write into folder ``path`` what ``movingbase run --out`` writes into its
@@ -334,7 +426,21 @@ class Result:
                  f"{', flagged: ' + ', '.join(flagged) if flagged else ''}")
         return f"<Result {self.scenario.name!r}: runs {', '.join(self.runs)}{state or ', all ok'}>"
 
+    def _repr_html_(self) -> str:
+        """Each run's status first (FAILED and flagged in red, with why), then its metrics."""
+        tracked = [(m, k) for m, values in next(iter(self.runs.values())).metrics.items()
+                   for k in ("rms", "peak") if k in values] if self.runs else []
+        head = ["run", "status"] + [f"{m} {k} [{key_unit(self[0].metrics[m], k)}]" for m, k in tracked] + ["flags"]
+        rows = [[label, r.status.upper() if r.status != "ok" else "ok"]
+                + [f"{r.metrics[m][k]:.4g}" if isinstance(r.metrics.get(m, {}).get(k), float) else ""
+                   for m, k in tracked] + [r.message] for label, r in self.runs.items()]
+        state = "all ok" if self.ok else "NOT ALL OK: a flagged or failed run's numbers are not results"
+        return (f"<p><b>Result {html.escape(self.scenario.name)}</b>: {len(self)} runs, "
+                f'<span style="{"" if self.ok else _STATUS_STYLE["failed"]}">{state}</span></p>'
+                + _html_table(head, rows))
 
+
+@_public
 def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: bool = False,
         implementation: str | None = None, out: str | os.PathLike[str] | None = None,
         progress: bool = True, allow_unstable: bool = False) -> Result:
@@ -364,8 +470,16 @@ def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: boo
     for r in result:     # shown in a notebook as a warning: a failed run is no result
         if not r.ok:
             said = r.message if r.status == "failed" else f"flagged: {r.message}"
-            warnings.warn(f"run {r.label!r} {said}", RunWarning, stacklevel=2)
+            warnings.warn(f"run {r.label!r} {said}", RunWarning, stacklevel=3)   # the caller's line
     return result
+
+
+def fmus(*names: str, implementation: str = "native", fmi_version: int = 2) -> dict[str, pathlib.Path]:
+    """The kit's FMU files, by the names scenario files give them (``fmu = "hexapod_plant"``;
+    every FMU without names), built if missing or stale: what to give
+    ``fmpy.simulate_fmu`` or any FMI tool. ``implementation`` "native" (C, no Python in
+    the host; FMI 2.0 or 3.0) or "python" (pythonfmu, FMI 2.0)."""
+    return runner.fmu_files(names or tuple(spec.FMU_SCRIPTS), implementation, fmi_version)
 
 
 class RunWarning(UserWarning):
@@ -373,6 +487,24 @@ class RunWarning(UserWarning):
 
 
 # ------------------------------------------------------------------------ campaigns
+def _si_column(values: list) -> tuple[list[float], str] | None:
+    """A campaign column of quantities ("0 m", "5 m") as SI floats and their SI unit; None
+    if it is not one (words such as "moving_base", mixed dimensions)."""
+    numbers, dimensions = [], set()
+    for value in values:
+        if not isinstance(value, str):
+            return None
+        try:
+            unit = split(value)[1]
+            numbers.append(units.to_si(value))
+        except UnitError:
+            return None
+        known = units.UNITS.get(units.spelled(unit)) if unit else None
+        dimensions.add(known[1] if known else None)
+    dimension = dimensions.pop() if len(dimensions) == 1 else None
+    return (numbers, dimension) if dimension else None
+
+
 class CampaignResult:
     """What ``movingbase.campaign`` returns: the table of its runs (``table()``: one row
     per run with its case values, status, error and metrics, the campaign's summary.csv
@@ -385,8 +517,25 @@ class CampaignResult:
         self._keys = {job.label: job.key for job in jobs}
 
     def table(self) -> pandas.DataFrame:
-        """One row per run: label, the case values, status, error, every metric number."""
-        return _pandas().read_csv(self.summary_path)   # floats exact: written as repr, read round-trip
+        """One row per run: label, the case values, status, error, every metric number.
+        Numbers are numbers: a case value written with a unit ("5 m", "2 ms") in SI
+        (plot a metric against it), the units in ``table.attrs["units"]`` ({"base.lever_arm":
+        "m", "leg error rms": "µm"}); summary.csv keeps the values as written."""
+        table = _pandas().read_csv(self.summary_path)   # floats exact: written as repr, read round-trip
+        units = {}
+        for column in self.campaign.varying:
+            if column in table:
+                converted = _si_column(table[column].tolist())
+                if converted is not None:
+                    table[column], units[column] = converted
+        for job in self._keys.values():
+            metrics = (self.store.read(job) or {}).get("metrics") if self.store.status(job) else None
+            if metrics:
+                units.update({f"{name} {k}": key_unit(values, k) for name, values in metrics.items()
+                              for k in values if k != "unit"})
+                break
+        table.attrs["units"] = units
+        return table
 
     to_pandas = table
 
@@ -418,6 +567,7 @@ class CampaignResult:
         return f"<CampaignResult {self.campaign.name!r}: {len(self)} runs, table in {self.summary_path}>"
 
 
+@_public
 def campaign(path: str | os.PathLike[str], *, out: str | os.PathLike[str] = "out", ci: bool = False,
              jobs: int | None = None, progress: bool = True) -> CampaignResult:
     """Run a campaign file as ``movingbase campaign`` does: on ``jobs`` worker processes,

@@ -151,6 +151,13 @@ class _Rotation(_Metric):
         self.owner._flush()
 
 
+def key_unit(values, key):
+    """The unit of one number of a metric's result ({"rms": ..., "unit": "µm, µrad"}): a
+    pose metric's rotation_* keys are in its second unit."""
+    position, _, rotation = values.get("unit", "").partition(", ")
+    return rotation if rotation and key.startswith("rotation") else position
+
+
 class PoseTracking(_Metric):
     scale, unit = 1e6, "µm / µrad"
 

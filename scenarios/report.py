@@ -6,6 +6,8 @@ what the base motion adds and why.
 The sentences and numbers comparing the runs come from ``compare`` and ``fmt``, which
 the README's generated headline (``scenarios.headline``) uses too: one source for each
 number."""
+import textwrap
+
 import numpy as np
 
 from movingbase.fmu_src import atomic
@@ -210,6 +212,27 @@ def _error_chart(scenario, runs, metric, path):
 
 
 FLAG_COLOR = "red"
+
+
+def variables_chart(label, time, columns, status=""):
+    """One panel per recorded variable against time, a vector's components as lines
+    ``[k]``, each axis labelled with the variable's unit; ``columns`` is [(name, unit,
+    values rows x n, the components' labels)]. A failed or flagged run says so in the
+    title, in red: its numbers are not results. Returns the figure."""
+    fig, axes = _figure(len(columns), 1, (9, 1.0 + 1.9 * len(columns)), left=1.1, right=1.4, top=0.5,
+                        bottom=0.6, gap=0.25, sharex=True)
+    for ax, (name, unit, values, labels) in zip(axes[:, 0], columns):
+        for column, component in zip(values.T, labels):
+            ax.plot(time, column, lw=1.0, label=component or None)
+        ax.set_ylabel(f"{name}\n[{unit or '-'}]")
+        ax.grid(True, lw=0.4, color="0.85")
+        if values.shape[1] > 1:
+            ax.legend(loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize=7.5, frameon=False)
+    axes[-1, 0].set_xlabel("time [s]")
+    title = textwrap.shorten(f"run {label}" + (f": {status}" if status else ""), 230, placeholder=" ...")
+    fig.suptitle("\n".join(textwrap.wrap(title, 115)), fontsize=9.5,
+                 color="0.1" if not status else "#b00020")
+    return fig
 
 
 def mark_flagged(axes, runs, bars=False):

@@ -202,12 +202,15 @@ def test_a_campaign_s_table_holds_the_numbers_of_its_runs_run_one_by_one(tmp_pat
     pytest.importorskip("pandas")
     path = tmp_path / "lever.toml"
     path.write_text(f'name = "lever"\nscenario = "{NAME}"\nset = {{ stop_time = "2.5 s" }}\n'
-                    '[[grid]]\n"base.lever_arm" = ["5 m"]\n')
+                    '[[grid]]\n"base.lever_arm" = ["5 m", "2000 mm"]\n')
     ran = movingbase.campaign(path, out=tmp_path / "out", jobs=1, progress=False)
     table = ran.table()
-    assert len(ran) == len(table) == 3 and list(table["status"]) == ["ok"] * 3
+    assert len(ran) == len(table) == 6 and list(table["status"]) == ["ok"] * 6
+    # the swept quantity as an SI number (a plot against it gets a number axis), its unit in attrs
+    assert sorted(table["base.lever_arm"]) == [2.0] * 3 + [5.0] * 3 and table.attrs["units"]["base.lever_arm"] == "m"
+    assert table.attrs["units"]["leg error rms"] == "µm" and table["leg error rms"].dtype == float
     alone = movingbase.run(NAME, progress=False, set={"stop_time": "2.5 s", "base.lever_arm": "5 m"})
-    for row in table.to_dict("records"):
+    for row in table[table["base.lever_arm"] == 5.0].to_dict("records"):
         run = alone[row["controller.feedforward"]]   # the scenario's sweep, crossed in by the campaign
         assert row["leg error rms"] == run.metrics["leg error"]["rms"], row
         assert row["pose error rotation_peak"] == run.metrics["pose error"]["rotation_peak"], row
@@ -456,3 +459,74 @@ def test_a_bad_set_value_is_told_as_set_s_not_as_the_file_s(given, told):
     with pytest.raises(spec.ScenarioError) as refused:
         movingbase.run("telescope_slew", ci=True, set=given, progress=False)
     assert told in str(refused.value) and "fmus.base.parameters" not in str(refused.value)
+
+
+# ------------------------------------------------------------------ what a notebook shows
+def test_plot_gives_charts_a_notebook_draws(result):
+    """A cell ending in result.plot() shows the charts: Charts renders each figure as a
+    PNG in its HTML repr (a list of Figures printed reprs only)."""
+    charts = result.plot()
+    assert isinstance(charts, movingbase.Charts) and len(charts) == 3
+    shown = charts._repr_html_()
+    assert shown.count('<img src="data:image/png;base64,') == 3
+    assert repr(charts).startswith(f"<Charts: 3 figures: {NAME}: leg error against time")
+
+
+def test_a_run_plots_its_variables_with_their_units_and_its_status(result, cut_short, tmp_path):
+    run = result["moving_base"]
+    (figure,) = run.plot("plant.pose", "controller.leg_force")
+    axes = figure.axes
+    # the pose's components apart by unit: metres and radians are no one axis
+    assert [a.get_ylabel() for a in axes] == ["plant.pose[1:3]\n[m]", "plant.pose[4:6]\n[rad]",
+                                              "controller.leg_force\n[N]"]
+    np.testing.assert_array_equal(axes[1].get_lines()[2].get_ydata(), run["plant.pose"][:, 5])
+    np.testing.assert_array_equal(axes[2].get_lines()[0].get_xdata(), run.time)
+    assert [l.get_label() for l in axes[2].get_lines()] == [f"[{k}]" for k in range(1, 7)]
+    # without names: what the scenario's metrics read, each recorded
+    default = run.plot()[0]
+    assert "plant.leg_length\n[m]" in [a.get_ylabel() for a in default.axes]
+    failed = cut_short[0]["none"].plot("plant.pose")[0]
+    assert failed.get_suptitle().startswith("run none: FAILED (cut_short")
+    with pytest.raises(KeyError, match="no recorded variable 'pose'"):
+        run.plot("pose")
+    assert [p.name for p in run.plot("plant.pose").save(tmp_path / "c")] == ["chart_1.png"]
+
+
+def test_tables_hold_numbers_with_their_units(result):
+    table = result.metrics_table()
+    numbers = [c for c in table.columns if c not in (("status", ""), ("flags", ""))]
+    assert all(table[c].dtype == float for c in numbers)
+    assert table.attrs["units"][("leg error", "rms")] == "µm"
+    assert table.attrs["units"][("pose error", "rotation_peak")] == "µrad"
+    assert table.attrs["units"][("leg force", "peak")] == "kN"
+    assert set(table.attrs["units"]) == set(numbers)
+
+
+def test_html_reprs_say_status_first(result, cut_short):
+    shown = cut_short[0]._repr_html_()
+    assert "NOT ALL OK" in shown and shown.count("<td>FAILED</td>") == 3
+    assert "leg error rms [µm]" in shown
+    run = result["moving_base"]._repr_html_()
+    assert "<b>run moving_base</b>" in run and "<td>µrad</td>" in run
+
+
+def test_the_fmu_files_are_found_by_their_scenario_names():
+    from fmpy import read_model_description
+    found = movingbase.fmus("hexapod_plant", "telescope", fmi_version=3)
+    assert [read_model_description(str(p)).fmiVersion for p in found.values()] == ["3.0", "3.0"]
+    assert read_model_description(str(movingbase.fmus("wind")["wind"])).modelName == "Wind"
+    assert set(movingbase.fmus(implementation="python")) == set(spec.FMU_SCRIPTS)
+    with pytest.raises(ValueError, match="no FMU 'hexapod'; did you mean 'hexapod_plant'"):
+        movingbase.fmus("hexapod")
+    with pytest.raises(ValueError, match="pythonfmu FMUs are FMI 2.0 only"):
+        movingbase.fmus("wind", implementation="python", fmi_version=3)
+
+
+def test_a_refusal_is_raised_from_the_public_call():
+    """A notebook shows the call and the message, not the checks' 30-60 frames."""
+    import traceback
+    with pytest.raises(movingbase.ScenarioError) as raised:
+        movingbase.run(NAME, ci=True, progress=False, set={"base.start_elevaton": "60 deg"})
+    frames = traceback.extract_tb(raised.value.__traceback__)
+    assert [f.name for f in frames][-1] == "public" and len(frames) <= 3, frames
+    assert "did you mean 'start_elevation'" in str(raised.value)

@@ -160,3 +160,23 @@ def test_constraints_pin_every_declared_dependency_within_its_range():
         name = re.sub(r"[-_.]+", "-", requirement.name).lower()
         assert name in pins, requirement.name
         assert requirement.specifier.contains(pins[name], prereleases=True), (text, pins[name])
+
+
+def test_the_committed_reference_pages_are_what_generate_writes():
+    """docs/reference/*.md are committed so that the docs' links work wherever they are read;
+    a change of the checker's rules or of an FMU's variables must regenerate them
+    (python docs/generate.py)."""
+    for name, text in _generate().pages().items():
+        committed = DOCS / "reference" / name
+        assert committed.exists(), f"docs/reference/{name} is not committed: python docs/generate.py"
+        assert committed.read_text() == text, f"docs/reference/{name} is stale: python docs/generate.py"
+
+
+def test_every_link_of_the_docs_to_a_page_of_the_repository_resolves():
+    """A page the docs link to (docs/reference/fmus.md once) exists in the repository."""
+    missing = []
+    for page in [*DOCS.glob("*.md"), *DOCS.glob("reference/*.md"), DOCS.parent / "README.md"]:
+        for target in re.findall(r"\]\(([^)#\s]+\.(?:md|ipynb|toml|py|png|json))(?:#[^)]*)?\)", page.read_text()):
+            if not target.startswith("http") and not (page.parent / target).resolve().exists():
+                missing.append(f"{page.name} -> {target}")
+    assert missing == []
