@@ -566,6 +566,16 @@ class CampaignResult:
     def __repr__(self) -> str:
         return f"<CampaignResult {self.campaign.name!r}: {len(self)} runs, table in {self.summary_path}>"
 
+    def _repr_html_(self) -> str:
+        """How many runs are results, then the table (its first 20 rows)."""
+        table = self.table()
+        counts = table["status"].value_counts().to_dict()
+        bad = len(table) - counts.get("ok", 0)
+        said = ", ".join(f"{n} {status.upper() if status != 'ok' else status}" for status, n in counts.items())
+        return (f"<p><b>Campaign {html.escape(self.campaign.name)}</b>: {len(self)} runs: "
+                f'<span style="{_STATUS_STYLE["failed"] if bad else ""}">{html.escape(said)}</span></p>'
+                + table.head(20).to_html(index=False, float_format=lambda v: f"{v:.4g}"))
+
 
 @_public
 def campaign(path: str | os.PathLike[str], *, out: str | os.PathLike[str] = "out", ci: bool = False,

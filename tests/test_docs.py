@@ -180,3 +180,19 @@ def test_every_link_of_the_docs_to_a_page_of_the_repository_resolves():
             if not target.startswith("http") and not (page.parent / target).resolve().exists():
                 missing.append(f"{page.name} -> {target}")
     assert missing == []
+
+
+def test_the_example_notebooks_are_committed_executed():
+    """examples/*.ipynb ship with their outputs (the docs site shows them): every code cell
+    ran, and only a cell tagged raises-exception (the usual mistakes) shows an error."""
+    import json
+    notebooks = sorted((DOCS.parent / "examples").glob("*.ipynb"))
+    assert {n.stem for n in notebooks} >= {"newcomer", "single_scenario", "small_campaign"}
+    for path in notebooks:
+        for cell in json.loads(path.read_text())["cells"]:
+            if cell["cell_type"] != "code":
+                continue
+            assert cell["execution_count"] is not None, f"{path.name}: a cell was not run"
+            errors = [o for o in cell["outputs"] if o["output_type"] == "error"]
+            assert not errors or "raises-exception" in cell["metadata"].get("tags", []), \
+                f"{path.name}: {errors[0]['ename']}: {errors[0]['evalue']}"
