@@ -395,10 +395,11 @@ class Result:
             panels.append(report._summary_chart(self.scenario, self._runs, tracked, io.BytesIO()))
         return Charts(next(iter(p.values())).figure for p in panels)
 
-    def report(self, path: str | os.PathLike[str]) -> pathlib.Path:
-        """Write into folder ``path`` what ``movingbase run --out`` writes into its
-        scenario folder (records as npz, metrics.json, charts, report.md); the report's path."""
-        folder = runner.make_folder(path)
+    def report(self, out: str | os.PathLike[str]) -> pathlib.Path:
+        """Write what ``run(..., out=out)`` and ``movingbase run --out OUT`` write, where they
+        write it: into ``out/<file stem>/`` (records as npz, metrics.json, charts,
+        report.md); the report's path."""
+        folder = runner.make_folder(runner.output_folder(out, self.scenario.source))
         earlier, started = runner.replaced(folder), time.time()
         if earlier:       # said, as the command says it
             print(earlier, file=sys.stderr, flush=True)

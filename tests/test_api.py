@@ -179,7 +179,9 @@ def test_plot_gives_the_report_s_charts_and_report_writes_them(result, tmp_path)
     np.testing.assert_array_equal(line.get_xdata(), t)
     path = result.report(tmp_path / "rep")
     assert path.read_text().startswith(f"# {NAME}")
-    assert read_records(tmp_path / "rep" / "none.npz").values.tobytes() == result["none"].values.tobytes()
+    # where run(out=) and the CLI's --out write: out/<file stem>/ (it once wrote into out/ itself)
+    assert path == tmp_path / "rep" / NAME / "report.md"
+    assert read_records(tmp_path / "rep" / NAME / "none.npz").values.tobytes() == result["none"].values.tobytes()
 
 
 def test_charts_leave_the_user_s_backend_and_pyplot_figures_alone(tmp_path):
