@@ -31,6 +31,9 @@ Kinds of Flag:
 * ``stroke``: a measured output within 10 % of the end of its stroke;
 * ``non_finite``: a recorded value is NaN or infinite;
 * ``cut_short``: an FMU stopped the run (RunFailed) before its stop time;
+* ``undersampled``: a metric its recorded rows cannot carry (metrics are computed from the
+  recorded rows): fewer than 10 counted, or an RMS over every other row 10 % off the RMS
+  over all (scenarios.metrics.undersampled);
 * ``motion_unfinished``: a slew whose stop time comes before the motion ends.
 """
 import math
@@ -79,7 +82,7 @@ def from_dicts(items):
 # the kinds, worst first: a run that did not reach its stop time is no result at all, so
 # its cause is said before any symptom it showed on the way (reprs, tables, summaries)
 SEVERITY = ("cut_short", "non_finite", "step_beyond_limit", "unstable", "saturated", "stroke",
-            "motion_unfinished", "fmu_warning")
+            "undersampled", "motion_unfinished", "fmu_warning")
 
 
 def by_severity(flags):
@@ -628,6 +631,15 @@ def growth(times, envelope, floor, excitation=None):
             if slope > 0 and grown >= GROWTH and r2 >= 0.8 and raw[end - 1] >= GROWTH * floor:
                 return float(x[0]), float(x[-1]), float(raw[end - n]), float(raw[end - 1])
     return None
+
+
+def sampling_flags(metrics, interval):
+    """``undersampled`` for each metric its recorded rows cannot carry (metrics.undersampled):
+    the metrics are computed from the recorded rows, so a coarse record interval gives a
+    number with no word (a 2-row run's RMS 1e-4 of the true one)."""
+    said = [(m.name, m.undersampled()) for m in metrics]
+    return [Flag("undersampled", f"metric {name!r} {problem}: record.interval {interval * 1e3:g} ms is too coarse "
+                 "for it; record more often") for name, problem in said if problem]
 
 
 def run_flags(watch, run, instances, before=()):

@@ -43,6 +43,12 @@ def _largest(rows):
     return float(np.fmax.reduce(rows.max(axis=1)))
 
 
+FLOOR = 1e-3      # in a metric's unit (1 nm, 1 N): below it an error is numerical noise
+MIN_ROWS = 10     # a metric counted from fewer recorded rows is no measure of a run
+SAMPLED = 0.10    # ... nor one whose RMS over every other counted row differs from its RMS by more:
+                  # the error changes faster than the rows are recorded (their interval aliases it)
+
+
 class _Metric:
     """Running RMS, peak and decimated series of per-row errors. A subclass buffers the
     rows its ``needs`` name (``feed``: the recorder's blocks; ``update``: one row) and
@@ -61,6 +67,7 @@ class _Metric:
         self.t, self.values = [], []
         self.stride, self._countdown = 1, 1
         self._block = None
+        self.rows, self.even_sq, self.even_count = 0, 0.0, 0   # the sampling check (undersampled)
 
     def feed(self, t, columns):
         """Rows at times t (n,): ``columns`` holds each need's values (n, its size),
@@ -98,6 +105,10 @@ class _Metric:
         squares = _squares(errors)
         size = errors.shape[1]
         self.count += size * len(t)
+        even = (self.rows + np.arange(len(t))) % 2 == 0
+        self.rows += len(t)
+        self.even_sq += float(squares[even].sum())
+        self.even_count += size * int(even.sum())
         self.sum_sq = float(np.add.accumulate(np.r_[self.sum_sq, squares])[-1])   # added in time order
         self.peak = max(self.peak, _largest(errors), _largest(-errors))
         times, rms = t.tolist(), np.sqrt(squares / size).tolist()
@@ -124,6 +135,23 @@ class _Metric:
     def series(self):
         self._flush()
         return np.array(self.t), np.array(self.values) * self.scale
+
+    def undersampled(self):
+        """Why the recorded rows cannot carry this metric (None if they can, or if nothing
+        was counted: its NaN says so): fewer than MIN_ROWS rows, or an RMS over every other
+        row that differs from the RMS over all by more than SAMPLED. Below 1 nm (or 1 N)
+        the check is not made: numerical noise has no sampling to get right."""
+        self._flush()
+        if not self.rows:
+            return None
+        if self.rows < MIN_ROWS:
+            return f"is counted from {self.rows} recorded row{'s' * (self.rows != 1)} (at least {MIN_ROWS} carry one)"
+        full = math.sqrt(self.sum_sq / self.count)
+        half = math.sqrt(self.even_sq / self.even_count)
+        if full * self.scale < FLOOR or abs(half - full) <= SAMPLED * full:
+            return None
+        return (f"changes faster than its rows are recorded: its RMS over every other row is "
+                f"{abs(half - full) / full:.0%} off its RMS over all (more than {SAMPLED:.0%})")
 
 
 class LegTracking(_Metric):

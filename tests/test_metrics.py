@@ -235,3 +235,66 @@ def test_a_bad_row_in_a_block_raises_with_the_rows_before_it_counted():
             metric.update(k * 1e-2, {"p.l": np.full(6, 2.9), "r.pose": pose})
         metric.result()
     assert metric.count == 10 * 6
+
+
+# ------------------------------------------------------------ rows that cannot carry a metric
+def _sampled_sine(rows_per_period, periods=10, amplitude=5e-6):
+    metric = metrics.Tracking("e", "p.x", "r.x")
+    n = rows_per_period * periods
+    for k in range(n):
+        error = amplitude * abs(math.sin(math.pi * k / rows_per_period + 0.3))
+        metric.update(k, {"p.x": np.array([error]), "r.x": np.array([0.0])})
+    return metric
+
+
+def test_a_metric_its_rows_resolve_is_not_undersampled():
+    assert _sampled_sine(40).undersampled() is None
+    assert metrics.Tracking("e", "p.x", "r.x").undersampled() is None     # nothing counted: NaN says it
+
+
+def test_a_metric_from_too_few_or_aliased_rows_is_undersampled():
+    few = metrics.Tracking("e", "p.x", "r.x")
+    for k in range(3):
+        few.update(k, {"p.x": np.array([1e-6]), "r.x": np.array([0.0])})
+    assert few.undersampled() == "is counted from 3 recorded rows (at least 10 carry one)"
+    # |sin| sampled twice a half period: every other row is the crest or the trough
+    aliased = _sampled_sine(2)
+    assert "its RMS over every other row is" in aliased.undersampled()
+    # below 1 nm an error is numerical noise: no check
+    assert _sampled_sine(2, amplitude=1e-12).undersampled() is None
+
+
+@pytest.fixture(scope="module")
+def slews():
+    """telescope_slew [ci] recorded every step (the truth: the metrics over every step) and
+    at coarser intervals, up to the stop time (one row counted)."""
+    import warnings
+    import movingbase
+    runs = {}
+    for interval in (0.001, 0.01, 0.05, 0.1, 8.0):
+        scenario = movingbase.load_scenario("telescope_slew", ci=True)
+        scenario.record_interval = interval
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            runs[interval] = movingbase.run(scenario, progress=False)
+    return runs
+
+
+def test_a_record_interval_too_coarse_for_a_metric_is_flagged_never_missed(slews):
+    """Every run whose RMS is more than 10 % off the every-step RMS is flagged undersampled
+    (no miss); the shipped interval (10 ms, 0.2 % off) is not."""
+    truth = slews[0.001]
+    assert truth.ok and slews[0.01].ok
+    flagged = 0
+    for interval, result in slews.items():
+        for run in result:
+            for name in ("leg error", "pose error"):
+                true, got = truth[run.label].metrics[name]["rms"], run.metrics[name]["rms"]
+                kinds = [f.kind for f in run.flags]
+                if abs(got - true) > 0.10 * true:
+                    assert "undersampled" in kinds, (interval, run.label, name, got, true)
+                    flagged += 1
+    assert flagged >= 7     # moving_base at 50 ms and 100 ms, every run at 8 s (1 row)
+    coarse = slews[8.0]["none"].flags
+    assert coarse[0].message.startswith("metric 'leg error' is counted from 1 recorded row")
+    assert "record.interval 8000 ms is too coarse" in coarse[0].message
