@@ -584,9 +584,14 @@ def campaign(path: str | os.PathLike[str], *, out: str | os.PathLike[str] = "out
     """Run a campaign file as ``movingbase campaign`` does: on ``jobs`` worker processes,
     results in a store under out/<name>/ (so a campaign always writes: an interrupted one
     resumes, a finished one is read back)."""
+    if engine.started_by_a_worker():     # the worker exits with the rule, not a traceback
+        raise SystemExit(f"movingbase.campaign in a worker process: {engine.MAIN_GUARD}")
     _flags_given(ci=ci, progress=progress)
     warning = resources.check_jobs(jobs)     # 0 once meant "all cores", silently
     if warning:
         print(warning, file=sys.stderr, flush=True)
-    ran, job_list, store, _, summary = campaigns.run_campaign(path, out, ci=ci, jobs_=jobs, progress=progress)
+    ran, job_list, store, outcome, summary = campaigns.run_campaign(path, out, ci=ci, jobs_=jobs, progress=progress)
+    if outcome.interrupted:   # Ctrl-C: an exception, as Python's own, not a result with runs "not run"
+        raise KeyboardInterrupt(f"campaign {ran.name} interrupted: {len(outcome.computed)} runs done now and "
+                                f"{len(outcome.skipped)} before are on disk in {store.folder}; call it again to resume")
     return CampaignResult(ran, job_list, store, summary)

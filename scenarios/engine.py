@@ -328,6 +328,23 @@ def _workers_ignore_ctrl_c():
         signal.signal(signal.SIGINT, previous)
 
 
+MAIN_GUARD = ("From a script, call the campaign under `if __name__ == \"__main__\":`: each worker is a new "
+              "Python process that imports the script, and the call at its top level would start the campaign "
+              "again in every worker (Python's multiprocessing rule).")
+
+
+def started_by_a_worker():
+    """True when a worker process, importing the user's script (as ``__mp_main__``), reaches
+    a campaign call at its top level: the script has no main guard (MAIN_GUARD). (The
+    worker's multiprocessing state is set only after that import: the stack tells.)"""
+    frame = sys._getframe(1)
+    while frame is not None:
+        if frame.f_code.co_name == "<module>" and frame.f_globals.get("__name__") == "__mp_main__":
+            return True
+        frame = frame.f_back
+    return False
+
+
 class Engine:
     """A Dask client: on a new LocalCluster of ``jobs`` worker processes (default: all
     cores), or on the existing cluster at ``address`` (``tcp://host:port``)."""
@@ -352,8 +369,12 @@ class Engine:
                 self._client = Client(self.address, timeout=30)
             else:
                 with dask.config.set(WORKER_CONFIG), _workers_ignore_ctrl_c():
-                    self.cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
-                                                dashboard_address=None, silence_logs=logging.CRITICAL)
+                    try:
+                        self.cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
+                                                    dashboard_address=None, silence_logs=logging.CRITICAL)
+                    except RuntimeError as exc:     # "Nanny failed to start", after each worker's traceback
+                        raise RuntimeError(f"the {self.jobs} worker processes did not start ({exc}). {MAIN_GUARD}"
+                                           ) from None
                     self._client = Client(self.cluster)
             self._client.wait_for_workers(1 if self.address else self.jobs, timeout=120)
             self.start_time = time.perf_counter() - began

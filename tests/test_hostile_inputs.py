@@ -308,7 +308,8 @@ def _interrupted(tmp_path, args, ready):
     import time
     # SIGINT at its default in the child: a test run started in the background (`cmd &`, nohup)
     # ignores SIGINT, the child would inherit that, and Python then installs no Ctrl-C handler
-    process = subprocess.Popen([sys.executable, "-m", "movingbase", *map(str, args)], cwd=tmp_path,
+    command = args if args[0] == sys.executable else [sys.executable, "-m", "movingbase", *map(str, args)]
+    process = subprocess.Popen(command, cwd=tmp_path,
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True,
                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     chunks = []
@@ -336,6 +337,31 @@ def test_ctrl_c_on_a_sweep_and_a_campaign_ends_in_one_clear_line(tmp_path):
     assert status != 0 and "Traceback" not in err and "KeyboardInterrupt" not in err, err
     assert [line for line in err.splitlines() if "interrupted" in line] == [
         "interrupted: the runs finished so far are on disk; run the same command again to resume"], err
+
+
+def test_ctrl_c_on_a_campaign_from_python_raises_keyboard_interrupt(tmp_path):
+    """movingbase.campaign() interrupted once returned normally, its runs 'not run'; now it
+    raises KeyboardInterrupt (as Python's own calls do) saying where the finished runs are."""
+    script = tmp_path / "script.py"
+    script.write_text("import movingbase\nif __name__ == '__main__':\n"
+                      f"    movingbase.campaign('sky_slews', jobs=2, out={str(tmp_path / 'c')!r})\n"
+                      "    print('returned normally')\n")
+    status, err = _interrupted(tmp_path, [sys.executable, str(script)], b"on disk)")
+    assert status != 0 and "returned normally" not in err, err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("KeyboardInterrupt: campaign sky_slews interrupted: ") and "call it again to resume" in last
+
+
+def test_a_campaign_from_a_script_without_a_main_guard_says_the_rule(tmp_path):
+    """The workers import the script and start the campaign again: 'Nanny failed to start'
+    after a hundred lines of the workers' tracebacks. Now the rule, in a few lines."""
+    (tmp_path / "c.toml").write_text('name = "ng"\nscenario = "paper_manoeuvre"\nset = { stop_time = "2.5 s" }\n'
+                                     '[[grid]]\n"base.lever_arm" = ["0 m", "5 m"]\n')
+    (tmp_path / "script.py").write_text("import movingbase\nmovingbase.campaign('c.toml', jobs=2, progress=False)\n")
+    done = subprocess.run([sys.executable, "script.py"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert done.returncode != 0
+    assert 'call the campaign under `if __name__ == "__main__":`' in done.stderr.splitlines()[-1], done.stderr
+    assert "Nanny failed to start" not in done.stderr.splitlines()[0] and len(done.stderr.splitlines()) < 40
 
 
 def test_every_bad_value_of_a_campaign_is_reported_at_once(tmp_path):
