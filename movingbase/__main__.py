@@ -23,6 +23,8 @@ def main(argv=None):
     by one took 0.2-0.3 s of a 2.6 s run (issue 21); every file is closed by then."""
     if argv is not None:
         return _command(list(argv))
+    for stream in (sys.stdout, sys.stderr):   # a file name or message the locale cannot encode (ASCII,
+        stream.reconfigure(errors="backslashreplace")   # Latin-1): shown escaped, never a UnicodeEncodeError
     try:
         status = _command(sys.argv[1:])
     except SystemExit as exc:

@@ -415,8 +415,8 @@ def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), p
                  cpu_time=cpu)
     if failure is not None:
         result.failure = failure_line(failure, instances)
-    result.flags = run_flags.run_flags(watch, result, instances, flags) + run_flags.sampling_flags(
-        metrics, scenario.record_interval)
+    result.flags = run_flags.run_flags(watch, result, instances, flags) + (run_flags.sampling_flags(
+        metrics, scenario.record_interval) if failure is None else [])   # cut short: its rows end early
     if failure is not None:
         raise RunFailed(str(failure), result) from None
     return result

@@ -87,7 +87,7 @@ def lock_folder(folder):
         raise OutputError(f"output folder {folder} is in use by {holder}, which writes its results there; "
                           "wait for it to end or choose another output folder") from None
     os.ftruncate(fd, 0)
-    os.write(fd, f"process {os.getpid()} ({' '.join(sys.argv)[:120]})".encode())
+    os.write(fd, f"process {os.getpid()} ({' '.join(sys.argv)[:120]})".encode("utf-8", "surrogateescape"))
     _LOCKS[key] = fd
     return folder
 

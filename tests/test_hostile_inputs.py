@@ -581,3 +581,17 @@ def test_a_very_long_path_is_shortened_in_messages_and_kept_whole_in_the_error()
     assert len(path) > 4000 and len(text) < 700 and "…" in text and text.count("x.toml") == 2
     assert refused.value.problems[0][0] == path     # the whole path, for code that reads it
     assert spec.shown("/short/path.toml") == "/short/path.toml"
+
+
+def test_a_locale_that_cannot_encode_a_file_name_runs_and_writes_it(tmp_path):
+    """In an ASCII (or Latin-1) locale a scenario named 'σ_slew.toml' ended in a
+    UnicodeEncodeError writing the folder's lock; printed names could end the same way.
+    Now names the locale cannot encode are printed escaped and written as given."""
+    import os
+    (tmp_path / "σ_slew.toml").write_text((runner.SHIPPED / "telescope_slew.toml").read_text(), encoding="utf-8")
+    env = {**os.environ, "LC_ALL": "C", "LANG": "C", "PYTHONCOERCECLOCALE": "0", "PYTHONUTF8": "0"}
+    done = subprocess.run([sys.executable, "-m", "movingbase", "run", "σ_slew.toml", "--ci", "--quiet", "--out", "o"],
+                          cwd=tmp_path, env=env, capture_output=True)
+    assert done.returncode == 0, done.stderr.decode(errors="replace")[-2000:]
+    assert b"o/\\udccf\\udc83_slew/report.md" in done.stdout    # the locale's bytes of 'σ', escaped
+    assert (tmp_path / "o" / "σ_slew" / "report.md").read_text(encoding="utf-8").startswith("# telescope_slew")
