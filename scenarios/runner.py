@@ -62,7 +62,7 @@ def output_folder(out, path):
     out = pathlib.Path(_named(out))
     stem = pathlib.Path(path).stem
     if stem in ("", ".", ".."):       # "..toml", "...toml": out itself or its parent, not a folder under it
-        raise OutputError(f"file name {pathlib.Path(path).name!r}: without .toml, {stem!r} cannot name its output "
+        raise OutputError(f"file name {spec.shown(repr(pathlib.Path(path).name))}: without .toml, {stem!r} cannot name its output "
                           f"folder under {out} (it would write into {out / stem}); rename the file")
     return lock_folder(make_folder(out / stem))
 
@@ -84,7 +84,7 @@ def lock_folder(folder):
     except BlockingIOError:
         holder = os.read(fd, 200).decode("utf-8", "replace").strip() or "another process"
         os.close(fd)
-        raise OutputError(f"output folder {folder} is in use by {holder}, which writes its results there; "
+        raise OutputError(f"output folder {spec.shown(folder)} is in use by {holder}, which writes its results there; "
                           "wait for it to end or choose another output folder") from None
     os.ftruncate(fd, 0)
     os.write(fd, f"process {os.getpid()} ({' '.join(sys.argv)[:120]})".encode("utf-8", "surrogateescape"))
@@ -109,9 +109,9 @@ def make_folder(folder):
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         said = _blocker(folder) or f"cannot be created ({exc.strerror})"
-        raise OutputError(f"output folder {folder}: {said}; choose another folder") from None
+        raise OutputError(f"output folder {spec.shown(folder)}: {said}; choose another folder") from None
     if not os.access(folder, os.W_OK | os.X_OK):
-        raise OutputError(f"output folder {folder}: not writable; choose another folder")
+        raise OutputError(f"output folder {spec.shown(folder)}: not writable; choose another folder")
     return folder
 
 
@@ -124,10 +124,10 @@ def _blocker(folder):
                 path.resolve(strict=True)
             except (RuntimeError, OSError) as exc:    # a loop: RuntimeError, or ELOOP from Python 3.13
                 if isinstance(exc, RuntimeError) or exc.errno == errno.ELOOP:
-                    return f"{path} is a symbolic link in a loop, not a folder"
-                return f"{path} is a symbolic link to {os.readlink(path)}, which does not exist"
+                    return f"{spec.shown(path)} is a symbolic link in a loop, not a folder"
+                return f"{spec.shown(path)} is a symbolic link to {spec.shown(os.readlink(path))}, which does not exist"
         if path.exists() and not path.is_dir():
-            return f"{path} is a file, not a folder"
+            return f"{spec.shown(path)} is a file, not a folder"
     return None
 
 

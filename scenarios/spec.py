@@ -171,7 +171,7 @@ def shown(text, most=160):
     start and end around an ellipsis (a 4,000-character path was echoed whole, each line);
     the error's ``problems`` keep it whole."""
     text = str(text)
-    return text if len(text) <= most else f"{text[:most // 3]}…{text[-(most - most // 3 - 1):]}"
+    return text if len(text) <= most else f"{text[:most // 3]}...{text[-(most - most // 3 - 3):]}"
 
 
 class _Problems:

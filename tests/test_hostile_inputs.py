@@ -572,15 +572,22 @@ def test_an_output_folder_behind_a_dangling_link_or_a_loop_is_refused_naming_it(
             runner.make_folder(folder)
 
 
-def test_a_very_long_path_is_shortened_in_messages_and_kept_whole_in_the_error():
+def test_a_very_long_path_is_shortened_in_messages_and_kept_whole_in_the_error(tmp_path):
     # a 4,000-character path was echoed back whole (twice per line): 7,290 characters
     path = "/tmp/" + "a" * 250 + "/" + ("c" * 200 + "/") * 19 + "x.toml"
     with pytest.raises(spec.ScenarioError) as refused:
         api.load_scenario(path)
     text = str(refused.value)
-    assert len(path) > 4000 and len(text) < 700 and "…" in text and text.count("x.toml") == 2
+    assert len(path) > 4000 and len(text) < 700 and "..." in text and text.count("x.toml") == 2
     assert refused.value.problems[0][0] == path     # the whole path, for code that reads it
-    assert spec.shown("/short/path.toml") == "/short/path.toml"
+    assert spec.shown("/short/path.toml") == "/short/path.toml" and len(spec.shown(path)) == 160
+    # an output folder's too: under a file (the blocker named), and not writable
+    blocker = tmp_path / ("b" * 250)
+    blocker.write_text("a file")
+    with pytest.raises(runner.OutputError) as refused:
+        runner.make_folder(blocker / ("d" * 250) / ("e" * 250) / "out")
+    assert len(str(refused.value)) < 400 and str(refused.value).endswith("bbb is a file, not a folder; choose "
+                                                                         "another folder")
 
 
 def test_a_locale_that_cannot_encode_a_file_name_runs_and_writes_it(tmp_path):
