@@ -9,6 +9,7 @@
 """
 import atexit
 import os
+import signal
 import sys
 
 from . import __version__
@@ -23,6 +24,7 @@ def main(argv=None):
     by one took 0.2-0.3 s of a 2.6 s run (issue 21); every file is closed by then."""
     if argv is not None:
         return _command(list(argv))
+    signal.signal(signal.SIGTERM, _terminated)
     for stream in (sys.stdout, sys.stderr):   # a file name or message the locale cannot encode (ASCII,
         stream.reconfigure(errors="backslashreplace")   # Latin-1): shown escaped, never a UnicodeEncodeError
     try:
@@ -33,6 +35,12 @@ def main(argv=None):
         print(status, file=sys.stderr)
         status = 1
     exit_now(status or 0)
+
+
+def _terminated(signum, frame):
+    """SIGTERM (kill, a batch system's time limit) ends the command as Ctrl-C does: through
+    its cleanup (the workers stopped, the unpacked FMUs removed), status 143."""
+    raise SystemExit(128 + signum)
 
 
 def exit_now(status):

@@ -29,7 +29,6 @@ Results are bit-for-bit those of a sequential ``scenarios.master.run`` in one pr
 each run is the same deterministic computation in a fresh set of instances; floats go
 through JSON as their repr (exact) and series through npz.
 """
-import atexit
 import contextlib
 import dataclasses
 import functools
@@ -44,7 +43,6 @@ import shutil
 import signal
 import socket
 import sys
-import tempfile
 import threading
 import time
 from itertools import islice
@@ -54,7 +52,7 @@ from tqdm import tqdm
 
 from movingbase.fmu_src.atomic import replacing, write_bytes
 
-from . import flags, master, metrics
+from . import flags, fmi, master, metrics
 from .fmi import content_digest
 from .resources import cores
 from .spec import Link, file_label
@@ -172,8 +170,7 @@ def _local_fmu(digest, blobs):
     global _FMU_DIR
     if digest not in _FMU_FILES:
         if _FMU_DIR is None:
-            _FMU_DIR = pathlib.Path(tempfile.mkdtemp(prefix="movingbase-fmus-"))
-            atexit.register(shutil.rmtree, _FMU_DIR, True)
+            _FMU_DIR = pathlib.Path(fmi.scratch("movingbase-fmus-"))
         path = _FMU_DIR / f"{digest}.fmu"
         path.write_bytes(blobs[digest])
         _FMU_FILES[digest] = path
@@ -313,6 +310,25 @@ class Outcome:
 
 
 @contextlib.contextmanager
+def _workers_scratch(engine):
+    """The worker processes started with $MOVINGBASE_SCRATCH set to one folder of this
+    process (fmi.scratch), which Engine.close removes: a worker killed (SIGTERM, SIGKILL)
+    runs no exit handler, and its unpacked FMUs stayed in TMPDIR."""
+    import dask
+    engine.scratch = fmi.scratch("movingbase-workers-")
+    previous = os.environ.get(fmi.SCRATCH)
+    os.environ[fmi.SCRATCH] = engine.scratch
+    try:
+        with dask.config.set({"temporary-directory": engine.scratch}):    # Dask's own dask-scratch-space
+            yield
+    finally:
+        if previous is None:
+            del os.environ[fmi.SCRATCH]
+        else:
+            os.environ[fmi.SCRATCH] = previous
+
+
+@contextlib.contextmanager
 def _workers_ignore_ctrl_c():
     """SIGINT ignored while the worker processes start: they inherit the ignored SIGINT
     (a blocked one they would not), so Ctrl-C reaches the client alone and the campaign
@@ -357,6 +373,7 @@ class Engine:
         self.cluster = self._client = None
         self.start_time = None      # seconds to start the cluster / connect, once done
         self._blobs = {}            # FMU digests -> scattered future of the FMU bytes
+        self.scratch = None         # the workers' temporary folders (fmi.SCRATCH), removed at close
 
     @property
     def client(self):
@@ -370,8 +387,9 @@ class Engine:
             else:
                 with dask.config.set(WORKER_CONFIG), _workers_ignore_ctrl_c():
                     try:
-                        self.cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
-                                                    dashboard_address=None, silence_logs=logging.CRITICAL)
+                        with _workers_scratch(self):
+                            self.cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
+                                                        dashboard_address=None, silence_logs=logging.CRITICAL)
                     except RuntimeError as exc:     # "Nanny failed to start", after each worker's traceback
                         raise RuntimeError(f"the {self.jobs} worker processes did not start ({exc}). {MAIN_GUARD}"
                                            ) from None
@@ -394,6 +412,9 @@ class Engine:
         if self.cluster is not None:
             self.cluster.close()
         self.cluster = self._client = None
+        if self.scratch:    # the workers' FMU files and folders, a killed worker's too
+            shutil.rmtree(self.scratch, ignore_errors=True)
+            self.scratch = None
 
     def __enter__(self):
         return self

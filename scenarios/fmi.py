@@ -7,10 +7,13 @@ and check the returned status here: fmpy's Python wrapper around each call costs
 than the call itself at a 1 ms step (benchmarks/bench_scenarios.py)."""
 import atexit
 import copy
+import errno
 import hashlib
+import os
 import pathlib
 import re
 import shutil
+import tempfile
 import zipfile
 from ctypes import CFUNCTYPE, POINTER, byref, c_bool, c_double, c_int, c_int32, c_size_t, c_uint, c_void_p
 from functools import lru_cache
@@ -68,13 +71,29 @@ def unpack(path):
     """Model description and extraction folder of an FMU file, once per process; the
     folder is removed when the process ends."""
     check_file(path)
+    folder = scratch("movingbase-fmu-")
     try:
         description = read_model_description(str(path))
-        folder = extract(str(path))
-    except (zipfile.BadZipFile, OSError, ValueError) as exc:   # a member's CRC or XML fails
+        extract(str(path), unzipdir=folder)
+    except (zipfile.BadZipFile, OSError, ValueError) as exc:   # a member's CRC or XML fails, a full disk
+        shutil.rmtree(folder, ignore_errors=True)               # nothing half-unpacked is left behind
+        if isinstance(exc, OSError) and exc.errno == errno.ENOSPC:
+            raise FmuFileError(f"FMU {path}: no space left to unpack it in {pathlib.Path(folder).parent} "
+                               "(TMPDIR): free some, or set TMPDIR to a larger disk") from None
         raise FmuFileError(f"FMU {path}: cannot be read ({exc}); rebuild it") from None
-    _FOLDERS.append(folder)
     return description, folder
+
+
+SCRATCH = "MOVINGBASE_SCRATCH"   # where a process makes its temporary folders (the campaign workers': the
+                                 # client's folder, which it removes even when a worker was killed)
+
+
+def scratch(prefix):
+    """A new temporary folder, removed when the process ends (atexit: a normal end,
+    Ctrl-C, SIGTERM to the command); under $MOVINGBASE_SCRATCH if set."""
+    folder = tempfile.mkdtemp(prefix=prefix, dir=os.environ.get(SCRATCH) or None)
+    _FOLDERS.append(folder)
+    return folder
 
 
 @atexit.register

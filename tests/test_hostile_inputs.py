@@ -602,3 +602,48 @@ def test_a_locale_that_cannot_encode_a_file_name_runs_and_writes_it(tmp_path):
     assert done.returncode == 0, done.stderr.decode(errors="replace")[-2000:]
     assert b"o/\\udccf\\udc83_slew/report.md" in done.stdout    # the locale's bytes of 'σ', escaped
     assert (tmp_path / "o" / "σ_slew" / "report.md").read_text(encoding="utf-8").startswith("# telescope_slew")
+
+
+def test_sigterm_leaves_no_unpacked_fmu_behind(tmp_path):
+    """SIGTERM to a campaign (kill, a batch system's time limit) left 11 unpacked FMU
+    folders in TMPDIR: the command ran no exit handler, nor did its killed workers. Now the
+    command ends through its cleanup and removes the workers' folders too."""
+    import os
+    import signal
+    import time
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    process = subprocess.Popen([sys.executable, "-m", "movingbase", "campaign", "sky_slews", "--jobs", "2", "--out",
+                                str(tmp_path / "c")], cwd=tmp_path, env={**os.environ, "TMPDIR": str(scratch)},
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and not list(scratch.glob("movingbase-workers-*/movingbase-fmu-*")):
+        time.sleep(0.2)      # the workers have unpacked their FMUs
+    assert list(scratch.glob("movingbase-workers-*/movingbase-fmu-*")), "the workers unpacked nothing"
+    process.send_signal(signal.SIGTERM)
+    assert process.wait(timeout=120) == 143, process.stderr.read().decode(errors="replace")[-2000:]
+    time.sleep(1.0)          # the workers' processes end after the command
+    assert [p.name for p in scratch.iterdir()] == []
+
+
+def test_an_fmu_that_cannot_be_unpacked_leaves_nothing_behind(tmp_path, monkeypatch):
+    """A full TMPDIR (ENOSPC part-way) left the half-unpacked FMU behind (189 kB)."""
+    import errno
+    import tempfile
+    from movingbase.fmu_src.native_build import ensure_native
+    from movingbase.scenarios import fmi
+    path = ensure_native(["leg_sensor_fmu"])["leg_sensor_fmu"]
+
+    def full(filename, unzipdir):
+        (pathlib.Path(unzipdir) / "binaries").mkdir()
+        (pathlib.Path(unzipdir) / "binaries" / "part.so").write_bytes(b"x" * 1000)
+        raise OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(fmi, "extract", full)
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    fmi.unpack.cache_clear()
+    try:
+        with pytest.raises(fmi.FmuFileError, match=r"no space left to unpack it in .* \(TMPDIR\)"):
+            fmi.unpack(path)
+    finally:
+        fmi.unpack.cache_clear()
+    assert list(tmp_path.iterdir()) == []
