@@ -66,6 +66,20 @@ CONTROL_LOOPS = {
 # fields its parameters give): a sensor between plant and controller in a loop of CONTROL_LOOPS
 LOOP_SENSORS = {"leg_sensor": ("leg_length", "measured_length", {"rate_cutoff": "rate_cutoff",
                                                                   "delay_steps": "delay_steps"})}
+# FMU -> {output: the inputs it follows within one communication step, with no state between
+# them (direct feedthrough; the modelDescriptions declare no dependencies)}: a cycle of
+# connections through these alone is an algebraic loop that the master cannot solve, and an
+# output wired back into such an input of its own FMU measures nothing (_check_wiring). A
+# sensor's delay line counts as no state: it holds no dynamics of what it measures.
+_ALL = "*"
+FEEDTHROUGH = {
+    "leg_sensor": {"measured_length": ("leg_length",), "estimated_rate": ("leg_length",)},
+    "base_sensor": {"base_pose": _ALL, "base_rate": _ALL, "base_acc": _ALL},
+    "leg_controller": {"leg_force": _ALL, "feedforward_force": _ALL},
+    "slider_controller": {"slider_force": ("slider_position", "slider_rate")},
+    "wind": {"platform_wrench": ("base_pose",)},
+    "hexapod_plant": {"leg_force_actual": ("leg_force",)},
+}
 # inputs that may stay unconnected, held at their start value (0: the effect they feed is off)
 OPTIONAL_INPUTS = {"hexapod_plant": ("platform_wrench",)}
 # per instance: the native C FMU (no Python in the host) or the pythonfmu one; equal results
@@ -750,6 +764,8 @@ def bind(scenario, model_descriptions):
                                             f"{t_inst}.{t.name} ({t.type}, {t.unit})")
                     _feed_once(src, key, i, f"{source_ref} -> {target}", (s_inst, s.name), (t_inst, t.name),
                                feeders, fed)
+    with problems.part():
+        _check_wiring(src, scenario, variables)
     if scenario.extrapolation == "derivatives":
         with problems.part():
             _check_derivatives(scenario, model_descriptions)
@@ -937,6 +953,102 @@ def _feed_once(src, key, index, written, source, target, feeders, fed):
                             "also sets; an input takes one source")
     feeders[target] = (index, written, source)
     fed.add(target)
+
+
+def _base(reference):
+    """("inst", "var") of "inst.var" or "inst.var[k]"."""
+    inst, name = reference.split(".", 1)
+    return inst, name.split("[", 1)[0]
+
+
+def _check_wiring(src, scenario, variables):
+    """Wiring that cannot be meant, refused naming its connections: a cycle of connections
+    through outputs that follow their inputs within a step (FEEDTHROUGH; one connection:
+    an output wired back into its own FMU), and a control loop (CONTROL_LOOPS) whose
+    controller does not measure its plant's output, directly or through its sensors
+    (LOOP_SENSORS). Either ran until a stroke error that named neither."""
+    feeds = {}      # (inst, input) -> [(source (inst, output), "from -> to")]
+    for source, targets in scenario.connections:
+        for target in targets:
+            feeds.setdefault(_base(target), []).append((_base(source), f"{source} -> {target}"))
+    inputs = {inst: {n.split("[", 1)[0] for n, v in variables[inst].items() if v.causality == "input"}
+              for inst in scenario.fmus}
+
+    def follows(inst, output):
+        given = FEEDTHROUGH.get(scenario.fmus[inst], {}).get(output, ())
+        return sorted(inputs[inst]) if given == _ALL else given
+
+    told = set()
+    for (inst, name), fed in feeds.items():
+        for out in FEEDTHROUGH.get(scenario.fmus.get(inst), {}):
+            if name not in follows(inst, out):
+                continue
+            for source, written in fed:
+                found = _loop_through(scenario, feeds, follows, source, (inst, name), written)
+                if found and frozenset(found) not in told:
+                    told.add(frozenset(found))
+                    if len(found) == 1:
+                        raise ScenarioError(src, "connections", f"{found[0]} wires an output back into its own FMU's "
+                                            f"input, and {scenario.fmus[inst]}'s {source[1]} follows its {name} "
+                                            "within a step (no state between): it would measure itself, not the "
+                                            "plant; connect the input to what it measures")
+                    raise ScenarioError(src, "connections", f"{'; '.join(found)}: an algebraic loop (each output "
+                                        "follows its input within a step, no state between) that the master "
+                                        "cannot solve; break it with a connection from a plant's output")
+    _check_loops_closed(src, scenario, feeds)
+
+
+def _loop_through(scenario, feeds, follows, source, start, written):
+    """The connections of a feedthrough cycle that ``written`` (``source`` -> ``start``)
+    closes, or None: from ``start``'s outputs that follow it, along connections and
+    feedthrough, back to ``source``."""
+    stack, seen = [(start, [written])], {start}
+    while stack:
+        (inst, name), path = stack.pop()
+        for out in FEEDTHROUGH.get(scenario.fmus[inst], {}):
+            if name not in follows(inst, out):
+                continue
+            if (inst, out) == source:
+                return path
+            for target, fed in feeds.items():
+                for node, w in fed:
+                    if node == (inst, out) and target not in seen and target[0] in scenario.fmus:
+                        seen.add(target)
+                        stack.append((target, [*path, w]))
+    return None
+
+
+def _check_loops_closed(src, scenario, feeds):
+    """Each controller of CONTROL_LOOPS whose force feeds its plant measures that plant's
+    output, directly or through sensors of LOOP_SENSORS."""
+    for controller, fmu in scenario.fmus.items():
+        entry = CONTROL_LOOPS.get(fmu)
+        if entry is None:
+            continue
+        plants = [t_inst for (t_inst, t_name), fed in feeds.items() if scenario.fmus.get(t_inst) == entry["plant"]
+                  and t_name == entry["plant_force"] and any(n == (controller, entry["force"]) for n, _ in fed)]
+        if not plants:
+            continue
+        wanted = {(p, entry["plant_measured"]) for p in plants}
+        node, chain = (controller, entry["measured"]), []
+        while True:
+            fed = feeds.get(node, [])
+            if not fed:
+                break
+            source, written = fed[0]
+            chain.append(written)
+            sensor = LOOP_SENSORS.get(scenario.fmus.get(source[0]))
+            if source in wanted or not sensor or source[1] != sensor[1] or len(chain) > len(scenario.fmus):
+                break
+            node = (source[0], sensor[0])
+        if not chain or fed[0][0] not in wanted:
+            idle = [f"{p}.{entry['plant_measured']}" for p in plants
+                    if not any(n == (p, entry["plant_measured"]) for f in feeds.values() for n, _ in f)]
+            raise ScenarioError(src, "connections", f"the loop of {controller!r} (its {entry['force']} drives "
+                                f"{plants[0]}.{entry['plant_force']}) does not measure its plant: "
+                                f"{controller}.{entry['measured']} is fed by {', then '.join(reversed(chain)) or 'no connection'}, "
+                                f"not by {plants[0]}.{entry['plant_measured']} (directly or through a sensor)"
+                                + (f"; {', '.join(idle)} is connected to nothing" if idle else ""))
 
 
 def _check_metric(src, key, metric, scalars):
