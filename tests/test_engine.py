@@ -256,3 +256,39 @@ def test_the_key_follows_the_kit_s_own_code(fmus, tmp_path, monkeypatch):
     assert engine.run_key(scenario, values, job.fmus) == job.key
     monkeypatch.setattr(engine, "_package_digest", lambda: before)
     assert engine.run_key(scenario, values, job.fmus) != job.key
+
+
+# every field of spec.Scenario is either in the key, or decides no run's numbers (named here,
+# with why); a new field fails the test below until it is placed
+_NOT_IN_KEY = {"source": "the file's path", "name": "a label", "description": "a label",
+               "sweep": "each run's parameters hold its value", "ci": "applied to stop_time already",
+               "fidelity_tolerance": "the chosen fidelity is in the parameters", "notes": "what the runner said",
+               "implementations": "in the FMU digests", "fmi_versions": "in the FMU digests",
+               "short": "decides flags, computed per case by the client"}
+
+
+def test_every_setting_that_decides_the_numbers_changes_the_run_key():
+    """A setting missing from the key (extrapolation, once) lets a campaign reuse the
+    results of other settings as its own."""
+    import dataclasses
+    base = spec.load(SHIPPED / "telescope_slew.toml")
+    parameters, fmus = {"base": {"lever_arm": 25.0}}, {inst: f"digest-{inst}" for inst in base.fmus}
+    key = engine.run_key(base, parameters, fmus)
+    changed = {"start_time": 0.5, "stop_time": 59.0, "step": 5e-4, "master": "gauss-seidel", "extrapolation": "none",
+               "fmus": {**base.fmus, "plant": "mechanism3t_plant"}, "connections": base.connections[:-1],
+               "record_interval": 0.02, "record": base.record[:-1],
+               "metrics": [dataclasses.replace(base.metrics[0], start=1.0), *base.metrics[1:]],
+               "parameters": {}}
+    fields = {f.name for f in dataclasses.fields(spec.Scenario)}
+    assert set(changed) | set(_NOT_IN_KEY) == fields and not set(changed) & set(_NOT_IN_KEY)
+    for name, value in changed.items():
+        if name == "parameters":    # the bound values are the key's, not the raw ones
+            assert engine.run_key(base, {"base": {"lever_arm": 5.0}}, fmus) != key
+            continue
+        assert engine.run_key(dataclasses.replace(base, **{name: value}), parameters, fmus) != key, name
+    assert engine.run_key(base, parameters, {**fmus, "plant": "another digest"}) != key
+    for name in _NOT_IN_KEY:        # and what decides no number leaves it alone
+        other = {"sweep": ("controller.kp", [1.0]), "ci": {"stop_time": 1.0}, "fidelity_tolerance": 3.0,
+                 "notes": ["x"], "implementations": {"plant": "python"}, "fmi_versions": {"plant": 3},
+                 "short": True}.get(name, "other")
+        assert engine.run_key(dataclasses.replace(base, **{name: other}), parameters, fmus) == key, name
