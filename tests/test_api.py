@@ -234,6 +234,7 @@ def test_a_campaign_s_table_holds_the_numbers_of_its_runs_run_one_by_one(tmp_pat
     ({"time [s]": np.array(["a", "b"]), "p.x [m]": np.zeros(2)}, "not a run's records: columns 'time"),  # text times
     ({"time [s]": np.array([0.0, np.nan]), "p.x [m]": np.zeros(2)}, "its times are not finite and increasing"),
     ({"time [s]": np.array([1.0, 0.0]), "p.x [m]": np.zeros(2)}, "its times are not finite and increasing"),
+    ({"time [s]": np.array([0.0, 0.5, 0.5]), "p.x [m]": np.zeros(3)}, "its times are not finite and increasing"),
 ])
 def test_a_file_that_is_not_records_is_refused_naming_it(content, problem, tmp_path):
     """Whatever a user hands read_records that a run did not write: one ValueError naming

@@ -245,3 +245,19 @@ def test_the_scenario_is_found_beside_the_campaign_file_first(tmp_path, monkeypa
     assert campaign.load(tmp_path / "mine" / "c.toml").scenario_path == tmp_path / "mine" / "slew.toml"
     (tmp_path / "mine" / "shipped.toml").write_text('scenario = "telescope_slew"\n')
     assert campaign.load(tmp_path / "mine" / "shipped.toml").scenario_path == runner.resolve("telescope_slew")
+
+
+def test_a_ci_campaign_keeps_its_short_runs_unflagged(tmp_path):
+    """A [ci] campaign cuts the slew on purpose (its [ci] set: 8 s of a 60 s slew); its
+    runs must not be flagged motion_unfinished, as `movingbase run --ci` is not.
+    Campaign(...) once was built without its ci setting, and no test saw it."""
+    path = tmp_path / "c.toml"
+    path.write_text(HEAD + '[grid]\n"base.lever_arm" = ["20 m"]\n[ci]\nset = { stop_time = "8 s" }\n')
+    assert campaign.load(path, ci=True).ci and not campaign.load(path).ci
+    camp, jobs, store, outcome, summary = campaign.run_campaign(path, tmp_path / "out", ci=True, jobs_=1,
+                                                                progress=False)
+    with open(summary) as f:
+        table = list(csv.DictReader(f))
+    assert len(table) == 3 and all(r["status"] == "ok" and r["flags"] == "" for r in table), table   # x the sweep
+    # the [ci] stop time, 8 s: the slew (from 5 s to ~56 s) is cut
+    assert [store.read(job.key)["sim_time_s"] for job in jobs] == pytest.approx([8.0] * 3)

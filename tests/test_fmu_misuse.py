@@ -703,3 +703,26 @@ def test_fmi3_saved_states_hold_no_uninitialised_bytes(native3, model):
     answers = run(native3[model], "inst", "-", "-", *INIT3, "step", 0.0, 1e-3, "save", "bytes", "load", "restore",
                   "step", 1e-3, 1e-3, wrapper=("valgrind", "-q", "--error-exitcode=99"), timeout=120)
     assert answers.statuses("fmi3SerializeFMUState") == ["OK"] and answers.statuses("fmi3DoStep") == ["OK", "OK"]
+
+
+@pytest.mark.parametrize("implementation, version", [("python", 2), ("native", 2), ("native", 3)])
+def test_a_guid_that_is_a_prefix_an_extension_or_empty_makes_no_instance(implementation, version, tmp_path):
+    """The GUID (FMI 3: instantiation token) must be the FMU's, whole: the pythonfmu shim's
+    check compared a prefix; the fuzzer's wrong GUIDs were never prefixes."""
+    import movingbase
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+    from fmpy.fmi3 import FMU3Slave
+    path = movingbase.fmus("leg_sensor", implementation=implementation, fmi_version=version)["leg_sensor"]
+    md = read_model_description(str(path))
+    folder = extract(str(path), str(tmp_path / "x"))
+    slave_type = FMU3Slave if version == 3 else FMU2Slave
+    for guid in (md.guid[:-1], md.guid[:1], "", md.guid + "0"):
+        slave = slave_type(guid=guid, unzipDirectory=folder, modelIdentifier=md.coSimulation.modelIdentifier)
+        with pytest.raises(Exception, match="(?i)instantiate"):
+            slave.instantiate()
+        slave.freeLibrary()
+    right = slave_type(guid=md.guid, unzipDirectory=folder, modelIdentifier=md.coSimulation.modelIdentifier)
+    right.instantiate()      # the whole GUID: an instance
+    right.freeInstance()
+    right.freeLibrary()

@@ -170,6 +170,13 @@ def test_resources_are_estimated_and_what_cannot_finish_is_refused(tmp_path):
     slew = spec.parse(SLEW, "slew.toml")
     cost = resources.estimate(slew)
     assert cost.steps == 60_000 and cost.rows == 6001       # (60 s / 1 ms) steps, every 10 ms plus t = 0
+    # the time itself, pinned: 3 native instances at 4.7 us per step each (issue 21's 30 s slew at
+    # 1 ms: 0.42 s), 35 us per recorded row: 60,000 x 14.1 us + 6,001 x 35 us = 1.056 s; a factor
+    # off (1000x too small was reached only through the disk estimate) fails here
+    assert cost.seconds == pytest.approx(60_000 * 3 * 4.7e-6 + 6001 * 35e-6, rel=1e-12)
+    assert cost.seconds == pytest.approx(1.056, abs=1e-3)
+    python = dataclass_copy(slew, implementations={"plant": "python"})
+    assert resources.estimate(python).seconds == pytest.approx(60_000 * (2 * 4.7e-6 + 30e-6) + 6001 * 35e-6)
     assert resources.check(cost, tmp_path, "slew.toml") == ""
     long = spec.parse(edited(SLEW, ('stop_time = "60 s"', 'stop_time = "1e9 s"')), "long.toml")
     with pytest.raises(resources.ResourceError, match=r"1e\+12|1,000,000,000,000 steps"):
@@ -180,6 +187,21 @@ def test_resources_are_estimated_and_what_cannot_finish_is_refused(tmp_path):
     small = dataclass_copy(cost, disk_bytes=2 * resources.free_bytes(tmp_path))
     with pytest.raises(resources.ResourceError, match="free under"):
         resources.check(small, tmp_path, "x")
+
+
+def test_a_campaign_s_cost_is_its_runs_at_their_own_stop_time(tmp_path):
+    """A campaign's estimate once ignored its own set.stop_time: it refused a small valid
+    campaign for disk and passed one that ran out of memory in a worker."""
+    path = tmp_path / "c.toml"
+    path.write_text('name = "c"\nscenario = "telescope_slew"\nset = { stop_time = "12 s" }\n'
+                    '[[grid]]\n"base.lever_arm" = ["5 m", "10 m"]\n')
+    made = campaign.CampaignJobs(campaign.load(path))
+    cost = made.cost()
+    one = resources.estimate(spec.parse(edited(SLEW, ('stop_time = "60 s"', 'stop_time = "12 s"')), "x.toml"),
+                             made._bind({})[2])
+    assert (cost.runs, cost.steps, cost.rows) == (6, 12_000, 1201)     # 2 lever arms x the 3-mode sweep
+    assert cost.seconds == pytest.approx(6 * one.seconds, rel=1e-12)
+    assert cost.disk_bytes == 0 and cost.run_bytes == one.run_bytes   # keeps no records; one run's memory
 
 
 def dataclass_copy(obj, **changes):
