@@ -523,6 +523,8 @@ class CampaignResult:
         (plot a metric against it), the units in ``table.attrs["units"]`` ({"base.lever_arm":
         "m", "leg error rms": "µm"}); summary.csv keeps the values as written."""
         table = _pandas().read_csv(self.summary_path)   # floats exact: written as repr, read round-trip
+        for column in ("error", "flags"):               # '' (nothing went wrong) is text, not a missing number
+            table[column] = table[column].astype(object).where(table[column].notna(), "")
         units = {}
         for column in self.campaign.varying:
             if column in table:

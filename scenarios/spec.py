@@ -138,7 +138,7 @@ KEYS = {
     "connections[].to": ('"instance.input" or a list of them', _REQUIRED,
                          "the inputs it feeds; every input has exactly one source"),
     "record.interval": ("time", "step", "recording interval: a whole multiple of step"),
-    "record.variables": ('list of "instance.variable"', "none", "what the CSV records"),
+    "record.variables": ('list of "instance.variable"', "none", "what the records (npz, CSV on request) hold"),
     "metrics[].kind": (", ".join(METRIC_KINDS), _REQUIRED, "what the metric computes (table below)"),
     "metrics[].name": ("string", "the kind", "the metric's name in the report and metrics.json"),
     "metrics[].from": ("time", "0 s", "the metric counts from this time on (after settling)"),

@@ -212,6 +212,7 @@ def test_a_campaign_s_table_holds_the_numbers_of_its_runs_run_one_by_one(tmp_pat
     assert sorted(table["base.lever_arm"]) == [2.0] * 3 + [5.0] * 3 and table.attrs["units"]["base.lever_arm"] == "m"
     assert table.attrs["units"]["leg error rms"] == "µm" and table["leg error rms"].dtype == float
     assert "6 runs: <span style=\"\">6 ok</span>" in ran._repr_html_()
+    assert list(table["error"]) == [""] * 6 and all(f.startswith("motion_unfinished") for f in table["flags"])
     alone = movingbase.run(NAME, progress=False, set={"stop_time": "2.5 s", "base.lever_arm": "5 m"})
     for row in table[table["base.lever_arm"] == 5.0].to_dict("records"):
         run = alone[row["controller.feedforward"]]   # the scenario's sweep, crossed in by the campaign

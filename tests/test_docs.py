@@ -177,7 +177,10 @@ def test_every_link_of_the_docs_to_a_page_of_the_repository_resolves():
     missing = []
     for page in [*DOCS.glob("*.md"), *DOCS.glob("reference/*.md"), DOCS.parent / "README.md"]:
         for target in re.findall(r"\]\(([^)#\s]+\.(?:md|ipynb|toml|py|png|json))(?:#[^)]*)?\)", page.read_text()):
-            if not target.startswith("http") and not (page.parent / target).resolve().exists():
+            resolved = (page.parent / target).resolve()
+            if resolved.parent == DOCS / "examples":     # a page generated from examples/<stem>.ipynb
+                resolved = DOCS.parent / "examples" / f"{resolved.stem}.ipynb"
+            if not target.startswith("http") and not resolved.exists():
                 missing.append(f"{page.name} -> {target}")
     assert missing == []
 
