@@ -121,15 +121,21 @@ def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = Non
         inst, name = key.split(".", 1)
         if inst not in loaded.fmus:
             near = difflib.get_close_matches(inst, list(loaded.fmus), 1, 0.6)
-            raise spec.ScenarioError(loaded.source, f"set[{key!r}]", f"unknown FMU instance {inst!r}; "
+            raise spec.ScenarioError(_set_source(loaded.source), f"set[{key!r}]", f"unknown FMU instance {inst!r}; "
                                      + (f"did you mean {near[0]!r}? " if near else "")
                                      + f"declared: {', '.join(loaded.fmus)} (top-level keys: no dot)")
         if loaded.sweep and loaded.sweep[0] == key:
-            raise spec.ScenarioError(loaded.source, f"set[{key!r}]", "is the swept parameter; every run sets it "
+            raise spec.ScenarioError(_set_source(loaded.source), f"set[{key!r}]", "is the swept parameter; every run sets it "
                                      f"from sweep.values; to run one value: set={{'sweep': {{'parameter': {key!r}, "
                                      f"'values': [{value!r}]}}}}")
         loaded.parameters[inst][name] = value
     return loaded
+
+
+def _set_source(source: str) -> str:
+    """Where a problem of ``set`` is told as coming from: the caller's set= on the scenario,
+    not the scenario's file (a shipped file named first read as broken)."""
+    return f"set= for {pathlib.Path(source).name}"
 
 
 def _as_set(error: spec.ScenarioError, given: Mapping[str, Any] | None) -> spec.ScenarioError:
@@ -139,8 +145,8 @@ def _as_set(error: spec.ScenarioError, given: Mapping[str, Any] | None) -> spec.
     told = []
     for source, key, problem in error.problems:
         path = next((p for p in paths if key == p or key.startswith(p + "[")), None)
-        told.append(spec.ScenarioError(source, key if path is None else f"set[{paths[path]!r}]{key[len(path):]}",
-                                       problem))
+        told.append(spec.ScenarioError(source, key, problem) if path is None else
+                    spec.ScenarioError(_set_source(source), f"set[{paths[path]!r}]{key[len(path):]}", problem))
     return spec.ScenarioError.joined(told)
 
 
@@ -150,11 +156,11 @@ def _overrides(source: str, values: Any) -> dict[str, Any]:
     if values is None:
         return {}
     if not isinstance(values, Mapping):
-        raise spec.ScenarioError(source, "set", f"expected a mapping of 'instance.parameter' or top-level keys "
+        raise spec.ScenarioError(_set_source(source), "set", f"expected a mapping of 'instance.parameter' or top-level keys "
                                  f"to values, got {type(values).__name__} {values!r:.60}")
     bad = [k for k in values if not isinstance(k, str) or not k]
     if bad:
-        raise spec.ScenarioError(source, "set", f"keys are text, 'instance.parameter' or a top-level key; got "
+        raise spec.ScenarioError(_set_source(source), "set", f"keys are text, 'instance.parameter' or a top-level key; got "
                                  f"{', '.join(repr(k) for k in bad)}")
     return {k: spec.plain(v) for k, v in values.items()}
 
@@ -258,8 +264,11 @@ class RunResult:
             raise KeyError(f"run {self.label}: nothing was recorded, the run failed before its first row: "
                            f"{self.run.failure}")
         if not parts:
-            raise KeyError(f"run {self.label}: no recorded variable {name!r}; recorded: "
-                           f"{', '.join(self.records.names) or 'nothing (the scenario records no variable)'}")
+            groups = list(dict.fromkeys(n.split("[", 1)[0] for n in self.records.names))
+            near = [g for g in groups if g.split(".", 1)[-1] == name] or difflib.get_close_matches(name, groups, 1, 0.6)
+            raise KeyError(f"run {self.label}: no recorded variable {name!r}"
+                           + (f"; did you mean {near[0]!r}?" if near else "") + "; recorded: "
+                           f"{', '.join(groups) or 'nothing (the scenario records no variable)'}")
         return np.column_stack([self.records[n] for n in parts])
 
     def _ipython_key_completions_(self) -> list[str]:

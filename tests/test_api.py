@@ -464,6 +464,8 @@ def test_a_bad_set_value_is_told_as_set_s_not_as_the_file_s(given, told):
     with pytest.raises(spec.ScenarioError) as refused:
         movingbase.run("telescope_slew", ci=True, set=given, progress=False)
     assert told in str(refused.value) and "fmus.base.parameters" not in str(refused.value)
+    # told as the caller's set=, not as a fault of the shipped file
+    assert str(refused.value).startswith("set= for telescope_slew.toml: set['b"), str(refused.value)
 
 
 # ------------------------------------------------------------------ what a notebook shows
@@ -492,8 +494,10 @@ def test_a_run_plots_its_variables_with_their_units_and_its_status(result, cut_s
     assert "plant.leg_length\n[m]" in [a.get_ylabel() for a in default.axes]
     failed = cut_short[0]["none"].plot("plant.pose")[0]
     assert failed.get_suptitle().startswith("run none: FAILED (cut_short")
-    with pytest.raises(KeyError, match="no recorded variable 'pose'"):
+    with pytest.raises(KeyError, match="no recorded variable 'pose'; did you mean 'plant.pose'"):
         run.plot("pose")
+    with pytest.raises(KeyError, match="no recorded variable 'plant.leg_lenght'; did you mean 'plant.leg_length'"):
+        run["plant.leg_lenght"]
     assert [p.name for p in run.plot("plant.pose").save(tmp_path / "c")] == ["chart_1.png"]
 
 
