@@ -1,10 +1,16 @@
 """The kit's verdict on random scenes against an independent judge of their records
-(tests/judge.py): no miss, and no run the kit ran and flagged that the judge calls clean.
+(tests/judge.py): no miss, and no false alarm (a refusal or flag where the judge sees
+nothing wrong).
 
-Measured on seeds 0-59 (this file): 42 agree, 0 misses, 18 refusals the judge cannot
-confirm from its short runs (steps at 1.0-1.3x the predicted limit, or gains the kit
-predicts unstable at any step): whether those loops grow needs longer runs than these
-1.5-3 s, so they are counted and printed, not judged here."""
+Measured (this file's seeds): single scenes 0-59: 60 agree, 0 misses, 0 false alarms; of
+them 18 refusals the 3-6 s runs do not show: the 6 of the 3T (seeds 17 25 31 32 43 46)
+go bad in 8-30 s runs, the 12 of the realistic hexapod (seeds 1 6 9 14 24 34 37 38 42 49
+51 54, at 1.02-1.30x the predicted limit) only without the plant's Coulomb friction, which
+the kit's loop model leaves out as documented (a slow leg's stiction damps the
+oscillation; seed 34 without it: a 170 um limit cycle at 1.11x). Sweeps and campaigns of
+two kp values, seeds 0-11: 24 agree (two 3T campaigns flagged undersampled at the shipped
+50 ms rows on 1.5 s runs: their RMS is 2.3-10.7 % off the every-step value). The default
+run judges a part; .ci/run (-m slow) the rest, with the counts printed."""
 import warnings
 
 import movingbase
@@ -12,26 +18,39 @@ import pytest
 
 from . import judge
 
-SEEDS = range(60)
+SEEDS, SLOW_SEEDS = range(20), range(20, 120)             # single scenes
+MANY, SLOW_MANY = range(3), range(3, 20)                   # sweeps and campaigns of two kp values
 
 
-@pytest.fixture(scope="module")
-def agreement():
+def _single(seeds):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", movingbase.RunWarning)
-        return judge.agreement(SEEDS)
+        found = judge.agreement(seeds)
+    print(f"scenes {seeds.start}-{seeds.stop - 1}: {found['agree']} agree (refusals confirmed in longer runs: "
+          f"{found['confirmed']['longer']}, without stiction: {found['confirmed']['stiction']}), misses "
+          f"{found['misses']}, false alarms {found['false_alarms']}")
+    return found
 
 
-def test_no_run_the_judge_calls_bad_passes_the_kit(agreement):
-    print(f"{len(SEEDS)} scenes: {agreement['agree']} agree, misses {agreement['misses']}, "
-          f"refusals not confirmed {agreement['false_alarms']}")
-    assert agreement["misses"] == []
+def _many(seeds, folder):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", movingbase.RunWarning)
+        found = judge.many_agreement(seeds, folder)
+    print(f"sweeps and campaigns {seeds.start}-{seeds.stop - 1}: {found['agree']} agree, misses "
+          f"{found['misses']}, false alarms {found['false_alarms']}")
+    return found
 
 
-def test_no_run_the_kit_ran_is_flagged_where_the_judge_sees_nothing(agreement):
-    # the kit's flags on runs it ran (not its refusals before running) all agree with the judge
-    assert [alarm for alarm in agreement["false_alarms"] if alarm[3] != "refused"] == []
-    assert all(ratio >= 1.0 or kind == "3t" for _, kind, ratio, _ in agreement["false_alarms"])
+@pytest.mark.parametrize("seeds", [SEEDS, pytest.param(SLOW_SEEDS, marks=pytest.mark.slow)], ids=["default", "slow"])
+def test_the_kit_agrees_with_the_judge_on_random_scenes(seeds):
+    found = _single(seeds)
+    assert found["misses"] == [] and found["false_alarms"] == []
+
+
+@pytest.mark.parametrize("seeds", [MANY, pytest.param(SLOW_MANY, marks=pytest.mark.slow)], ids=["default", "slow"])
+def test_the_kit_agrees_with_the_judge_on_random_sweeps_and_campaigns(seeds, tmp_path):
+    found = _many(seeds, tmp_path)
+    assert found["misses"] == [] and found["false_alarms"] == []
 
 
 def test_the_judge_can_say_bad_and_clean():
@@ -46,3 +65,18 @@ def test_the_judge_can_say_bad_and_clean():
         assert (kit, verdict) == ("refused", "bad") and "limit" in why
         calm = judge.Scene(0, "hexapod", scene.file, {**scene.set, "controller.kp": 3726457.1097513568}, 1e-3, 0)
         assert judge.kit_and_judge(calm)[:2] == ("clean", "clean")
+
+
+def test_the_judge_sees_a_limit_cycle_and_the_stiction_that_hides_it():
+    """Seed 34 (kp 2.8x, Jacobi, no extrapolation, 0.5 ms against a predicted 0.449 ms):
+    with the plant's Coulomb friction its legs creep and the loop looks clean; without it,
+    a limit cycle that neither grows nor holds a limit, far from the 0.1 ms run."""
+    scene = judge.draw(34)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", movingbase.RunWarning)
+        assert judge.kit_and_judge(scene) == ("refused", "clean", "")
+        slick = judge._longer(scene, 6.0, **{"plant.coulomb_friction": "0 N"})
+        import dataclasses
+        verdict, why = judge.judge(slick, judge._anyway(slick), judge._anyway(dataclasses.replace(slick, step=judge.FINE)))
+    assert verdict == "bad" and why.endswith("um from the 0.1 ms run over the second half"), why
+    assert judge.confirm(scene) == "stiction"
