@@ -37,7 +37,8 @@ def _many(seeds, folder):
         warnings.simplefilter("ignore", movingbase.RunWarning)
         found = judge.many_agreement(seeds, folder)
     print(f"sweeps and campaigns {seeds.start}-{seeds.stop - 1}: {found['agree']} agree, misses "
-          f"{found['misses']}, false alarms {found['false_alarms']}")
+          f"{found['misses']}, false alarms {found['false_alarms']}; undersampled flags: "
+          f"{found['sampling']['agree']} confirmed, conservative {found['sampling']['conservative']}")
     return found
 
 
