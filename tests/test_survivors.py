@@ -1,12 +1,17 @@
-"""Issue 27's survivors: slips put into the code that no test caught, each pinned here by
-a number where no other test pins it. The others are pinned beside the code they test:
-the saturated share in percent (test_flags), the run key's settings (test_engine), the
-wind drag's sign (test_wind), the Gauss-Seidel order (test_master_loop), the time
-estimate (test_hostile_inputs), repeated record times (test_api), GUID prefixes
-(test_fmu_misuse), a [ci] campaign's short runs (test_campaign)."""
-import numpy as np
+"""Issue 27's survivors: slips put into the code that no test caught, pinned here by a
+number where no other test pins them: a growth that lasts some windows and then decays,
+and what a Gauss-Seidel step feeds each FMU (the lag, in steps, of a sensor's reading).
+The others are pinned beside the code they test: the saturated share in percent
+(test_flags), the run key's settings (test_engine), the wind drag's sign (test_wind), the
+Gauss-Seidel order of a permuted file (test_master_loop), the time estimate
+(test_hostile_inputs), repeated record times (test_api), GUID prefixes (test_fmu_misuse),
+a [ci] campaign's short runs (test_campaign)."""
+import dataclasses
 
-from movingbase.scenarios import flags
+import numpy as np
+import pytest
+
+from movingbase.scenarios import flags, master, runner
 
 STROKE = (np.full(6, -0.15), np.full(6, 0.15))   # a Watched loop's ends: +-150 mm
 WINDOW = 0.5                                    # s, the detector's window here
@@ -41,3 +46,40 @@ def test_a_growth_over_five_windows_that_then_decays_is_no_instability():
     message = leg_oscillation_flags(steady, t)["unstable"]
     assert f"grows from {envelope[1] * 1e6:.3g} µm to {envelope[9] * 1e6:.3g} µm between t = 0.5 s and 4.5 s" \
         in message, message
+
+
+@pytest.fixture(scope="module")
+def realistic_slew():
+    """The realistic slew's [ci] scene, its FMUs and values, with an ideal leg sensor
+    (no noise, rounding or delay: its documented exact pass-through), no extrapolation,
+    and the slew starting at 0.05 s (the legs move)."""
+    scenario, paths, _, values = runner.prepare(runner.resolve("telescope_slew_realistic"), ci=True)
+    values["sensor"].update(noise=0.0, resolution=0.0, delay_steps=0)
+    values["base"]["start_delay"] = 0.05
+    return dataclasses.replace(scenario, extrapolation="none", stop_time=0.3, record_interval=scenario.step), \
+        paths, values
+
+
+@pytest.mark.parametrize("master_kind, listing, lag", [
+    ("gauss-seidel", ["base", "plant", "sensor", "controller"], 0),    # as shipped: sources first
+    ("gauss-seidel", ["controller", "sensor", "plant", "base"], 0),    # reversed: still base, controller, plant, sensor
+    ("gauss-seidel", ["sensor", "plant", "controller", "base"], 1),    # the cycle broken at the sensor: it steps first
+    ("jacobi", ["base", "plant", "sensor", "controller"], 1),
+])
+def test_gauss_seidel_feeds_each_fmu_the_outputs_of_those_stepped_before_it(realistic_slew, master_kind, listing,
+                                                                            lag):
+    """The ideal sensor samples its input at t and gives it out at t + h (fmu_src/leg_sensor_fmu.py).
+    Under Gauss-Seidel a sensor stepped after the plant is fed the plant's length of the same
+    step: its recorded length equals the plant's on every row, bit for bit. Stepped before the
+    plant (the cycle plant -> sensor -> controller -> plant broken at the first listed, here the
+    sensor), or under Jacobi, it is one step behind: row k + 1 holds row k's length. A master
+    stepping in reversed order, or in the file's listing order, gives the other lag."""
+    scenario, paths, values = realistic_slew
+    scenario = dataclasses.replace(scenario, master=master_kind, fmus={k: scenario.fmus[k] for k in listing})
+    records = master.run(scenario, paths, values).records
+    names = list(records.names)
+    length, measured = (records.values[:, [i for i, n in enumerate(names) if n.startswith(ref + "[")]]
+                        for ref in ("plant.leg_length", "sensor.measured_length"))
+    assert length.shape == (301, 6) and measured.shape == (301, 6)
+    same, behind = (measured[k:].tobytes() == length[:len(length) - k].tobytes() for k in (0, 1))
+    assert (same, behind) == (lag == 0, lag == 1)     # the legs move: one lag holds, not the other
