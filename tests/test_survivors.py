@@ -1,6 +1,7 @@
 """Issue 27's survivors: slips put into the code that no test caught, pinned here by a
 number where no other test pins them: a growth that lasts some windows and then decays,
-and what a Gauss-Seidel step feeds each FMU (the lag, in steps, of a sensor's reading).
+what a Gauss-Seidel step feeds each FMU (the lag, in steps, of a sensor's reading), and
+the run key's twin, the key of the stability predictions kept over a sweep's runs.
 The others are pinned beside the code they test: the saturated share in percent
 (test_flags), the run key's settings (test_engine), the wind drag's sign (test_wind), the
 Gauss-Seidel order of a permuted file (test_master_loop), the time estimate
@@ -83,3 +84,58 @@ def test_gauss_seidel_feeds_each_fmu_the_outputs_of_those_stepped_before_it(real
     assert length.shape == (301, 6) and measured.shape == (301, 6)
     same, behind = (measured[k:].tobytes() == length[:len(length) - k].tobytes() for k in (0, 1))
     assert (same, behind) == (lag == 0, lag == 1)     # the legs move: one lag holds, not the other
+
+
+def _other(variable, now):
+    """Another valid value of a parameter (now: its value in the run): an enumeration's next
+    item, an integer one up (or down at its maximum), a real 1.25 times (or within its range)."""
+    low = -np.inf if variable.min is None else float(variable.min)
+    high = np.inf if variable.max is None else float(variable.max)
+    if variable.type == "Enumeration":
+        items = [int(i.value) for i in variable.declaredType.items]
+        return items[(items.index(int(now)) + 1) % len(items)]
+    if variable.type in ("Integer", "Boolean"):
+        return int(now) + 1 if int(now) + 1 <= high else int(now) - 1
+    other = 1.25 * now if now else (0.5 * high if np.isfinite(high) else 1.0)
+    return other if low <= other <= high else (0.5 * (now + high) if np.isfinite(high) else 0.5 * (now + low))
+
+
+@pytest.mark.parametrize("name", ["telescope_slew_realistic", "mechanism3t_paper"])
+def test_a_prediction_kept_for_other_runs_is_never_reused_for_different_settings(name):
+    """The stability prediction is cached per distinct loop over the runs of a sweep or campaign
+    (flags._key), as results are by the run key. A setting left out of that key (extrapolation,
+    like the run key's once) hands a run the limit of another run's settings: a step beyond its
+    own limit runs unflagged. Every parameter of every FMU of the scene (from its model
+    description, so a new parameter is covered) and the time grid, master and extrapolation
+    are changed one at a time; the prediction through a cache that holds the scene's own
+    prediction must be the one made afresh."""
+    scenario, paths, descriptions, values = runner.prepare(runner.resolve(name), ci=True)
+    cache = {}
+    first = flags.predict(scenario, paths, descriptions, values, cache=cache)
+    variants = [(f"scenario.{k}", dataclasses.replace(scenario, **{k: v}), values) for k, v in (
+        ("master", "gauss-seidel" if scenario.master == "jacobi" else "jacobi"),
+        ("extrapolation", "none" if scenario.extrapolation != "none" else "linear"),
+        ("step", 0.8 * scenario.step), ("stop_time", 0.5 * scenario.stop_time),
+        ("start_time", scenario.start_time + 0.1))]
+    for inst, description in descriptions.items():
+        for variable in description.modelVariables:
+            if variable.causality == "parameter":
+                now = flags._value(values, descriptions, inst, variable.name)
+                changed = {**values, inst: {**values.get(inst, {}), variable.name: _other(variable, now)}}
+                variants.append((f"{inst}.{variable.name}", scenario, changed))
+    differ = refused = 0
+    for label, variant, changed in variants:
+        try:
+            fresh = flags.predict(variant, paths, descriptions, changed)
+        except Exception as exc:    # a value the models refuse (a source below the horizon): so must the cache
+            with pytest.raises(type(exc)):
+                flags.predict(variant, paths, descriptions, changed, cache=cache)
+            refused += 1
+            continue
+        kept = flags.predict(variant, paths, descriptions, changed, cache=cache)
+        assert (kept.limit, kept.step, kept.flags, kept.gains) == (fresh.limit, fresh.step, fresh.flags, fresh.gains), \
+            label
+        assert np.array_equal(kept.masses, fresh.masses), label
+        differ += (fresh.limit, fresh.flags) != (first.limit, first.flags)
+    print(f"{name}: {len(variants)} settings changed, {differ} change the prediction, {refused} refused")
+    assert differ >= 5          # the changes reach the prediction: a cache hit would show
