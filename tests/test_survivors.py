@@ -1,7 +1,8 @@
 """Issue 27's survivors: slips put into the code that no test caught, pinned here by a
 number where no other test pins them: a growth that lasts some windows and then decays,
-what a Gauss-Seidel step feeds each FMU (the lag, in steps, of a sensor's reading), and
-the run key's twin, the key of the stability predictions kept over a sweep's runs.
+what a Gauss-Seidel step feeds each FMU (the lag, in steps, of a sensor's reading), the
+run key's twin (the key of the stability predictions kept over a sweep's runs), and the
+resource estimate's memory and disk against a run's own records.
 The others are pinned beside the code they test: the saturated share in percent
 (test_flags), the run key's settings (test_engine), the wind drag's sign (test_wind), the
 Gauss-Seidel order of a permuted file (test_master_loop), the time estimate
@@ -12,7 +13,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from movingbase.scenarios import flags, master, runner
+from movingbase.scenarios import flags, master, resources, runner
 
 STROKE = (np.full(6, -0.15), np.full(6, 0.15))   # a Watched loop's ends: +-150 mm
 WINDOW = 0.5                                    # s, the detector's window here
@@ -139,3 +140,18 @@ def test_a_prediction_kept_for_other_runs_is_never_reused_for_different_settings
         differ += (fresh.limit, fresh.flags) != (first.limit, first.flags)
     print(f"{name}: {len(variants)} settings changed, {differ} change the prediction, {refused} refused")
     assert differ >= 5          # the changes reach the prediction: a cache hit would show
+
+
+def test_the_memory_and_disk_a_run_is_estimated_to_need_are_those_it_takes(tmp_path):
+    """The resource estimate's memory and disk, against a run's own records (the time estimate
+    is pinned in test_hostile_inputs): 5 s of the realistic slew at 1 ms, recorded every 10 ms,
+    holds 501 rows of 34 values and their times in memory, 140,280 bytes, as estimated; its npz
+    file holds them plus a header per column (7 % more here). A factor off in the estimate
+    refuses a campaign for disk that fits, or passes one that runs out of memory."""
+    scenario, paths, descriptions, values = runner.prepare(runner.resolve("telescope_slew_realistic"), ci=True)
+    scenario = dataclasses.replace(scenario, stop_time=5.0)
+    cost = resources.estimate(scenario, descriptions)
+    records = master.run(scenario, paths, values, tmp_path, "run").records
+    assert (cost.rows, cost.columns) == records.values.shape == (501, 34)
+    assert cost.run_bytes == cost.disk_bytes == records.values.nbytes + records.time.nbytes == 140_280
+    assert cost.disk_bytes < (tmp_path / "run.npz").stat().st_size < 1.1 * cost.disk_bytes
