@@ -7,9 +7,10 @@ the other in an order taken from the connection graph (sources first; a cycle is
 at a plant: an FMU with a state between its inputs and connected outputs, see
 step_order), each seeing the outputs already computed for t_k+1. Linear extrapolation
 replaces a held input u_k by the mean of its linear extrapolation over the coming step,
-u_k + (u_k - u_k-1) / 2, for inputs whose source has not yet stepped. The stepping and the reading of the recorded values run in C
-(scenarios/c/cosim.c, class Loop), many record points per call; Python sets up, hands the
-blocks of rows to the records, the metrics and the watch, and reports.
+u_k + (u_k - u_k-1) / 2, for inputs whose source has not yet stepped. The stepping and
+the reading of the recorded values run in C (scenarios/c/cosim.c, class Loop), many
+record points per call; Python sets up, hands the blocks of rows to the records, the
+metrics and the watch, and reports.
 
 Every FMI call is status-checked (scenarios.fmi); a Discard/Error stops the run with
 RunFailed: one line naming the instance, the time and the FMU's error log line, and the
