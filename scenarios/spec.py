@@ -121,7 +121,7 @@ KEYS = {
     "step": ("time", _REQUIRED, "communication step of the master"),
     "master": (" or ".join(f'"{m}"' for m in MASTERS), f'"{MASTERS[0]}"',
                "Jacobi (every FMU steps on the others' outputs of the last step) or Gauss-Seidel "
-               "(in the order of the connection graph)"),
+               "(in the order of the connection graph; a loop starts at its plant)"),
     "extrapolation": (" or ".join(f'"{e}"' for e in EXTRAPOLATIONS), f'"{EXTRAPOLATIONS[0]}"',
                       "inputs from FMUs not yet stepped: held, extrapolated linearly, or by the output "
                       "derivatives of FMI 3 FMUs that give them (the telescope with fmi_version = 3; "

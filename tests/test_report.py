@@ -81,6 +81,8 @@ def test_pose_chart_holds_position_rotation_and_base_motion(tmp_path):
     assert "none and fixed_base coincide" in _texts(panels["position"])
     largest = np.abs(runs[0].series["pose error"][1] - runs[1].series["pose error"][1]).max()
     assert report.length(largest) in _texts(panels["position"])
+    peak = max(runs[0].series["pose error"][1].max(), runs[1].series["pose error"][1].max())
+    assert f"({100 * largest / peak:.2g} % of the peak)" in _texts(panels["position"])   # 1e-4: 0.01 %
     for name, ax in panels.items():
         assert ax.get_xlim() == (T0, T1)                            # trimmed to the scene
         assert any(list(line.get_xdata()) == [CUT, CUT] for line in ax.get_lines())   # cut-off marked
