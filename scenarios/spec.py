@@ -980,15 +980,13 @@ def _check_wiring(src, scenario, variables, feeders):
         given = FEEDTHROUGH.get(scenario.fmus[inst], {}).get(output, ())
         return sorted(inputs[inst]) if given == _ALL else given
 
-    told = set()
     for (inst, name), fed in feeds.items():
         for out in FEEDTHROUGH.get(scenario.fmus.get(inst), {}):
             if name not in follows(inst, out):
                 continue
             for source, written in fed:
                 found = _loop_through(scenario, feeds, follows, source, (inst, name), written)
-                if found and frozenset(found) not in told:
-                    told.add(frozenset(found))
+                if found:
                     if len(found) == 1:
                         raise ScenarioError(src, "connections", f"{found[0]} wires an output back into its own FMU's "
                                             f"input, and {scenario.fmus[inst]}'s {source[1]} follows its {name} "
@@ -1060,10 +1058,14 @@ def _check_loops_closed(src, scenario, feeds, feeders, variables):
 
 def _measured_chain(scenario, feeders, node, wanted):
     """None if input element ``node`` is fed by an output of ``wanted`` (directly or
-    through sensors of LOOP_SENSORS); else the connections that feed it, as written."""
+    through sensors of LOOP_SENSORS); else what feeds it: the connections as written, and
+    the parameter that sets the input the chain ends at, if one does."""
     chain = []
     for _ in scenario.fmus:
         if node not in feeders:
+            base = _base(f"{node[0]}.{node[1]}")[1]
+            chain += [f"fmus.{node[0]}.parameters.{name}" for name in (base, node[1])
+                      if name in scenario.parameters.get(node[0], {})]
             break
         _, written, (inst, name) = feeders[node]
         chain.append(written)

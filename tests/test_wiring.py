@@ -80,6 +80,17 @@ def test_a_loop_measuring_only_some_legs_is_refused_in_any_order(tmp_path, first
     assert "controller.leg_length[1]" not in message and "plant.leg_length[1]" not in message
 
 
+def test_a_sensor_input_held_by_a_parameter_is_named(tmp_path):
+    """The sensor's leg lengths set to a constant in its parameters, not wired from the
+    plant: the refusal names the parameter as what the loop measures."""
+    text = REALISTIC.replace(f"[[connections]]\n{PLANT_TO_SENSOR}\n", "")
+    text = text.replace("seed = 1 }", 'seed = 1, leg_length = ["3.1 m", "3.1 m", "3.1 m", "3.1 m", "3.1 m", '
+                        '"3.1 m"] }', 1)
+    _refused(tmp_path, text, "does not measure its plant: controller.leg_length is fed by "
+             "fmus.sensor.parameters.leg_length, then sensor.measured_length -> controller.leg_length, not by "
+             "plant.leg_length", "; plant.leg_length is connected to nothing")
+
+
 def test_the_3t_mechanism_loop_is_checked_too(tmp_path):
     """The same rule from the catalogue alone (CONTROL_LOOPS), for the slider loop: its
     controller measures a second mechanism while driving the first."""
