@@ -746,6 +746,7 @@ def bind(scenario, model_descriptions):
     with problems.part():
         _check_links(src, values)
     feeders = {}   # (instance, input) -> (connection index, "source -> target" as written, source)
+    told = len(problems.errors)
     for i, (source_ref, targets) in enumerate(scenario.connections):
         key = f"connections[{i}]"
         for target in targets:
@@ -764,8 +765,9 @@ def bind(scenario, model_descriptions):
                                             f"{t_inst}.{t.name} ({t.type}, {t.unit})")
                     _feed_once(src, key, i, f"{source_ref} -> {target}", (s_inst, s.name), (t_inst, t.name),
                                feeders, fed)
-    with problems.part():
-        _check_wiring(src, scenario, variables)
+    if len(problems.errors) == told:     # wiring is judged on connections that are each valid
+        with problems.part():
+            _check_wiring(src, scenario, variables, feeders)
     if scenario.extrapolation == "derivatives":
         with problems.part():
             _check_derivatives(scenario, model_descriptions)
@@ -961,7 +963,7 @@ def _base(reference):
     return inst, name.split("[", 1)[0]
 
 
-def _check_wiring(src, scenario, variables):
+def _check_wiring(src, scenario, variables, feeders):
     """Wiring that cannot be meant, refused naming its connections: a cycle of connections
     through outputs that follow their inputs within a step (FEEDTHROUGH; one connection:
     an output wired back into its own FMU), and a control loop (CONTROL_LOOPS) whose
@@ -978,15 +980,13 @@ def _check_wiring(src, scenario, variables):
         given = FEEDTHROUGH.get(scenario.fmus[inst], {}).get(output, ())
         return sorted(inputs[inst]) if given == _ALL else given
 
-    told = set()
     for (inst, name), fed in feeds.items():
         for out in FEEDTHROUGH.get(scenario.fmus.get(inst), {}):
             if name not in follows(inst, out):
                 continue
             for source, written in fed:
                 found = _loop_through(scenario, feeds, follows, source, (inst, name), written)
-                if found and frozenset(found) not in told:
-                    told.add(frozenset(found))
+                if found:
                     if len(found) == 1:
                         raise ScenarioError(src, "connections", f"{found[0]} wires an output back into its own FMU's "
                                             f"input, and {scenario.fmus[inst]}'s {source[1]} follows its {name} "
@@ -995,7 +995,7 @@ def _check_wiring(src, scenario, variables):
                     raise ScenarioError(src, "connections", f"{'; '.join(found)}: an algebraic loop (each output "
                                         "follows its input within a step, no state between) that the master "
                                         "cannot solve; break it with a connection from a plant's output")
-    _check_loops_closed(src, scenario, feeds)
+    _check_loops_closed(src, scenario, feeds, feeders, variables)
 
 
 def _loop_through(scenario, feeds, follows, source, start, written):
@@ -1018,9 +1018,10 @@ def _loop_through(scenario, feeds, follows, source, start, written):
     return None
 
 
-def _check_loops_closed(src, scenario, feeds):
+def _check_loops_closed(src, scenario, feeds, feeders, variables):
     """Each controller of CONTROL_LOOPS whose force feeds its plant measures that plant's
-    output, directly or through sensors of LOOP_SENSORS."""
+    output in every element of its measured input, directly or through sensors of
+    LOOP_SENSORS (element k of a sensor's output follows element k of its input)."""
     for controller, fmu in scenario.fmus.items():
         entry = CONTROL_LOOPS.get(fmu)
         if entry is None:
@@ -1030,25 +1031,52 @@ def _check_loops_closed(src, scenario, feeds):
         if not plants:
             continue
         wanted = {(p, entry["plant_measured"]) for p in plants}
-        node, chain = (controller, entry["measured"]), []
-        while True:
-            fed = feeds.get(node, [])
-            if not fed:
-                break
-            source, written = fed[0]
-            chain.append(written)
-            sensor = LOOP_SENSORS.get(scenario.fmus.get(source[0]))
-            if source in wanted or not sensor or source[1] != sensor[1] or len(chain) > len(scenario.fmus):
-                break
-            node = (source[0], sensor[0])
-        if not chain or fed[0][0] not in wanted:
-            idle = [f"{p}.{entry['plant_measured']}" for p in plants
-                    if not any(n == (p, entry["plant_measured"]) for f in feeds.values() for n, _ in f)]
-            raise ScenarioError(src, "connections", f"the loop of {controller!r} (its {entry['force']} drives "
-                                f"{plants[0]}.{entry['plant_force']}) does not measure its plant: "
-                                f"{controller}.{entry['measured']} is fed by {', then '.join(reversed(chain)) or 'no connection'}, "
-                                f"not by {plants[0]}.{entry['plant_measured']} (directly or through a sensor)"
-                                + (f"; {', '.join(idle)} is connected to nothing" if idle else ""))
+        elements = expand(variables[controller], f"{controller}.{entry['measured']}")
+        bad = {n: chain for n in elements if (chain := _measured_chain(scenario, feeders, (controller, n), wanted))
+               is not None}
+        if not bad:
+            continue
+        chain = next(iter(bad.values()))
+        used = {source for _, _, source in feeders.values()}
+        idle = []       # the plant's measured outputs that feed nothing: the whole vector, or its elements
+        for p in plants:
+            names = expand(variables[p], f"{p}.{entry['plant_measured']}")
+            left = [f"{p}.{n}" for n in names if (p, n) not in used]
+            idle += [f"{p}.{entry['plant_measured']}"] if left and len(left) == len(names) else left
+        fed_by = f"is fed by {', then '.join(reversed(chain)) or 'no connection'}"
+        source = f"{plants[0]}.{entry['plant_measured']} (directly or through a sensor)"
+        if len(bad) == len(elements):
+            told = f"{controller}.{entry['measured']} {fed_by}, not by {source}"
+        else:
+            told = (f"{', '.join(f'{controller}.{n}' for n in bad)} {'is' if len(bad) == 1 else 'are'} not fed by "
+                    f"{source}: {controller}.{next(iter(bad))} {fed_by}")
+        raise ScenarioError(src, "connections", f"the loop of {controller!r} (its {entry['force']} drives "
+                            f"{plants[0]}.{entry['plant_force']}) does not measure its plant: {told}"
+                            + (f"; {', '.join(idle)} {'is' if len(idle) == 1 else 'are'} connected to nothing"
+                               if idle else ""))
+
+
+def _measured_chain(scenario, feeders, node, wanted):
+    """None if input element ``node`` is fed by an output of ``wanted`` (directly or
+    through sensors of LOOP_SENSORS); else what feeds it: the connections as written, and
+    the parameter that sets the input the chain ends at, if one does."""
+    chain = []
+    for _ in scenario.fmus:
+        if node not in feeders:
+            base = _base(f"{node[0]}.{node[1]}")[1]
+            chain += [f"fmus.{node[0]}.parameters.{name}" for name in (base, node[1])
+                      if name in scenario.parameters.get(node[0], {})]
+            break
+        _, written, (inst, name) = feeders[node]
+        chain.append(written)
+        base = _base(f"{inst}.{name}")[1]
+        if (inst, base) in wanted:
+            return None
+        sensor = LOOP_SENSORS.get(scenario.fmus.get(inst))
+        if not sensor or base != sensor[1]:
+            break
+        node = (inst, sensor[0] + name[len(base):])
+    return chain
 
 
 def _check_metric(src, key, metric, scalars):
