@@ -79,6 +79,37 @@ def test_blocks_are_found_with_their_markers(tmp_path):
     assert commands("sh", "dask worker tcp://x:8786") is None
 
 
+LIST_ITEM = ("- ", "* ", "+ ")
+
+
+def indented_blocks(page):
+    """Line numbers where an indented (4 spaces) code block starts outside a fence: after a
+    blank line, below a paragraph that is neither indented nor a list item (there it
+    continues the item). Such a block has no tag to say whether it runs."""
+    found, fenced, above = [], False, ""
+    lines = page.read_text(encoding="utf-8").splitlines()
+    for number, line in enumerate(lines, 1):
+        if line.startswith("```"):
+            fenced = not fenced
+        elif not fenced and line.startswith("    ") and line.strip() and not lines[number - 2].strip() \
+                and above and not above[0].isspace() and not above.startswith(LIST_ITEM) \
+                and not above.split(" ", 1)[0].rstrip(".").isdigit():
+            found.append(number)
+        if line.strip():
+            above = line
+    return found
+
+
+def test_no_block_hides_from_the_test_as_an_indented_one(tmp_path):
+    """Every code block is fenced, so that its tag or marker says whether it runs (an
+    indented command or scenario part went unseen: fmi3.md, flagged-runs.md, kernel.md)."""
+    page = tmp_path / "page.md"
+    page.write_text("Run:\n\n    movingbase run a.toml\n\n- an item\n\n    its second paragraph\n\n"
+                    "```sh\n\n    indented in a fence\n```\n", encoding="utf-8")
+    assert indented_blocks(page) == [3]
+    assert {str(page.relative_to(ROOT)): indented_blocks(page) for page in PAGES if indented_blocks(page)} == {}
+
+
 @pytest.fixture
 def fresh(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
