@@ -51,11 +51,11 @@ def _setup(lang, code):
 
 
 def commands(lang, code):
-    """The `movingbase ...` command lines of a ```sh or ```console block ("$ " prompts and
-    comments dropped), or None if it is not such a block."""
+    """The `movingbase ...` command lines of a ```sh or ```console block ("$ " prompts,
+    the README's ".venv/bin/" and comments dropped), or None if it is not such a block."""
     if lang not in ("sh", "console"):
         return None
-    lines = [line.strip().removeprefix("$ ") for line in code.splitlines()]
+    lines = [line.strip().removeprefix("$ ").removeprefix(".venv/bin/") for line in code.splitlines()]
     lines = [line for line in lines if line and not line.startswith("#")]
     return lines if lines and all(line.startswith("movingbase ") for line in lines) else None
 
@@ -76,6 +76,7 @@ def test_blocks_are_found_with_their_markers(tmp_path):
     assert blocks(page) == [("sh", "dask scheduler", True), ("python", "x = 1", False),
                             ("console", "$ movingbase run a.toml", False)]
     assert commands("console", "$ movingbase run a.toml\n# a comment\n") == ["movingbase run a.toml"]
+    assert commands("sh", ".venv/bin/movingbase run a.toml") == ["movingbase run a.toml"]
     assert commands("sh", "dask worker tcp://x:8786") is None
 
 
