@@ -1,7 +1,8 @@
 """The documentation against the code it describes: the scenario-file reference's table
 (scenarios/spec.py KEYS) against what the checker accepts, refuses and fills in; the
 figures against the files; the README's commands against the constraints file; the
-constraints file against the ranges pyproject.toml declares."""
+constraints file against the ranges pyproject.toml declares; the layout table, the shipped
+files and the quoted step refusal against the tree and the kit."""
 import importlib.util
 import pathlib
 import re
