@@ -126,7 +126,8 @@ def test_the_python_blocks_of_a_page_run(page, fresh):
         exec(compile(code, f"{page.name} block", "exec"), namespace)
 
 
-TOMLS = [(page, code) for page, lang, code in RUN if lang == "toml"]
+TOMLS = [(page, code) for page, lang, code in RUN if lang == "toml"] + \
+    [(path, path.read_text(encoding="utf-8")) for path in sorted((ROOT / "examples").glob("*.toml"))]   # the notebooks' own
 
 
 def steps(code):
