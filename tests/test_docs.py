@@ -1,7 +1,8 @@
 """The documentation against the code it describes: the scenario-file reference's table
 (scenarios/spec.py KEYS) against what the checker accepts, refuses and fills in; the
 figures against the files; the README's commands against the constraints file; the
-constraints file against the ranges pyproject.toml declares."""
+constraints file against the ranges pyproject.toml declares; the layout table, the shipped
+files and the quoted step refusal against the tree and the kit."""
 import importlib.util
 import pathlib
 import re
@@ -199,3 +200,51 @@ def test_the_example_notebooks_are_committed_executed():
             errors = [o for o in cell["outputs"] if o["output_type"] == "error"]
             assert not errors or "raises-exception" in cell["metadata"].get("tags", []), \
                 f"{path.name}: {errors[0]['ename']}: {errors[0]['evalue']}"
+
+
+def test_the_layout_table_names_every_folder_and_module():
+    """docs/development.md's layout table against the tree: every folder git tracks at the
+    top and every module of the packages (it had gone stale: no api.py, flags.py,
+    records.py, units.py, no movingbase/, examples/ or .ci/)."""
+    import subprocess
+    tracked = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True)
+    if tracked.returncode != 0:
+        pytest.skip("not a git checkout")
+    page = (DOCS / "development.md").read_text(encoding="utf-8")
+    table = page[page.index("| folder | holds |"):page.index("## Tests")]
+    folders = sorted({line.split("/")[0] for line in tracked.stdout.splitlines() if "/" in line})
+    missing = [f"{name}/" for name in folders if f"`{name}/`" not in table]
+    for package in ("plant", "controller", "fmu_src", "scenarios", "studies", "movingbase"):
+        missing += [f"{package}/{p.name}" for p in (ROOT / package).glob("*.py")
+                    if p.name != "__init__.py" and not p.name.endswith("_fmu.py") and p.name not in table]
+    assert missing == []
+
+
+def test_the_pages_list_every_shipped_scenario_and_campaign():
+    """scenarios.md and campaigns.md name every shipped file (telescope_slew_realistic
+    was missing from scenarios.md) and no file that is gone."""
+    from movingbase.scenarios import campaign, runner
+
+    def listed(page, start, end):
+        text = (DOCS / page).read_text(encoding="utf-8")
+        text = text[text.index(start):]
+        return set(re.findall(r"`([a-z0-9_]+)`", text[:text.index(end)]))
+    assert listed("scenarios.md", "(shipped names:", "--help") == set(runner.shipped_names())
+    assert listed("campaigns.md", "(shipped:", ")") == {p.stem for p in campaign.SHIPPED.glob("*.toml")}
+
+
+def test_the_step_refusal_quoted_in_flagged_runs_is_what_the_kit_says(tmp_path):
+    """flagged-runs.md quotes the refusal of the shipped slew at a 4 ms step (it once
+    quoted a limit of 2.001 ms, beyond the true 2.00009 ms): the kit's own words, line
+    breaks aside."""
+    import movingbase
+    page = (DOCS / "flagged-runs.md").read_text(encoding="utf-8")
+    quoted = page[page.index("```text\nscenario error: slew_4ms.toml") + len("```text\n"):]
+    quoted = " ".join(quoted[:quoted.index("```")].split())
+    text = (ROOT / "scenarios" / "files" / "telescope_slew.toml").read_text(encoding="utf-8")
+    text = re.sub(r'^name = "telescope_slew"', 'name = "slew_4ms"', text, count=1, flags=re.M)
+    text = re.sub(r'^step = "1 ms"', 'step = "4 ms"', text, count=1, flags=re.M)
+    (tmp_path / "slew_4ms.toml").write_text(text.replace('interval = "10 ms"', 'interval = "20 ms"'), encoding="utf-8")
+    with pytest.raises(movingbase.ScenarioError) as refused:
+        movingbase.run(tmp_path / "slew_4ms.toml", progress=False)
+    assert " ".join(f"scenario error: {refused.value}".split()).replace(str(tmp_path) + "/", "") == quoted
