@@ -8,7 +8,7 @@ needs at run time (pythonfmu's `deploy` installs from it). It puts fmu_src/pytho
 compiled with the machine's cc, in front of pythonfmu's Linux wrapper (fmi2Error, not
 fmi2Fatal, for a failed initialization; a clean exit in a C host; see that file); the
 win64 DLL pythonfmu ships stays as it is. The CLI also builds each FMU's native C twin into
-<out>/native/ (fmu_src/native_build.py).
+<out>/native/ (FMI 2.0) and <out>/native3/ (FMI 3.0) (fmu_src/native_build.py).
 """
 import argparse
 import hashlib
@@ -286,6 +286,8 @@ def main(argv=None, prog="movingbase build"):
         fmu = build(name, out)
         write_stamp(out / f"{name}.built", fmu)
         print(f"built {fmu}")
-        print(f"built {native_build.build_native(fmu, out / 'native')}")
-    print(f"FMUs are in {out}")
+        native = native_build.build_native(fmu, out / "native")
+        print(f"built {native}")
+        print(f"built {native_build.build_native3(native, out / 'native3')}")
+    print(f"FMUs are in {out}: pythonfmu (FMI 2.0), native/ (FMI 2.0), native3/ (FMI 3.0)")
     return out

@@ -3,6 +3,7 @@ against their FMI 2.0 builds, the independent truth here: the same description
 translated, the same numbers bit for bit (one model file and kernel behind both), and
 FMI 3.0's states and misuse answered as the standard says, with a log line."""
 import csv
+import pathlib
 import xml.etree.ElementTree as ET
 import zipfile
 from ctypes import CFUNCTYPE, POINTER, byref, c_bool, c_double, c_int, c_void_p
@@ -428,3 +429,18 @@ def test_one_call_of_many_variables_equals_one_call_each(pairs):
     assert status_of(inst.fmu.setFloat64, [md["leg_force"].valueReference, md["time"].valueReference],
                      [9.0] * 7) == ERROR
     assert inst.fmu.getFloat64([md["leg_force"].valueReference], 6) == [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]   # nothing set
+
+
+def test_python_build_py_builds_the_fmi3_fmus_too(tmp_path):
+    """`python build.py` ("every FMU of the kit") built no FMI 3.0 FMU: they needed
+    `python -m movingbase.fmu_src.native_build --fmi3`."""
+    import subprocess
+    import sys
+    from fmpy import read_model_description
+    root = pathlib.Path(__file__).resolve().parent.parent
+    done = subprocess.run([sys.executable, str(root / "build.py"), "--out", str(tmp_path), "leg_sensor_fmu"],
+                          capture_output=True, text=True, check=True)
+    assert "native3" in done.stdout
+    versions = {folder: read_model_description(str(tmp_path / folder / "LegSensor.fmu")).fmiVersion
+                for folder in (".", "native", "native3")}
+    assert versions == {".": "2.0", "native": "2.0", "native3": "3.0"}
