@@ -12,7 +12,6 @@ off, not an encoder's values: the realistic scenario sets them, with their sourc
 The noise generator's state (8 bytes) is saved with the FMU state, so a replay from a
 saved state repeats the same noise.
 """
-import numpy as np
 
 from movingbase.fmu_src.slave import INPUT, OUTPUT, GuardedSlave
 from movingbase.plant._kernel import ffi, lib

@@ -613,7 +613,7 @@ def gain_statements(s):
             f"of the stiffest design over the shipped gains' per speed: fixed-base "
             + ", ".join(fmt(r) for r in stiffer["fixed_base"]) + ", moving-base (IMU) "
             + ", ".join(fmt(r) for r in stiffer["moving_base"])
-            + f"; fixed-base / moving-base (IMU) peak per speed, shipped " + ", ".join(fmt(r) for r in ratios["shipped"])
+            + "; fixed-base / moving-base (IMU) peak per speed, shipped " + ", ".join(fmt(r) for r in ratios["shipped"])
             + ", stiffest " + ", ".join(fmt(r) for r in ratios["stiffest"]) + ". "
             + (f"So the shipped loop's extra stiffness (ki {fmt(ship['ki'] / stiff['ki'])}x) buys "
                f"{fmt(min(stiffer['fixed_base'][i] for i in windy))}-{fmt(max(stiffer['fixed_base'][i] for i in windy))}x "
@@ -669,11 +669,11 @@ def report(s, charts=True):
         if charts:
             sweep_chart(s, DOCS / "figures" / name)
         lines += ["## Gains for the realistic plant", "",
-                  f"`controller.design` with the realistic loop's model (`REALISTIC`: per leg-space mode the mass plus "
-                  f"758 kg, the 50 Hz force lag, 2000 N s/m viscous friction; the encoders' 100 Hz filtered difference, "
-                  f"their one step of latency and one sample of computation delay; the controller's step; the Jacobi "
-                  f"master's linear extrapolation on the three connections; Coulomb friction, quantisation and noise "
-                  f"left out). Margins on that plant:", "", design_table(s), "",
+                  "`controller.design` with the realistic loop's model (`REALISTIC`: per leg-space mode the mass plus "
+                  "758 kg, the 50 Hz force lag, 2000 N s/m viscous friction; the encoders' 100 Hz filtered difference, "
+                  "their one step of latency and one sample of computation delay; the controller's step; the Jacobi "
+                  "master's linear extrapolation on the three connections; Coulomb friction, quantisation and noise "
+                  "left out). Margins on that plant:", "", design_table(s), "",
                   f"The `{GAIN_SCENE}` in the realistic loop with each set of gains:", "", gains_table(s), "",
                   gain_statements(s), "", f"![wind sweep](figures/{name})", ""]
     c = costs(s)

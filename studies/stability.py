@@ -157,8 +157,8 @@ class _Trace:
     def feed(self, t, columns):
         """Rows at times t as scenarios.master's recorder hands them over, a block at a
         time; ``columns`` in the order of ``needs``."""
-        for k, time in enumerate(t.tolist()):
-            self.update(time, {name: column[k] for name, column in zip(self.needs, columns)})
+        for k, at in enumerate(t.tolist()):
+            self.update(at, {name: column[k] for name, column in zip(self.needs, columns)})
 
     def update(self, t, values):
         self.t.append(t)

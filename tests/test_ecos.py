@@ -7,7 +7,6 @@ when each Component's set carried its instance's name (before issue 18) no name 
 them all, and ecos ran on the FMUs' defaults without an error. The export now names every
 set ssp.PARAMETER_SET. test_the_old_naming_ran_on_defaults measures what that cost.
 Skipped where ecospy cannot load (no libtbb12, another platform)."""
-import dataclasses
 
 import numpy as np
 import pytest

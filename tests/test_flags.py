@@ -17,7 +17,7 @@ from movingbase.scenarios import flags, headline, master, report, runner, spec
 from movingbase.scenarios.__main__ import main as cli
 from movingbase.scenarios.fmi import unpack
 from movingbase.scenarios.records import run_records
-from studies.stability import GAINS, OFFSET, scenario_text, scaled
+from studies.stability import GAINS, OFFSET, scenario_text
 
 STROKE = (np.full(6, -0.15), np.full(6, 0.15))   # a Watched loop's ends: +-150 mm
 

@@ -4,14 +4,13 @@ end in one clear error that names the file, the key and the problem (or, where t
 is valid, be accepted). The tables hold many inputs of each class."""
 import os
 import pathlib
-import shutil
 import subprocess
 import sys
 import zipfile
 
 import pytest
 
-from movingbase.scenarios import api, campaign, engine, fmi, resources, runner, spec
+from movingbase.scenarios import api, campaign, fmi, resources, runner, spec
 from movingbase.scenarios.fmi import unpack
 from movingbase.scenarios.units import to_si
 from tests.test_scenario_errors import SLEW, edited, refused

@@ -9,7 +9,6 @@ FMUs; and the same failure message and partial rows when an FMU call fails mid-r
 import csv
 import ctypes
 import dataclasses
-import time
 
 import numpy as np
 import pytest
@@ -127,7 +126,7 @@ def reference_run(scenario, fmu_paths, parameters, outdir, label, metric_list):
     instances, recorder = {}, None
     h, t0 = scenario.step, scenario.start_time
     steps = int(round((scenario.stop_time - t0) / h))
-    done, failure, began = 0, None, time.perf_counter()
+    done, failure = 0, None
     try:
         for inst in scenario.fmus:
             instances[inst] = Instance(fmu_paths[inst], inst)
