@@ -386,7 +386,7 @@ def check(scenario, prediction, allow_unstable=False):
             if loop != prediction.loop:
                 other = design.step_limit(prediction.masses, prediction.gains, loop)
                 if other >= scenario.step:
-                    others.append(f"{_describe(loop)} (limit {_ms(other)})")
+                    others.append(f"{_describe(loop)} (a step of at most {_ms(other, down=True)})")
     if prediction.limit > 0:
         text = (f"{scenario.step * 1e3:g} ms is beyond the predicted stability limit {_ms(prediction.limit)} of "
                 f"this loop ({_describe(prediction.loop, scenario.extrapolation)}, its gains and plant, along the "

@@ -340,3 +340,24 @@ def test_the_step_a_refusal_advises_is_within_the_limit():
         advised = float(flags._ms(limit, down=True).removesuffix(" ms")) * 1e-3
         assert advised <= limit * (1 + 1e-9) and advised > limit * (1 - 1e-3)   # as Prediction.beyond
     assert flags._ms(2.00093e-3, down=True) == "2 ms" and flags._ms(2.00093e-3) == "2.001 ms"
+
+
+def test_every_step_a_refusal_advises_runs_under_its_master():
+    """The refusal also names the masters and extrapolations under which the step would
+    run, each with its step; that step (once the limit rounded to 4 digits, 7.01 ms for
+    a 7.005 ms limit) must itself be within that loop's predicted limit."""
+    import re
+    import movingbase
+    four = movingbase.load_scenario("telescope_slew")      # the full slew: its GS limit is 7.0049 ms
+    four.step, four.record_interval = 4e-3, 4e-3
+    with pytest.raises(spec.ScenarioError) as refused:
+        movingbase.run(four, progress=False)
+    advised = re.findall(r"master ([\w-]+), extrapolation (\w+) \(a step of at most ([\d.]+) ms\)", str(refused.value))
+    assert advised, str(refused.value)
+    for master, extrapolation, ms in advised:
+        scenario = movingbase.load_scenario("telescope_slew", set={"master": master, "extrapolation": extrapolation})
+        step = float(ms) * 1e-3
+        scenario.step = scenario.record_interval = step             # the records: a whole multiple of any step
+        scenario.stop_time = round(60.0 / step) * step
+        prediction = flags.predict(*runner.prepare_loaded(scenario))
+        assert not prediction.beyond and flags.check(scenario, prediction) == [], (master, extrapolation, ms)
