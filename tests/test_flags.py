@@ -354,10 +354,10 @@ def test_every_step_a_refusal_advises_runs_under_its_master():
         movingbase.run(four, progress=False)
     advised = re.findall(r"master ([\w-]+), extrapolation (\w+) \(a step of at most ([\d.]+) ms\)", str(refused.value))
     assert advised, str(refused.value)
-    for master, extrapolation, ms in advised:
-        scenario = movingbase.load_scenario("telescope_slew", set={"master": master, "extrapolation": extrapolation})
+    for kind, extrapolation, ms in advised:
+        scenario = movingbase.load_scenario("telescope_slew", set={"master": kind, "extrapolation": extrapolation})
         step = float(ms) * 1e-3
         scenario.step = scenario.record_interval = step             # the records: a whole multiple of any step
         scenario.stop_time = round(60.0 / step) * step
         prediction = flags.predict(*runner.prepare_loaded(scenario))
-        assert not prediction.beyond and flags.check(scenario, prediction) == [], (master, extrapolation, ms)
+        assert not prediction.beyond and flags.check(scenario, prediction) == [], (kind, extrapolation, ms)
