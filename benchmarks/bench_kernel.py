@@ -1,4 +1,4 @@
-"""The hexapod kernel's forward dynamics against its throughput floor (issue 21's kernel goal).
+"""The hexapod kernel's forward dynamics against its throughput floor (the kernel's goal, docs/speed.md).
 
 The RK4 step of the plant FMU (mb_hexapod_advance_actuated, full base motion, massive legs,
 four forward-dynamics evaluations and the leg read-out) per evaluation, timed next to a loop

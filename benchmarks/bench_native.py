@@ -1,7 +1,7 @@
 """Native (C) FMUs against the pythonfmu ones, measured side by side in one run.
 
 1. HexapodPlant doStep under fmpy (RK4, 1 ms, leg forces holding the platform at rest,
-   fixed base): native vs pythonfmu, the ratio (issue 9 asks >= 20x), and the empty
+   fixed base): native vs pythonfmu, the ratio (the goal: >= 20x), and the empty
    native doStep (what FMI and ctypes cost without the kernel).
    The same doStep in a host that is not Python (tests/c_host/fmi2_host.c timing its own
    doStep loop): the native FMU alone in the process, the pythonfmu one with libpython

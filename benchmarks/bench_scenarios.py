@@ -1,9 +1,9 @@
 """Wall time and real-time factor of every shipped scenario, the master's own cost
 per macro step (its stepping loop is C, scenarios/c/cosim.c) against a Python loop making
 the same FMI calls and against fmpy's list-based calls, a recorded run against the bare
-stepping (issue 21's goal: <= 1.25x), the checks before a run (the stability
+stepping (the goal: <= 1.25x, docs/speed.md), the checks before a run (the stability
 prediction along the motion, scenarios.flags) against the run, and the whole CLI process
-of one scenario against its stepping, phase by phase (issue 21's goal: <= 1.5x). Prints
+of one scenario against its stepping, phase by phase (the goal: <= 1.5x). Prints
 figures; asserts nothing.
 
     python -m benchmarks.bench_scenarios [--ci] [--only recording|checks|process]   (--ci: the [ci] versions)

@@ -438,11 +438,6 @@ def closed_loop_polynomial(mass, gains, comm_step, loop=IDEAL):
     return _add(den, num)
 
 
-def spectral_radius(masses, gains, comm_step, loop=IDEAL):
-    """Largest |closed-loop pole| over the leg-space modes ``masses`` [kg]: < 1 is stable."""
-    return max(_radius(m, gains, comm_step, loop) for m in masses)
-
-
 def _radius(mass, gains, comm_step, loop):
     return float(np.abs(1 + comm_step * np.roots(closed_loop_polynomial(mass, gains, comm_step, loop))).max())
 

@@ -5,7 +5,7 @@
  * Why: the wrapper turns every Python exception into fmi2Fatal, so a failed
  * initialization (a parameter outside its range, a NaN input) reaches the host as
  * fmi2Fatal, where FMI 2 asks for fmi2Error: the instance is still there to be freed
- * (issue 10). And it finalizes its embedded Python from a global destructor, which a C
+ * (docs/fmu-rules.md). And it finalizes its embedded Python from a global destructor, which a C
  * host runs at exit() after the destructors of the libraries Python loaded later
  * (numpy, scipy's C++ and Fortran runtimes): a crash after main returns
  * (docs/fmi-notes-measured.md).

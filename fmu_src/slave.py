@@ -5,7 +5,7 @@ crashes the importing process (docs/conventions/fmi-notes.md). Every error is ca
 logged at error level with what went wrong and when, and answered with fmi2Discard
 (do_step returns False); the slave then stays failed and refuses further steps.
 
-Log level, precisely: the line carries the status the call answers (issue 18), Discard
+Log level, precisely: the line carries the status the call answers (docs/fmu-rules.md), Discard
 from doStep (category logStatusDiscard), Error from initialization. An output that comes
 out NaN or inf is such an error (check_outputs), as in the native layer.
 

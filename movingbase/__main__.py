@@ -21,7 +21,7 @@ def main(argv=None):
     """The command. As the program (``argv`` None: the console command or ``python -m
     movingbase``) the process ends right after its exit handlers, without the
     interpreter's teardown: freeing numpy's, matplotlib's, fmpy's and the FMUs' modules one
-    by one took 0.2-0.3 s of a 2.6 s run (issue 21); every file is closed by then."""
+    by one took 0.2-0.3 s of a 2.6 s run (docs/speed.md); every file is closed by then."""
     if argv is not None:
         return _command(list(argv))
     signal.signal(signal.SIGTERM, _terminated)

@@ -105,7 +105,6 @@ class HexapodODE:
         self._force = np.zeros(6)   # delivered leg forces of the last rhs (radau's read-out)
         self._actuator = kane.pointer(self._actuator_data, (kane.ACTUATOR_NDATA,), "actuator")
         self._bounds = kane.pointer(self.bounds, (2, 6), "bounds")
-        self._base0 = kane.pointer(self.inputs[1:4], (3, 6), "base inputs")
 
     def set_inputs(self, t0, forces, base_pose=0.0, base_rate=0.0, base_acc=0.0, wrench=0.0):
         """Hold ``forces`` (commanded), the base motion given at t0 and the platform wrench

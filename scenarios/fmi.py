@@ -126,7 +126,7 @@ def content_digest(path):
 def _slave(cls, folder, guid, identifier, name):
     """An fmpy slave for one new instance, on its FMU's library loaded and bound once per
     process: loading it and binding its functions (fmpy inspects every signature) cost
-    ~3 ms an instance, half of a campaign run's engine overhead (issue 21). Each instance
+    ~3 ms an instance, half of a campaign run's engine overhead (docs/speed.md). Each instance
     is still its own fmi2Instantiate (fmi3Instantiate...), so nothing but the library's
     code is shared between runs (the native FMUs keep no state outside their instance);
     the library stays loaded until the process ends."""

@@ -1,7 +1,7 @@
 """Recorded time series of one run: float64 columns in memory, written as one npz file.
 
 Why npz: numpy writes and reads it without a new dependency, with no per-float
-formatting (the master's CSV rows cost 43-48 % of a run, issue 21), and any tool that
+formatting (the master's CSV rows cost 43-48 % of a run, docs/speed.md), and any tool that
 reads .npy reads it (a zip of one .npy per column: numpy, pandas through
 ``pandas.DataFrame(dict(numpy.load(path)))``, Julia's NPZ.jl, MATLAB's npy-matlab).
 Parquet or HDF5 would add pyarrow or h5py for the same columns.

@@ -31,7 +31,7 @@ RUN_MEANING = {"none": "PID alone, no feedforward",
 def _figure(rows, cols, size, left, right, top, bottom, gap, **kw):
     """A figure of rows x cols axes with margins and gaps fixed in inches, room for the
     kit's labels: constrained layout measured every tick label in two passes and cost
-    ~45 % of a chart's time (issue 21). A plain Figure, not pyplot's: drawing leaves the
+    ~45 % of a chart's time (docs/speed.md). A plain Figure, not pyplot's: drawing leaves the
     caller's backend and pyplot's figures alone (a notebook's inline plots), and
     matplotlib is imported here, so a run without charts does not pay its import."""
     from matplotlib.figure import Figure

@@ -10,7 +10,7 @@ import shutil
 
 from .spec import expand
 
-# seconds per instance per macro step (a 30 s slew at 1 ms, 3 instances, issue 21:
+# seconds per instance per macro step (a 30 s slew at 1 ms, 3 instances, docs/speed.md:
 # native 0.42 s, pythonfmu 2.70 s) and per recorded row (CSV formatting, ~35 us)
 STEP_SECONDS = {"native": 4.7e-6, "python": 30e-6}
 ROW_SECONDS = 35e-6

@@ -62,7 +62,7 @@ def ratio(a, b):
 @functools.cache
 def _plain_log_locator():
     """plain_log_axis's locator class, made on first use: matplotlib is imported by what
-    draws (a run without charts does not pay its import, issue 21)."""
+    draws (a run without charts does not pay its import, docs/speed.md)."""
     from matplotlib import ticker
 
     class PlainLogLocator(ticker.Locator):
@@ -156,7 +156,7 @@ def label_points(ax, xs, ys, texts, fontsize=7, color="0.25"):
 def save(fig, path, **kwargs):
     """Save at the kit's resolution (a figure made by pyplot, as the studies make them, is
     then closed). PNG compression level 1: the file ~1.3x larger than at the default 6,
-    its encoding several times cheaper (issue 21)."""
+    its encoding several times cheaper (docs/speed.md)."""
     kind = kwargs.get("format") or (pathlib.Path(path).suffix[1:] if isinstance(path, (str, pathlib.Path)) else "png")
     if kind == "png":
         kwargs.setdefault("pil_kwargs", {"compress_level": 1})
