@@ -264,16 +264,20 @@ class RunResult:
             raise KeyError(f"run {self.label}: nothing was recorded, the run failed before its first row: "
                            f"{self.run.failure}")
         if not parts:
-            groups = list(dict.fromkeys(n.split("[", 1)[0] for n in self.records.names))
+            groups = self._variables()
             near = [g for g in groups if g.split(".", 1)[-1] == name] or difflib.get_close_matches(name, groups, 1, 0.6)
             raise KeyError(f"run {self.label}: no recorded variable {name!r}"
                            + (f"; did you mean {near[0]!r}?" if near else "") + "; recorded: "
                            f"{', '.join(groups) or 'nothing (the scenario records no variable)'}")
         return np.column_stack([self.records[n] for n in parts])
 
+    def _variables(self) -> list[str]:
+        """The recorded variables, a vector once by its name ("plant.pose")."""
+        return list(dict.fromkeys(n.split("[", 1)[0] for n in self.records.names))
+
     def _ipython_key_completions_(self) -> list[str]:
         """Completion inside ``run["...``: every recorded variable, vectors by their name."""
-        return list(dict.fromkeys([n.split("[", 1)[0] for n in self.records.names] + self.records.names))
+        return list(dict.fromkeys(self._variables() + self.records.names))
 
     def to_pandas(self) -> pandas.DataFrame:
         """The recorded series as a DataFrame indexed by time [s], one column per
@@ -302,7 +306,7 @@ class RunResult:
         chosen = list(names) or [n for n in self._plotted if n in self._ipython_key_completions_()]
         if not chosen:
             raise ValueError(f"run {self.label}: name the variables to plot; recorded: "
-                             f"{', '.join(dict.fromkeys(n.split('[', 1)[0] for n in self.names)) or 'nothing'}")
+                             f"{', '.join(self._variables()) or 'nothing'}")
         columns = []     # (label, unit, rows x n): a vector's components apart by unit (a pose: m and rad)
         for name in chosen:
             values = self[name].reshape(len(self.time), -1)
@@ -408,7 +412,7 @@ class Result:
         """Write what ``run(..., out=out)`` and ``movingbase run --out OUT`` write, where they
         write it: into ``out/<file stem>/`` (records as npz, metrics.json, charts,
         report.md); the report's path."""
-        folder = runner.make_folder(runner.output_folder(out, self.scenario.source))
+        folder = runner.output_folder(out, self.scenario.source)     # made and locked there
         earlier, started = runner.replaced(folder), time.time()
         if earlier:       # said, as the command says it
             print(earlier, file=sys.stderr, flush=True)

@@ -637,7 +637,7 @@ def sampling_flags(metrics, interval):
     """``undersampled`` for each metric its recorded rows cannot carry (metrics.undersampled):
     the metrics are computed from the recorded rows, so a coarse record interval gives a
     number with no word (a 2-row run's RMS 1e-4 of the true one)."""
-    said = [(m.name, m.undersampled()) for m in metrics if hasattr(m, "undersampled")]   # a study's own trace: none
+    said = [(m.name, m.undersampled()) for m in metrics]
     return [Flag("undersampled", f"metric {name!r} {problem}: record.interval {interval * 1e3:g} ms is too coarse "
                  "for it; record more often") for name, problem in said if problem]
 

@@ -222,8 +222,8 @@ def prepare_loaded(scenario, implementation=None, out=None, fmi_version=None):
 
 def fmu_paths(scenario):
     """instance -> FMU file of the implementation the scenario chose for it (built if stale)."""
-    chosen = {inst: (spec.FMU_SCRIPTS[fmu], scenario.implementations.get(inst, spec.IMPLEMENTATIONS[0])
-                     + ("3" if scenario.fmi_versions.get(inst) == 3 else ""))
+    chosen = {inst: (spec.FMU_SCRIPTS[fmu], _kind(scenario.implementations.get(inst, spec.IMPLEMENTATIONS[0]),
+                                                  scenario.fmi_versions.get(inst, 2)))
               for inst, fmu in scenario.fmus.items()}
     built = {kind: build(sorted({s for s, impl in chosen.values() if impl == kind})) for kind, build in BUILDS.items()}
     return {inst: built[impl][script] for inst, (script, impl) in chosen.items()}
@@ -234,6 +234,11 @@ def fmu_paths(scenario):
 BUILDS = {"python": ensure_built, "native": ensure_native, "native3": ensure_native3}
 
 
+def _kind(implementation, fmi_version):
+    """The BUILDS key of an implementation at an FMI version."""
+    return implementation + ("3" if fmi_version == 3 else "")
+
+
 def fmu_files(fmus, implementation="native", fmi_version=2):
     """{fmu: FMU file} of the scenario files' FMU names (spec.FMU_SCRIPTS), built if missing
     or stale; ValueError naming an unknown name or a kind the kit does not build."""
@@ -242,12 +247,12 @@ def fmu_files(fmus, implementation="native", fmi_version=2):
         near = difflib.get_close_matches(unknown[0], list(spec.FMU_SCRIPTS), 1, 0.6)
         raise ValueError(f"no FMU {unknown[0]!r}" + (f"; did you mean {near[0]!r}?" if near else "")
                          + f" The kit's FMUs: {', '.join(spec.FMU_SCRIPTS)}")
-    if implementation not in spec.IMPLEMENTATIONS or fmi_version not in (2, 3) or isinstance(fmi_version, bool):
+    if implementation not in spec.IMPLEMENTATIONS or fmi_version not in spec.FMI_VERSIONS or isinstance(fmi_version, bool):
         raise ValueError(f"implementation is one of {', '.join(spec.IMPLEMENTATIONS)} and fmi_version 2 or 3, "
                          f"got {implementation!r} and {fmi_version!r}")
     if implementation == "python" and fmi_version == 3:
         raise ValueError("the pythonfmu FMUs are FMI 2.0 only; FMI 3.0: implementation='native'")
-    built = BUILDS[implementation + ("3" if fmi_version == 3 else "")]([spec.FMU_SCRIPTS[f] for f in fmus])
+    built = BUILDS[_kind(implementation, fmi_version)]([spec.FMU_SCRIPTS[f] for f in fmus])
     return {f: built[spec.FMU_SCRIPTS[f]] for f in fmus}
 
 

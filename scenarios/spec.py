@@ -981,20 +981,19 @@ def _check_wiring(src, scenario, variables, feeders):
         return sorted(inputs[inst]) if given == _ALL else given
 
     for (inst, name), fed in feeds.items():
-        for out in FEEDTHROUGH.get(scenario.fmus.get(inst), {}):
-            if name not in follows(inst, out):
-                continue
-            for source, written in fed:
-                found = _loop_through(scenario, feeds, follows, source, (inst, name), written)
-                if found:
-                    if len(found) == 1:
-                        raise ScenarioError(src, "connections", f"{found[0]} wires an output back into its own FMU's "
-                                            f"input, and {scenario.fmus[inst]}'s {source[1]} follows its {name} "
-                                            "within a step (no state between): it would measure itself, not the "
-                                            "plant; connect the input to what it measures")
-                    raise ScenarioError(src, "connections", f"{'; '.join(found)}: an algebraic loop (each output "
-                                        "follows its input within a step, no state between) that the master "
-                                        "cannot solve; break it with a connection from a plant's output")
+        if not any(name in follows(inst, out) for out in FEEDTHROUGH.get(scenario.fmus.get(inst), {})):
+            continue     # no output follows this input: no loop closes through it
+        for source, written in fed:
+            found = _loop_through(scenario, feeds, follows, source, (inst, name), written)
+            if found and len(found) == 1:
+                raise ScenarioError(src, "connections", f"{found[0]} wires an output back into its own FMU's "
+                                    f"input, and {scenario.fmus[inst]}'s {source[1]} follows its {name} "
+                                    "within a step (no state between): it would measure itself, not the "
+                                    "plant; connect the input to what it measures")
+            if found:
+                raise ScenarioError(src, "connections", f"{'; '.join(found)}: an algebraic loop (each output "
+                                    "follows its input within a step, no state between) that the master "
+                                    "cannot solve; break it with a connection from a plant's output")
     _check_loops_closed(src, scenario, feeds, feeders, variables)
 
 

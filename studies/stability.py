@@ -174,6 +174,10 @@ class _Trace:
     def series(self):
         return np.array(self.t), np.array(self.error)
 
+    def undersampled(self):
+        """None: a trace of every recorded row, not a metric reported from them."""
+        return None
+
 
 # -------------------------------------------------------------------- co-simulation
 _SCENARIO = """
