@@ -2,7 +2,7 @@
 
     python build.py [--out DIR] [script names]
 """
-from movingbase.fmu_src.builder import main
+from fmu_src.python_build import main
 
 if __name__ == "__main__":
     main(prog="python build.py")

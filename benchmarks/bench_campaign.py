@@ -26,9 +26,11 @@ import time
 
 import numpy as np
 
-from movingbase.scenarios import campaign, engine, master, metrics, spec
-from movingbase.scenarios.fmi import unpack
-from movingbase.scenarios.runner import SHIPPED, fmu_paths
+from scenarios import spec
+from scenarios.cosim import master
+from scenarios.cosim.fmi import unpack
+from scenarios.runs import campaign, engine, metrics
+from scenarios.runs.runner import SHIPPED, fmu_paths
 
 
 def _jobs(n, stop, offset=0.0):

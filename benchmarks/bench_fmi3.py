@@ -6,7 +6,7 @@ A scene's runs ([ci] overrides, every sweep value) as the master steps them: CPU
 the stepping thread per macro step of master.run (stepping in C, recording, metrics;
 Run.cpu_time: wall time on the shared machine measures its load), every instance FMI 3
 against every instance FMI 2. The FMI 3 instances are stepped by the C loop's direct
-fmi3DoStep/fmi3GetFloat64/fmi3SetFloat64 calls (scenarios/c/cosim.c).
+fmi3DoStep/fmi3GetFloat64/fmi3SetFloat64 calls (scenarios/cosim/c/cosim.c).
 
     python benchmarks/bench_fmi3.py [scenario] [--repeats N]
 """
@@ -15,7 +15,9 @@ import os
 import statistics
 import tempfile
 
-from movingbase.scenarios import master, metrics, runner, spec
+from scenarios import spec
+from scenarios.cosim import master
+from scenarios.runs import metrics, runner
 
 
 def scene_us(scenario, paths, descriptions, values, outdir):

@@ -33,8 +33,8 @@ import tempfile
 
 import numpy as np
 
-from movingbase.fmu_src.native_build import CFLAGS
-from movingbase.plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
+from fmu_src.native_build import CFLAGS
+from plant.hexapod.model import HOME_POSE, StewartParams, inverse_dynamics
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 KERNEL_FILES = ("hexapod.c", "hexapod.h", "linalg.c", "linalg.h")

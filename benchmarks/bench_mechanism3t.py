@@ -16,9 +16,9 @@ import timeit
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
-from movingbase.plant import mechanism3t as m3t   # noqa: E402
-from movingbase.plant import mechanism3t_kernel as kernel   # noqa: E402
-from movingbase.plant._kernel import ffi, lib   # noqa: E402
+from plant._kernel import ffi, lib  # noqa: E402
+from plant.mechanism3t import kernel  # noqa: E402
+from plant.mechanism3t import model as m3t  # noqa: E402
 
 
 def calls(k, P, pa):
@@ -58,7 +58,8 @@ def bare_c(pa):
 
 def slave_steps(k):
     """name -> zero-argument call of one 1 ms step() of the slaves of fmu_src, using kernel k."""
-    from movingbase.fmu_src import mechanism3t_fmu, slider_controller_fmu
+    from fmu_src import mechanism3t_plant_fmu as mechanism3t_fmu
+    from fmu_src import slider_controller_fmu
     mechanism3t_fmu.kernel = slider_controller_fmu.kernel = k
     plant, controller = mechanism3t_fmu.Mechanism3TPlant(instance_name="plant"), \
         slider_controller_fmu.SliderController(instance_name="controller")
@@ -90,8 +91,9 @@ def main():
     pa = kernel.pack(P)
     old = None
     try:
-        import numba   # noqa: F401
-        from tests.test_mechanism3t_kernel_c import load_numba_kernel
+        import numba  # noqa: F401
+
+        from tests.plant.test_mechanism3t_kernel import load_numba_kernel
         with tempfile.TemporaryDirectory() as tmp:
             start = time.perf_counter()
             old = load_numba_kernel(tmp)

@@ -13,7 +13,9 @@ from pathlib import Path
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 import numpy as np
 
-from movingbase.plant import hexapod_ode, kane, stewart
+from plant.hexapod import kernel as kane
+from plant.hexapod import model as stewart
+from plant.hexapod import ode as hexapod_ode
 
 ROOT = Path(__file__).resolve().parents[1]
 REVISION = "73017ff"

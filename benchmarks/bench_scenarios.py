@@ -1,5 +1,5 @@
 """Wall time and real-time factor of every shipped scenario, the master's own cost
-per macro step (its stepping loop is C, scenarios/c/cosim.c) against a Python loop making
+per macro step (its stepping loop is C, scenarios/cosim/c/cosim.c) against a Python loop making
 the same FMI calls and against fmpy's list-based calls, a recorded run against the bare
 stepping (the goal: <= 1.25x, docs/speed.md), the checks before a run (the stability
 prediction along the motion, scenarios.flags) against the run, and the whole CLI process
@@ -19,7 +19,8 @@ import sys
 import tempfile
 import time
 
-from movingbase.scenarios import master, metrics, runner
+from scenarios.cosim import master
+from scenarios.runs import metrics, runner
 
 
 def scenario_table(ci):
@@ -148,8 +149,10 @@ def check_cost(ci, names=("telescope_slew", "telescope_slew_realistic", "keyhole
 _PHASED = r"""
 import atexit, sys, time
 began = time.perf_counter()
-import movingbase.__main__ as program
-from movingbase.scenarios import master, records, report, runner
+import movingbase.cli as program
+from scenarios.cosim import master, records
+from scenarios.output import report
+from scenarios.runs import runner
 spent = {"imports": time.perf_counter() - began}
 def clock(owner, name, phase):
     inner = getattr(owner, name)

@@ -12,12 +12,12 @@ import pathlib
 import numpy as np
 from pythonfmu.enums import Fmi2Status
 
-from movingbase.controller.feedforward import FEEDFORWARD_MODES, Feedforward
-from movingbase.controller.pid import PIDGains, pid_update
-from movingbase.fmu_src.operating_point import BASE_POSE
-from movingbase.fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
-from movingbase.plant.errors import InvalidInputError
-from movingbase.plant.stewart import StewartParams
+from controller.feedforward import FEEDFORWARD_MODES, Feedforward
+from controller.pid import PIDGains, pid_update
+from fmu_src.operating_point import BASE_POSE
+from fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
+from plant.errors import InvalidInputError
+from plant.hexapod.model import StewartParams
 
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 DEFAULTS_FILE = "leg_controller_defaults.json"

@@ -2,7 +2,7 @@
 pythonfmu FMUs, compiled from C (fmu_src/native/: one FMI layer and one model file per FMU, over the
 plant/controller C kernels), so that a host needs no Python.
 
-Nothing is typed twice. From the pythonfmu FMU (after fmu_src/builder.py has added units
+Nothing is typed twice. From the pythonfmu FMU (after fmu_src/python_build.py has added units
 and ranges) this takes the modelDescription.xml (new guid, generation tool, SourceFiles,
 FMU-state capabilities) and, from an instance of its slave class, the exact start values;
 from the Python sources of truth (StewartParams.paper(), TelescopeParams.tianma(),
@@ -17,24 +17,20 @@ import subprocess
 import sys
 import tempfile
 import uuid
-import zipfile
 import xml.etree.ElementTree as ET
+import zipfile
 
 import fmpy
 import numpy as np
 from fmpy.validation import validate_fmu
 
-from movingbase.fmu_src import atomic
+from fmu_src import atomic, catalogue
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 NATIVE = ROOT / "fmu_src" / "native"
 KERNELS = (ROOT / "plant" / "c", ROOT / "controller" / "c")
 FMI_HEADERS = pathlib.Path(fmpy.__file__).parent / "c-code"
 CFLAGS = ["-shared", "-fPIC", "-O2", "-std=c99", "-ffp-contract=off", "-fvisibility=hidden"]
-MODEL_FILES = {"HexapodPlant": "hexapod_plant.c", "TelescopeBase": "telescope_base.c",
-               "LegController": "leg_controller.c", "Mechanism3TPlant": "mechanism3t_plant.c",
-               "SliderController": "slider_controller.c", "LegSensor": "leg_sensor.c", "BaseSensor": "base_sensor.c",
-               "Wind": "wind_wrench.c"}
 _CAUSALITY = {"parameter": "MB_PARAMETER", "input": "MB_INPUT", "output": "MB_OUTPUT", "local": "MB_LOCAL"}
 
 
@@ -55,7 +51,7 @@ def _array(name, values):
 
 
 def _stewart_constants():
-    from movingbase.plant.stewart import FIDELITIES, SINGULAR_RATIO, StewartParams, fidelity_mode
+    from plant.hexapod.model import FIDELITIES, SINGULAR_RATIO, StewartParams, fidelity_mode
     p = StewartParams.paper()
     modes = [fidelity_mode(f) for f in FIDELITIES]
     return [_array("BASE_JOINTS", p.base_joints), _array("PLATFORM_JOINTS", p.platform_joints),
@@ -74,7 +70,7 @@ def _strings(name, values):
 
 
 def _integrators():
-    from movingbase.plant.integrators import INTEGRATORS
+    from plant.integrators import INTEGRATORS
     return [_strings("INTEGRATOR_NAMES", INTEGRATORS),
             f"enum {{ INTEGRATOR_RK4 = {INTEGRATORS.index('rk4')}, INTEGRATOR_EULER = {INTEGRATORS.index('euler')}, "
             f"INTEGRATOR_RADAU = {INTEGRATORS.index('radau')} }};"]
@@ -85,8 +81,8 @@ def _hexapod_plant():
 
 
 def _leg_controller():
-    from movingbase.controller.feedforward import FEEDFORWARD_MODES, model_fidelity
-    from movingbase.plant.stewart import FIDELITIES
+    from controller.feedforward import FEEDFORWARD_MODES, model_fidelity
+    from plant.hexapod.model import FIDELITIES
     fid = [FIDELITIES.index(model_fidelity(m)) for m in FEEDFORWARD_MODES]
     return _stewart_constants() + [
         _strings("FEEDFORWARD_NAMES", FEEDFORWARD_MODES),
@@ -94,10 +90,10 @@ def _leg_controller():
         f"enum {{ FEEDFORWARD_NONE = {FEEDFORWARD_MODES.index('none')} }};"]
 
 
-def _telescope_base():
-    from movingbase.fmu_src.telescope_fmu import BLOCK, PROFILES
-    from movingbase.plant.stewart import HOME_POSE, S_BAND_POSE
-    from movingbase.plant.telescope import TelescopeParams
+def _telescope():
+    from fmu_src.telescope_fmu import BLOCK, PROFILES
+    from plant.hexapod.model import HOME_POSE, S_BAND_POSE
+    from plant.telescope.model import TelescopeParams
     t = TelescopeParams.tianma()
     fields = ("b_y", "c_y", "b_z", "c_z")
     return [_strings("PROFILE_NAMES", PROFILES), f"#define BLOCK {BLOCK}",
@@ -108,14 +104,16 @@ def _telescope_base():
 
 
 def _mechanism3t():
-    from movingbase.plant import mechanism3t_kernel as kernel
-    from movingbase.plant.mechanism3t import Mechanism1Params
+    from plant.mechanism3t import kernel
+    from plant.mechanism3t.model import Mechanism1Params
     return [_array("PACKED", kernel.pack(Mechanism1Params.paper()))] + _integrators()
 
 
-CONSTANTS = {"HexapodPlant": _hexapod_plant, "TelescopeBase": _telescope_base, "LegController": _leg_controller,
-             "Mechanism3TPlant": _mechanism3t, "SliderController": _mechanism3t, "LegSensor": list, "BaseSensor": list,
-             "Wind": list}
+def constants(identifier):
+    """The C constants the native model file of ``identifier`` includes (its catalogue row
+    names the generator: ``_<constants>`` here)."""
+    name = catalogue.BY_IDENTIFIER[identifier].constants
+    return globals()[f"_{name}"]() if name else []
 
 
 def _c_name(name):
@@ -157,7 +155,7 @@ def vars_header(identifier, guid, slave, root):
              f"#ifndef MB_{identifier.upper()}_VARS_H", f"#define MB_{identifier.upper()}_VARS_H",
              "#include <math.h>", '#include "model.h"', f'#define MB_IDENTIFIER "{identifier}"',
              f'#define MB_GUID "{guid}"', f"#define MB_NVARS {len(rows)}", "enum {", *enums, "};",
-             "static const mb_var MB_VARS[MB_NVARS] = {", *rows, "};", *CONSTANTS[identifier](), "#endif", ""]
+             "static const mb_var MB_VARS[MB_NVARS] = {", *rows, "};", *constants(identifier), "#endif", ""]
     return "\n".join(lines)
 
 
@@ -185,7 +183,7 @@ def model_description(xml_text, guid, sources, exact):
 
 def _sources(identifier):
     """Every C file the FMU's binary is built from (flat names, as in the FMU's sources/)."""
-    files = [NATIVE / "fmi2_layer.c", NATIVE / MODEL_FILES[identifier], *sorted(NATIVE.glob("*.h"))]
+    files = [NATIVE / "fmi2_layer.c", NATIVE / catalogue.BY_IDENTIFIER[identifier].c_file, *sorted(NATIVE.glob("*.h"))]
     for folder in KERNELS:
         files += sorted(folder.glob("*.c")) + sorted(folder.glob("*.h"))
     return files
@@ -205,7 +203,7 @@ def build_native(python_fmu, out, empty=False):
     """The native FMU of the pythonfmu FMU ``python_fmu`` in ``out`` (same file name);
     ``empty``: the same interface with doStep and initialization doing nothing (the
     exchange floor of benchmarks/bench_native.py)."""
-    from movingbase.fmu_src import builder
+    from fmu_src import python_build as builder
     python_fmu = pathlib.Path(python_fmu)
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -258,7 +256,7 @@ def _inputs():
 def ensure_native(scripts, out=None):
     """Paths of the native FMUs of ``scripts`` (fmu_src/<script>.py names), rebuilt when
     missing or older than their pythonfmu FMU or any file they are made from."""
-    from movingbase.fmu_src import builder
+    from fmu_src import python_build as builder
     out = pathlib.Path(out) if out is not None else builder.OUT / "native"
     python = builder.ensure_built(scripts)
     out.mkdir(parents=True, exist_ok=True)
@@ -281,16 +279,6 @@ def ensure_native(scripts, out=None):
 FMI3_EXPORTS = "{ global: fmi3*; local: *; };\n"   # fmpy's fmi2Functions.h ignores FMI2_FUNCTION_PREFIX
 _FMI2_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
 _FMI3_KIND = {"Real": "Float64", "Integer": "Int32", "Enumeration": "Enumeration"}
-# Outputs that are the time derivative of another output (model identifier -> {derivative:
-# integrand}): the telescope kernel computes the base's and the reference's pose, rate and
-# acceleration and the axes' angle, rate and acceleration analytically at every
-# communication point. FMI 3 declares them (a Float64's derivative attribute) and
-# fmi3GetOutputDerivatives answers from them (fmi3_layer.c): base_pose has orders 1 and
-# 2 (base_rate, base_acc), base_rate order 1; base_acc none (its jerk is not computed).
-OUTPUT_DERIVATIVES = {"TelescopeBase": {
-    "base_rate": "base_pose", "base_acc": "base_rate", "reference_rate": "reference_pose",
-    "reference_acc": "reference_rate", "axis_rate": "axis", "axis_acc": "axis_rate",
-    "command_base_rate": "command_base_pose", "command_base_acc": "command_base_rate"}}
 _FMI3_ATTRIBUTES = ("declaredType", "unit", "displayUnit", "min", "max", "nominal")
 
 
@@ -325,9 +313,9 @@ def _groups(root):
 
 def _derivatives(root2):
     """FMI 2 value reference of an output's first element -> that of the output which is its
-    time derivative (OUTPUT_DERIVATIVES), element by element; and the highest order any
+    time derivative (its catalogue row's output_derivatives), element by element; and the highest order any
     output has (maxOutputDerivativeOrder)."""
-    declared = OUTPUT_DERIVATIVES.get(root2.find("CoSimulation").get("modelIdentifier"), {})
+    declared = catalogue.BY_IDENTIFIER[root2.find("CoSimulation").get("modelIdentifier")].output_derivatives
     vrs = {v.get("name"): int(v.get("valueReference")) for v in root2.iter("ScalarVariable")}
     derivative = {}
     for name, integrand in declared.items():
@@ -448,7 +436,7 @@ def fmi3_variables_header(root2):
     """fmi3_variables.h: per FMI 2 value reference, the FMI 3 variable that starts there
     (its element count and kind: Float64, Int32, or an Enumeration set as Int64; count 0:
     a later element of an array), as model_description3 declares them, and the output
-    that is its time derivative (OUTPUT_DERIVATIVES)."""
+    that is its time derivative (its catalogue row's output_derivatives)."""
     variables = list(root2.iter("ScalarVariable"))
     kinds = {"Real": "K_FLOAT64", "Integer": "K_INT32", "Enumeration": "K_ENUM"}
     counts, kind = [0] * len(variables), ["K_NONE"] * len(variables)
@@ -520,7 +508,7 @@ def ensure_native3(scripts, out=None):
     """Paths of the FMI 3.0 native FMUs of ``scripts``, rebuilt when missing or older than
     their FMI 2.0 native FMU (itself rebuilt when any file it is made from changed, this
     one included) or fmi3_layer.c."""
-    from movingbase.fmu_src import builder
+    from fmu_src import python_build as builder
     out = pathlib.Path(out) if out is not None else builder.OUT / "native3"
     native = ensure_native(scripts)
     out.mkdir(parents=True, exist_ok=True)
@@ -535,9 +523,9 @@ def ensure_native3(scripts, out=None):
     return paths
 
 
-if __name__ == "__main__":   # python -m movingbase.fmu_src.native_build [--fmi3] [scripts]: into build/fmu/native[3]
+if __name__ == "__main__":   # python -m fmu_src.native_build [--fmi3] [scripts]: into build/fmu/native[3]
     args = sys.argv[1:]
     ensure = ensure_native3 if "--fmi3" in args else ensure_native
     args = [a for a in args if a != "--fmi3"]
-    for path in ensure(args or __import__("movingbase.fmu_src.builder").fmu_src.builder.available()).values():
+    for path in ensure(args or __import__("fmu_src.python_build").fmu_src.builder.available()).values():
         print(f"built {path}")

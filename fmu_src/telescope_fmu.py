@@ -20,18 +20,17 @@ from dataclasses import replace
 
 import numpy as np
 
-from movingbase.fmu_src.operating_point import START_AZ_EL
-from movingbase.fmu_src.slave import (OUTPUT, POSE_UNITS, POSITIVE_RATE, POSITIVE_TIME, GuardedSlave, acc_units,
-                           rate_units)
-from movingbase.plant import telescope
-from movingbase.plant.stewart import HOME_POSE, S_BAND_POSE
+from fmu_src.operating_point import START_AZ_EL
+from fmu_src.slave import OUTPUT, POSE_UNITS, POSITIVE_RATE, POSITIVE_TIME, GuardedSlave, acc_units, rate_units
+from plant.hexapod.model import HOME_POSE, S_BAND_POSE
+from plant.telescope import model as telescope
 
 PROFILES = telescope.PROFILE_KINDS   # slew, sidereal, paper (the base and platform motion of Yao et al.)
 BLOCK = 1000
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 
 
-class TelescopeBase(GuardedSlave):
+class Telescope(GuardedSlave):
     description = "Alt-azimuth telescope pointing (slew, sidereal tracking, paper manoeuvre) -> hexapod base motion"
 
     def __init__(self, **kwargs):

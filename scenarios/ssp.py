@@ -6,9 +6,9 @@ fmpy.ssp reads; SSP 2.0 where an instance is FMI 3.0: version "2.0", the same
 namespaces, an FMI 3 array one connector with its ssc:Dimension, connections to single
 elements by startIndices/endIndices (1-based, as FMI names the elements; SSP 2.0 leaves
 the base unsaid), parameters as ssv:Float64/Int32 and Enumerations by item name; no
-importer here reads SSP 2.0, see tests/test_ssp2.py) and the FMUs under resources/: those the scenario chose per instance
+importer here reads SSP 2.0, see tests/scenarios/test_ssp_fmi3.py) and the FMUs under resources/: those the scenario chose per instance
 (native by default: then the SSP needs no Python in the importing tool; libcosim runs
-it, tests/test_libcosim.py; the pythonfmu FMUs too, with Python in the tool). The SSD has
+it, tests/hosts/test_libcosim.py; the pythonfmu FMUs too, with Python in the tool). The SSD has
 
 - one Component per FMU instance (source resources/<file>.fmu), listed in our
   initialization order (master.step_order), so a tool that initialises in document order
@@ -64,12 +64,11 @@ import zipfile
 
 import numpy as np
 
-from movingbase.fmu_src import atomic
-
-from . import spec
-from .fmi import element_count, unpack
-from .master import start, step_order
-from .spec import Link, expand
+from fmu_src import atomic
+from scenarios import spec
+from scenarios.cosim.fmi import element_count, unpack
+from scenarios.cosim.master import start, step_order
+from scenarios.spec import Link, expand
 
 SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"

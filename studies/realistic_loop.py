@@ -34,7 +34,6 @@ import json
 import math
 import pathlib
 import sys
-
 import tomllib
 
 import matplotlib
@@ -44,10 +43,10 @@ import matplotlib.lines
 import matplotlib.patches
 import matplotlib.pyplot as plt
 
-from movingbase.scenarios import engine, runner, spec
-from movingbase.scenarios.report import fmt
-from movingbase.scenarios.style import (FLOOR, FLOOR_NOTE, RUN_COLOURS, draw_marks, length,
-                                         plain_log_axis, save)
+from scenarios import spec
+from scenarios.output.charts import FLOOR, FLOOR_NOTE, RUN_COLOURS, draw_marks, length, plain_log_axis, save
+from scenarios.output.report import fmt
+from scenarios.runs import engine, runner
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
@@ -243,8 +242,8 @@ def cases(scenes=SCENES):
 def designs():
     """{name: Design} of the redesigned gains on the realistic plant, and the shipped
     gains' margins on it (controller.design; ~20 s for the search)."""
-    from movingbase.controller import design
-    from movingbase.plant.stewart import StewartParams
+    from controller import design
+    from plant.hexapod.model import StewartParams
     params = StewartParams.paper()
     shipped = design.default_gains(params)
     return {"shipped": design.margins(params, shipped, 1e-3, design.REALISTIC),
@@ -639,7 +638,7 @@ def costs(s):
 
 def settings_text():
     rows = [("leg sensors (LegSensor)", LEG_SENSOR), ("computation delay (LegSensor)", DELAY),
-            ("actuator (HexapodPlant)", ACTUATOR), ("antenna axis servo (TelescopeBase)", SERVO),
+            ("actuator (HexapodPlant)", ACTUATOR), ("antenna axis servo (Telescope)", SERVO),
             ("wind (Wind)", WIND),
             ("base sensors (BaseSensor), in SI: 0.1 arcsec encoders, gyro 0.01 deg/√h and 0.05 deg/h, accelerometer "
              "50 µg/√Hz and 100 µg", BASE_SENSOR)]

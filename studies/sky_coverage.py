@@ -29,11 +29,11 @@ import numpy as np
 from matplotlib.colors import LogNorm
 from matplotlib.patches import Rectangle
 
-from movingbase.plant import telescope
-from movingbase.scenarios import campaign as campaigns
-from movingbase.scenarios import engine
-from movingbase.scenarios.style import FLOOR, RUN_COLOURS, RUN_NAMES, draw_marks, length, plain_log_axis, save
-from movingbase.scenarios.units import to_si
+from plant.telescope import model as telescope
+from scenarios.output.charts import FLOOR, RUN_COLOURS, RUN_NAMES, draw_marks, length, plain_log_axis, save
+from scenarios.runs import campaign as campaigns
+from scenarios.runs import engine
+from scenarios.spec.units import to_si
 
 CAMPAIGNS = ("sky_slews", "slew_sizes", "keyhole_tracks")
 MODES = ("fixed_base", "moving_base")

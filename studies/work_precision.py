@@ -58,13 +58,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from movingbase.plant.integrators import INTEGRATORS
-from movingbase.plant.stewart import FIDELITIES
-from movingbase.scenarios import master, runner, spec
-from movingbase.scenarios.fmi import FmuError
-from movingbase.scenarios.records import run_records
-
-from . import reference
+from plant.hexapod.model import FIDELITIES
+from plant.integrators import INTEGRATORS
+from scenarios import spec
+from scenarios.cosim import master
+from scenarios.cosim.fmi import FmuError
+from scenarios.cosim.records import run_records
+from scenarios.runs import runner
+from studies import reference
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 FIGURES = ROOT / "docs" / "figures"
@@ -394,7 +395,7 @@ def measures(results, key):
     """(costs, errors) arrays; NaN for failed and unstable runs, which the front ignores.
     Position errors under the floor (1 nm) count as the floor: finer than the model
     resolves, they are equal, and the cheapest of them is the front there."""
-    from movingbase.scenarios.style import FLOOR
+    from scenarios.output.charts import FLOOR
     usable = [bool(r["error"]) and not r["unstable"] for r in results]
     costs = np.array([r["cpu_time"] if ok else np.nan for r, ok in zip(results, usable)])
     errors = np.array([r["error"][key] if ok else np.nan for r, ok in zip(results, usable)])
@@ -470,7 +471,7 @@ def chart(name, results, path, note=""):
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
 
-    from movingbase.scenarios.style import FLOOR, label_points, plain_log_axis, ratio, save
+    from scenarios.output.charts import FLOOR, label_points, plain_log_axis, ratio, save
 
     fig, axes = plt.subplots(1, 2, figsize=(13, 6.2), layout="constrained")
     labels = {}

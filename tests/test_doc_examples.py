@@ -18,7 +18,9 @@ import warnings
 import pytest
 
 import movingbase
-from movingbase.scenarios import campaign, resources, runner, spec
+from scenarios import spec
+from scenarios.runs import campaign, runner
+from scenarios.runs import estimates as resources
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), *sorted((ROOT / "docs" / "conventions").glob("*.md"))]

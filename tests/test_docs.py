@@ -1,18 +1,18 @@
 """The documentation against the code it describes: the scenario-file reference's table
-(scenarios/spec.py KEYS) against what the checker accepts, refuses and fills in; the
+(scenarios/spec/__init__.py KEYS) against what the checker accepts, refuses and fills in; the
 figures against the files; the README's commands against the constraints file; the
 constraints file against the ranges pyproject.toml declares; the layout table, the shipped
 files and the quoted step refusal against the tree and the kit."""
 import importlib.util
 import pathlib
 import re
+import tomllib
 
 import pytest
 from packaging.requirements import Requirement
 
-import tomllib
-
-from movingbase.scenarios import spec
+from fmu_src import catalogue
+from scenarios import spec
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
@@ -108,15 +108,15 @@ def test_documented_defaults_are_what_the_checker_fills_in():
 def test_scenario_reference_lists_every_key_kind_fmu_and_unit():
     generate = _generate()
     # the FMU table needs the built FMUs; the keys, kinds and units do not
-    generate._model_names = lambda: {fmu: fmu for fmu in spec.FMU_SCRIPTS}
+    generate._model_names = lambda: {fmu: fmu for fmu in catalogue.KEYS}
     text = generate.scenario_reference()
     for key in spec.KEYS:
         assert f"| `{key}` |" in text
     for kind, needs in spec.METRIC_KINDS.items():
         assert f"| `{kind}` | {', '.join(f'`{k}`' for k in needs)} |" in text
-    for fmu in spec.FMU_SCRIPTS:
+    for fmu in catalogue.KEYS:
         assert f"| `{fmu}` |" in text
-    from movingbase.scenarios.units import UNITS
+    from scenarios.spec.units import UNITS
     for unit in UNITS:
         assert f"`{unit}`" in text
 
@@ -223,7 +223,7 @@ def test_the_layout_table_names_every_folder_and_module():
 def test_the_pages_list_every_shipped_scenario_and_campaign():
     """scenarios.md and campaigns.md name every shipped file (telescope_slew_realistic
     was missing from scenarios.md) and no file that is gone."""
-    from movingbase.scenarios import campaign, runner
+    from scenarios.runs import campaign, runner
 
     def listed(page, start, end):
         text = (DOCS / page).read_text(encoding="utf-8")

@@ -33,7 +33,7 @@
      saying how many it would need) instead of overflowing an int or running for hours.
    - A refused call changes nothing (every value reference is checked before any value
      is set; a NULL array with a count is refused), and what a read returns is a
-     function of the values set, never of earlier reads: tests/c_host/fuzz.c replays the
+     function of the values set, never of earlier reads: tests/hosts/c_host/fuzz.c replays the
      calls an instance accepted on a fresh one and compares every value bit for bit. */
 #include <float.h>
 #include <math.h>

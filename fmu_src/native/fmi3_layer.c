@@ -577,7 +577,7 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
 
 
 /* The derivative of order n of an output is the output declared its n-th time derivative
-   (MB3_DERIVATIVE, from native_build.OUTPUT_DERIVATIVES: the telescope's rate and
+   (MB3_DERIVATIVE, from the catalogue (fmu_src/catalogue.py, output_derivatives): the telescope's rate and
    acceleration outputs, computed analytically with the pose), read at the same point. */
 fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                                     const fmi3Int32 orders[], fmi3Float64 values[], size_t nValues)

@@ -1,6 +1,6 @@
 #ifndef MB_MODEL_H
 #define MB_MODEL_H
-/* What one model file (hexapod_plant.c, telescope_base.c, ...) gives the shared FMI 2.0
+/* What one model file (hexapod_plant_fmu.c, telescope_fmu.c, ...) gives the shared FMI 2.0
    co-simulation layer (fmi2_layer.c), and what the layer gives it back.
 
    Every variable lives in one of two arrays indexed by value reference: r[vr] for Reals,
