@@ -3,7 +3,7 @@ side in one run (repeats interleave the two, median; machine load hits both alik
 is taken as the median of the pairs' ratios, each pair run back to back).
 
 A scene's runs ([ci] overrides, every sweep value) as the master steps them: CPU time of
-the stepping thread per macro step of master.run (stepping in C, recording, metrics;
+the stepping thread per macro step of single.run (stepping in C, recording, metrics;
 Run.cpu_time: wall time on the shared machine measures its load), every instance FMI 3
 against every instance FMI 2. The FMI 3 instances are stepped by the C loop's direct
 fmi3DoStep/fmi3GetFloat64/fmi3SetFloat64 calls (scenarios/cosim/c/cosim.c).
@@ -16,8 +16,7 @@ import statistics
 import tempfile
 
 from scenarios import spec
-from scenarios.cosim import master
-from scenarios.runs import metrics, runner
+from scenarios.runs import metrics, runner, single
 
 
 def scene_us(scenario, paths, descriptions, values, outdir):
@@ -28,7 +27,7 @@ def scene_us(scenario, paths, descriptions, values, outdir):
         if item is not None:
             inst, name, value = spec.sweep_value(scenario, descriptions, item)
             bound[inst][name] = value
-        run = master.run(scenario, paths, bound, outdir, "bench", [metrics.make(m) for m in scenario.metrics])
+        run = single.run(scenario, paths, bound, outdir, "bench", [metrics.make(m) for m in scenario.metrics])
         cpu, steps = cpu + run.cpu_time, steps + run.steps
     return cpu / steps * 1e6
 

@@ -50,9 +50,8 @@ from fmu_src import catalogue, native_build
 from fmu_src import python_build as builder
 from plant.hexapod.model import HOME_POSE, StewartParams, inverse_dynamics
 from scenarios import spec
-from scenarios.cosim import master
 from scenarios.cosim.fmi import Instance, RealPort
-from scenarios.runs import metrics, runner
+from scenarios.runs import metrics, runner, single
 from tests.hosts.c_host import HostFmu  # noqa: E402
 
 STEPS, H = 2000, 1e-3
@@ -136,7 +135,7 @@ def bound(py, kernel, floor, host, ratio=20.0):
 
 def manoeuvre_us(scenario, paths, values, outdir, label):
     """µs of wall time per macro step of one master run."""
-    run = master.run(scenario, paths, values, outdir, label, [metrics.make(m) for m in scenario.metrics])
+    run = single.run(scenario, paths, values, outdir, label, [metrics.make(m) for m in scenario.metrics])
     return run.wall_time / run.steps * 1e6
 
 

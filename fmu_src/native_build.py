@@ -212,7 +212,6 @@ def build_native(python_fmu, out, empty=False):
     root = ET.fromstring(xml_text)
     identifier = root.find("CoSimulation").get("modelIdentifier")
     guid = "{" + str(uuid.uuid4()) + "}"
-    builder._import_path()
     slave = builder.slave_instance(python_fmu)
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)

@@ -10,7 +10,6 @@ fmi2Fatal, for a failed initialization; a clean exit in a C host; see that file)
 win64 DLL pythonfmu ships stays as it is. The CLI also builds each FMU's native C twin into
 <out>/native/ (FMI 2.0) and <out>/native3/ (FMI 3.0) (fmu_src/native_build.py).
 """
-import argparse
 import hashlib
 import importlib
 import json
@@ -18,7 +17,6 @@ import logging
 import os
 import pathlib
 import subprocess
-import sys
 import tempfile
 import tomllib
 import xml.etree.ElementTree as ET
@@ -29,8 +27,7 @@ import fmpy
 from fmpy.validation import validate_fmu
 from pythonfmu.builder import FmuBuilder
 
-from fmu_src import atomic, catalogue, native_build
-from movingbase import __version__
+from fmu_src import atomic, catalogue
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent   # the checkout, or site-packages
 PYPROJECT = ROOT / "pyproject.toml"
@@ -57,7 +54,7 @@ def requirements():
     """Runtime requirements of the FMUs: the pinned dependencies plus this kit."""
     if PYPROJECT.exists():
         project = tomllib.loads(PYPROJECT.read_text())["project"]
-        name, version, dependencies = project["name"], __version__, project["dependencies"]
+        name, version, dependencies = project["name"], metadata.version("movingbase"), project["dependencies"]
     else:   # an installed copy: the same list from its metadata
         name, version = "movingbase", metadata.version("movingbase")
         dependencies = [r for r in metadata.requires(name) if "extra ==" not in r]
@@ -132,7 +129,7 @@ def slave_instance(fmu):
         with zipfile.ZipFile(fmu) as z:
             z.extractall(tmp)
         resources = pathlib.Path(tmp) / "resources"
-        module = importlib.import_module((resources / "slavemodule.txt").read_text().strip())
+        module = importlib.import_module("fmu_src." + (resources / "slavemodule.txt").read_text().strip())
         slave_class = next(c for c in vars(module).values()
                            if isinstance(c, type) and c.__module__ == module.__name__ and hasattr(c, "step"))
         return slave_class(instance_name="build", resources=str(resources))
@@ -257,34 +254,6 @@ def ensure_built(scripts, out=OUT):
         paths[script] = stamped(out / f"{script}.built", newest)
         if paths[script] is None:
             LOG.info("building the pythonfmu FMU of %s (a first build takes ~10 s)", script)
-            _import_path()
             paths[script] = build(script, out)
             write_stamp(out / f"{script}.built", paths[script])
     return paths
-
-
-def _import_path():
-    """The FMU scripts are imported by their own module names while building."""
-    folder = str(ROOT / "fmu_src")
-    if folder not in sys.path:
-        sys.path.insert(0, folder)
-
-
-def main(argv=None, prog="movingbase build"):
-    parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default=str(OUT), help="output folder")
-    parser.add_argument("names", nargs="*", default=available(),
-                        help="FMU scripts to build (default: all)")
-    args = parser.parse_args(argv)
-    out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    _import_path()
-    for name in args.names:
-        fmu = build(name, out)
-        write_stamp(out / f"{name}.built", fmu)
-        print(f"built {fmu}")
-        native = native_build.build_native(fmu, out / "native")
-        print(f"built {native}")
-        print(f"built {native_build.build_native3(native, out / 'native3')}")
-    print(f"FMUs are in {out}: pythonfmu (FMI 2.0), native/ (FMI 2.0), native3/ (FMI 3.0)")
-    return out

@@ -20,7 +20,7 @@ it, tests/hosts/test_libcosim.py; the pythonfmu FMUs too, with Python in the too
   every set named PARAMETER_SET (ecos: ``init(parameter_set="scenario")``), its
   parameters named by the FMU's variable names, in the FMU's units (SI): other FMI/SSP tools
   apply them. "@inst.var" links are resolved to numbers (the source FMU is initialised
-  as master.run does and its output read at the start time), enumeration Integers are
+  as single.run does and its output read at the start time), enumeration Integers are
   written as their numbers;
 - the FMUs under resources/ with their Enumeration parameters declared as Integers
   (``integer_choices``: the SSP hosts set no FMI 2 Enumeration), everything else as built;
@@ -101,7 +101,7 @@ def _double(value):
 # ------------------------------------------------------------------------- parameters
 def resolve_links(scenario, fmu_paths, parameters):
     """``parameters`` (instance -> {variable: value}) with every ``Link`` replaced by its
-    number, read by initialising the instances exactly as master.run does (master.start).
+    number, read by initialising the instances exactly as single.run does (master.start).
     Nothing is instantiated without links."""
     if not any(isinstance(v, Link) for values in parameters.values() for v in values.values()):
         return {inst: dict(values) for inst, values in parameters.items()}

@@ -18,10 +18,9 @@ import time
 import numpy as np
 
 from plant.hexapod.model import FIDELITIES, HOME_POSE, StewartParams, inverse_dynamics
-from scenarios.cosim import master
 from scenarios.cosim.fmi import Instance, RealPort
 from scenarios.cosim.records import run_records
-from scenarios.runs import fidelity, runner
+from scenarios.runs import fidelity, runner, single
 
 SCENES = ("paper_manoeuvre", "telescope_slew", "keyhole_tracking")
 OUT = pathlib.Path(__file__).resolve().parent.parent / "docs" / "fidelity.md"
@@ -55,7 +54,7 @@ def pose_deviation(name, ci):
     poses = {}
     for level in FIDELITIES:
         values["plant"]["fidelity"] = FIDELITIES.index(level)
-        run = master.run(scenario, paths, values, None, level, [])   # records in memory only
+        run = single.run(scenario, paths, values, None, level, [])   # records in memory only
         poses[level] = run_records(run).values[:, :3]
     return {level: float(np.linalg.norm(poses[level] - poses["full"], axis=1).max() * 1e6) for level in FIDELITIES}
 

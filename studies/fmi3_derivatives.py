@@ -22,8 +22,7 @@ import numpy as np
 
 from plant.telescope import model as telescope
 from scenarios import spec
-from scenarios.cosim import master
-from scenarios.runs import flags, metrics, runner
+from scenarios.runs import flags, metrics, runner, single
 
 STEPS = (0.5e-3, 1e-3, 2e-3, 4e-3)
 H_REF = 0.1e-3
@@ -41,7 +40,7 @@ def run(extrapolation, h, stop):
     values = spec.bind(scenario, descriptions)
     inst, name, value = spec.sweep_value(scenario, descriptions, "moving_base")
     values[inst][name] = value
-    result = master.run(scenario, paths, values, None, f"{extrapolation}-{h}",
+    result = single.run(scenario, paths, values, None, f"{extrapolation}-{h}",
                         [metrics.make(m) for m in scenario.metrics])
     return result.records, result.metrics, flags.predict(scenario, paths, descriptions, values).limit, values["base"]
 

@@ -72,8 +72,8 @@ from plant.hexapod.model import (
 )
 from plant.hexapod.ode import HexapodODE
 from scenarios import spec
-from scenarios.cosim import master
 from scenarios.cosim.fmi import FmuError, unpack
+from scenarios.runs import single
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 FIGURES = ROOT / "docs" / "figures"
@@ -150,7 +150,7 @@ class _Decided(Exception):
 
 
 class _Trace:
-    """A metric for scenarios.master.run that keeps the leg-length error per step and the
+    """A metric for scenarios.single.run that keeps the leg-length error per step and the
     peak force, and stops the run once the error has decayed by DECAYED."""
 
     name, start = "stability trace", 0.0
@@ -283,7 +283,7 @@ class CoSim:
         message = ""
         start = time.perf_counter()
         try:
-            master.run(scenario, self.paths, values, self.outdir, "probe", [trace])
+            single.run(scenario, self.paths, values, self.outdir, "probe", [trace])
         except _Decided:
             pass
         except FmuError as exc:
@@ -622,7 +622,7 @@ def _lengths_on_grid(cosim, h, k, duration, gains, offset, grid):
 
     text = scenario_text(h, duration, scaled(gains, k), HOME_POSE + offset)
     scenario = spec.parse(text, "studies.stability")
-    master.run(scenario, cosim.paths, spec.bind(scenario, cosim.descriptions), cosim.outdir, "order",
+    single.run(scenario, cosim.paths, spec.bind(scenario, cosim.descriptions), cosim.outdir, "order",
                [Lengths(None, False)])
     return np.array([lengths[n] for n in sorted(lengths)])
 

@@ -61,10 +61,9 @@ import numpy as np
 from plant.hexapod.model import FIDELITIES
 from plant.integrators import INTEGRATORS
 from scenarios import spec
-from scenarios.cosim import master
 from scenarios.cosim.fmi import FmuError
 from scenarios.cosim.records import run_records
-from scenarios.runs import runner
+from scenarios.runs import runner, single
 from studies import reference
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
@@ -219,7 +218,7 @@ def cosimulate(prep, config, outdir, stop_time=None):
     if config.integrator == "radau":   # scipy's Radau: only the pythonfmu plant has it
         paths = runner.fmu_paths(dataclasses.replace(scenario, implementations={**scenario.implementations,
                                                                                 plant: "python"}))
-    run = master.run(scenario, paths, params, pathlib.Path(outdir), "run")
+    run = single.run(scenario, paths, params, pathlib.Path(outdir), "run")
     records = run_records(run)
     pose = [k for k, c in enumerate(records.names) if c.startswith("plant.pose[")]
     force = [k for k, c in enumerate(records.names) if c.startswith("controller.leg_force[")]

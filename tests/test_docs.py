@@ -215,7 +215,7 @@ def test_the_layout_table_names_every_folder_and_module():
     folders = sorted({line.split("/")[0] for line in tracked.stdout.splitlines() if "/" in line})
     missing = [f"{name}/" for name in folders if f"`{name}/`" not in table]
     for package in ("plant", "controller", "fmu_src", "scenarios", "studies", "movingbase"):
-        missing += [f"{package}/{p.name}" for p in (ROOT / package).glob("*.py")
+        missing += [f"{package}/{p.relative_to(ROOT / package)}" for p in (ROOT / package).rglob("*.py")
                     if p.name != "__init__.py" and not p.name.endswith("_fmu.py") and p.name not in table]
     assert missing == []
 

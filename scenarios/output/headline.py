@@ -6,10 +6,8 @@ metrics of the full runs, so the README and the reports print the same numbers.
     movingbase headline --from out     # keep their metrics in docs/headline.json, rewrite README
     movingbase headline                # rewrite the README section from docs/headline.json
 """
-import argparse
 import json
 import pathlib
-import shutil
 
 from scenarios.output import charts as style
 from scenarios.output import report
@@ -78,23 +76,3 @@ def rewrite_readme(store, readme=README):
     head, rest = text.split(BEGIN, 1)
     tail = rest.split(END, 1)[1]
     readme.write_text(head + render(store) + tail)
-
-
-def main(argv=None):
-    parser = argparse.ArgumentParser(prog="movingbase headline", description=__doc__.splitlines()[0])
-    parser.add_argument("--from", dest="out", metavar="DIR", help="take the metrics of the full runs in DIR first")
-    args = parser.parse_args(argv)
-    if args.out:
-        out = pathlib.Path(args.out)
-        try:
-            store = collect(out)
-        except Flagged as exc:
-            raise SystemExit(f"headline error: {exc}") from None
-        STORE.write_text(json.dumps(store, indent=1, ensure_ascii=False) + "\n")
-        shutil.copyfile(out / CHART[0] / CHART[1], CHART[2])
-    rewrite_readme(json.loads(STORE.read_text()))
-    print(f"{README.name}: headline rewritten from {STORE.relative_to(ROOT)}")
-
-
-if __name__ == "__main__":
-    main()

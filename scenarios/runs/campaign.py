@@ -27,7 +27,6 @@ the key and the problem, like scenario files.
 Results: <out>/<campaign file stem>/runs/<key>.json|.npz (scenarios.engine.Store) and summary.csv,
 one row per run, read back from the files.
 """
-import argparse
 import csv
 import dataclasses
 import difflib
@@ -39,10 +38,10 @@ from dataclasses import dataclass
 
 from fmu_src import atomic
 from scenarios import spec
-from scenarios.cosim.fmi import FmuFileError, description
+from scenarios.cosim.fmi import description
 from scenarios.runs import engine, flags
 from scenarios.runs import estimates as resources
-from scenarios.runs.runner import OutputError, fmu_paths, output_folder, resolve
+from scenarios.runs.runner import fmu_paths, output_folder, resolve
 
 _TOP = ("name", "description", "scenario", "set", "grid", "cases", "ci", "keep_records")
 _CI = ("name", "description", "set", "grid", "cases", "keep_records")     # what [ci] may replace
@@ -485,49 +484,3 @@ def run_campaign(path, out="out", ci=False, jobs_=None, address=None, progress=T
     with engine.Engine(jobs_, address) as eng:
         outcome = eng.run(job_list, files, store, progress, retry_failed, name=campaign.name)
     return campaign, job_list, store, outcome, write_summary(campaign, store, job_list, outdir / "summary.csv")
-
-
-def main(argv=None):
-    parser = argparse.ArgumentParser(prog="movingbase campaign", description=__doc__.splitlines()[0])
-    parser.add_argument("campaign", help="campaign file (TOML)")
-    parser.add_argument("--ci", action="store_true", help="apply the file's [ci] replacements (a small campaign)")
-    parser.add_argument("--jobs", type=int, help="local worker processes (default: all cores)")
-    parser.add_argument("--dask", metavar="ADDR", help="run on the Dask cluster whose scheduler is at ADDR")
-    parser.add_argument("--out", default="out", help="output folder (default: out)")
-    parser.add_argument("--retry-failed", action="store_true", help="run again the runs that failed before")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    args = parser.parse_args(argv)
-    try:
-        warning = resources.check_jobs(args.jobs)
-        if warning:
-            print(warning, file=sys.stderr)
-        if args.dask is not None:   # "" too: it once ran locally, silently
-            engine.check_address(args.dask)
-        campaign, job_list, store, outcome, summary = run_campaign(
-            args.campaign, args.out, args.ci, args.jobs, args.dask, not args.quiet, args.retry_failed)
-    except spec.ScenarioError as exc:       # a CampaignError too
-        sys.exit(f"campaign error: {exc}")
-    except (resources.ResourceError, engine.EngineError, OutputError, FmuFileError) as exc:
-        sys.exit(f"campaign error: {exc}")
-    except OSError as exc:
-        sys.exit(f"campaign error: output: {exc.filename or args.out}: {exc.strerror or exc}")
-    except KeyboardInterrupt:
-        sys.exit("interrupted: the runs finished so far are on disk; run the same command again to resume")
-    print(f"{campaign.name}: {len(outcome.computed)} runs done now, {len(outcome.skipped)} found on disk, "
-          f"{len(outcome.failed)} failed, of {outcome.total}, in {outcome.wall_time:.1f} s; summary {summary}")
-    if outcome.damaged:
-        print(f"  {len(outcome.damaged)} damaged results were found and run again (named above)")
-    if outcome.orphans:
-        print(f"  {outcome.orphans} results in {store.folder} belong to no run of this campaign (other settings, "
-              "or FMUs of other sources); they are kept: delete them to reclaim the space")
-    labels = {job.key: job.label for job in job_list}
-    for key, message in list(outcome.failed.items())[:10]:
-        print(f"  failed: {labels[key]}: {message.splitlines()[0]}")
-    if outcome.interrupted:
-        sys.exit("interrupted: the runs finished so far are on disk; run the same command again to resume")
-    if outcome.failed:
-        sys.exit(1)
-
-
-if __name__ == "__main__":
-    main()

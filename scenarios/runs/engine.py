@@ -25,7 +25,7 @@ Why this shape:
   keys on disk. At most a few jobs per worker are in flight, so the client's memory
   does not grow with the number of runs; summaries are read back from the files.
 
-Results are bit-for-bit those of a sequential ``scenarios.master.run`` in one process:
+Results are bit-for-bit those of a sequential ``scenarios.single.run`` in one process:
 each run is the same deterministic computation in a fresh set of instances; floats go
 through JSON as their repr (exact) and series through npz.
 """
@@ -53,7 +53,7 @@ from tqdm import tqdm
 from fmu_src.atomic import replacing, write_bytes
 from scenarios.cosim import fmi, master
 from scenarios.cosim.fmi import content_digest
-from scenarios.runs import flags, metrics
+from scenarios.runs import flags, metrics, single
 from scenarios.runs.estimates import cores
 from scenarios.spec import Link, file_label
 
@@ -149,7 +149,7 @@ def code_digest(roots=None):
 
 @functools.cache
 def _package_digest():
-    return code_digest([importlib.util.find_spec(f"movingbase.{name}").submodule_search_locations[0]
+    return code_digest([importlib.util.find_spec(name).submodule_search_locations[0]
                         for name in ("plant", "controller", "fmu_src", "scenarios")])
 
 
@@ -197,7 +197,7 @@ def execute(job, blobs):
         try:
             paths = {inst: _local_fmu(digest, blobs) for inst, digest in job.fmus.items()}
             run_cpu = time.process_time()
-            partial = master.run(job.scenario, paths, job.parameters, None, "run",
+            partial = single.run(job.scenario, paths, job.parameters, None, "run",
                                  [metrics.make(m) for m in job.scenario.metrics], flags=job.flags)
             out.update(status="ok", run_cpu_s=time.process_time() - run_cpu, **_outcome(partial))
         except Exception as exc:          # the run's failure is a result; others go on

@@ -22,7 +22,7 @@ from scenarios import spec
 from scenarios.cosim import master
 from scenarios.cosim.fmi import description
 from scenarios.output import report
-from scenarios.runs import engine, fidelity, flags, metrics
+from scenarios.runs import engine, fidelity, flags, metrics, single
 from scenarios.runs import estimates as resources
 
 SHIPPED = pathlib.Path(__file__).resolve().parents[1] / "files"
@@ -323,7 +323,7 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
                 bar.set_description_str(desc, refresh=False)
             bar.update(round(100 * fraction) - bar.n)
         try:
-            runs.append(master.run(scenario, paths, params, outdir, label,
+            runs.append(single.run(scenario, paths, params, outdir, label,
                                    [metrics.make(m) for m in scenario.metrics], update, before.get(label, ())))
         except master.RunFailed as failed:   # keep what it did; the other runs still run
             failed.run.failure = f"{scenario.source}: scene {scenario.name}, run {label}: {failed.run.failure}"

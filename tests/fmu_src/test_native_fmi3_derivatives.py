@@ -136,7 +136,7 @@ def slew_run(extrapolation, master_kind="jacobi", h=1e-3, stop=6.0, fmi_version=
     scenario = dataclasses.replace(scenario, extrapolation=extrapolation, master=master_kind, step=h, stop_time=stop,
                                    record=study.RECORD, record_interval=0.02)
     values = runner.spec.bind(scenario, descriptions)
-    result = runner.master.run(scenario, paths, values, None, "run")
+    result = runner.single.run(scenario, paths, values, None, "run")
     return result.records, values["base"]
 
 

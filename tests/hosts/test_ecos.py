@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from scenarios import ssp
-from scenarios.cosim import master
 from scenarios.cosim.fmi import FmuError
+from scenarios.runs import single
 from tests.fmu_helpers import _scales
 from tests.ssp_helpers import RECORD, columns, configure, run_columns
 
@@ -50,7 +50,7 @@ def test_ecos_runs_the_exported_ssp_as_our_master_does(request, implementation, 
     fmus = request.getfixturevalue("native" if implementation == "native" else "fmus")
     scenario, paths, descriptions, params = configure(fmus)
     path = ssp.export_ssp(scenario, paths, params, tmp_path / "slew.ssp")
-    ours = run_columns(master.run(scenario, paths, params, tmp_path, "ours"))
+    ours = run_columns(single.run(scenario, paths, params, tmp_path, "ours"))
     names = columns(scenario, descriptions, RECORD)
     theirs = run_ecos(path, scenario, names)
     assert theirs.shape == (round(scenario.stop_time / scenario.step), len(names))
@@ -66,7 +66,7 @@ def test_ecos_applies_a_choice_other_than_the_default(native, tmp_path):
     """feedforward = none (the default is moving_base): ecos must compute it, as ours does."""
     scenario, paths, descriptions, params = configure(native, "none", stop=0.05)
     path = ssp.export_ssp(scenario, paths, params, tmp_path / "none.ssp")
-    ours = run_columns(master.run(scenario, paths, params, tmp_path, "ours"))
+    ours = run_columns(single.run(scenario, paths, params, tmp_path, "ours"))
     names = columns(scenario, descriptions, ["controller.leg_force", "plant.pose"])
     assert _compare(run_ecos(path, scenario, names), ours, names) <= 1e-12
 
@@ -77,7 +77,7 @@ def test_the_old_naming_ran_on_defaults(native, tmp_path):
     defaults; the pose differs from the scenario's by the amount printed."""
     scenario, paths, descriptions, params = configure(native)
     path = ssp.export_ssp(scenario, paths, params, tmp_path / "slew.ssp")
-    ours = run_columns(master.run(scenario, paths, params, tmp_path, "ours"))
+    ours = run_columns(single.run(scenario, paths, params, tmp_path, "ours"))
     names = columns(scenario, descriptions, ["plant.pose"])
     unbound = run_ecos(path, scenario, names, parameter_set=None)
     bound = run_ecos(path, scenario, names)
@@ -97,7 +97,7 @@ def test_ecos_steps_on_past_a_discard(native, tmp_path):
     scenario, paths, descriptions, params = configure(native, "none", stop=0.5)
     params["controller"].update(kp=0.0, ki=0.0, kd=0.0)
     with pytest.raises(FmuError, match="status DISCARD"):
-        master.run(scenario, paths, params, tmp_path, "ours")
+        single.run(scenario, paths, params, tmp_path, "ours")
     path = ssp.export_ssp(scenario, paths, params, tmp_path / "falling.ssp")
     rows = run_ecos(path, scenario, columns(scenario, descriptions, ["plant.pose"]))
     assert len(rows) == 500

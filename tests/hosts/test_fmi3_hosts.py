@@ -27,8 +27,7 @@ from fmpy.fmi3 import FMU3Slave
 from fmu_src import catalogue, native_build
 from fmu_src import python_build as builder
 from scenarios import spec
-from scenarios.cosim import master
-from scenarios.runs import runner
+from scenarios.runs import runner, single
 
 try:
     from ecospy import EcosLib, EcosSimulation, EcosSimulationStructure
@@ -228,7 +227,7 @@ def test_ecos_runs_the_connected_3t_scene_as_our_master_does(step, tmp_path):
     scenario = dataclasses.replace(scenario, step=step, stop_time=steps * step, record_interval=step, record=record,
                                    metrics=[])
     assert scenario.master == "jacobi" and scenario.extrapolation == "none"
-    ours = master.run(scenario, paths, {i: dict(v) for i, v in values.items()}, tmp_path, "ours").records
+    ours = single.run(scenario, paths, {i: dict(v) for i, v in values.items()}, tmp_path, "ours").records
     names = list(ours.names)
     connections = [(a, b) for source, sinks in scenario.connections for sink in sinks
                    for a, b in zip(_elements(descriptions, source), _elements(descriptions, sink), strict=True)]

@@ -23,7 +23,7 @@ from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
 from libcosimpy.CosimObserver import CosimObserver
 
 from scenarios import ssp
-from scenarios.cosim import master
+from scenarios.runs import single
 from tests.fmu_helpers import _scales
 from tests.ssp_helpers import RECORD, columns, configure, run_columns
 
@@ -53,7 +53,7 @@ def test_libcosim_runs_the_exported_ssp_as_our_master_does(request, implementati
     scenario, paths, descriptions, params = configure(fmus)
     assert set(paths.values()) <= set(fmus.values()) and scenario.master == "jacobi"
     path = ssp.export_ssp(scenario, paths, params, tmp_path / "slew.ssp")
-    ours = run_columns(master.run(scenario, paths, params, tmp_path, "ours"))
+    ours = run_columns(single.run(scenario, paths, params, tmp_path, "ours"))
     names = columns(scenario, descriptions, RECORD)
     theirs = run_libcosim(path, scenario, descriptions, names)
     assert theirs.shape == (round(scenario.stop_time / scenario.step), len(names))

@@ -127,7 +127,7 @@ def test_same_seed_identical_bytes_other_seed_differs():
 
 
 @pytest.fixture(scope="module")
-def native(native_fmus):
+def native_base_sensor(native_fmus):
     return native_fmus["base_sensor_fmu"]
 
 

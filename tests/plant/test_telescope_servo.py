@@ -105,7 +105,7 @@ def test_servo_on_lags_the_command_and_follows_axis_servo():
 
 
 @pytest.fixture(scope="module")
-def native(native_fmus):
+def native_telescope(native_fmus):
     return native_fmus["telescope_fmu"]
 
 

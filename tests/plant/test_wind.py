@@ -42,7 +42,7 @@ def band_power(x, fs, edges):
 
 
 @pytest.fixture(scope="module")
-def native(native_fmus):
+def native_wind(native_fmus):
     return native_fmus["wind_fmu"]
 
 

@@ -11,7 +11,7 @@ from scenarios import spec
 from scenarios.cosim import master
 from scenarios.cosim.fmi import FmuError, unpack
 from scenarios.cosim.records import read_records
-from scenarios.runs import fidelity, metrics, runner
+from scenarios.runs import fidelity, metrics, runner, single
 
 GOLDEN = pathlib.Path(__file__).parent / "golden"
 SHIPPED = sorted(p.stem for p in runner.SHIPPED.glob("*.toml"))
@@ -131,7 +131,7 @@ def _run(text, descriptions, tmp_path, label="run", **changes):
     scenario, values = bound(text, descriptions)
     scenario = dataclasses.replace(scenario, **changes)
     made = [metrics.make(m) for m in scenario.metrics]
-    return master.run(scenario, descriptions[1], values, tmp_path, label, made)
+    return single.run(scenario, descriptions[1], values, tmp_path, label, made)
 
 
 def test_masters_agree_to_their_coupling_error(descriptions, tmp_path):

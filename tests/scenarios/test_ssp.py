@@ -21,6 +21,7 @@ from lxml import etree
 from scenarios import spec, ssp
 from scenarios.cosim import master
 from scenarios.cosim.fmi import FmuError, Instance
+from scenarios.runs import single
 from tests.ssp_helpers import RECORD, columns, configure, run_columns
 
 NS = {"ssd": ssp.SSD, "ssc": ssp.SSC, "ssv": ssp.SSV}
@@ -132,7 +133,7 @@ def test_ssd_is_valid_and_names_every_component_connection_and_parameter(case):
 def test_fmpy_with_initial_exchange_agrees_with_our_jacobi_master(case):
     scenario, paths, descriptions, params, path, folder = case
     assert scenario.master == "jacobi"
-    ours = run_columns(master.run(scenario, paths, params, folder, "ours"))
+    ours = run_columns(single.run(scenario, paths, params, folder, "ours"))
     theirs = ssp.simulate_exported(path, scenario, initial_exchange=True)
 
     steps = round(scenario.stop_time / scenario.step)
@@ -152,7 +153,7 @@ def test_fmpy_with_initial_exchange_agrees_with_our_jacobi_master(case):
     assert np.ptp(ours["base.base_pose[2]"]) > 1e-4 and np.max(np.abs(ours["controller.leg_force[1]"])) > 1e3
 
     # and the comparison can fail: Gauss-Seidel (a real semantic change) does not agree
-    gauss = run_columns(master.run(dataclasses.replace(scenario, master="gauss-seidel"), paths, params, folder,
+    gauss = run_columns(single.run(dataclasses.replace(scenario, master="gauss-seidel"), paths, params, folder,
                                 "gauss"))
     assert np.max(np.abs(gauss["controller.leg_force[1]"][1:] - theirs["controller.leg_force[1]"])) > 1.0
 
@@ -241,7 +242,7 @@ def test_export_refuses_what_it_cannot_write(case):
 def test_command_line_exports_a_scenario(implementation, tmp_path, capsys):
     """The SSP carries the implementation asked for (the file's choice, native, by default):
     a pythonfmu FMU holds pythonfmu's wrapper behind our shim, a native one its C sources."""
-    from movingbase.run_command import main
+    from movingbase.cli import run_command as main
     main(["telescope_slew", "--ci", "--ssp", str(tmp_path / "slew.ssp")]
          + (["--implementation", implementation] if implementation else []))
     assert "SSP written to" in capsys.readouterr().out
@@ -257,7 +258,7 @@ def test_command_line_exports_a_scenario(implementation, tmp_path, capsys):
 
 def test_two_scenarios_for_one_ssp_file_are_refused_naming_both(tmp_path):
     """--ssp with two scenarios exported the first and dropped the second without a word."""
-    from movingbase.run_command import main
+    from movingbase.cli import run_command as main
     with pytest.raises(SystemExit, match=r"--ssp .*two.ssp: exports one scenario, 2 given \(telescope_slew, "
                                          r"paper_manoeuvre\); run one --ssp per scenario"):
         main(["telescope_slew", "paper_manoeuvre", "--ci", "--ssp", str(tmp_path / "two.ssp")])

@@ -142,7 +142,7 @@ def test_exports_validate_against_the_ssp2_schemas(versions, tmp_path):
 def test_command_line_writes_ssp2_where_an_instance_is_fmi3(tmp_path):
     """`movingbase run --ssp` of a scenario file choosing fmi_version = 3 for one
     instance writes SSP 2.0 holding that instance's FMI 3.0 FMU."""
-    from movingbase.run_command import main
+    from movingbase.cli import run_command as main
     text = (runner.SHIPPED / "keyhole_tracking.toml").read_text()
     scene = tmp_path / "scene.toml"
     scene.write_text(text.replace("[fmus.plant]", "[fmus.plant]\nfmi_version = 3", 1))

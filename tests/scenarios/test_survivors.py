@@ -17,7 +17,7 @@ import pytest
 from scenarios import spec
 from scenarios.cosim import master
 from scenarios.runs import estimates as resources
-from scenarios.runs import flags, runner
+from scenarios.runs import flags, runner, single
 
 STROKE = (np.full(6, -0.15), np.full(6, 0.15))   # a Watched loop's ends: +-150 mm
 WINDOW = 0.5                                    # s, the detector's window here
@@ -79,7 +79,7 @@ def test_each_fmu_is_fed_what_was_stepped_before_it_whatever_the_file_lists(real
     scenario, paths, values = realistic_slew
     first = None
     for listing in itertools.permutations(scenario.fmus):
-        records = master.run(dataclasses.replace(scenario, master=master_kind,
+        records = single.run(dataclasses.replace(scenario, master=master_kind,
                                                  fmus={k: scenario.fmus[k] for k in listing}), paths, values).records
         names = list(records.names)
         length, measured = (records.values[:, [i for i, n in enumerate(names) if n.startswith(ref + "[")]]
@@ -166,7 +166,7 @@ def test_the_memory_and_disk_a_run_is_estimated_to_need_are_those_it_takes(tmp_p
     scenario, paths, descriptions, values = runner.prepare(runner.resolve("telescope_slew_realistic"), ci=True)
     scenario = dataclasses.replace(scenario, stop_time=5.0)
     cost = resources.estimate(scenario, descriptions)
-    records = master.run(scenario, paths, values, tmp_path, "run").records
+    records = single.run(scenario, paths, values, tmp_path, "run").records
     assert (cost.rows, cost.columns) == records.values.shape == (501, 34)
     assert cost.run_bytes == cost.disk_bytes == records.values.nbytes + records.time.nbytes == 140_280
     assert cost.disk_bytes < (tmp_path / "run.npz").stat().st_size < 1.1 * cost.disk_bytes

@@ -6,7 +6,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from scenarios.cosim import master
+from scenarios.runs import single
 from studies import reference
 from studies import work_precision as W
 
@@ -59,7 +59,7 @@ def test_reference_sees_the_motion_the_telescope_fmu_outputs(name, tmp_path):
                "base.reference_rate", "base.reference_acc"]
     scenario = dataclasses.replace(prep.scenario, step=1e-3, stop_time=start + 3.0, record=signals,
                                    record_interval=0.1)
-    run = master.run(scenario, prep.paths, prep.values, tmp_path, "signals")
+    run = single.run(scenario, prep.paths, prep.values, tmp_path, "signals")
     data = np.column_stack([run.records.time, run.records.values])
     expected = prep.scene().motion(data[:, 0])
     for k, name_ in enumerate(reference.SIGNALS):

@@ -17,7 +17,7 @@ from scenarios import spec
 from scenarios.cosim import master
 from scenarios.cosim.fmi import FmuError, Instance, RealPort
 from scenarios.cosim.records import read_records
-from scenarios.runs import metrics, runner
+from scenarios.runs import metrics, runner, single
 from scenarios.spec import Link, expand
 
 MASTERS = [("jacobi", "none"), ("jacobi", "linear"), ("gauss-seidel", "none"), ("gauss-seidel", "linear")]
@@ -123,7 +123,7 @@ class ReferenceRecorder:
 
 
 def reference_run(scenario, fmu_paths, parameters, outdir, label, metric_list):
-    """Today's master.run with its per-step Python loop (start included: it initialises
+    """Today's single.run with its per-step Python loop (start included: it initialises
     through the reference exchange)."""
     instances, recorder = {}, None
     h, t0 = scenario.step, scenario.start_time
@@ -193,7 +193,7 @@ def prepared(name, implementation, master_kind, extrapolation, item=0):
 
 
 def csv_text(outdir):
-    """The CSV of a run in outdir: the reference's, or master.run's npz read back and exported."""
+    """The CSV of a run in outdir: the reference's, or single.run's npz read back and exported."""
     if not (outdir / "run.npz").exists():
         return (outdir / "run.csv").read_text()
     return read_records(outdir / "run.npz").to_csv(outdir / "export.csv").read_text()
@@ -206,11 +206,11 @@ def same_records(a, b):
 
 
 def both(scenario, paths, values, tmp_path):
-    """(outcome, csv text) of the reference loop and of master.run; an outcome is the
+    """(outcome, csv text) of the reference loop and of single.run; an outcome is the
     run's steps and metrics, or the RunFailed message, failure line and steps. The
-    records master.run keeps in memory are those of its file."""
+    records single.run keeps in memory are those of its file."""
     results = []
-    for which, run in (("reference", reference_run), ("c", master.run)):
+    for which, run in (("reference", reference_run), ("c", single.run)):
         outdir = tmp_path / which
         outdir.mkdir()
         try:
@@ -311,7 +311,7 @@ def test_progress_is_reported_as_the_python_loop_did_and_changes_nothing(tmp_pat
     seen = []
     for outdir, progress in ((tmp_path / "with", seen.append), (tmp_path / "without", None)):
         outdir.mkdir()
-        master.run(scenario, paths, values, outdir, "run", [], progress)
+        single.run(scenario, paths, values, outdir, "run", [], progress)
     steps = round((scenario.stop_time - scenario.start_time) / scenario.step)
     tick = max(1, steps // 200)
     assert seen == [k / steps for k in range(steps) if k % tick == 0]
@@ -319,7 +319,7 @@ def test_progress_is_reported_as_the_python_loop_did_and_changes_nothing(tmp_pat
 
 
 def test_a_long_unrecorded_run_returns_to_python_every_chunk(monkeypatch, tmp_path):
-    """A run recording only its ends still leaves C every master.CHUNK steps (so Ctrl-C is
+    """A run recording only its ends still leaves C every single.CHUNK steps (so Ctrl-C is
     seen within one chunk), with the records of a run stepped in one call; an interrupt
     between chunks propagates and leaves the records made so far written."""
     scenario, paths, values = prepared("paper_manoeuvre", "native", "jacobi", "linear")
@@ -334,9 +334,9 @@ def test_a_long_unrecorded_run_returns_to_python_every_chunk(monkeypatch, tmp_pa
     monkeypatch.setattr(master.Loop, "steps", counted)
     for outdir, chunk in ((tmp_path / "chunked", 512), (tmp_path / "whole", 10 * steps)):
         outdir.mkdir()
-        monkeypatch.setattr(master, "CHUNK", chunk)
+        monkeypatch.setattr(single, "CHUNK", chunk)
         counts.clear()
-        master.run(scenario, paths, values, outdir, "run")
+        single.run(scenario, paths, values, outdir, "run")
         assert sum(counts) == steps and max(counts) == min(chunk, steps)
     assert same_records(tmp_path / "chunked" / "run.npz", tmp_path / "whole" / "run.npz")
 
@@ -345,10 +345,10 @@ def test_a_long_unrecorded_run_returns_to_python_every_chunk(monkeypatch, tmp_pa
             raise KeyboardInterrupt
         return real_steps(self, k, count)
     monkeypatch.setattr(master.Loop, "steps", interrupted)
-    monkeypatch.setattr(master, "CHUNK", 512)
+    monkeypatch.setattr(single, "CHUNK", 512)
     (tmp_path / "stopped").mkdir()
     with pytest.raises(KeyboardInterrupt):
-        master.run(scenario, paths, values, tmp_path / "stopped", "run")
+        single.run(scenario, paths, values, tmp_path / "stopped", "run")
     stopped = read_records(tmp_path / "stopped" / "run.npz")
     assert stopped.time.tolist() == [0.0]   # the t0 row, on disk
 

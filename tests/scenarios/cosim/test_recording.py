@@ -16,7 +16,7 @@ import pytest
 from scenarios import spec
 from scenarios.cosim import master
 from scenarios.cosim.fmi import Instance, Instance3
-from scenarios.runs import flags, metrics, runner
+from scenarios.runs import flags, metrics, runner, single
 
 STROKE = (np.full(6, -0.15), np.full(6, 0.15))   # a Watched loop's ends: +-150 mm
 
@@ -31,7 +31,7 @@ def prepared(fmi_version=None, feedforward="moving_base"):
 
 
 def run(scenario, paths, values, progress=None):
-    return master.run(scenario, paths, values, None, "run", [metrics.make(m) for m in scenario.metrics], progress)
+    return single.run(scenario, paths, values, None, "run", [metrics.make(m) for m in scenario.metrics], progress)
 
 
 def counting_calls(monkeypatch):
@@ -55,7 +55,7 @@ def test_a_row_each_step_holds_the_rows_of_a_row_each_tenth_step(monkeypatch):
     steps = round((scenario.stop_time - scenario.start_time) / scenario.step)
     calls = counting_calls(monkeypatch)
     tenth = run(scenario, paths, values)
-    assert len(calls) == math.ceil(steps / master.CHUNK)
+    assert len(calls) == math.ceil(steps / single.CHUNK)
     calls.clear()
     each = run(every_step, paths, values)
     assert len(calls) == math.ceil(steps / master.Recorder.ROWS)

@@ -198,7 +198,7 @@ def test_a_run_without_charts_imports_no_plotting_design_or_cluster_library(tmp_
 
     from scenarios.runs.runner import prepare, resolve
     prepare(resolve("telescope_slew"), ci=True)
-    code = ("import sys; from movingbase.run_command import main; "
+    code = ("import sys; from movingbase.cli import run_command as main; "
             f"main(['telescope_slew', '--ci', '--quiet', '--charts', 'none', '--out', {str(tmp_path)!r}]); "
             "print(sorted(m for m in ('matplotlib', 'control', 'scipy', 'dask', 'distributed', 'pandas') "
             "if m in sys.modules))")
@@ -227,7 +227,7 @@ def test_readme_headline_is_generated_from_the_stored_metrics():
 
 
 def test_cli_help_and_unknown_scenario_list_the_shipped_ones(capsys):
-    from movingbase.run_command import main
+    from movingbase.cli import run_command as main
     shipped = sorted(p.stem for p in SHIPPED.glob("*.toml"))
     with pytest.raises(SystemExit) as done:
         main(["--help"])
@@ -260,7 +260,6 @@ def test_build_command_returns_no_exit_status(monkeypatch):
     passed to sys.exit: the folder printed as an error and status 1 after a good build."""
     import pathlib
 
-    from fmu_src import python_build as builder
-    from movingbase import __main__ as command
-    monkeypatch.setattr(builder, "main", lambda argv: pathlib.Path("build/fmu"))
-    assert command.main(["build"]) is None
+    from movingbase import cli
+    monkeypatch.setattr(cli, "build_command", lambda argv: pathlib.Path("build/fmu"))
+    assert cli.main(["build"]) is None

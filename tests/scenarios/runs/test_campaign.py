@@ -7,8 +7,7 @@ import csv
 import pytest
 
 from scenarios import spec
-from scenarios.cosim import master
-from scenarios.runs import campaign, flags, metrics, runner
+from scenarios.runs import campaign, flags, metrics, runner, single
 from scenarios.spec.units import to_si
 
 HEAD = 'name = "t"\nscenario = "telescope_slew"\n'
@@ -108,7 +107,7 @@ def test_campaign_runs_equal_the_scenario_run_directly(tmp_path):
         params["controller"]["feedforward"] = 1
         params["base"]["start_elevation"] = to_si(f"{el} deg", "rad")
         before = runner.pre_run_flags(scenario, paths, descriptions, params)["fixed_base"]   # what `movingbase run` flags
-        run = master.run(scenario, paths, params, tmp_path, "direct", [metrics.make(m) for m in scenario.metrics],
+        run = single.run(scenario, paths, params, tmp_path, "direct", [metrics.make(m) for m in scenario.metrics],
                          flags=before)
         # the slew begins at 5 s: at 5.3 s it has not ended, a run of it says so wherever its numbers are
         assert [f.kind for f in before] == ["motion_unfinished"]

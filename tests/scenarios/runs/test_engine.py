@@ -12,10 +12,9 @@ import pytest
 
 from fmu_src import catalogue
 from scenarios import spec
-from scenarios.cosim import master
 from scenarios.cosim.fmi import Instance, unpack
 from scenarios.cosim.records import read_records
-from scenarios.runs import engine, metrics
+from scenarios.runs import engine, metrics, single
 from scenarios.runs.runner import SHIPPED
 
 ELEVATIONS = (20.0, 50.0, 80.0)
@@ -31,7 +30,7 @@ def _bound(fmus):
 @pytest.fixture(scope="module")
 def campaign(fmus, tmp_path_factory):
     """Six slews (3 start elevations x 2 feedforward modes) and their sequential results,
-    from scenarios.cosim.master.run in this process."""
+    from scenarios.cosim.single.run in this process."""
     scenario, paths, values = _bound(fmus)
     cases = [(f"el {el:g}, {mode}", {"base": {"start_elevation": np.radians(el), "target_elevation": np.radians(el + 5)},
                                       "controller": {"feedforward": index}})
@@ -40,7 +39,7 @@ def campaign(fmus, tmp_path_factory):
     folder = tmp_path_factory.mktemp("sequential")
     sequential = {}
     for job in jobs:
-        run = master.run(scenario, paths, job.parameters, folder, "run", [metrics.make(m) for m in scenario.metrics])
+        run = single.run(scenario, paths, job.parameters, folder, "run", [metrics.make(m) for m in scenario.metrics])
         sequential[job.key] = run
     return scenario, paths, values, jobs, files, sequential
 

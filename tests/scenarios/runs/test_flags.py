@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from controller import design
-from movingbase.run_command import main as cli
+from movingbase.cli import run_command as cli
 from plant.hexapod.model import HOME_POSE, StewartParams, inverse_kinematics
 from plant.telescope import model as telescope
 from scenarios import spec
@@ -19,7 +19,7 @@ from scenarios.cosim import master
 from scenarios.cosim.fmi import unpack
 from scenarios.cosim.records import run_records
 from scenarios.output import headline, report
-from scenarios.runs import flags, runner
+from scenarios.runs import flags, runner, single
 from studies.stability import GAINS, OFFSET, scenario_text
 
 STROKE = (np.full(6, -0.15), np.full(6, 0.15))   # a Watched loop's ends: +-150 mm
@@ -81,7 +81,7 @@ def probe(fmus, tmp_path, step, master_, extrapolation, pose, force_limit=1e9, d
     paths = {"plant": fmus["hexapod_plant_fmu"], "controller": fmus["leg_controller_fmu"]}
     values = spec.bind(scenario, {inst: unpack(p)[0] for inst, p in paths.items()})
     try:
-        return master.run(scenario, paths, values, tmp_path, f"probe_{step:.6f}")
+        return single.run(scenario, paths, values, tmp_path, f"probe_{step:.6f}")
     except master.RunFailed as failed:
         return failed.run
 

@@ -19,7 +19,7 @@ from scenarios.cosim import master
 from scenarios.cosim.fmi import unpack
 from scenarios.cosim.records import read_records
 from scenarios.output import report
-from scenarios.runs import metrics, runner
+from scenarios.runs import metrics, runner, single
 from tests.scenario_helpers import SLEW, edited, refused
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
@@ -391,7 +391,7 @@ def test_a_run_refused_at_initialisation_is_reported_with_no_rows(descriptions, 
     values = spec.bind(scenario, descriptions)
     paths = {inst: fmus[script] for inst, script in SCRIPTS.items()}
     with pytest.raises(master.RunFailed) as failed:
-        master.run(scenario, paths, values, tmp_path, "far", [metrics.make(m) for m in scenario.metrics])
+        single.run(scenario, paths, values, tmp_path, "far", [metrics.make(m) for m in scenario.metrics])
     run = failed.value.run
     assert run.steps == 0 and "FMU instance 'plant' failed in" in run.failure
     assert "[ERROR] StrokeError in initialization: leg 1 length 1.882430 m outside its stroke" in run.failure
@@ -419,7 +419,7 @@ def test_linear_extrapolation_against_a_ramp(descriptions, fmus, tmp_path):
     yaw = {}
     for label, changes in {"held": {"extrapolation": "none"}, "linear": {"extrapolation": "linear"},
                            "gauss-seidel": {"extrapolation": "linear", "master": "gauss-seidel"}}.items():
-        run = master.run(dataclasses.replace(scenario, **changes), paths, values, tmp_path, label)
+        run = single.run(dataclasses.replace(scenario, **changes), paths, values, tmp_path, label)
         yaw[label] = np.column_stack([run.records["base.base_pose[6]"], run.records["controller.base_pose[6]"]])
         t = run.records.time
     h, rate = 1e-3, -math.radians(0.5)   # yaw = A = 180 deg - Az falls as the azimuth rises
