@@ -85,7 +85,7 @@ _FMUS = {}
 def _fmus():
     """script -> (native FMU path, pythonfmu FMU path), built once."""
     if not _FMUS:
-        scripts = sorted(set(catalogue.KEYS.values()))
+        scripts = sorted(catalogue.SCRIPTS)
         python, native = ensure_built(scripts), ensure_native(scripts)
         _FMUS.update({s: (native[s], python[s]) for s in scripts})
     return _FMUS
@@ -93,7 +93,7 @@ def _fmus():
 
 def _model_names():
     return {fmu: read_model_description(str(_fmus()[script][0])).modelName
-            for fmu, script in catalogue.KEYS.items()}
+            for fmu, script in ((f.key, f.script) for f in catalogue.FMUS)}
 
 
 def _value(x):
@@ -137,7 +137,7 @@ def fmu_reference():
              "(`build/fmu/native3/`, `fmi_version = 3`), and pythonfmu as FMI 2.0 (`build/fmu/`). A vector is the scalars `name[1]` ... `name[n]`: "
              "one row `name[1..n]` when its elements differ only in their index, else a row each. min/max are what the scenario checker enforces "
              "on parameter values.", ""]
-    for fmu, script in catalogue.KEYS.items():
+    for fmu, script in ((f.key, f.script) for f in catalogue.FMUS):
         native, python = (read_model_description(str(p)) for p in _fmus()[script])
         if _signature(native) != _signature(python):
             raise SystemExit(f"{fmu}: the native and pythonfmu FMUs declare different variables")

@@ -128,7 +128,7 @@ def _typed(inst, variable, value, fmi3=False):
         return "Enumeration", items[int(value)]
     if kind in ("Integer", "Enumeration"):
         if isinstance(value, str):   # an enumeration name, as in a scenario file
-            choices = spec._enumeration(variable)
+            choices = spec.enumeration(variable)
             if value not in choices:
                 raise ValueError(f"{inst}.{variable.name}: {value!r} is not one of {', '.join(choices)}")
             value = choices[value]

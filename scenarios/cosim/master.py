@@ -25,10 +25,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fmu_src.catalogue import FEEDTHROUGH
 from scenarios.cosim._cosim import ffi, lib
 from scenarios.cosim.fmi import _LABELS, FmuError, Instance, Instance3, RealPort
 from scenarios.cosim.records import Records
-from scenarios.spec import FEEDTHROUGH, Link, expand
+from scenarios.spec import Link, expand
 
 
 @dataclass

@@ -42,6 +42,7 @@ from scenarios.cosim.fmi import description
 from scenarios.runs import engine, flags
 from scenarios.runs import estimates as resources
 from scenarios.runs.runner import fmu_paths, output_folder, resolve
+from scenarios.spec import units
 
 _TOP = ("name", "description", "scenario", "set", "grid", "cases", "ci", "keep_records")
 _CI = ("name", "description", "set", "grid", "cases", "keep_records")     # what [ci] may replace
@@ -117,9 +118,9 @@ def _axes(source, grid):
 
 def _is_quantity(value):
     try:
-        spec.to_si(value, "s")
+        units.to_si(value, "s")
         return True
-    except spec.UnitError:
+    except units.UnitError:
         return False
 
 
@@ -134,7 +135,7 @@ def parse(text, source="<string>", base_dir=".", ci=False):
     if "fmus" in data and "scenario" not in data:    # not a wall of unknown keys: the other kind of file
         raise CampaignError(source, "file", "this is a scenario file (it has [fmus] and names no scenario), not "
                                             "a campaign: run it with `movingbase run FILE` (movingbase.run)")
-    problems = spec._Problems(CampaignError)
+    problems = spec.Problems(CampaignError)
     for key, problem in spec.unknown_keys(set(data) - set(_TOP), _TOP):
         problems.errors.append(CampaignError(source, key, problem))
     ci_table = data.get("ci", {})
@@ -197,7 +198,7 @@ def parse(text, source="<string>", base_dir=".", ci=False):
     named = set(fixed) | {k for _, keys, _ in axes for k in keys} | {k for _, _, c in cases for k in c}
     written = [*fixed.items(), *[(k, v) for _, keys, rows in axes for row in rows for k, v in zip(keys, row)],
                *[(k, v) for _, _, c in cases for k, v in c.items()]]
-    steps = [base.step] + [spec.to_si(v, "s") for k, v in written if k == "step" and _is_quantity(v)]
+    steps = [base.step] + [units.to_si(v, "s") for k, v in written if k == "step" and _is_quantity(v)]
     connected = {(t.split(".", 1)[0], t.split(".", 1)[1]) for _, targets in base.connections for t in targets}
     if sweep_key and sweep_key not in named:
         axes.append(("scenario sweep", [sweep_key], [(v,) for v in base.sweep[1]]))
@@ -216,7 +217,7 @@ def parse(text, source="<string>", base_dir=".", ci=False):
                 spec.load(path, overrides={**fixed_top, key: value})   # with set's start_time, stop_time, ...
             except spec.ScenarioError as exc:
                 raise CampaignError(source, where, str(exc).removeprefix(f"{path}: ")) from None
-            return spec.to_si(value, "s") if _is_quantity(value) else value
+            return units.to_si(value, "s") if _is_quantity(value) else value
         if isinstance(value, str) and value.startswith("@"):
             raise CampaignError(source, where, f"{value!r}: a link to another FMU's output at the start time is "
                                 f"written in the scenario file ({path.name}); a campaign sets values")
@@ -252,7 +253,7 @@ def parse(text, source="<string>", base_dir=".", ci=False):
     every += [(f"{where}.{key}[{j}]" if where != "scenario sweep" else f"{path.name}: sweep.values[{j}]", key, value)
               for where, keys, rows in axes for j, row in enumerate(rows) for key, value in zip(keys, row)]
     every += [(f"{where}.{key}", key, value) for where, _, case in cases for key, value in case.items()]
-    problems = spec._Problems(CampaignError)      # every bad value of the file, told at once
+    problems = spec.Problems(CampaignError)      # every bad value of the file, told at once
     for where, key, value in every:
         with problems.part():
             check(where, key, value)
@@ -411,7 +412,7 @@ class CampaignJobs:
                 variables = {inst: {v.name: v for v in d.modelVariables} for inst, d in descriptions.items()}
                 written = {tuple(k.split(".", 1)): v for k, v in case.values.items() if k not in SCENARIO_KEYS}
                 try:
-                    spec._check_models(source, "run", scenario, variables, params, written)
+                    spec.check_models(source, "run", scenario, variables, params, written)
                     seen[marker] = ""
                     motion[marker] = () if self.campaign.ci else tuple(
                         flags.motion_flags(scenario, paths, descriptions, params))

@@ -440,7 +440,7 @@ def test_python_build_py_builds_the_fmi3_fmus_too(tmp_path):
     import sys
 
     from fmpy import read_model_description
-    root = pathlib.Path(__file__).resolve().parent.parent
+    root = pathlib.Path(__file__).resolve().parents[2]
     done = subprocess.run([sys.executable, str(root / "build.py"), "--out", str(tmp_path), "leg_sensor_fmu"],
                           capture_output=True, text=True, check=True)
     assert "native3" in done.stdout

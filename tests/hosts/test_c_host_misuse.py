@@ -193,7 +193,7 @@ def test_a_non_finite_output_at_initialization_is_an_error(extracted):
 
 
 # --------------------------------------------------------- threads, instances, memory
-BUILDS = ["native", "native3"]   # the session fixtures of the FMI 2.0 and the FMI 3.0 builds
+BUILDS = ["extracted", "native3"]   # the session fixtures of the FMI 2.0 and the FMI 3.0 builds
 
 
 @pytest.mark.parametrize("build", BUILDS)

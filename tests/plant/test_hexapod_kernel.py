@@ -14,7 +14,7 @@ from plant.hexapod import kernel as kane
 from plant.hexapod.model import HOME_POSE, StewartParams
 
 REVISION = "73017ff"
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 N = 300
 RTOL = 1e-13
 PARAMS = StewartParams.paper()

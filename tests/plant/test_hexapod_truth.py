@@ -8,14 +8,11 @@ Newton-Euler equations of the 13 bodies with explicit joint reactions.
 from __future__ import annotations
 
 import dataclasses
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import newton_euler as ne  # noqa: E402
+from tests.plant import newton_euler as ne
 
 HOME = np.array([0.0, 0.0, -2.6815, 0.0, 0.0, 0.0])
 N_FIXED = 200

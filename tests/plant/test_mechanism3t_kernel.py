@@ -13,7 +13,7 @@ from plant.errors import ConvergenceError
 from plant.mechanism3t import kernel
 from plant.mechanism3t import model as m3t
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+ROOT = pathlib.Path(__file__).resolve().parents[2]
 NUMBA_REVISION = "73017ff"
 P = m3t.Mechanism1Params.paper()
 RHO_REF = np.array(m3t.PAPER_REFERENCE_RHO_MM) * m3t.MM

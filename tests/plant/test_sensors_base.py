@@ -159,6 +159,6 @@ def test_native_equals_python_bit_for_bit(fmus, native_base_sensor, source):
 
 def test_non_finite_input_discards_with_the_same_words(fmus, native_base_sensor):
     from tests.fmu_helpers import _stepping_failure
-    text = _stepping_failure(fmus, {"base_sensor_fmu": native}, "base_sensor_fmu", {},
+    text = _stepping_failure(fmus, {"base_sensor_fmu": native_base_sensor}, "base_sensor_fmu", {},
                              {"true_base_rate[2]": np.nan, "axis[1]": np.inf})
     assert text == "InvalidInputError at t=0 s: inputs must be finite: axis, true_base_rate"

@@ -13,7 +13,7 @@ from scenarios.cosim.fmi import FmuError, unpack
 from scenarios.cosim.records import read_records
 from scenarios.runs import fidelity, metrics, runner, single
 
-GOLDEN = pathlib.Path(__file__).parent / "golden"
+GOLDEN = pathlib.Path(__file__).resolve().parents[1] / "golden"
 SHIPPED = sorted(p.stem for p in runner.SHIPPED.glob("*.toml"))
 MINIMAL = '''
 stop_time = "0.05 s"

@@ -66,7 +66,7 @@ def test_files_end_with_the_umask_s_mode(tmp_path):
 
 
 def test_text_is_utf8_in_an_ascii_locale(tmp_path):
-    code = ("import numpy as np; from scenarios import records; "
+    code = ("import numpy as np; from scenarios.cosim import records; "
             f"records.Records.of(np.zeros(1), ['a.x'], ['\\u00b5m'], np.zeros((1, 1))).to_csv({str(tmp_path / 'r.csv')!r})")
     env = {**os.environ, "LC_ALL": "C", "PYTHONCOERCECLOCALE": "0", "PYTHONUTF8": "0"}
     subprocess.run([sys.executable, "-c", code], env=env, check=True, timeout=120)
@@ -74,7 +74,7 @@ def test_text_is_utf8_in_an_ascii_locale(tmp_path):
 
 
 def test_a_second_process_is_refused_the_output_folder_naming_the_first(tmp_path):
-    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from scenarios import runner; "
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from scenarios.runs import runner; "
                                f"runner.output_folder({str(tmp_path)!r}, 'scene.toml'); print('held', flush=True); "
                                "time.sleep(60)"], stdout=subprocess.PIPE, text=True)
     try:

@@ -254,9 +254,9 @@ def test_every_limit_an_fmu_declares_is_in_the_loop_catalogue():
     """A limit or stroke parameter of any of the kit's FMUs (one a future FMU declares too)
     belongs to a loop of catalogue.CONTROL_LOOPS, as the controller's limit or its plant's, so
     the guard watches it; every loop's variables exist in its FMUs."""
-    paths = runner.ensure_native(sorted(catalogue.KEYS.values()))
+    paths = runner.ensure_native(sorted(catalogue.SCRIPTS))
     names = {fmu: {v.name.split("[", 1)[0]: v for v in runner.description(paths[script]).modelVariables}
-             for fmu, script in catalogue.KEYS.items()}
+             for fmu, script in ((f.key, f.script) for f in catalogue.FMUS)}
     watched = {(fmu, entry["limit"]) for fmu, entry in catalogue.CONTROL_LOOPS.items()} | {
         (entry["plant"], entry[key]) for entry in catalogue.CONTROL_LOOPS.values() for key in ("plant_limit", "stroke")}
     declared = {(fmu, name) for fmu, variables in names.items() for name, v in variables.items()

@@ -22,7 +22,7 @@ from scenarios.output import report
 from scenarios.runs import metrics, runner, single
 from tests.scenario_helpers import SLEW, edited, refused
 
-ROOT = pathlib.Path(__file__).resolve().parent.parent
+ROOT = pathlib.Path(__file__).resolve().parents[3]
 KEYHOLE = runner.resolve("keyhole_tracking").read_text()
 SCRIPTS = {"base": "telescope_fmu", "plant": "hexapod_plant_fmu", "controller": "leg_controller_fmu"}
 

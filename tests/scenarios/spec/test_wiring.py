@@ -1,5 +1,5 @@
 """Wiring that cannot be meant is refused before anything runs, naming its connections
-(spec._check_wiring): an output wired back into its own FMU's input with no state between
+(spec.check_wiring): an output wired back into its own FMU's input with no state between
 them, an algebraic loop of such outputs, and a control loop that does not measure its
 plant. Each of these once ran 0.15 s and ended in a stroke error that named neither
 connection. The truth: the realistic slew's own wiring, edited one connection at a time."""
