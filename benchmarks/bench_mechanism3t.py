@@ -93,7 +93,7 @@ def main():
     try:
         import numba  # noqa: F401
 
-        from tests.plant.test_mechanism3t_kernel import load_numba_kernel
+        from tests.golden.make_numba_golden import load_numba_kernel
         with tempfile.TemporaryDirectory() as tmp:
             start = time.perf_counter()
             old = load_numba_kernel(tmp)

@@ -1,10 +1,9 @@
 """The C kernel of the 3T mechanism (plant/c/mechanism3t.c through plant.mechanism3t_kernel)
 against the numba kernel it replaced (git revision 73017ff), function by function, and its
-C-only per-step calls against the calls they combine."""
-import importlib
+C-only per-step calls against the calls they combine. The numba kernel's inputs and outputs
+are stored in tests/golden/mechanism3t_kernel_c_numba.npz; regenerate with
+tests/golden/make_numba_golden.py (needs numba, the `bench` extra, and the git history)."""
 import pathlib
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -13,55 +12,19 @@ from plant.errors import ConvergenceError
 from plant.mechanism3t import kernel
 from plant.mechanism3t import model as m3t
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
-NUMBA_REVISION = "73017ff"
+# benchmarks/bench_mechanism3t.py imports the numba kernel's loader from here
+
+GOLDEN = pathlib.Path(__file__).resolve().parents[1] / "golden" / "mechanism3t_kernel_c_numba.npz"
 P = m3t.Mechanism1Params.paper()
 RHO_REF = np.array(m3t.PAPER_REFERENCE_RHO_MM) * m3t.MM
 REL = 1e-13
 
 
-def load_numba_kernel(directory, revision=NUMBA_REVISION):
-    """plant/mechanism3t/kernel.py and plant/linalg.py of ``revision`` imported as a package in
-    ``directory`` (their other imports point at today's plant). Needs git and numba."""
-    name = f"m3t_numba_{revision}"
-    package = pathlib.Path(directory) / name
-    package.mkdir(exist_ok=True)
-    (package / "__init__.py").write_text("")
-    for file in ("mechanism3t_kernel.py", "linalg.py"):
-        source = subprocess.run(["git", "-C", str(ROOT), "show", f"{revision}:plant/{file}"],
-                                check=True, capture_output=True, text=True).stdout
-        source = source.replace("from .errors import", "from plant.errors import")
-        source = source.replace("from .mechanism3t import", "from plant.mechanism3t.model import")
-        (package / file).write_text(source)
-    sys.path.insert(0, str(directory))
-    try:
-        return importlib.import_module(f"{name}.mechanism3t_kernel")
-    finally:
-        sys.path.remove(str(directory))
-
-
 @pytest.fixture(scope="module")
-def old(tmp_path_factory):
-    pytest.importorskip("numba")
-    try:
-        return load_numba_kernel(tmp_path_factory.mktemp("numba_kernel"))
-    except (OSError, subprocess.CalledProcessError) as error:
-        pytest.skip(f"git revision {NUMBA_REVISION} not available: {error}")
-
-
-def _states(rng):
-    """~1000 configurations: near the paper's, on every inverse-position branch of random O',
-    and over a box far wider than the workspace (unreachable and singular ones included)."""
-    inverse = []
-    while len(inverse) < 400:
-        p = rng.uniform([-0.1, -0.32, P.l1 + P.l5], [0.38, 0.45, P.l1 + P.l5 + P.l4])
-        try:
-            inverse.extend(m3t.inverse_position(P, p))
-        except m3t.UnreachableError:
-            pass
-    near_sin = [[x, 0.0, P.d] for x in np.linspace(-3e-16, 3e-16, 7)]   # sin theta -> 0
-    return np.r_[RHO_REF + rng.uniform(-0.03, 0.03, (300, 3)), np.array(inverse[:400]),
-                 rng.uniform([-0.3, -0.5, -0.5], [0.4, 0.5, 0.5], (300, 3)), near_sin]
+def old():
+    """The arrays of GOLDEN: inputs, and what the numba kernel returned for them."""
+    with np.load(GOLDEN) as golden:
+        return dict(golden)
 
 
 def _close(got, want):
@@ -78,52 +41,58 @@ def _outcome(call):
 
 def test_c_kernel_equals_the_numba_kernel(old):
     """Every status-returning kernel and every raising wrapper: the same status (or error type
-    and message) and the same numbers to 1e-13 relative, on ~1000 configurations x 2 modes."""
-    rng = np.random.default_rng(9)
+    and message) and the same numbers to 1e-13 relative, on ~1000 configurations x 2 modes
+    (near the paper's, on every inverse-position branch of random O', and over a box far
+    wider than the workspace: unreachable and singular ones included)."""
     pa = kernel.pack(P)
-    np.testing.assert_array_equal(pa, old.pack(P))
+    np.testing.assert_array_equal(pa, old["pack"])
     statuses, worst = set(), 0.0
-    for rho in _states(rng):
-        rho_dot, rho_ddot, forces = rng.normal(0, 0.3, 3), rng.normal(0, 3.0, 3), rng.normal(0, 100.0, 3)
+    row = 0   # the stored per-mode rows: state 0 mode 1, state 0 mode -1, state 1 mode 1, ...
+    for rho, rho_dot, rho_ddot, forces in zip(old["rho"], old["rho_dot"], old["rho_ddot"], old["forces"]):
         for mode in (1, -1):
-            p_new, p_old = np.empty(3), np.empty(3)
+            p_new = np.empty(3)
             status = kernel.position_kernel(pa, rho, mode, p_new)
-            assert status == old.position_kernel(pa, rho, mode, p_old)
-            _close(p_new, p_old)
-            new, was = [np.empty((3, 3)), np.empty(3), np.empty(3)], [np.empty((3, 3)), np.empty(3), np.empty(3)]
+            assert status == old["position_status"][row]
+            _close(p_new, old["position_p"][row])
+            new = [np.empty((3, 3)), np.empty(3), np.empty(3)]
             status = kernel.terms(pa, rho, rho_dot, mode, *new)
-            assert status == old.terms(pa, rho, rho_dot, mode, *was), (rho, mode)
+            assert status == old["terms_status"][row], (rho, mode)
             statuses.add(status)
             if status == kernel.OK:
-                for a, b in zip(new, was):
+                for k, a in enumerate(new):
+                    b = old[f"terms_{k}"][row]
                     _close(a, b)
                     worst = max(worst, np.abs(a - b).max() / np.abs(b).max())
-            f_new, f_old = np.empty(3), np.empty(3)
+            f_new = np.empty(3)
             status = kernel.slider_forces_kernel(pa, rho, rho_dot, rho_ddot, mode, f_new)
-            assert status == old.slider_forces_kernel(pa, rho, rho_dot, rho_ddot, mode, f_old)
+            assert status == old["slider_forces_status"][row]
             if status == kernel.OK:
-                _close(f_new, f_old)
-            a_new, a_old = np.empty(3), np.empty(3)
+                _close(f_new, old["slider_forces_out"][row])
+            a_new = np.empty(3)
             status = kernel.forward_dynamics_kernel(pa, rho, rho_dot, forces, mode, a_new)
-            assert status == old.forward_dynamics_kernel(pa, rho, rho_dot, forces, mode, a_old)
+            assert status == old["forward_dynamics_status"][row]
             if status == kernel.OK:
-                _close(a_new, a_old)
-            x = np.r_[rho, rho_dot]
-            (s_new, xd_new), (s_old, xd_old) = kernel.rhs_kernel(pa, x, forces, mode), old.rhs_kernel(pa, x, forces, mode)
-            assert s_new == s_old
+                _close(a_new, old["forward_dynamics_out"][row])
+            s_new, xd_new = kernel.rhs_kernel(pa, np.r_[rho, rho_dot], forces, mode)
+            assert s_new == old["rhs_status"][row]
             if s_new == kernel.OK:
-                _close(xd_new, xd_old)
+                _close(xd_new, old["rhs_xdot"][row])
             for name, args in (("dynamics_terms", (rho, rho_dot)), ("slider_forces", (rho, rho_dot, rho_ddot)),
                                ("forward_dynamics", (rho, rho_dot, forces)), ("forward_branch", (rho,))):
                 a = _outcome(lambda: getattr(kernel, name)(P, *args, mode))
-                b = _outcome(lambda: getattr(old, name)(P, *args, mode))
-                assert a[0] == b[0], (name, rho, mode, a, b)
-                if a[0] == "ok":
-                    for u, v in zip(np.atleast_1d(a[1]) if name != "dynamics_terms" else a[1],
-                                    np.atleast_1d(b[1]) if name != "dynamics_terms" else b[1]):
+                kind, message = old[f"{name}_kind"][row], old[f"{name}_message"][row]
+                assert (a[0] if a[0] == "ok" else a[0].__name__) == kind, (name, rho, mode, a, kind, message)
+                if kind == "ok":   # each array of dynamics_terms, each number of the others
+                    if name == "dynamics_terms":
+                        pairs = zip(a[1], (old[f"{name}_{k}"][row] for k in range(3)))
+                    else:
+                        pairs = zip(np.atleast_1d(a[1]), old[f"{name}_value"][row])
+                    for u, v in pairs:
                         _close(u, v)
                 else:
-                    assert a[1] == b[1]
+                    assert a[1] == message
+            row += 1
+    assert row == len(old["position_status"])
     # every kind of outcome was met: OK, unreachable (eq. 10-11, arccos, limbs) and singular
     assert {kernel.OK, kernel.UNREACH_D3E3, kernel.UNREACH_ARCCOS, kernel.SING_SIN} <= statuses, statuses
     assert len(statuses) >= 6, statuses
@@ -133,15 +102,11 @@ def test_c_kernel_equals_the_numba_kernel(old):
 def test_c_advance_equals_the_numba_advance(old):
     """advance_fixed, RK4 and Euler, from states near the paper's under forces large enough
     that some runs leave the workspace: same status, same state (also where it stopped)."""
-    rng = np.random.default_rng(4)
     pa = kernel.pack(P)
     statuses = set()
-    for _ in range(150):
-        x0 = np.r_[RHO_REF + rng.uniform(-0.05, 0.05, 3), rng.normal(0, 0.2, 3)]
-        forces = rng.normal(0, 400.0, 3)
-        substeps, dt, rk4 = int(rng.integers(1, 60)), float(rng.uniform(1e-4, 5e-3)), bool(rng.integers(2))
-        s_new, x_new = kernel.advance_fixed(pa, x0, forces, 1, rk4, substeps, dt)
-        s_old, x_old = old.advance_fixed(pa, x0, forces, 1, rk4, substeps, dt)
+    for x0, forces, substeps, dt, rk4, s_old, x_old in zip(*(old[f"advance_{name}"] for name in (
+            "x0", "forces", "substeps", "dt", "rk4", "status", "x"))):
+        s_new, x_new = kernel.advance_fixed(pa, x0, forces, 1, bool(rk4), int(substeps), float(dt))
         assert s_new == s_old and s_new in (kernel.OK, kernel.UNREACH_D3E3, kernel.UNREACH_ARCCOS,
                                             kernel.UNREACH_LIMB1, kernel.UNREACH_LIMB2, kernel.SING_W)
         statuses.add(s_new)
