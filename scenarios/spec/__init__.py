@@ -18,10 +18,10 @@ models refuse that min/max cannot say (the telescope profile over the run). Both
 before the master starts.
 
 The stages, in the order they run: ``keys`` (the table of keys and defaults, the Scenario),
-``text`` (reading and its errors), ``parse``, ``bind`` and ``checks``. The names the rest
+``text`` (reading and its errors), ``parsing``, ``checks`` and ``binding``. The names the rest
 of the kit uses are here.
 """
-from scenarios.spec.bind import _value, as_data, plain, sweep_value
+from scenarios.spec.binding import _value, as_data, bind, plain, sweep_value
 from scenarios.spec.checks import check_links, check_models, check_rates, check_wiring
 from scenarios.spec.keys import (
     _REQUIRED,
@@ -37,7 +37,7 @@ from scenarios.spec.keys import (
     enumeration,
     expand,
 )
-from scenarios.spec.parse import load, parse_data, retold, sources_of
+from scenarios.spec.parsing import load, parse, parse_data, retold, sources_of
 from scenarios.spec.text import (
     Problems,
     ScenarioError,
@@ -49,4 +49,4 @@ from scenarios.spec.text import (
     unknown_keys,
 )
 
-__all__ = ['FMI_VERSIONS', 'IMPLEMENTATIONS', 'KEYS', 'Link', 'MAX_FILE_BYTES', 'METRIC_KINDS', 'Metric', 'Problems', 'Scenario', 'ScenarioError', 'TOP_KEYS', '_REQUIRED', '_value', 'as_data', 'check_links', 'check_models', 'check_name', 'check_rates', 'check_wiring', 'enumeration', 'expand', 'file_label', 'load', 'parse_data', 'plain', 'read_text', 'read_toml', 'retold', 'shown', 'sources_of', 'sweep_value', 'unknown_keys']
+__all__ = ['FMI_VERSIONS', 'IMPLEMENTATIONS', 'KEYS', 'Link', 'MAX_FILE_BYTES', 'METRIC_KINDS', 'Metric', 'Problems', 'Scenario', 'ScenarioError', 'TOP_KEYS', '_REQUIRED', '_value', 'as_data', 'bind', 'check_links', 'check_models', 'check_name', 'check_rates', 'check_wiring', 'enumeration', 'expand', 'file_label', 'load', 'parse', 'parse_data', 'plain', 'read_text', 'read_toml', 'retold', 'shown', 'sources_of', 'sweep_value', 'unknown_keys']

@@ -11,14 +11,12 @@ pythonfmu FMUs embed CPython: in a C host they need libpython loaded globally
 (pythonfmu_env below; docs/fmi-notes-measured.md).
 """
 import dataclasses
-import functools
 import hashlib
 import math
 import os
 import pathlib
 import re
 import signal
-import site
 import subprocess
 import sys
 import sysconfig
@@ -81,27 +79,14 @@ def extract(fmu, folder):
     return folder
 
 
-@functools.cache
-def _site_folder():
-    """A folder holding a sitecustomize.py that adds this interpreter's site-packages as a
-    site directory (its .pth files, the editable install's finder among them, are read)."""
-    folder = tempfile.mkdtemp(prefix="movingbase-site-")
-    sites = [p for p in site.getsitepackages() if os.path.isdir(p)]
-    pathlib.Path(folder, "sitecustomize.py").write_text(
-        "import site\n" + "".join(f"site.addsitedir({p!r})\n" for p in sites))
-    return folder
-
-
 def pythonfmu_env(extra_paths=()):
     """Environment for a C host running a pythonfmu FMU: libpython preloaded (the wrapper
     links no libpython, and numpy's extension modules need its symbols global) and
-    PYTHONPATH = this interpreter's sys.path, so the FMU's Python finds what this one
-    finds. The editable install maps ``movingbase`` onto the checkout's folders by a
-    finder that a .pth file in site-packages installs, and .pth files are read only in
-    site directories, not on PYTHONPATH: a sitecustomize adds this interpreter's
-    site-packages as a site directory (_site_folder)."""
+    PYTHONPATH = this interpreter's sys.path (its site-packages and, for the editable
+    install, the checkout), so the FMU's Python finds what this one finds: the
+    environment docs/hosts.md gives a C-tool user."""
     libpython = pathlib.Path(sysconfig.get_config_var("LIBDIR")) / sysconfig.get_config_var("INSTSONAME")
-    paths = [*extra_paths, _site_folder(), *(p for p in sys.path if p and os.path.isdir(p))]
+    paths = [*extra_paths, *(p for p in sys.path if p and os.path.isdir(p))]
     env = dict(os.environ)
     env["LD_PRELOAD"] = str(libpython)
     env["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(paths))

@@ -10,7 +10,7 @@ import numpy as np
 from fmu_src.catalogue import OPTIONAL_INPUTS
 from scenarios.spec.checks import check_links, check_metric, check_models, check_rates, check_wiring, feed_once
 from scenarios.spec.keys import FMI_VERSIONS, IMPLEMENTATIONS, Link, Metric, enumeration, expand
-from scenarios.spec.parse import parse_quantity, parse_reference
+from scenarios.spec.parsing import parse_quantity, parse_reference
 from scenarios.spec.text import Problems, ScenarioError
 from scenarios.spec.units import UNITS, split
 
