@@ -125,7 +125,12 @@ def cases(rng):
         ("kernel: ID, batched 1e5, moving base [states/s]", 1, n, batched_kernel),
         ("kernel: advance_fixed, 1 ms RK4, moving base [us]", 5000, None, advance_kernel),
         ("stewart.inverse_dynamics, batched 1e5 [states/s]", 1, n, api("inverse_dynamics", pose, rate, acc, *base)),
-        ("stewart.inverse_dynamics, one state [us]", 3000, None, api("inverse_dynamics", pose[0], rate[0], acc[0], *b1)),
+        (
+            "stewart.inverse_dynamics, one state [us]",
+            3000,
+            None,
+            api("inverse_dynamics", pose[0], rate[0], acc[0], *b1),
+        ),
         ("stewart.forward_dynamics, one state [us]", 3000, None, api("forward_dynamics", pose[0], rate[0], z6, *b1)),
         ("StateInverseDynamics, new (6,) views each call [us]", 5000, None, controller),
         ("StateInverseDynamics (controller FMU: kept rows) [us]", 5000, None, controller_rows),

@@ -71,7 +71,7 @@ class Design:
     modal_masses: np.ndarray
     modal_phase_margin_deg: float
     modal_gain_margin_db: float
-    loop: "LoopModel" = None
+    loop: "LoopModel | None" = None
     modal_lower_gain_margin_db: float = float("nan")
 
 

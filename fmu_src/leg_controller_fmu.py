@@ -26,7 +26,8 @@ INPUTS = ("reference_pose", "reference_rate", "reference_acc", "leg_length", "le
 
 
 class LegController(GuardedSlave):
-    description = "Hexapod leg controller: PID on leg length + inverse-dynamics feedforward (none / fixed-base / moving-base model)"
+    description = ("Hexapod leg controller: PID on leg length + inverse-dynamics feedforward "
+                   "(none / fixed-base / moving-base model)")
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -65,9 +66,12 @@ class LegController(GuardedSlave):
         self._update(h)
         saturated = bool(np.any(np.abs(self.forces) >= self.pid.force_limit))
         if saturated and not self.saturated:   # say so once per episode: an unstable loop saturates quietly
-            self.log(f"leg forces saturated at +-{self.pid.force_limit:g} N at t={t + h:.6g} s "
-                     f"(legs {', '.join(str(i + 1) for i in np.flatnonzero(np.abs(self.forces) >= self.pid.force_limit))})",
-                     Fmi2Status.warning, "logStatusWarning")
+            self.log(
+                f"leg forces saturated at +-{self.pid.force_limit:g} N at t={t + h:.6g} s "
+                f"(legs {', '.join(str(i + 1) for i in np.flatnonzero(np.abs(self.forces) >= self.pid.force_limit))})",
+                Fmi2Status.warning,
+                "logStatusWarning",
+            )
         self.saturated = saturated
 
     def _update(self, h):

@@ -247,7 +247,9 @@ def pack(folder, fmu):
 
 def _inputs():
     """Files a native FMU is made from: its C, and the Python its numbers come from."""
-    files = [p for p in NATIVE.glob("*") if p.name != "fmi3_layer.c"] + [p for folder in KERNELS for p in folder.glob("*")]
+    files = [p for p in NATIVE.glob("*") if p.name != "fmi3_layer.c"] + [
+        p for folder in KERNELS for p in folder.glob("*")
+    ]
     files += [p for folder in ("plant", "controller", "fmu_src") for p in (ROOT / folder).glob("*.py")]
     return files
 
@@ -273,7 +275,8 @@ def ensure_native(scripts, out=None):
 # ------------------------------------------------------------------------- FMI 3.0
 # The FMI 3.0 FMU of a native model is made from its FMI 2.0 FMU: the same sources/ (the
 # model file, the kernels, the generated <id>_vars.h and fmi2_layer.c, whose functions a
-# linker version script keeps inside the binary) plus fmi3_layer.c, and a modelDescription translated from the FMI 2 one,
+# linker version script keeps inside the binary) plus fmi3_layer.c, and a modelDescription translated from the
+# FMI 2 one,
 # so names, units, ranges, starts, enumerations and the default experiment have one source.
 FMI3_EXPORTS = "{ global: fmi3*; local: *; };\n"   # fmpy's fmi2Functions.h ignores FMI2_FUNCTION_PREFIX
 _FMI2_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")

@@ -85,7 +85,7 @@ class SceneSpec:
     changed (e.g. an earlier start of the slew), and the window errors are measured in."""
 
     file: str
-    stop_time: float = None            # None: the file's
+    stop_time: float | None = None            # None: the file's
     base: tuple = ()                   # (("parameter", value), ...) set on the telescope FMU
     window_from: float = 0.0
     note: str = ""
@@ -499,7 +499,9 @@ def chart(name, results, path, note=""):
         v = verdict(results, key)
         if v:
             d = next(i for i, r in enumerate(results) if r["config"] == DEFAULT)
-            status = "on the front" if v["on_front"] else ("within 10 % of it" if v["near"] else "not within 10 % of it")
+            status = (
+                "on the front" if v["on_front"] else ("within 10 % of it" if v["near"] else "not within 10 % of it")
+            )
             ax.scatter(costs[d], shown[d], s=260, marker="*", facecolors="gold", edgecolors="k", zorder=4)
             title = (f"shipped default ({DEFAULT.label}): {status};\ncost {ratio(v['cost_ratio'], 1)} the front's at "
                      f"equal error, error {ratio(v['error_ratio'], 1)} at equal cost")

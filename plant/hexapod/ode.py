@@ -52,7 +52,9 @@ class Actuator:
             if not (math.isfinite(value) and value >= 0):
                 raise InvalidInputError(f"actuator {name} must be finite and >= 0, got {value!r}")
         if not (math.isfinite(self.friction_velocity) and self.friction_velocity > 0):
-            raise InvalidInputError(f"actuator friction_velocity must be finite and > 0, got {self.friction_velocity!r}")
+            raise InvalidInputError(
+                f"actuator friction_velocity must be finite and > 0, got {self.friction_velocity!r}"
+            )
 
     @property
     def data(self):

@@ -58,7 +58,7 @@ _DOUBLES = ffi.typeof("double[]")
 _new_buffer = ffi.from_buffer   # positional arguments only: cffi's keyword path costs ~0.3 µs
 _empty = np.empty
 _ndarray = np.ndarray
-_POINTERS = {}   # id(P or packed array) -> (it, its C pointer, the array pointed to): kept alive, ids stay unique
+_POINTERS: dict = {}   # id(P or packed array) -> (it, its C pointer, the array pointed to): kept alive, ids stay unique
 
 
 def _params(P):

@@ -40,8 +40,8 @@ class FmuError(RuntimeError):
 
 
 MAX_MEMBER_BYTES = 1 << 30     # an FMU member larger than this is refused before extracting
-_FOLDERS = []                  # extraction folders of this process, removed at exit
-_LOADED = {}                   # (fmpy slave class, extraction folder) -> the slave whose library instances share
+_FOLDERS: list = []                  # extraction folders of this process, removed at exit
+_LOADED: dict = {}                   # (fmpy slave class, extraction folder) -> the slave whose library instances share
 
 
 class FmuFileError(ValueError):
@@ -298,7 +298,9 @@ def _elements(md3):
         if var.causality == "independent":
             continue
         if var.type not in _TYPES3:
-            raise FmuError(f"{md3.modelName}: variable {var.name} is an FMI 3 {var.type}, which the master does not exchange")
+            raise FmuError(
+                f"{md3.modelName}: variable {var.name} is an FMI 3 {var.type}, which the master does not exchange"
+            )
         count = element_count(var)
         starts = var.start.split() if var.start is not None else [None] * count
         for k in range(count):

@@ -45,8 +45,10 @@ class Run:
     series: dict = field(default_factory=dict)
     failure: str = ""       # why the run stopped early ("" if it reached stop_time)
     records: object = None  # scenarios.records.Records (None: the run failed before recording began)
-    flags: list = field(default_factory=list)   # scenarios.flags.Flag: what went wrong ([]: nothing seen)
-    cpu_time: float = float("nan")   # this thread's CPU time over the stepping: what a cost comparison on a shared machine uses
+    flags: list = field(default_factory=list)  # scenarios.flags.Flag: what went wrong ([]: nothing seen)
+    cpu_time: float = float(
+        "nan"
+    )  # this thread's CPU time over the stepping: what a cost comparison on a shared machine uses
 
     @property
     def real_time_factor(self):

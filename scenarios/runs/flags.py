@@ -418,8 +418,8 @@ class Watched:
     forces: str
     lengths: str
     limits: tuple = ()
-    stroke: tuple = None
-    excitation: str = None
+    stroke: tuple | None = None
+    excitation: str | None = None
 
 
 class Watch:

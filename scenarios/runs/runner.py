@@ -65,14 +65,16 @@ def output_folder(out, path):
     here; OutputError if ``out`` is empty or a file, cannot be created or is not writable."""
     out = pathlib.Path(_named(out))
     stem = pathlib.Path(path).stem
-    if stem in ("", ".", ".."):       # "..toml", "...toml": out itself or its parent, not a folder under it
-        raise OutputError(f"file name {spec.shown(repr(pathlib.Path(path).name))}: without .toml, {stem!r} cannot name its output "
-                          f"folder under {out} (it would write into {out / stem}); rename the file")
+    if stem in ("", ".", ".."):  # "..toml", "...toml": out itself or its parent, not a folder under it
+        raise OutputError(
+            f"file name {spec.shown(repr(pathlib.Path(path).name))}: without .toml, {stem!r} cannot name its output "
+            f"folder under {out} (it would write into {out / stem}); rename the file"
+        )
     return lock_folder(make_folder(out / stem))
 
 
 LOCK = ".movingbase.lock"
-_LOCKS = {}                     # folder -> the open lock file this process holds (until it exits)
+_LOCKS: dict = {}                     # folder -> the open lock file this process holds (until it exits)
 
 
 def lock_folder(folder):
@@ -251,7 +253,11 @@ def fmu_files(fmus, implementation="native", fmi_version=2):
         near = difflib.get_close_matches(unknown[0], list(catalogue.KEYS), 1, 0.6)
         raise ValueError(f"no FMU {unknown[0]!r}" + (f"; did you mean {near[0]!r}?" if near else "")
                          + f" The kit's FMUs: {', '.join(catalogue.KEYS)}")
-    if implementation not in spec.IMPLEMENTATIONS or fmi_version not in spec.FMI_VERSIONS or isinstance(fmi_version, bool):
+    if (
+        implementation not in spec.IMPLEMENTATIONS
+        or fmi_version not in spec.FMI_VERSIONS
+        or isinstance(fmi_version, bool)
+    ):
         raise ValueError(f"implementation is one of {', '.join(spec.IMPLEMENTATIONS)} and fmi_version 2 or 3, "
                          f"got {implementation!r} and {fmi_version!r}")
     if implementation == "python" and fmi_version == 3:
@@ -381,8 +387,8 @@ def pre_run_flags(scenario, paths, descriptions, values, ci=False, allow_unstabl
         raise refused[0][1]
     if refused:   # runs refused for the same reason (a sweep that leaves the loop as it is) told once
         by_problem = {}
-        for label, exc in refused:
-            for _, _, problem in exc.problems:
+        for label, refusal in refused:
+            for _, _, problem in refusal.problems:
                 by_problem.setdefault(problem, []).append(label)
         raise spec.ScenarioError.joined([spec.ScenarioError(
             scenario.source, "step", f"run{'s' * (len(labels) > 1)} {', '.join(map(repr, labels))} "

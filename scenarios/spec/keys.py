@@ -119,9 +119,9 @@ class Scenario:
     record_interval: float
     record: list                # "inst.var" (vectors unexpanded)
     metrics: list
-    sweep: tuple = None         # ("inst.var", [values])
+    sweep: tuple | None = None         # ("inst.var", [values])
     ci: dict = field(default_factory=dict)   # shortened settings for CI: {"stop_time": ...}
-    fidelity_tolerance: float = None         # [N], for a plant with fidelity = "auto"
+    fidelity_tolerance: float | None = None         # [N], for a plant with fidelity = "auto"
     notes: list = field(default_factory=list)  # what the runner decided (shown in the report)
     implementations: dict = field(default_factory=dict)  # instance -> one of IMPLEMENTATIONS
     fmi_versions: dict = field(default_factory=dict)     # instance -> one of FMI_VERSIONS

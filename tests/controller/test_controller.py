@@ -264,8 +264,10 @@ def _realistic_response(mass, gains, h, omega):
     r_b = k / (b ** 2 * (w - b))
     r_w = k / (w ** 2 * (b - w))
     r0 = -(r_b + r_w)                     # the 1/s term (double pole at 0: sum of residues is 0)
-    r00 = k / (b * w)                     # the 1/s^2 term
-    step = r00 * h * z / (z - 1) ** 2 + r0 * z / (z - 1) + r_b * z / (z - np.exp(-b * h)) + r_w * z / (z - np.exp(-w * h))
+    r00 = k / (b * w)  # the 1/s^2 term
+    step = (
+        r00 * h * z / (z - 1) ** 2 + r0 * z / (z - 1) + r_b * z / (z - np.exp(-b * h)) + r_w * z / (z - np.exp(-w * h))
+    )
     length = (1 - 1 / z) * step
     a = 1 - np.exp(-2 * np.pi * REALISTIC.rate_cutoff * h)
     late = z ** -(1 + REALISTIC.delay_steps)

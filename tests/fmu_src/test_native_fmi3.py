@@ -92,7 +92,11 @@ def test_vectors_of_one_unit_are_arrays(pairs):
     variables = {v.name: v for v in md3.modelVariables}
     assert [int(d.start) for d in variables["leg_force"].dimensions] == [6]
     assert variables["leg_force"].type == "Float64" and variables["leg_force"].declaredType.unit == "N"
-    assert "pose" not in variables and variables["pose[4]"].declaredType.unit == "rad" and not variables["pose[4]"].dimensions
+    assert (
+        "pose" not in variables
+        and variables["pose[4]"].declaredType.unit == "rad"
+        and not variables["pose[4]"].dimensions
+    )
     inst = open3(pairs["hexapod_plant_fmu"][1])
     inst.fmu.enterInitializationMode(startTime=0.0)
     inst.fmu.setInt32([variables["moving_base"].valueReference], [0])
@@ -214,7 +218,10 @@ def test_call_sequence_and_bad_references_answer_error_with_a_log_line(pairs):
     md = {v.name: v.valueReference for v in read_model_description(str(pairs["hexapod_plant_fmu"][1])).modelVariables}
     force = md["leg_force"]
     assert status_of(f.doStep, 0.0, 1e-3) == ERROR and "fmi3DoStep: not allowed in state Instantiated" in inst.log[-1]
-    assert status_of(f.getFloat64, [force], 6) == ERROR and "fmi3GetFloat64: not allowed in state Instantiated" in inst.log[-1]
+    assert (
+        status_of(f.getFloat64, [force], 6) == ERROR
+        and "fmi3GetFloat64: not allowed in state Instantiated" in inst.log[-1]
+    )
     assert status_of(f.exitInitializationMode) == ERROR
     assert "fmi3ExitInitializationMode: not allowed in state Instantiated" in inst.log[-1]
     assert status_of(f.terminate) == ERROR and "fmi3Terminate: not allowed" in inst.log[-1]

@@ -202,8 +202,11 @@ def test_extrapolation_derivatives_needs_a_source_that_gives_them(tmp_path):
     assert runner.prepare(scene)[0].extrapolation == "derivatives"
     # --implementation python with fmi_version = 3 already set: told to set it (the cause is the
     # pythonfmu telescope, FMI 2.0); now told so
-    with pytest.raises(runner.spec.ScenarioError, match=r"extrapolation: .*the telescope instance is the pythonfmu "
-                                                         r"FMU \(implementation python.*run it native with fmi_") as told:
+    with pytest.raises(
+        runner.spec.ScenarioError,
+        match=r"extrapolation: .*the telescope instance is the pythonfmu "
+        r"FMU \(implementation python.*run it native with fmi_",
+    ) as told:
         runner.prepare(scene, implementation="python")
     assert "set fmi_version = 3" not in str(told.value)
 

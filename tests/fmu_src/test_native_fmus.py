@@ -56,7 +56,9 @@ def test_same_variables_as_the_pythonfmu_fmu(fmus, native, script):
     cs = root.find("CoSimulation")
     assert cs.get("needsExecutionTool") == "false" and cs.get("canSerializeFMUstate") == "true"
     listed = {f.get("name") for f in cs.find("SourceFiles")}
-    assert {f"sources/{n}" for n in listed} <= names and f"binaries/linux64/{nat.coSimulation.modelIdentifier}.so" in names
+    assert {
+        f"sources/{n}" for n in listed
+    } <= names and f"binaries/linux64/{nat.coSimulation.modelIdentifier}.so" in names
     assert not any(n.startswith("resources/") and n.endswith(".py") for n in names)
 
 
@@ -292,7 +294,11 @@ def test_parameters_outside_their_range_are_refused(fmus, native):
                     continue
                 ranged += 1
                 value = int(bound) if var.type in ("Integer", "Enumeration") else float(bound)
-                bad = value + outside if var.type in ("Integer", "Enumeration") else value + outside * max(1.0, abs(value)) * 1e-3
+                bad = (
+                    value + outside
+                    if var.type in ("Integer", "Enumeration")
+                    else value + outside * max(1.0, abs(value)) * 1e-3
+                )
                 texts = []
                 for paths in (fmus, native):
                     inst, status = opened(paths[script], **{var.name: bad})
@@ -318,7 +324,9 @@ def test_misuse_answers_error_with_a_log_line(native):
     vr = (fmpy.fmi2.fmi2ValueReference * 1)
     value = (fmi2Real * 1)()
     assert step(inst, 0.0, 1e-3) == ERROR
-    assert "fmi2DoStep: not allowed in the instantiated state" in inst.log[-1]   # more: tests/hosts/test_c_host_misuse.py
+    assert (
+        "fmi2DoStep: not allowed in the instantiated state" in inst.log[-1]
+    )  # more: tests/hosts/test_c_host_misuse.py
     pose = inst.vr("pose[1]")
     assert inst.raw("fmi2SetReal")(c, vr(pose), 1, value) == ERROR and "pose[1] is an output" in inst.log[-1]
     inst.initialize(0.0, {"moving_base": 0})

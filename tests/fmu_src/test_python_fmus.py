@@ -122,7 +122,8 @@ def test_failures_end_the_step_with_fmi_status_and_a_message(fmus, start, forces
 
 
 def test_singular_initial_pose_is_refused(fmus):
-    """At initialization (the shim in front of pythonfmu answers fmi2Error there; freeing the instance after is safe)."""
+    """At initialization (the shim in front of pythonfmu answers fmi2Error there; freeing the instance after is
+    safe)."""
     singular = np.r_[HOME_POSE[:5], np.pi / 2]
     with pytest.raises(FmuError, match="exitInitializationMode") as error:
         open_fmu(fmus["hexapod_plant_fmu"], moving_base=0, stroke=STROKE_RANGE[1],

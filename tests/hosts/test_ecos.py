@@ -82,7 +82,9 @@ def test_the_old_naming_ran_on_defaults(native, tmp_path):
     unbound = run_ecos(path, scenario, names, parameter_set=None)
     bound = run_ecos(path, scenario, names)
     translation = [j for j, n in enumerate(names) if n in {f"plant.pose[{i}]" for i in (1, 2, 3)}]
-    rms = lambda rows: np.sqrt(np.mean((rows[:, translation] - np.array([ours[n][1:] for n in names]).T[:, translation]) ** 2))
+    rms = lambda rows: np.sqrt(
+        np.mean((rows[:, translation] - np.array([ours[n][1:] for n in names]).T[:, translation]) ** 2)
+    )
     off = max(np.max(np.abs(unbound[:, j] - ours[names[j]][1:])) for j in translation)
     print(f"ecos without the parameter set: platform position up to {off * 1e3:.3g} mm off our master "
           f"(RMS {rms(unbound) * 1e6:.3g} um); with it: RMS {rms(bound) * 1e6:.3g} um")

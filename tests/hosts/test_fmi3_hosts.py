@@ -276,7 +276,9 @@ def test_fmi_sim_runs_the_fmu_as_fmpy_does(fmi3, script, tmp_path):
     assert FMI_SIM is not None and os.access(FMI_SIM, os.X_OK), f"MB_REQUIRE_FMI3_HOST=1 but no fmi-sim at {FMI_SIM!r}"
     path = fmi3[script]
     run = fmi_sim(path, tmp_path / "fmi-sim.csv")
-    arrays = [v.name for v in read_model_description(str(path)).modelVariables if v.causality == "output" and v.dimensions]
+    arrays = [
+        v.name for v in read_model_description(str(path)).modelVariables if v.causality == "output" and v.dimensions
+    ]
     if arrays:
         assert run.returncode != 0 and "the value references cover 6 values, nValues is 1" in run.stderr, \
             f"fmi-sim on {path.name} (array outputs {arrays}):\n{run.stderr[-2000:]}"

@@ -56,7 +56,9 @@ def test_ssd_is_valid_and_names_every_component_connection_and_parameter(case):
             assert built.namelist() == inside.namelist()
             assert all(built.read(n) == inside.read(n) for n in built.namelist() if n != "modelDescription.xml")
             before, after = (etree.fromstring(z.read("modelDescription.xml")) for z in (built, inside))
-        choices = [v.get("name") for v in before.iterfind("ModelVariables/ScalarVariable") if v.find("Enumeration") is not None]
+        choices = [
+            v.get("name") for v in before.iterfind("ModelVariables/ScalarVariable") if v.find("Enumeration") is not None
+        ]
         assert choices and not after.findall("ModelVariables/ScalarVariable/Enumeration")
         for name in choices:
             (was,) = before.findall(f"ModelVariables/ScalarVariable[@name='{name}']/Enumeration")
@@ -83,7 +85,7 @@ def test_ssd_is_valid_and_names_every_component_connection_and_parameter(case):
     for s_inst, s, t_inst, t in expected:
         assert kinds[(s_inst, s)] == "output" and kinds[(t_inst, t)] == "input"
     connected = {(t_inst, t) for _, _, t_inst, t in expected}
-    assert {k for k, kind in kinds.items() if kind == "input"} == connected   # fmpy needs every declared input connected
+    assert {k for k, kind in kinds.items() if kind == "input"} == connected  # fmpy needs every declared input connected
     for inst in scenario.fmus:
         outputs = {v.name for v in descriptions[inst].modelVariables if v.causality == "output"}
         assert {n for (i, n), kind in kinds.items() if i == inst and kind == "output"} == outputs
@@ -168,7 +170,9 @@ def test_fmpy_applies_the_integer_bindings(case, fmus):
         s, paths, _, params = configure(fmus, mode, stop=short.stop_time)
         runs[mode] = ssp.simulate_exported(ssp.export_ssp(s, paths, params, folder / f"{mode}.ssp"), s,
                                            initial_exchange=True)
-    assert np.max(np.abs(runs["none"]["controller.leg_force[1]"] - runs["moving_base"]["controller.leg_force[1]"])) > 100
+    assert (
+        np.max(np.abs(runs["none"]["controller.leg_force[1]"] - runs["moving_base"]["controller.leg_force[1]"])) > 100
+    )
 
 
 # --------------------------------------------------- fmpy's own initialization
