@@ -26,7 +26,8 @@ import pathlib
 import sys
 import zipfile
 
-from fmu_src import builder, native_build
+from fmu_src import native_build
+from fmu_src import python_build as builder
 
 out = pathlib.Path(sys.argv[1])
 python = builder.ensure_built(builder.available(), out / "python")

@@ -14,7 +14,6 @@ import os
 import pathlib
 import shutil
 import subprocess
-import sys
 import tempfile
 import uuid
 import xml.etree.ElementTree as ET
@@ -523,11 +522,3 @@ def ensure_native3(scripts, out=None):
             build_native3(native[script], out)
         paths[script] = target
     return paths
-
-
-if __name__ == "__main__":   # python -m fmu_src.native_build [--fmi3] [scripts]: into build/fmu/native[3]
-    args = sys.argv[1:]
-    ensure = ensure_native3 if "--fmi3" in args else ensure_native
-    args = [a for a in args if a != "--fmi3"]
-    for path in ensure(args or __import__("fmu_src.python_build").fmu_src.builder.available()).values():
-        print(f"built {path}")
