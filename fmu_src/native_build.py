@@ -185,7 +185,8 @@ def model_description(xml_text, guid, sources, exact):
 
 def _sources(identifier):
     """Every C file the FMU's binary is built from (flat names, as in the FMU's sources/)."""
-    files = [NATIVE / "fmi2_layer.c", NATIVE / MODEL_FILES[identifier], *sorted(NATIVE.glob("*.h"))]
+    files = [NATIVE / "fmi2_layer.c", NATIVE / "controller_checks.c", NATIVE / MODEL_FILES[identifier],
+             *sorted(NATIVE.glob("*.h"))]
     for folder in KERNELS:
         files += sorted(folder.glob("*.c")) + sorted(folder.glob("*.h"))
     return files

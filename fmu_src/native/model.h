@@ -65,7 +65,8 @@ void mb_warning(mb_instance *inst, const char *fmt, ...);
 const char *mb_repr(double v, char *buf);
 
 /* The checks of controller.pid.PIDGains (gains finite and >= 0, force_limit finite and
-   > 0): 0, or 1 after mb_error naming the gain. Both native controllers use it. */
+   > 0): 0, or 1 after mb_error naming the gain. Both native controllers use it
+   (controller_checks.c). */
 int mb_check_pid_gains(mb_instance *inst, double kp, double ki, double kd, double force_limit);
 
 /* "a, b" list of the names whose row of `width` values in `rows` holds NaN or inf,
