@@ -1,6 +1,7 @@
 """Native FMI 2.0 and FMI 3.0 co-simulation FMUs of the kit: the same variables as the
-pythonfmu FMUs, compiled from C (fmu_src/native/: one FMI layer and one model file per FMU, over the
-plant/controller C kernels), so that a host needs no Python.
+pythonfmu FMUs, compiled from C (fmu_src/native/: one model file per FMU over the
+plant/controller C kernels, the instance core instance.c, and the thin FMI 2.0 or FMI 3.0
+layer over it), so that a host needs no Python.
 
 Nothing is typed twice. From the pythonfmu FMU (after fmu_src/builder.py has added units
 and ranges) this takes the modelDescription.xml (new guid, generation tool, SourceFiles,
@@ -185,8 +186,8 @@ def model_description(xml_text, guid, sources, exact):
 
 def _sources(identifier):
     """Every C file the FMU's binary is built from (flat names, as in the FMU's sources/)."""
-    files = [NATIVE / "fmi2_layer.c", NATIVE / "controller_checks.c", NATIVE / MODEL_FILES[identifier],
-             *sorted(NATIVE.glob("*.h"))]
+    files = [NATIVE / "fmi2_layer.c", NATIVE / "instance.c", NATIVE / "controller_checks.c",
+             NATIVE / MODEL_FILES[identifier], *sorted(NATIVE.glob("*.h"))]
     for folder in KERNELS:
         files += sorted(folder.glob("*.c")) + sorted(folder.glob("*.h"))
     return files
