@@ -50,12 +50,11 @@ def main(argv=None):
     print(f"{args.scenario} [ci] ({len(scenario.fmus)} FMUs, {scenario.step * 1e3:g} ms steps, master "
           f"{scenario.master}, every sweep value), stepping CPU time per macro step, median of {args.repeats}:")
     ratios = [t3 / t2 for t2, t3 in zip(times[2], times[3])]   # each pair back to back: the load hits both alike
-    print(
-        f"  FMI 2.0 FMUs {two:.2f} us, FMI 3.0 FMUs {three:.2f} us -> FMI 3 / FMI 2 = {three / two:.3f}; median of "
-        f"the pairs' ratios {statistics.median(ratios):.3f} (pairs {min(ratios):.3f}..{max(ratios):.3f}; spread FMI 2 "
-        f"{min(times[2]):.2f}..{max(times[2]):.2f}, FMI 3 {min(times[3]):.2f}..{max(times[3]):.2f}; load "
-        f"{os.getloadavg()[0]:.1f})"
-    )
+    print(f"  FMI 2.0 FMUs {two:.2f} us, FMI 3.0 FMUs {three:.2f} us -> FMI 3 / FMI 2 = {three / two:.3f}; median of "
+          f"the pairs' ratios {statistics.median(ratios):.3f} (pairs {min(ratios):.3f}..{max(ratios):.3f}; spread FMI "
+          "2 "
+          f"{min(times[2]):.2f}..{max(times[2]):.2f}, FMI 3 {min(times[3]):.2f}..{max(times[3]):.2f}; load "
+          f"{os.getloadavg()[0]:.1f})")
 
 
 if __name__ == "__main__":

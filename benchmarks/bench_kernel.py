@@ -149,11 +149,10 @@ def main():
                   f"kernel = {ratio:.2f} x floor")
         if args.against:   # the ratio within each round, where both ran under the same load
             ratios = [a / b for a, b in zip(times["this tree"], times[args.against])]
-            print(
-                f"this tree / {args.against}: {statistics.median(ratios):.3f} (median of the ratios of {args.repeats} "
-                f"rounds of {STEPS} RK4 steps each; fastest runs: "
-                f"{min(times['this tree']) / min(times[args.against]):.3f})"
-            )
+            print(f"this tree / {args.against}: {statistics.median(ratios):.3f} (median of the ratios of "
+                  f"{args.repeats} "
+                  f"rounds of {STEPS} RK4 steps each; fastest runs: "
+                  f"{min(times['this tree']) / min(times[args.against]):.3f})")
 
 
 if __name__ == "__main__":

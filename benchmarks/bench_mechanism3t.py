@@ -24,11 +24,8 @@ from plant.mechanism3t import model as m3t  # noqa: E402
 def calls(k, P, pa):
     """name -> zero-argument call of kernel module k at a state near the paper's."""
     rho = np.array(m3t.PAPER_REFERENCE_RHO_MM) * m3t.MM + 0.004
-    rho_dot, rho_ddot, forces = (
-        np.array([0.01, -0.02, 0.03]),
-        np.array([0.1, 0.2, -0.3]),
-        np.array([170.0, 40.0, -50.0]),
-    )
+    rho_dot, rho_ddot, forces = np.array([0.01, -0.02, 0.03]), np.array([0.1, 0.2, -0.3]), np.array([170.0, 40.0,
+                                                                                                     -50.0])
     x = np.r_[rho, rho_dot]
     M, bias, p, out = np.empty((3, 3)), np.empty(3), np.empty(3), np.empty(3)
     return {

@@ -99,19 +99,9 @@ def fmi3_vs_fmi2_us(fmu2, fmu3, folder, steps, repeats):
     md = read_model_description(str(fmu2))
     vr = {v.name: v.valueReference for v in md.modelVariables}
     forces = ",".join(repr(float(f)) for f in rest_forces())
-    run = subprocess.run(
-        [
-            str(timer),
-            *map(str, libraries),
-            md.guid,
-            str(steps),
-            str(repeats),
-            f"i:{vr['moving_base']}:0",
-            f"r:{vr['leg_force[1]']}:{forces}",
-        ],
-        capture_output=True,
-        text=True,
-    )
+    run = subprocess.run([str(timer), *map(str, libraries), md.guid, str(steps), str(repeats),
+                          f"i:{vr['moving_base']}:0", f"r:{vr['leg_force[1]']}:{forces}"], capture_output=True,
+                          text=True)
     if run.returncode:
         raise RuntimeError(f"fmi_step_timer failed on {fmu2.name}:\n{run.stderr[-2000:]}")
     times = {"fmi2": [], "fmi3": []}

@@ -85,10 +85,8 @@ def master_overhead(steps=4000):
         i.terminate()
     print(f"\npaper manoeuvre, 3 FMUs at 1 ms ({steps} steps):")
     print(f"  single.run (C stepping loop)    {per_master:7.1f} us/step  (real-time factor {1e3 / per_master:.1f})")
-    print(
-        f"  Python loop, same ctypes calls  {bare:7.1f} us/step  -> "
-        f"{bare - per_master:.1f} us/step more than single.run"
-    )
+    print(f"  Python loop, same ctypes calls  {bare:7.1f} us/step  -> "
+        f"{bare - per_master:.1f} us/step more than single.run")
     print(f"  Python loop, fmpy list calls    {fmpy_lists:7.1f} us/step  ({fmpy_lists / bare:.2f}x the ctypes path)")
 
 

@@ -36,15 +36,9 @@ def library():
         folders = [ROOT / "plant" / "c", ROOT / "controller" / "c"]
         sources = [ROOT / "benchmarks" / "monolithic.c"] + [c for f in folders for c in sorted(f.glob("*.c"))]
         target = pathlib.Path(tempfile.mkdtemp()) / "libmonolithic.so"
-        cmd = [
-            os.environ.get("CC", "cc"),
-            *(f for f in CFLAGS if not f.startswith("-fvisibility")),
-            *(f"-I{f}" for f in folders),
-            *map(str, sources),
-            "-o",
-            str(target),
-            "-lm",
-        ]
+        cmd = [os.environ.get("CC", "cc"), *(f for f in CFLAGS if not f.startswith("-fvisibility")),
+               *(f"-I{f}" for f in folders),
+               *map(str, sources), "-o", str(target), "-lm"]
         run = subprocess.run(cmd, capture_output=True, text=True)
         if run.returncode:
             raise RuntimeError(f"compiling the monolithic loop failed:\n{' '.join(cmd)}\n{run.stderr}")

@@ -130,21 +130,15 @@ def _signature(md):
 
 
 def fmu_reference():
-    lines = [
-        "# FMU reference",
-        "",
-        GENERATED,
-        "",
-        "Read from each FMU's `modelDescription.xml` (co-simulation, built by `python build.py`; "
-        "`movingbase.fmus()` gives the files). Every FMU comes three times with the same variables: native C "
-        "as FMI 2.0 (`build/fmu/native/`, the default `implementation`) and as FMI 3.0 "
-        "(`build/fmu/native3/`, `fmi_version = 3`), and pythonfmu as FMI 2.0 (`build/fmu/`). "
+    lines = ["# FMU reference", "", GENERATED, "",
+             "Read from each FMU's `modelDescription.xml` (co-simulation, built by `python build.py`; "
+             "`movingbase.fmus()` gives the files). Every FMU comes three times with the same variables: native C "
+             "as FMI 2.0 (`build/fmu/native/`, the default `implementation`) and as FMI 3.0 "
+             "(`build/fmu/native3/`, `fmi_version = 3`), and pythonfmu as FMI 2.0 (`build/fmu/`). "
         "A vector is the scalars `name[1]` ... `name[n]`: "
-        "one row `name[1..n]` when its elements differ only in their index, else a row each. "
+             "one row `name[1..n]` when its elements differ only in their index, else a row each. "
         "min/max are what the scenario checker enforces "
-        "on parameter values.",
-        "",
-    ]
+             "on parameter values.", ""]
     for fmu, script in ((f.key, f.script) for f in catalogue.FMUS):
         native, python = (read_model_description(str(p)) for p in _fmus()[script])
         if _signature(native) != _signature(python):

@@ -66,12 +66,10 @@ class LegController(GuardedSlave):
         self._update(h)
         saturated = bool(np.any(np.abs(self.forces) >= self.pid.force_limit))
         if saturated and not self.saturated:   # say so once per episode: an unstable loop saturates quietly
-            self.log(
-                f"leg forces saturated at +-{self.pid.force_limit:g} N at t={t + h:.6g} s "
-                f"(legs {', '.join(str(i + 1) for i in np.flatnonzero(np.abs(self.forces) >= self.pid.force_limit))})",
-                Fmi2Status.warning,
-                "logStatusWarning",
-            )
+            self.log(f"leg forces saturated at +-{self.pid.force_limit:g} N at t={t + h:.6g} s "
+                     "(legs "
+                     f"{', '.join(str(i + 1) for i in np.flatnonzero(np.abs(self.forces) >= self.pid.force_limit))})",
+                     Fmi2Status.warning, "logStatusWarning")
         self.saturated = saturated
 
     def _update(self, h):

@@ -41,9 +41,8 @@ RATE_RANGE = (-1.0, 1.0)
 
 
 class Mechanism3TPlant(GuardedSlave):
-    description = (
-        "3T decoupled parallel mechanism (Shen et al. 2024, mechanism 1), virtual-work dynamics in slider coordinates"
-    )
+    description = ("3T decoupled parallel mechanism (Shen et al. 2024, mechanism 1), virtual-work dynamics in slider "
+                   "coordinates")
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)

@@ -36,28 +36,14 @@ OUT = (ROOT if PYPROJECT.exists() else pathlib.Path.cwd()) / "build" / "fmu"
 LOG = logging.getLogger("movingbase.build")    # each build as it starts (scenarios.runner says it on stderr)
 SHIM = ROOT / "fmu_src" / "pythonfmu_shim.c"
 
-_BASE = {
-    "m": {"m": "1"},
-    "rad": {"rad": "1"},
-    "s": {"s": "1"},
-    "N": {"kg": "1", "m": "1", "s": "-2"},
-    "m/s": {"m": "1", "s": "-1"},
-    "rad/s": {"rad": "1", "s": "-1"},
-    "m/s2": {"m": "1", "s": "-2"},
-    "rad/s2": {"rad": "1", "s": "-2"},
-    "N/m": {"kg": "1", "s": "-2"},
-    "N/(m.s)": {"kg": "1", "s": "-3"},
-    "N.s/m": {"kg": "1", "s": "-1"},
-    "m.s": {"m": "1", "s": "1"},
-    "1/s": {"s": "-1"},
-    "m2": {"m": "2"},
-    "kg/m3": {"kg": "1", "m": "-3"},
-    "N.m": {"kg": "1", "m": "2", "s": "-2"},
-    # noise densities: s^(-1/2), which FMI's integer BaseUnit exponents cannot say (no BaseUnit)
-    "rad/s/sqrt(Hz)": None,
-    "m/s2/sqrt(Hz)": None,
-    "1": {},
-}   # "1": dimensionless
+_BASE = {"m": {"m": "1"}, "rad": {"rad": "1"}, "s": {"s": "1"}, "N": {"kg": "1", "m": "1", "s": "-2"},
+         "m/s": {"m": "1", "s": "-1"}, "rad/s": {"rad": "1", "s": "-1"}, "m/s2": {"m": "1", "s": "-2"},
+         "rad/s2": {"rad": "1", "s": "-2"}, "N/m": {"kg": "1", "s": "-2"},
+         "N/(m.s)": {"kg": "1", "s": "-3"}, "N.s/m": {"kg": "1", "s": "-1"}, "m.s": {"m": "1", "s": "1"},
+         "1/s": {"s": "-1"},
+         "m2": {"m": "2"}, "kg/m3": {"kg": "1", "m": "-3"}, "N.m": {"kg": "1", "m": "2", "s": "-2"},
+         # noise densities: s^(-1/2), which FMI's integer BaseUnit exponents cannot say (no BaseUnit)
+         "rad/s/sqrt(Hz)": None, "m/s2/sqrt(Hz)": None, "1": {}}   # "1": dimensionless
 _DISPLAY = {"m": ("mm", 1e3), "rad": ("deg", 57.29577951308232), "m/s": ("mm/s", 1e3),
             "rad/s": ("deg/s", 57.29577951308232), "m/s2": ("mm/s2", 1e3),
             "rad/s2": ("deg/s2", 57.29577951308232), "1/s": ("Hz", 1.0)}

@@ -243,15 +243,11 @@ class GuardedSlave(Fmi2Slave):
         nothing is set (the native layer's rules, fmi2_layer.c valid_vr and settable)."""
         for vr in vrs:
             var = self.vars.get(vr)
-            why = (
-                f"no {kind.__name__} variable has value reference {vr}"
-                if not isinstance(var, kind)
-                else f"{var.name} is an output and cannot be set"
-                if setting and var.causality not in (INPUT, PARAMETER)
-                else f"parameter {var.name} cannot be set after initialization"
-                if setting and var.causality == PARAMETER and self._stepping
-                else ""
-            )
+            why = (f"no {kind.__name__} variable has value reference {vr}" if not isinstance(var, kind)
+                   else f"{var.name} is an output and cannot be set" if setting and var.causality not in (INPUT,
+                                                                                                          PARAMETER)
+                   else f"parameter {var.name} cannot be set after initialization"
+                   if setting and var.causality == PARAMETER and self._stepping else "")
             if why:
                 self.log(f"{call}: {why}", Fmi2Status.error, "logStatusError")
                 return True

@@ -38,92 +38,51 @@ class Telescope(GuardedSlave):
         tianma = telescope.TelescopeParams.tianma()
         self.enumeration("profile", "motion profile", PROFILES, 0)
         turn, quarter, positive = (-2 * np.pi, 2 * np.pi), (0.0, np.pi / 2), (POSITIVE_RATE, None)
-        self.settings = self.parameters(
-            (
-                (
-                    "start_azimuth",
-                    "rad",
-                    START_AZ_EL[0],
-                    "slew start azimuth, astronomical (north through east; within one turn either way)",
-                    turn,
-                ),
-                ("start_elevation", "rad", START_AZ_EL[1], "slew start elevation", quarter),
-                (
-                    "target_azimuth",
-                    "rad",
-                    np.radians(90.0),
-                    "slew target azimuth, astronomical (north through east; within one turn either way)",
-                    turn,
-                ),
-                ("target_elevation", "rad", np.radians(60.0), "slew target elevation", quarter),
-                ("az_rate_max", "rad/s", tianma.az_rate_max, "azimuth rate limit (assumed); > 0", positive),
-                ("az_acc_max", "rad/s2", tianma.az_acc_max, "azimuth acceleration limit (assumed); > 0", positive),
-                ("el_rate_max", "rad/s", tianma.el_rate_max, "elevation rate limit (assumed); > 0", positive),
-                ("el_acc_max", "rad/s2", tianma.el_acc_max, "elevation acceleration limit (assumed); > 0", positive),
-                (
-                    "lever_arm",
-                    "m",
-                    tianma.lever_arm,
-                    "axis intersection to base along boresight (assumed)",
-                    (0.0, None),
-                ),
-                ("latitude", "rad", tianma.latitude, "site latitude", (-np.pi / 2, np.pi / 2)),
-                ("longitude", "rad", tianma.longitude, "site longitude (east +)", (-np.pi, np.pi)),
-                ("right_ascension", "rad", 0.0, "tracked source right ascension (apparent, of date)", (0.0, 2 * np.pi)),
-                (
-                    "declination",
-                    "rad",
-                    tianma.latitude + np.radians(0.2),
-                    "tracked source declination",
-                    (-np.pi / 2, np.pi / 2),
-                ),
-                ("utc_start", "s", 1.7e9, "UTC at t = 0, seconds since 1970-01-01", (0.0, None)),
-                ("paper_duration", "s", 6.0, "duration of the paper's stress manoeuvre; > 0", (POSITIVE_TIME, None)),
-                (
-                    "start_delay",
-                    "s",
-                    0.0,
-                    "the profile starts this late; before it, the start pointing holds",
-                    (0.0, None),
-                ),
-                (
-                    "servo_bandwidth",
-                    "1/s",
-                    0.0,
-                    "the antenna's axis servo bandwidth in Hz (natural frequency of each axis's "
-                    "second-order loop); 0 = off, the axes follow the command exactly. "
-                    "Assumed: large-antenna axis servos "
-                    "have ~0.5-1 Hz locked-rotor bandwidth (SRT, GBT)",
-                    (0.0, 10.0),
-                ),
-                ("servo_damping", "1", 0.7, "damping ratio of the antenna's axis servo (assumed)", (0.01, 10.0)),
-            )
-        )
+        self.settings = self.parameters((
+            ("start_azimuth", "rad", START_AZ_EL[0],
+             "slew start azimuth, astronomical (north through east; within one turn either way)", turn),
+            ("start_elevation", "rad", START_AZ_EL[1], "slew start elevation", quarter),
+            ("target_azimuth", "rad", np.radians(90.0),
+             "slew target azimuth, astronomical (north through east; within one turn either way)", turn),
+            ("target_elevation", "rad", np.radians(60.0), "slew target elevation", quarter),
+            ("az_rate_max", "rad/s", tianma.az_rate_max, "azimuth rate limit (assumed); > 0", positive),
+            ("az_acc_max", "rad/s2", tianma.az_acc_max, "azimuth acceleration limit (assumed); > 0", positive),
+            ("el_rate_max", "rad/s", tianma.el_rate_max, "elevation rate limit (assumed); > 0", positive),
+            ("el_acc_max", "rad/s2", tianma.el_acc_max, "elevation acceleration limit (assumed); > 0", positive),
+            ("lever_arm", "m", tianma.lever_arm, "axis intersection to base along boresight (assumed)", (0.0, None)),
+            ("latitude", "rad", tianma.latitude, "site latitude", (-np.pi / 2, np.pi / 2)),
+            ("longitude", "rad", tianma.longitude, "site longitude (east +)", (-np.pi, np.pi)),
+            ("right_ascension", "rad", 0.0, "tracked source right ascension (apparent, of date)", (0.0, 2 * np.pi)),
+            ("declination", "rad", tianma.latitude + np.radians(0.2), "tracked source declination",
+             (-np.pi / 2, np.pi / 2)),
+            ("utc_start", "s", 1.7e9, "UTC at t = 0, seconds since 1970-01-01", (0.0, None)),
+            ("paper_duration", "s", 6.0, "duration of the paper's stress manoeuvre; > 0", (POSITIVE_TIME, None)),
+            ("start_delay", "s", 0.0, "the profile starts this late; before it, the start pointing holds",
+             (0.0, None)),
+            ("servo_bandwidth", "1/s", 0.0,
+             "the antenna's axis servo bandwidth in Hz (natural frequency of each axis's "
+             "second-order loop); 0 = off, the axes follow the command exactly. Assumed: large-antenna axis servos "
+             "have ~0.5-1 Hz locked-rotor bandwidth (SRT, GBT)", (0.0, 10.0)),
+            ("servo_damping", "1", 0.7, "damping ratio of the antenna's axis servo (assumed)", (0.01, 10.0)),
+        ))
         pose_desc = lambda prefix: [f"{prefix} {n}" for n in POSE_NAMES]
         self.now = np.zeros(60)   # every output, one row of the evaluated block
         self.now[18:24] = tianma.home
-        for start, (name, size, desc, units) in zip(
-            (0, 6, 12, 18, 24, 30, 36, 38, 40, 46, 52, 58),
-            (
-                ("base_pose", 6, pose_desc("base, in {W},"), POSE_UNITS),
-                ("base_rate", 6, pose_desc("d/dt base"), rate_units(POSE_UNITS)),
-                ("base_acc", 6, pose_desc("d2/dt2 base"), acc_units(POSE_UNITS)),
-                ("reference_pose", 6, pose_desc("platform reference, in {B},"), POSE_UNITS),
-                ("reference_rate", 6, pose_desc("d/dt reference"), rate_units(POSE_UNITS)),
-                ("reference_acc", 6, pose_desc("d2/dt2 reference"), acc_units(POSE_UNITS)),
-                (
-                    "axis",
-                    2,
-                    ["astronomical azimuth (north through east; the mount angle A = 180 deg - it)", "elevation"],
-                    "rad",
-                ),
-                ("axis_rate", 2, ["astronomical azimuth rate", "elevation rate"], "rad/s"),
-                ("command_base_pose", 6, pose_desc("commanded base, in {W},"), POSE_UNITS),
-                ("command_base_rate", 6, pose_desc("d/dt commanded base"), rate_units(POSE_UNITS)),
-                ("command_base_acc", 6, pose_desc("d2/dt2 commanded base"), acc_units(POSE_UNITS)),
-                ("axis_acc", 2, ["astronomical azimuth acceleration", "elevation acceleration"], "rad/s2"),
-            ),
-        ):
+        for start, (name, size, desc, units) in zip((0, 6, 12, 18, 24, 30, 36, 38, 40, 46, 52, 58), (
+            ("base_pose", 6, pose_desc("base, in {W},"), POSE_UNITS),
+            ("base_rate", 6, pose_desc("d/dt base"), rate_units(POSE_UNITS)),
+            ("base_acc", 6, pose_desc("d2/dt2 base"), acc_units(POSE_UNITS)),
+            ("reference_pose", 6, pose_desc("platform reference, in {B},"), POSE_UNITS),
+            ("reference_rate", 6, pose_desc("d/dt reference"), rate_units(POSE_UNITS)),
+            ("reference_acc", 6, pose_desc("d2/dt2 reference"), acc_units(POSE_UNITS)),
+            ("axis", 2, ["astronomical azimuth (north through east; the mount angle A = 180 deg - it)", "elevation"],
+             "rad"),
+            ("axis_rate", 2, ["astronomical azimuth rate", "elevation rate"], "rad/s"),
+            ("command_base_pose", 6, pose_desc("commanded base, in {W},"), POSE_UNITS),
+            ("command_base_rate", 6, pose_desc("d/dt commanded base"), rate_units(POSE_UNITS)),
+            ("command_base_acc", 6, pose_desc("d2/dt2 commanded base"), acc_units(POSE_UNITS)),
+            ("axis_acc", 2, ["astronomical azimuth acceleration", "elevation acceleration"], "rad/s2"),
+        )):
             self.vector(name, size, OUTPUT, desc, units, values=self.now[start:start + size])
 
     def initialize(self):

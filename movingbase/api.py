@@ -131,13 +131,10 @@ def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = Non
                                      + (f"did you mean {near[0]!r}? " if near else "")
                                      + f"declared: {', '.join(loaded.fmus)} (top-level keys: no dot)")
         if loaded.sweep and loaded.sweep[0] == key:
-            raise spec.ScenarioError(
-                _set_source(loaded.source),
-                f"set[{key!r}]",
-                "is the swept parameter; every run sets it "
-                f"from sweep.values; to run one value: set={{'sweep': {{'parameter': {key!r}, "
-                f"'values': [{value!r}]}}}}",
-            )
+            raise spec.ScenarioError(_set_source(loaded.source), f"set[{key!r}]",
+                                     "is the swept parameter; every run sets it "
+                                     f"from sweep.values; to run one value: set={{'sweep': {{'parameter': {key!r}, "
+                                     f"'values': [{value!r}]}}}}")
         loaded.parameters[inst][name] = value
     return loaded
 
@@ -166,19 +163,14 @@ def _overrides(source: str, values: Any) -> dict[str, Any]:
     if values is None:
         return {}
     if not isinstance(values, Mapping):
-        raise spec.ScenarioError(
-            _set_source(source),
-            "set",
-            f"expected a mapping of 'instance.parameter' or top-level keys "
-            f"to values, got {type(values).__name__} {values!r:.60}",
-        )
+        raise spec.ScenarioError(_set_source(source), "set",
+                                 f"expected a mapping of 'instance.parameter' or top-level keys "
+                                 f"to values, got {type(values).__name__} {values!r:.60}")
     bad = [k for k in values if not isinstance(k, str) or not k]
     if bad:
-        raise spec.ScenarioError(
-            _set_source(source),
-            "set",
-            f"keys are text, 'instance.parameter' or a top-level key; got {', '.join(repr(k) for k in bad)}",
-        )
+        raise spec.ScenarioError(_set_source(source), "set",
+                                 f"keys are text, 'instance.parameter' or a top-level key; got "
+                                 f"{', '.join(repr(k) for k in bad)}")
     return {k: spec.plain(v) for k, v in values.items()}
 
 

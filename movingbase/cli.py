@@ -29,14 +29,7 @@ from scenarios.runs import estimates as resources
 from scenarios.runs.campaign import run_campaign
 from scenarios.runs.engine import EngineError, check_address
 from scenarios.runs.estimates import ResourceError, check_jobs
-from scenarios.runs.runner import (
-    OutputError,
-    not_found,
-    prepare,
-    resolve,
-    run_scenario,
-    shipped_names,
-)
+from scenarios.runs.runner import OutputError, not_found, prepare, resolve, run_scenario, shipped_names
 from scenarios.spec import IMPLEMENTATIONS, ScenarioError, sweep_value
 from scenarios.ssp import export_ssp
 
@@ -113,13 +106,12 @@ def _os_problem(exc):
 
 def run_command(argv=None, prog="movingbase run"):
     shipped = ", ".join(shipped_names())
-    parser = argparse.ArgumentParser(
-        prog=prog,
-        description="Command line: run scenario files (or shipped scenario names) and write their reports.",
-        epilog=f"shipped scenarios (scenarios/files/): {shipped}. Wall time and "
-        "real-time factor count the co-simulation stepping loop only (FMU "
-        "loading and initialisation excluded).",
-    )
+    parser = argparse.ArgumentParser(prog=prog,
+                                     description='Command line: run scenario files (or shipped scenario names) and '
+                                                 'write their reports.',
+                                     epilog=f"shipped scenarios (scenarios/files/): {shipped}. Wall time and "
+                                            "real-time factor count the co-simulation stepping loop only (FMU "
+                                            "loading and initialisation excluded).")
     parser.add_argument("scenarios", nargs="*", help=f"scenario files or shipped names: {shipped} "
                                                      "(default: telescope_slew, then the paper's leg-force charts)")
     parser.add_argument("--out", default="out", help="output folder (default: out)")
@@ -246,11 +238,9 @@ def _export(args, name):
 
 
 def campaign_command(argv=None):
-    parser = argparse.ArgumentParser(
-        prog="movingbase campaign",
-        description="Run a campaign file: many scenario runs, on worker processes or a Dask cluster, "
-        "results in a store.",
-    )
+    parser = argparse.ArgumentParser(prog="movingbase campaign",
+                                     description='Run a campaign file: many scenario runs, on worker processes or a '
+                                                 'Dask cluster, results in a store.')
     parser.add_argument("campaign", help="campaign file (TOML)")
     parser.add_argument("--ci", action="store_true", help="apply the file's [ci] replacements (a small campaign)")
     parser.add_argument("--jobs", type=int, help="local worker processes (default: all cores)")
@@ -292,9 +282,9 @@ def campaign_command(argv=None):
 
 
 def build_command(argv=None, prog="movingbase build"):
-    parser = argparse.ArgumentParser(
-        prog=prog, description="Build every FMU of the kit: pythonfmu (FMI 2.0), native (FMI 2.0) and native (FMI 3.0)."
-    )
+    parser = argparse.ArgumentParser(prog=prog,
+                                     description='Build every FMU of the kit: pythonfmu (FMI 2.0), native (FMI 2.0) '
+                                                 'and native (FMI 3.0).')
     parser.add_argument("--out", default=str(OUT), help="output folder")
     parser.add_argument("names", nargs="*", default=available(),
                         help="FMU scripts to build (default: all)")
@@ -313,9 +303,8 @@ def build_command(argv=None, prog="movingbase build"):
 
 
 def headline_command(argv=None):
-    parser = argparse.ArgumentParser(
-        prog="movingbase headline", description="Regenerate the README's headline from docs/headline.json."
-    )
+    parser = argparse.ArgumentParser(prog="movingbase headline",
+                                     description="Regenerate the README's headline from docs/headline.json.")
     parser.add_argument("--from", dest="out", metavar="DIR", help="take the metrics of the full runs in DIR first")
     args = parser.parse_args(argv)
     if args.out:

@@ -6,8 +6,8 @@ fmpy.ssp reads; SSP 2.0 where an instance is FMI 3.0: version "2.0", the same
 namespaces, an FMI 3 array one connector with its ssc:Dimension, connections to single
 elements by startIndices/endIndices (1-based, as FMI names the elements; SSP 2.0 leaves
 the base unsaid), parameters as ssv:Float64/Int32 and Enumerations by item name; no
-importer here reads SSP 2.0, see tests/scenarios/test_ssp_fmi3.py) and the FMUs under resources/: those the
-scenario chose per instance
+importer here reads SSP 2.0, see tests/scenarios/test_ssp_fmi3.py) and the FMUs under resources/: those the scenario
+chose per instance
 (native by default: then the SSP needs no Python in the importing tool; libcosim runs
 it, tests/hosts/test_libcosim.py; the pythonfmu FMUs too, with Python in the tool). The SSD has
 
@@ -193,9 +193,8 @@ def _connections(pairs, where):
             out.append(base)
             continue
         for _, s_k, _, t_k in items:
-            out.append(
-                {**base, **({"startIndices": str(s_k)} if s_k else {}), **({"endIndices": str(t_k)} if t_k else {})}
-            )
+            out.append({**base, **({"startIndices": str(s_k)} if s_k else {}),
+                        **({"endIndices": str(t_k)} if t_k else {})})
     return out
 
 

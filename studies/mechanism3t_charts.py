@@ -48,13 +48,10 @@ def write_charts(outdir, step=0.005):
     ax = fig.add_subplot(projection="3d")
     pts = full.points[::7] * 1e3
     ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], c=pts[:, 2], s=1, cmap="viridis")
-    ax.set(
-        xlabel="x / mm",
-        ylabel="y / mm",
-        zlabel="z / mm",
-        title=f"Workspace, all limbs closing: {full.volume:.4f} m$^3$\n(every 7th point of a {step * 1e3:g} mm grid, "
-        "colour = z)",
-    )
+    ax.set(xlabel="x / mm", ylabel="y / mm", zlabel="z / mm",
+           title=f"Workspace, all limbs closing: {full.volume:.4f} m$^3$\n(every 7th point of a {step * 1e3:g} mm "
+                 "grid, "
+                 "colour = z)")
     paths["workspace_3d"] = outdir / "workspace_3d.png"
     save(fig, paths["workspace_3d"])
 

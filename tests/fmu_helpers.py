@@ -100,62 +100,25 @@ def _stepping_failure(fmus, native, script, values, inputs, steps=1, h=1e-3):
 # per FMU: a non-finite value at initialization (an input; Telescope has none: a
 # parameter) and a parameter outside its declared range, with what the log must say
 BAD_INIT = {
-    "hexapod_plant_fmu": (
-        "base_acc[6]",
-        "input base_acc[6] = {} at initialization: inputs must be finite",
-        "max_step",
-        0.0,
-        "max_step = 0 s is outside its valid range >= 1e-09 s",
-    ),
-    "telescope_fmu": (
-        "start_elevation",
-        "parameter start_elevation = {} rad is outside its valid range",
-        "target_elevation",
-        math.radians(95.0),
-        "target_elevation = 1.65806 rad (95 deg) is outside its valid range [0, 1.5708] rad ([0, 90] deg)",
-    ),
-    "leg_controller_fmu": (
-        "leg_rate[2]",
-        "input leg_rate[2] = {} at initialization: inputs must be finite",
-        "force_limit",
-        0.0,
-        "force_limit = 0 N is outside its valid range >= 1e-09 N",
-    ),
-    "mechanism3t_plant_fmu": (
-        "slider_force[2]",
-        "input slider_force[2] = {} at initialization: inputs must be finite",
-        "max_step",
-        -1e-3,
-        "max_step = -0.001 s is outside its valid range >= 1e-09 s",
-    ),
-    "slider_controller_fmu": (
-        "slider_rate[1]",
-        "input slider_rate[1] = {} at initialization: inputs must be finite",
-        "kd",
-        -5.0,
-        "kd = -5 N.s/m is outside its valid range >= 0 N.s/m",
-    ),
-    "leg_sensor_fmu": (
-        "leg_length[4]",
-        "input leg_length[4] = {} at initialization: inputs must be finite",
-        "noise",
-        -1e-6,
-        "noise = -1e-06 m is outside its valid range [0, 0.01] m",
-    ),
-    "base_sensor_fmu": (
-        "true_base_rate[2]",
-        "input true_base_rate[2] = {} at initialization: inputs must be finite",
-        "rate_cutoff",
-        -1.0,
-        "rate_cutoff = -1 1/s is outside its valid range [0, 10000] 1/s",
-    ),
-    "wind_fmu": (
-        "base_pose[4]",
-        "input base_pose[4] = {} at initialization: inputs must be finite",
-        "mean_speed",
-        80.0,
-        "mean_speed = 80 m/s is outside its valid range [0, 60] m/s",
-    ),
+    "hexapod_plant_fmu": ("base_acc[6]", "input base_acc[6] = {} at initialization: inputs must be finite",
+                          "max_step", 0.0, "max_step = 0 s is outside its valid range >= 1e-09 s"),
+    "telescope_fmu": ("start_elevation", "parameter start_elevation = {} rad is outside its valid range",
+                      "target_elevation", math.radians(95.0),
+                      "target_elevation = 1.65806 rad (95 deg) is outside its valid range [0, 1.5708] rad "
+                      "([0, 90] deg)"),
+    "leg_controller_fmu": ("leg_rate[2]", "input leg_rate[2] = {} at initialization: inputs must be finite",
+                           "force_limit", 0.0, "force_limit = 0 N is outside its valid range >= 1e-09 N"),
+    "mechanism3t_plant_fmu": ("slider_force[2]", "input slider_force[2] = {} at initialization: inputs must be finite",
+                        "max_step", -1e-3, "max_step = -0.001 s is outside its valid range >= 1e-09 s"),
+    "slider_controller_fmu": ("slider_rate[1]", "input slider_rate[1] = {} at initialization: inputs must be "
+                              "finite", "kd", -5.0, "kd = -5 N.s/m is outside its valid range >= 0 N.s/m"),
+    "leg_sensor_fmu": ("leg_length[4]", "input leg_length[4] = {} at initialization: inputs must be finite",
+                       "noise", -1e-6, "noise = -1e-06 m is outside its valid range [0, 0.01] m"),
+    "base_sensor_fmu": ("true_base_rate[2]", "input true_base_rate[2] = {} at initialization: inputs must be "
+                        "finite", "rate_cutoff", -1.0,
+                        "rate_cutoff = -1 1/s is outside its valid range [0, 10000] 1/s"),
+    "wind_fmu": ("base_pose[4]", "input base_pose[4] = {} at initialization: inputs must be finite",
+                 "mean_speed", 80.0, "mean_speed = 80 m/s is outside its valid range [0, 60] m/s"),
 }
 
 

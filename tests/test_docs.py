@@ -47,43 +47,20 @@ def test_every_top_level_key_the_checker_accepts_is_documented():
     assert documented == spec.TOP_KEYS
 
 
-@pytest.mark.parametrize(
-    "table, accepted, documented_body, bogus_body",
-    [
-        (
-            "fmus.<instance>",
-            {"fmu", "implementation", "parameters"},
-            BODY.replace(
-                'fmu = "mechanism3t_plant"', 'fmu = "mechanism3t_plant"\nimplementation = "python"\nparameters = {}'
-            ),
-            BODY.replace('fmu = "mechanism3t_plant"', 'fmu = "mechanism3t_plant"\nbogus = 1'),
-        ),
-        (
-            "connections[]",
-            {"from", "to"},
-            BODY,
-            BODY.replace('to = "plant.slider_force"', 'to = "plant.slider_force"\nbogus = 1'),
-        ),
-        (
-            "record",
-            {"interval", "variables"},
-            BODY + '[record]\ninterval = "2 ms"\nvariables = ["plant.slider_position"]\n',
-            BODY + "[record]\nbogus = 1\n",
-        ),
-        (
-            "sweep",
-            {"parameter", "values"},
-            BODY + '[sweep]\nparameter = "controller.feedforward"\nvalues = ["off", "on"]\n',
-            BODY + '[sweep]\nparameter = "controller.feedforward"\nvalues = ["off"]\nbogus = 1\n',
-        ),
-        (
-            "metrics[]",
-            {"kind", "name", "from"},
-            BODY + '[[metrics]]\nkind = "peak"\nname = "force"\nfrom = "0.5 s"\nvariable = "controller.slider_force"\n',
-            BODY + '[[metrics]]\nkind = "peak"\nvariable = "controller.slider_force"\nbogus = "plant.slider_rate"\n',
-        ),
-    ],
-)
+@pytest.mark.parametrize("table, accepted, documented_body, bogus_body", [
+    ("fmus.<instance>", {"fmu", "implementation", "parameters"}, BODY.replace('fmu = "mechanism3t_plant"',
+                                     'fmu = "mechanism3t_plant"\nimplementation = "python"\nparameters = {}'),
+     BODY.replace('fmu = "mechanism3t_plant"', 'fmu = "mechanism3t_plant"\nbogus = 1')),
+    ("connections[]", {"from", "to"}, BODY, BODY.replace('to = "plant.slider_force"',
+                                                         'to = "plant.slider_force"\nbogus = 1')),
+    ("record", {"interval", "variables"}, BODY + '[record]\ninterval = "2 ms"\nvariables = ["plant.slider_position"]\n',
+     BODY + "[record]\nbogus = 1\n"),
+    ("sweep", {"parameter", "values"}, BODY + '[sweep]\nparameter = "controller.feedforward"\nvalues = ["off", "on"]\n',
+     BODY + '[sweep]\nparameter = "controller.feedforward"\nvalues = ["off"]\nbogus = 1\n'),
+    ("metrics[]", {"kind", "name", "from"}, BODY + '[[metrics]]\nkind = "peak"\nname = "force"\nfrom = "0.5 s"\n'
+     'variable = "controller.slider_force"\n',
+     BODY + '[[metrics]]\nkind = "peak"\nvariable = "controller.slider_force"\nbogus = "plant.slider_rate"\n'),
+])
 def test_sub_keys_documented_are_those_the_checker_accepts(table, accepted, documented_body, bogus_body):
     """The documented keys of a table are those the checker takes (``accepted``, read from
     spec.parse; a metric's kind-specific keys come from METRIC_KINDS): a file using each
@@ -177,10 +154,8 @@ def test_constraints_pin_every_declared_dependency_within_its_range():
         if line:
             name, version = line.split("==")
             pins[re.sub(r"[-_.]+", "-", name).lower()] = version
-    requirements = [
-        *project["dependencies"],
-        *(r for extra in project["optional-dependencies"].values() for r in extra),
-    ]
+    requirements = [*project["dependencies"],
+                    *(r for extra in project["optional-dependencies"].values() for r in extra)]
     for text in requirements:
         requirement = Requirement(text)
         if requirement.marker is not None and not requirement.marker.evaluate():

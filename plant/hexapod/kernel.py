@@ -105,30 +105,13 @@ def kane(base_joints, platform_joints, data, pose, rate, arg, base_pose, base_ra
         raise InvalidInputError(f"pose must be an (n, 6) array, got {np.shape(pose)}")
     s6, s66 = (n, 6), (n, 6, 6)
     lib.mb_hexapod_kane_ext(
-        reading(base_joints, (6, 3), "base_joints"),
-        reading(platform_joints, (6, 3), "platform_joints"),
-        reading(data, (NDATA,), "data"),
-        n,
-        reading(pose, s6, "pose"),
-        reading(rate, s6, "rate"),
-        reading(arg, s6, "arg"),
-        reading(base_pose, s6, "base_pose"),
-        reading(base_rate, s6, "base_rate"),
-        reading(base_acc, s6, "base_acc"),
-        base_mode,
-        bool(legs),
-        bool(twist_speeds),
-        solve,
-        float(reflected_mass),
-        ffi.NULL if wrench is None else reading(wrench, s6, "wrench"),
-        pointer(M, s66, "M"),
-        pointer(h, s6, "h"),
-        pointer(J, s66, "J"),
-        pointer(ldot, s6, "ldot"),
-        pointer(length, s6, "length"),
-        pointer(out, s6, "out"),
-        pointer(det, (n,), "det"),
-    )
+        reading(base_joints, (6, 3), "base_joints"), reading(platform_joints, (6, 3), "platform_joints"),
+        reading(data, (NDATA,), "data"), n, reading(pose, s6, "pose"), reading(rate, s6, "rate"),
+        reading(arg, s6, "arg"), reading(base_pose, s6, "base_pose"), reading(base_rate, s6, "base_rate"),
+        reading(base_acc, s6, "base_acc"), base_mode, bool(legs), bool(twist_speeds), solve, float(reflected_mass),
+        ffi.NULL if wrench is None else reading(wrench, s6, "wrench"), pointer(M, s66, "M"), pointer(h, s6, "h"),
+        pointer(J, s66, "J"), pointer(ldot, s6, "ldot"),
+        pointer(length, s6, "length"), pointer(out, s6, "out"), pointer(det, (n,), "det"))
 
 
 def rhs(bj, pj, data, x, forces, base0, t0, t, base_mode, legs):

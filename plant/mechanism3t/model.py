@@ -51,8 +51,8 @@ Dynamics (paper 4) by the virtual-work principle, F . delta_rho = sum over bodie
   swing axes), and a 220 mm, 4 kg link cannot have 0.5 kg m^2 about its own centre (at
   most m (L/2)^2 = 0.05 kg m^2).  So each rotating link's own inertia about its swing axis
   (y for limbs I and III, x for limb II, z for D3E3) is the table value minus
-  m * (distance of the mid-link point from that axis of O)^2 at that configuration.  For D3E3 this leaves only
-  335 kg mm^2 (a slender rod
+  m * (distance of the mid-link point from that axis of O)^2 at that configuration.  For D3E3 this leaves only 335 kg
+  mm^2 (a slender rod
   would have 7.3e3) and its Iyy residual is negative, so its centre is likely not
   mid-link; C3D3's residuals are negative too but it only translates.  Products of
   inertia do no work for these fixed-axis rotations.
@@ -156,9 +156,8 @@ def _finite(name, value, point=False):
 
 
 def _inputs(rho, rho_dot, rho_ddot):
-    return np.broadcast_arrays(
-        *(_finite(n, v) for n, v in (("rho", rho), ("rho_dot", rho_dot), ("rho_ddot", rho_ddot)))
-    )
+    return np.broadcast_arrays(*(_finite(n, v) for n, v in (("rho", rho), ("rho_dot", rho_dot), ("rho_ddot",
+                                                                                                 rho_ddot))))
 
 
 def _eq8_disc(u, w, l_in, l_out):
@@ -475,9 +474,8 @@ def energy(P, rho, rho_dot, mode=1):
     """(kinetic, potential) energy in J, batched; potential is zero at z = 0."""
     kinetic = potential = 0.0
     for m, inertia, (r, r_d, _), angle in _bodies(P, rho, rho_dot, np.zeros(3), mode).values():
-        kinetic = (
-            kinetic + 0.5 * m * np.sum(r_d**2, axis=-1) + (0.0 if angle is None else 0.5 * inertia * angle[1] ** 2)
-        )
+        kinetic = kinetic + 0.5 * m * np.sum(r_d ** 2,
+                                             axis=-1) + (0.0 if angle is None else 0.5 * inertia * angle[1] ** 2)
         potential = potential + m * P.g * r[..., 2]
     return kinetic, potential
 

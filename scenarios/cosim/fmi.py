@@ -298,9 +298,8 @@ def _elements(md3):
         if var.causality == "independent":
             continue
         if var.type not in _TYPES3:
-            raise FmuError(
-                f"{md3.modelName}: variable {var.name} is an FMI 3 {var.type}, which the master does not exchange"
-            )
+            raise FmuError(f"{md3.modelName}: variable {var.name} is an FMI 3 {var.type}, which the master does not "
+                           "exchange")
         count = element_count(var)
         starts = var.start.split() if var.start is not None else [None] * count
         for k in range(count):

@@ -171,8 +171,8 @@ def _motion_panels(ax_rate, ax_acc, motion, interval):
 def _error_chart(scenario, runs, metric, path):
     """Error against time, one colour and line style per run (coinciding runs noted), log
     axis floored at 1 nm, the settling cut-off marked; a pose metric gets a position panel
-    with the 10 µm and 0.1 mm marks and a rotation panel; the telescope's axis rates and accelerations
-    underneath on the same
+    with the 10 µm and 0.1 mm marks and a rotation panel; the telescope's axis rates and accelerations underneath on
+    the same
     time axis. Returns the figure's data panels {title: axes} (the figure is closed)."""
     motion = base_motion(scenario, next((r for r in runs if r.records is not None or r.record_path), runs[0]))
     rows = [("position", 1.0, "µm", False)]      # the pose marks are no leg-length requirement
@@ -454,9 +454,8 @@ def _findings(scenario, runs, tracked):
     by_label_run = {r.label: r for r in runs}
     flagged = {r.label: r.flags for r in runs if r.flags}
     for metric in tracked:
-        failed = [
-            by_label_run[k] for k in ("fixed_base", "moving_base") if k in by_label_run and by_label_run[k].failure
-        ]
+        failed = [by_label_run[k] for k in ("fixed_base",
+                                            "moving_base") if k in by_label_run and by_label_run[k].failure]
         partial = "".join(f" (run {r.label} {_stopped(scenario, r)})" for r in failed)
         if failed and any(
             by_label[r.label][metric.name]["rms"] != by_label[r.label][metric.name]["rms"] for r in failed

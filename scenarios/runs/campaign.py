@@ -428,22 +428,10 @@ class CampaignJobs:
                 problem = "; ".join(f"{k}: {p.split('; or run it anyway')[0]}" for _, k, p in exc.problems)
                 refused.setdefault(problem, []).append(case.label)
         if refused:
-            raise CampaignError.joined(
-                [
-                    CampaignError(
-                        source,
-                        f"run {labels[0]!r}"
-                        + (
-                            f" (and {len(labels) - 1} more: {', '.join(map(repr, labels[1:4]))}"
-                            f"{', ...' if len(labels) > 4 else ''})"
-                            if len(labels) > 1
-                            else ""
-                        ),
-                        problem,
-                    )
-                    for problem, labels in refused.items()
-                ]
-            )
+            raise CampaignError.joined([CampaignError(source, f"run {labels[0]!r}" + (
+                f" (and {len(labels) - 1} more: "
+                f"{', '.join(map(repr, labels[1:4]))}{', ...' if len(labels) > 4 else ''})"
+                if len(labels) > 1 else ""), problem) for problem, labels in refused.items()])
 
 
 def jobs(campaign):

@@ -156,17 +156,13 @@ def _package_digest():
 def run_key(scenario, parameters, fmus):
     """Hash of what decides a run's numbers; names, descriptions and the file's path do not."""
     s = scenario
-    what = {
-        "code": code_digest(),
-        "time": [s.start_time, s.stop_time, s.step],
-        "master": s.master,
-        "extrapolation": s.extrapolation,
-        "fmus": {inst: [s.fmus[inst], fmus[inst]] for inst in sorted(s.fmus)},
-        "connections": s.connections,
-        "record": [s.record_interval, s.record],
-        "metrics": [[m.name, m.kind, m.args, m.start] for m in s.metrics],
-        "parameters": {inst: {k: _plain(v) for k, v in sorted(p.items())} for inst, p in sorted(parameters.items())},
-    }
+    what = {"code": code_digest(), "time": [s.start_time, s.stop_time, s.step], "master": s.master,
+            "extrapolation": s.extrapolation,
+            "fmus": {inst: [s.fmus[inst], fmus[inst]] for inst in sorted(s.fmus)},
+            "connections": s.connections, "record": [s.record_interval, s.record],
+            "metrics": [[m.name, m.kind, m.args, m.start] for m in s.metrics],
+            "parameters": {inst: {k: _plain(v) for k, v in sorted(p.items())} for inst,
+                           p in sorted(parameters.items())}}
     return hashlib.sha256(json.dumps(what, sort_keys=True).encode()).hexdigest()[:24]
 
 

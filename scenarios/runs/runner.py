@@ -65,11 +65,10 @@ def output_folder(out, path):
     here; OutputError if ``out`` is empty or a file, cannot be created or is not writable."""
     out = pathlib.Path(_named(out))
     stem = pathlib.Path(path).stem
-    if stem in ("", ".", ".."):  # "..toml", "...toml": out itself or its parent, not a folder under it
-        raise OutputError(
-            f"file name {spec.shown(repr(pathlib.Path(path).name))}: without .toml, {stem!r} cannot name its output "
-            f"folder under {out} (it would write into {out / stem}); rename the file"
-        )
+    if stem in ("", ".", ".."):       # "..toml", "...toml": out itself or its parent, not a folder under it
+        raise OutputError(f"file name {spec.shown(repr(pathlib.Path(path).name))}: without .toml, {stem!r} cannot "
+                          "name its output "
+                          f"folder under {out} (it would write into {out / stem}); rename the file")
     return lock_folder(make_folder(out / stem))
 
 
@@ -253,11 +252,8 @@ def fmu_files(fmus, implementation="native", fmi_version=2):
         near = difflib.get_close_matches(unknown[0], list(catalogue.KEYS), 1, 0.6)
         raise ValueError(f"no FMU {unknown[0]!r}" + (f"; did you mean {near[0]!r}?" if near else "")
                          + f" The kit's FMUs: {', '.join(catalogue.KEYS)}")
-    if (
-        implementation not in spec.IMPLEMENTATIONS
-        or fmi_version not in spec.FMI_VERSIONS
-        or isinstance(fmi_version, bool)
-    ):
+    if implementation not in spec.IMPLEMENTATIONS or fmi_version not in spec.FMI_VERSIONS or isinstance(fmi_version,
+                                                                                                        bool):
         raise ValueError(f"implementation is one of {', '.join(spec.IMPLEMENTATIONS)} and fmi_version 2 or 3, "
                          f"got {implementation!r} and {fmi_version!r}")
     if implementation == "python" and fmi_version == 3:

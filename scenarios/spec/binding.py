@@ -207,18 +207,12 @@ def as_data(scenario):
                    for c in scenario.connections] if isinstance(scenario.connections, list) else scenario.connections
     metrics = [{"kind": m.kind, "name": m.name, "from": m.start, **m.args} if isinstance(m, Metric) else m
                for m in scenario.metrics] if isinstance(scenario.metrics, list) else scenario.metrics
-    data = {
-        "description": scenario.description,
-        "start_time": plain(scenario.start_time),
-        "stop_time": plain(scenario.stop_time),
-        "step": plain(scenario.step),
-        "master": scenario.master,
-        "extrapolation": scenario.extrapolation,
-        "fmus": tables if isinstance(scenario.fmus, dict) else scenario.fmus,
-        "connections": connections,
-        "metrics": metrics,
-        "record": {"interval": plain(scenario.record_interval), "variables": plain(scenario.record)},
-    }
+    data = {"description": scenario.description, "start_time": plain(scenario.start_time),
+            "stop_time": plain(scenario.stop_time), "step": plain(scenario.step), "master": scenario.master,
+            "extrapolation": scenario.extrapolation, "fmus": tables if isinstance(scenario.fmus,
+                                                                                  dict) else scenario.fmus,
+            "connections": connections, "metrics": metrics,
+            "record": {"interval": plain(scenario.record_interval), "variables": plain(scenario.record)}}
     if scenario.name != pathlib.Path(scenario.source).stem:     # the file's own name is not checked as a name
         data["name"] = scenario.name
     if scenario.sweep is not None:

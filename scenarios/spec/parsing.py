@@ -125,14 +125,12 @@ def parse_data(data, source="<string>", overrides=None):
             raise ScenarioError(source, "stop_time", f"must be after start_time ({start} s)")
         resolution = math.ulp(max(abs(start), abs(stop)))
         if resolution > MAX_TIME_ULP * step:
-            raise ScenarioError(
-                source,
-                "start_time" if abs(start) > abs(stop) else "stop_time",
-                f"at t = {max(abs(start), abs(stop)):.6g} s a time is resolved only to {resolution:.3g} s, "
-                f"too coarse for step {data['step']!r}: the time grid would be uneven; keep the times "
-                f"within {_time_span(step):.3g} s of 0 (an epoch belongs in a parameter such as "
-                "utc_start)",
-            )
+            raise ScenarioError(source, "start_time" if abs(start) > abs(stop) else "stop_time",
+                                f"at t = {max(abs(start), abs(stop)):.6g} s a time is resolved only to "
+                                f"{resolution:.3g} s, "
+                                f"too coarse for step {data['step']!r}: the time grid would be uneven; keep the times "
+                                f"within {_time_span(step):.3g} s of 0 (an epoch belongs in a parameter such as "
+                                "utc_start)")
         if abs((stop - start) / step - round((stop - start) / step)) > 1e-9 * max(1.0, (stop - start) / step):
             steps = (stop - start) / step
             nearest = " and ".join(f"{start + n * step:.12g} s" for n in sorted({max(1, int(steps)), int(steps) + 1}))
@@ -140,12 +138,9 @@ def parse_data(data, source="<string>", overrides=None):
                                 f"{data['step']!r} after start_time ({steps:.6g} steps); nearest valid stop times: "
                                 f"{nearest}")
         if round((stop - start) / step) < 1:    # within the whole-number tolerance of 0 steps
-            raise ScenarioError(
-                source,
-                "stop_time",
-                f"{data['stop_time']!r} is less than one step ({data['step']!r}) "
-                f"after start_time: no step would run; the first valid stop time is {start + step:.12g} s",
-            )
+            raise ScenarioError(source, "stop_time", f"{data['stop_time']!r} is less than one step ({data['step']!r}) "
+                                "after start_time: no step would run; the first valid stop time is "
+                                f"{start + step:.12g} s")
         steps, grid_ok = round((stop - start) / step), True
     if not grid_ok:         # what failed is told; nothing below is measured against it
         start, stop, step, steps = 0.0, math.inf, 1.0, 1
@@ -209,9 +204,8 @@ def parse_data(data, source="<string>", overrides=None):
             conn = _table(source, key, conn)
             if set(conn) != {"from", "to"}:
                 raise ScenarioError(source, key, "a connection has exactly the keys 'from' and 'to'")
-            targets = [
-                parse_reference(source, f"{key}.to", t, fmus) for t in _string_list(source, f"{key}.to", conn["to"])
-            ]
+            targets = [parse_reference(source, f"{key}.to", t, fmus) for t in _string_list(source, f"{key}.to",
+                                                                                           conn["to"])]
             connections.append((parse_reference(source, f"{key}.from", conn["from"], fmus), targets))
 
     interval, recorded, last_record = step, [], stop
@@ -257,9 +251,9 @@ def parse_data(data, source="<string>", overrides=None):
             if metric_start >= stop or metric_start > last_record + 1e-9 * step:
                 where = f"at or after stop_time ({stop:g} s)" if metric_start >= stop else \
                     f"after the last recorded time ({last_record:g} s)"
-                raise ScenarioError(
-                    source, f"{key}.from", f"{metric.get('from', '0 s')!r} lies {where}: the metric would count nothing"
-                )
+                raise ScenarioError(source, f"{key}.from",
+                                    f"{metric.get('from', '0 s')!r} lies {where}: the metric would "
+                                    "count nothing")
             metric.pop("from", None)
             for required in METRIC_KINDS[kind]:
                 if required not in metric:

@@ -94,9 +94,9 @@ def test_the_inputs_start_at_one_operating_point(kit):
     # the controller's force at initialization (its moving-base feedforward of the held
     # home pose) is the force the plant starts with
     controller = simulate_fmu(str(kit["leg_controller_fmu"]), stop_time=1e-3)
-    np.testing.assert_allclose(
-        _vector(controller, "leg_force", 6)[0], _starts(kit["hexapod_plant_fmu"], "leg_force", 6), rtol=1e-9
-    )
+    np.testing.assert_allclose(_vector(controller, "leg_force", 6)[0], _starts(kit["hexapod_plant_fmu"], "leg_force",
+                                                                               6),
+                               rtol=1e-9)
     slider = simulate_fmu(str(kit["slider_controller_fmu"]), stop_time=1e-3, start_values={"feedforward": 1})
     np.testing.assert_allclose(_starts(kit["slider_controller_fmu"], "slider_position", 3), op.SLIDER_POSITION)
     # the sine reference moves at 5 mm/s from t = 0: its feedforward differs from the static
@@ -121,24 +121,9 @@ def test_an_enumeration_is_set_by_its_value_from_fmpys_command_line(kit, tmp_pat
     """fmpy 0.3.32's command line sets an Enumeration by its item's value (it converts
     every start value with int(), names included: see docs/defaults-and-masters.md)."""
     out = tmp_path / "paper.csv"
-    run = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "fmpy.cli",
-            "simulate",
-            str(kit["telescope_fmu"]),
-            "--stop-time",
-            "0.01",
-            "--start-values",
-            "profile",
-            "2",
-            "--output-file",
-            str(out),
-        ],
-        capture_output=True,
-        text=True,
-    )
+    run = subprocess.run([sys.executable, "-m", "fmpy.cli", "simulate", str(kit["telescope_fmu"]), "--stop-time",
+                          "0.01",
+                          "--start-values", "profile", "2", "--output-file", str(out)], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     slew = simulate_fmu(str(kit["telescope_fmu"]), stop_time=0.01)
     paper = np.genfromtxt(out, delimiter=",", names=True)

@@ -33,9 +33,8 @@ def test_every_parameter_declares_a_range_that_holds_its_default(fmus, script):
         assert v.min is not None or v.max is not None, v.name
         start = float(v.start)
         assert (v.min is None or float(v.min) <= start) and (v.max is None or start <= float(v.max)), v.name
-        labels = (
-            re.findall(r"(\d+) \w+", v.description.split(":", 1)[-1]) if v.type in ("Integer", "Enumeration") else []
-        )
+        labels = re.findall(r"(\d+) \w+", v.description.split(":", 1)[-1]) if v.type in ("Integer",
+                                                                                         "Enumeration") else []
         if labels and v.name not in ("moving_base", "mode"):
             assert (int(v.min), int(v.max)) == (0, int(labels[-1])), (v.name, v.description)
 
@@ -88,8 +87,8 @@ def test_the_declared_range_is_the_one_checked(fmus):
                                            ("mechanism3t_plant_fmu", "slider_force[2]")])
 @pytest.mark.parametrize("value", [math.nan, math.inf], ids=["nan", "inf"])
 def test_non_finite_input_at_initialization_fails_there(fmus, script, name, value):
-    """Refused by fmi2ExitInitializationMode (fmi2Error), not by the first doStep; the failed instance still
-    answers doStep (refusing) and is freed safely,
+    """Refused by fmi2ExitInitializationMode (fmi2Error), not by the first doStep; the failed instance still answers
+    doStep (refusing) and is freed safely,
     and a new instance in the same process works."""
     error = _refused_at_init(fmus[script], **{name: value})
     assert f"input {name} = {value} at initialization: inputs must be finite" in error, error

@@ -218,10 +218,8 @@ def test_call_sequence_and_bad_references_answer_error_with_a_log_line(pairs):
     md = {v.name: v.valueReference for v in read_model_description(str(pairs["hexapod_plant_fmu"][1])).modelVariables}
     force = md["leg_force"]
     assert status_of(f.doStep, 0.0, 1e-3) == ERROR and "fmi3DoStep: not allowed in state Instantiated" in inst.log[-1]
-    assert (
-        status_of(f.getFloat64, [force], 6) == ERROR
-        and "fmi3GetFloat64: not allowed in state Instantiated" in inst.log[-1]
-    )
+    assert status_of(f.getFloat64, [force],
+                     6) == ERROR and "fmi3GetFloat64: not allowed in state Instantiated" in inst.log[-1]
     assert status_of(f.exitInitializationMode) == ERROR
     assert "fmi3ExitInitializationMode: not allowed in state Instantiated" in inst.log[-1]
     assert status_of(f.terminate) == ERROR and "fmi3Terminate: not allowed" in inst.log[-1]

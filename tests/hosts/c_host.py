@@ -114,10 +114,8 @@ class HostFmu:
                 "--steps", str(steps), "--h", repr(h)]
         for option, values in (("--real", real), ("--int", integer), ("--real-init", real_init)):
             for name, value in (values or {}).items():
-                args += [
-                    option,
-                    f"{self.vr(name)}={float(value)!r}" if option != "--int" else f"{self.vr(name)}={int(value)}",
-                ]
+                args += [option,
+                         f"{self.vr(name)}={float(value)!r}" if option != "--int" else f"{self.vr(name)}={int(value)}"]
         for (step, name), value in (real_at or {}).items():
             args += ["--real-at", f"{step}:{self.vr(name)}={float(value)!r}"]
         if out:

@@ -1,7 +1,7 @@
 """The FMUs under a careless or hostile C host (issues 18 and 20): tests/hosts/c_host/misuse.c
 (FMI 2.0) and misuse3.c (FMI 3.0) run one script of calls in a fresh process per case and
-print every answer; each is held against what FMI 2.0 / FMI 3.0 and the Reference FMUs answer. No case may
-crash (a signal), hang
+print every answer; each is held against what FMI 2.0 / FMI 3.0 and the Reference FMUs answer. No case may crash (a
+signal), hang
 (the timeout), or draw a sanitizer report (.ci/sanitize.sh runs this file on builds with
 -fsanitize=address,undefined; MOVINGBASE_MISUSE_FMUS and MOVINGBASE_MISUSE_FMUS3 name its
 folders of extracted FMI 2.0 and FMI 3.0 FMUs).

@@ -137,17 +137,15 @@ def test_to_pandas_holds_the_arrays(result, tmp_path):
     structured = run.to_numpy()
     assert structured.dtype.names[:2] == ("time", "base.axis[1]")
     assert structured["plant.pose[3]"].tobytes() == run["plant.pose"][:, 2].tobytes()
-    from_file = pd.DataFrame(dict(np.load(run.records.save(tmp_path / "r.npz"))))  # the file alone, for pandas
-    assert (
-        list(from_file.columns) == run.records.header and from_file.to_numpy()[:, 1:].tobytes() == run.values.tobytes()
-    )
+    from_file = pd.DataFrame(dict(np.load(run.records.save(tmp_path / "r.npz"))))   # the file alone, for pandas
+    assert list(from_file.columns) == run.records.header and from_file.to_numpy()[:,
+                                                                                  1:].tobytes() == run.values.tobytes()
 
 
 def test_to_pandas_without_pandas_says_what_to_install(result, monkeypatch):
     monkeypatch.setitem(sys.modules, "pandas", None)
-    with pytest.raises(
-        ModuleNotFoundError, match=r"metrics_table, to_pandas, CampaignResult.table\) need pandas.*pip install pandas"
-    ):
+    with pytest.raises(ModuleNotFoundError,
+                       match=r"metrics_table, to_pandas, CampaignResult.table\) need pandas.*pip install pandas"):
         result["none"].to_pandas()
 
 

@@ -220,9 +220,8 @@ def test_paper_example_trajectory_and_forces():
     s = 0.010 * np.sin(0.5 * history.t)[:, None]
     np.testing.assert_allclose(history.rho, RHO_REF + s, atol=1e-15)
     for k in (0, 70, 150, 333):
-        truth = lagrange_forces(
-            history.rho[k], 0.005 * np.cos(0.5 * history.t[k]) * np.ones(3), -0.25 * s[k] * np.ones(3)
-        )
+        truth = lagrange_forces(history.rho[k], 0.005 * np.cos(0.5 * history.t[k]) * np.ones(3),
+                                -0.25 * s[k] * np.ones(3))
         assert np.max(np.abs(history.forces[k] - truth)) <= 1e-8 * np.max(np.abs(truth))
     assert history.peak == np.abs(history.forces).max() and history.peak_slider == "x_A2"
 

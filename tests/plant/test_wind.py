@@ -51,8 +51,8 @@ def test_gust_spectrum_is_the_target_by_welch(spectrum, index, length):
     """Welch's estimate of a 4000 s record at 100 Hz, integrated over octave bands from
     0.02 to 41 Hz: each band holds the target's variance within 15 % (the random frequency
     inside each of the generator's bins moves power across a band edge), all of them
-    within 5 % (the lowest bands hold most of it, so their edges still count); the standard length scales are
-    the ones the kernel chose."""
+    within 5 % (the lowest bands hold most of it, so their edges still count); the standard length scales are the
+    ones the kernel chose."""
     model = gust_model(DEFAULTS, index, seed=11)
     assert model.scale == pytest.approx(length, rel=1e-12)
     fs = 100.0

@@ -417,20 +417,13 @@ def test_a_stop_time_within_one_step_of_the_start_is_refused(stop):
     refused(text, "stop_time", f"'{stop}' is less than one step ('1 ms')", "first valid stop time is 0.001 s")
 
 
-@pytest.mark.parametrize(
-    "changes, key",
-    [
-        (
-            [
-                ('step = "1 ms"', 'step = "1 ms"\nstart_time = "1e12 s"'),
-                ('stop_time = "60 s"', 'stop_time = "1000000000060 s"'),
-            ],
-            "stop_time",
-        ),
-        ([('step = "1 ms"', 'step = "1 ms"\nstart_time = "-1e10 s"')], "start_time"),
-        ([('stop_time = "60 s"', 'stop_time = "1e20 s"')], "stop_time"),
-    ],
-)
+@pytest.mark.parametrize("changes, key", [
+    ([('step = "1 ms"', 'step = "1 ms"\nstart_time = "1e12 s"'), ('stop_time = "60 s"',
+                                                                  'stop_time = "1000000000060 s"')],
+     "stop_time"),
+    ([('step = "1 ms"', 'step = "1 ms"\nstart_time = "-1e10 s"')], "start_time"),
+    ([('stop_time = "60 s"', 'stop_time = "1e20 s"')], "stop_time"),
+])
 def test_times_beyond_what_a_double_resolves_at_the_step_are_refused(changes, key):
     """At t = 1e12 s a double resolves 0.12 ms: a 1 ms grid there is uneven by 12 %, silently."""
     message = refused(edited(SLEW, *changes), key, "is resolved only to", "too coarse for step '1 ms'")
@@ -568,11 +561,8 @@ def test_a_metric_name_that_is_no_file_name_of_its_own_is_refused(name, problem)
 
 def test_a_negative_fidelity_tolerance_is_refused():
     """fidelity = "auto" with a negative tolerance ended in StopIteration (no level within it)."""
-    text = edited(
-        SLEW,
-        ('fidelity = "full"', 'fidelity = "auto"'),
-        ('step = "1 ms"', 'step = "1 ms"\nfidelity_tolerance = "-1 N"'),
-    )
+    text = edited(SLEW, ('fidelity = "full"', 'fidelity = "auto"'), ('step = "1 ms"',
+                                                                     'step = "1 ms"\nfidelity_tolerance = "-1 N"'))
     message = refused(text, "fidelity_tolerance", "'-1 N' is negative")
     assert len(message.splitlines()) == 1, message      # not also "auto needs a fidelity_tolerance"
 

@@ -91,45 +91,23 @@ def test_file_errors_name_file_key_and_problem(change, key, problem):
     assert str(error.value).startswith(f"test.toml: {key}: ") and problem in str(error.value), str(error.value)
 
 
-@pytest.mark.parametrize(
-    "change, key, problem",
-    [
-        (
-            ('[[connections]]\nfrom = "plant.leg_rate"\nto = "controller.leg_rate"\n', ""),
-            "fmus.controller",
-            "inputs neither connected nor set: leg_rate[1]",
-        ),
-        (
-            (
-                'from = "plant.leg_rate"\nto = "controller.leg_rate"',
-                'from = "plant.leg_rate"\nto = "controller.leg_length"',
-            ),
-            "connections[7]",
-            "incompatible: plant.leg_rate[1] (Real, m/s) -> controller.leg_length[1] (Real, m)",
-        ),
-        (
-            (
-                'from = "controller.leg_force"\nto = "plant.leg_force"',
-                'from = "plant.leg_length"\nto = "plant.leg_force"',
-            ),
-            "connections[8]",
-            "incompatible",
-        ),
-        (('from = "base.base_rate"', 'from = "base.base_ratio"'), "connections[1].from", "no variable 'base_ratio'"),
-        (
-            ("moving_base = 1,", 'moving_base = 1, stroke = "3 deg",'),
-            "fmus.plant.parameters.stroke",
-            "expected a quantity in m",
-        ),
-        (("moving_base = 1,", 'moving_base = "yes",'), "fmus.plant.parameters.moving_base", "is not one of"),
-        (("moving_base = 1,", 'fidelity = "fast",'), "fmus.plant.parameters.fidelity", "is not one of full"),
-        (
-            ('from = "plant.leg_length"\nto', 'from = "controller.leg_rate"\nto'),
-            "connections[6].from",
-            "controller.leg_rate is not an output",
-        ),
-    ],
-)
+@pytest.mark.parametrize("change, key, problem", [
+    (("[[connections]]\nfrom = \"plant.leg_rate\"\nto = \"controller.leg_rate\"\n", ""),
+     "fmus.controller", "inputs neither connected nor set: leg_rate[1]"),
+    (("from = \"plant.leg_rate\"\nto = \"controller.leg_rate\"",
+      "from = \"plant.leg_rate\"\nto = \"controller.leg_length\""),
+     "connections[7]", "incompatible: plant.leg_rate[1] (Real, m/s) -> controller.leg_length[1] (Real, m)"),
+    (("from = \"controller.leg_force\"\nto = \"plant.leg_force\"",
+      "from = \"plant.leg_length\"\nto = \"plant.leg_force\""),
+     "connections[8]", "incompatible"),
+    (("from = \"base.base_rate\"", "from = \"base.base_ratio\""), "connections[1].from", "no variable 'base_ratio'"),
+    (("moving_base = 1,", "moving_base = 1, stroke = \"3 deg\","), "fmus.plant.parameters.stroke",
+     "expected a quantity in m"),
+    (("moving_base = 1,", "moving_base = \"yes\","), "fmus.plant.parameters.moving_base", "is not one of"),
+    (("moving_base = 1,", "fidelity = \"fast\","), "fmus.plant.parameters.fidelity", "is not one of full"),
+    (("from = \"plant.leg_length\"\nto", "from = \"controller.leg_rate\"\nto"), "connections[6].from",
+     "controller.leg_rate is not an output"),
+])
 def test_binding_errors_name_file_key_and_problem(descriptions, change, key, problem):
     text = MINIMAL.replace(*change, 1)
     assert text != MINIMAL
@@ -181,9 +159,8 @@ def test_a_failing_fmu_stops_the_run_naming_it_and_keeps_the_rows(descriptions, 
         'stop_time = "0.05 s"', 'stop_time = "0.5 s"').replace(
         "[fmus.controller]\nfmu = \"leg_controller\"", "[fmus.controller]\nfmu = \"leg_controller\"\n"
         "parameters = { kp = 0.0, ki = 0.0, kd = 0.0, feedforward = \"none\" }")
-    with pytest.raises(
-        FmuError, match=r"(?s)FMU instance 'plant' failed in doStep at t = 0\.\d+ s.*StrokeError.*leg \d"
-    ):
+    with pytest.raises(FmuError,
+                       match=r"(?s)FMU instance 'plant' failed in doStep at t = 0\.\d+ s.*StrokeError.*leg \d"):
         _run(text, descriptions, tmp_path)
     kept = read_records(tmp_path / "run.npz")
     assert kept.header[:2] == ["time [s]", "plant.pose[1] [m]"] and len(kept.time) > 1

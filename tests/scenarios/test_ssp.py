@@ -85,7 +85,8 @@ def test_ssd_is_valid_and_names_every_component_connection_and_parameter(case):
     for s_inst, s, t_inst, t in expected:
         assert kinds[(s_inst, s)] == "output" and kinds[(t_inst, t)] == "input"
     connected = {(t_inst, t) for _, _, t_inst, t in expected}
-    assert {k for k, kind in kinds.items() if kind == "input"} == connected  # fmpy needs every declared input connected
+    assert {k for k,
+            kind in kinds.items() if kind == "input"} == connected   # fmpy needs every declared input connected
     for inst in scenario.fmus:
         outputs = {v.name for v in descriptions[inst].modelVariables if v.causality == "output"}
         assert {n for (i, n), kind in kinds.items() if i == inst and kind == "output"} == outputs

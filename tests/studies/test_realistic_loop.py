@@ -66,9 +66,8 @@ def test_servo_makes_the_command_a_wrong_base_signal(ci):
     _, s, _ = ci
     scene = "telescope_slew"
     for key in ("rms", "peak", "rotation_rms", "rotation_peak"):
-        assert pose(s, scene, "ideal", "commanded", "moving_base", key) == pose(
-            s, scene, "ideal", "exact", "moving_base", key
-        )
+        assert pose(s, scene, "ideal", "commanded", "moving_base", key) == pose(s, scene, "ideal", "exact",
+                                                                                "moving_base", key)
     assert pose(s, scene, "servo", "commanded", "moving_base", "peak") > \
         pose(s, scene, "servo", "exact", "moving_base", "peak")
 

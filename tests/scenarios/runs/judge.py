@@ -77,11 +77,8 @@ def draw(seed):
     extrapolation = ("none", "linear")[rng.integers(2)]
     if kind == "hexapod":
         file = "telescope_slew_realistic"
-        base = {
-            "controller.kp": 3726457.1097513568,
-            "controller.ki": 37462432.89571941,
-            "controller.kd": 169743.13840853807,
-        }
+        base = {"controller.kp": 3726457.1097513568, "controller.ki": 37462432.89571941,
+                "controller.kd": 169743.13840853807}
         given = {k: v * gain for k, v in base.items()}
         given.update({"plant.actuator_force_limit": f"{25 * rng.uniform(0.6, 1):.4g} kN",
                       "base.start_elevation": f"{rng.uniform(5, 60):.3g} deg",

@@ -106,9 +106,8 @@ def test_campaign_runs_equal_the_scenario_run_directly(tmp_path):
         params = {inst: dict(v) for inst, v in values.items()}
         params["controller"]["feedforward"] = 1
         params["base"]["start_elevation"] = to_si(f"{el} deg", "rad")
-        before = runner.pre_run_flags(scenario, paths, descriptions, params)[
-            "fixed_base"
-        ]  # what `movingbase run` flags
+        before = runner.pre_run_flags(scenario, paths, descriptions,
+                                      params)["fixed_base"]   # what `movingbase run` flags
         run = single.run(scenario, paths, params, tmp_path, "direct", [metrics.make(m) for m in scenario.metrics],
                          flags=before)
         # the slew begins at 5 s: at 5.3 s it has not ended, a run of it says so wherever its numbers are

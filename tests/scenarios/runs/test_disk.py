@@ -66,10 +66,9 @@ def test_files_end_with_the_umask_s_mode(tmp_path):
 
 
 def test_text_is_utf8_in_an_ascii_locale(tmp_path):
-    code = (
-        "import numpy as np; from scenarios.cosim import records; "
-        f"records.Records.of(np.zeros(1), ['a.x'], ['\\u00b5m'], np.zeros((1, 1))).to_csv({str(tmp_path / 'r.csv')!r})"
-    )
+    code = ("import numpy as np; from scenarios.cosim import records; "
+            "records.Records.of(np.zeros(1), ['a.x'], ['\\u00b5m'], np.zeros((1, "
+            f"1))).to_csv({str(tmp_path / 'r.csv')!r})")
     env = {**os.environ, "LC_ALL": "C", "PYTHONCOERCECLOCALE": "0", "PYTHONUTF8": "0"}
     subprocess.run([sys.executable, "-c", code], env=env, check=True, timeout=120)
     assert (tmp_path / "r.csv").read_bytes().startswith("time [s],a.x [\u00b5m]".encode())

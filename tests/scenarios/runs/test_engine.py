@@ -32,17 +32,10 @@ def campaign(fmus, tmp_path_factory):
     """Six slews (3 start elevations x 2 feedforward modes) and their sequential results,
     from scenarios.cosim.single.run in this process."""
     scenario, paths, values = _bound(fmus)
-    cases = [
-        (
-            f"el {el:g}, {mode}",
-            {
-                "base": {"start_elevation": np.radians(el), "target_elevation": np.radians(el + 5)},
-                "controller": {"feedforward": index},
-            },
-        )
-        for el in ELEVATIONS
-        for index, mode in ((1, "fixed_base"), (2, "moving_base"))
-    ]
+    cases = [(f"el {el:g}, {mode}", {"base": {"start_elevation": np.radians(el),
+                                              "target_elevation": np.radians(el + 5)},
+                                      "controller": {"feedforward": index}})
+             for el in ELEVATIONS for index, mode in ((1, "fixed_base"), (2, "moving_base"))]
     jobs, files = engine.prepared_jobs(scenario, paths, values, cases, keep_record=False)
     folder = tmp_path_factory.mktemp("sequential")
     sequential = {}
@@ -258,9 +251,8 @@ def test_the_key_follows_the_kit_s_own_code(fmus, tmp_path, monkeypatch):
 
     from scenarios.runs import metrics as metrics_module
     copy = tmp_path / "scenarios"
-    shutil.copytree(
-        pathlib.Path(metrics_module.__file__).parent, copy, ignore=shutil.ignore_patterns("*.so", "__pycache__")
-    )
+    shutil.copytree(pathlib.Path(metrics_module.__file__).parent, copy, ignore=shutil.ignore_patterns("*.so",
+                                                                                                      "__pycache__"))
     before = engine.code_digest([copy])
     with open(copy / "metrics.py", "a") as f:
         f.write("\n# edited\n")

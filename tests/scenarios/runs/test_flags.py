@@ -206,9 +206,8 @@ def copied(tmp_path, name, **changes):
 
 
 def test_the_shipped_slew_at_4_ms_is_refused_with_the_limit_and_what_runs(tmp_path):
-    path = copied(
-        tmp_path, "slew_4ms", **{'step = "1 ms"': 'step = "4 ms"', 'interval = "10 ms"': 'interval = "20 ms"'}
-    )
+    path = copied(tmp_path, "slew_4ms", **{'step = "1 ms"': 'step = "4 ms"',
+                                           'interval = "10 ms"': 'interval = "20 ms"'})
     with pytest.raises(spec.ScenarioError) as refused:
         runner.run_scenario(path, tmp_path / "out", ci=True, progress=False)
     text = str(refused.value)
@@ -218,9 +217,8 @@ def test_the_shipped_slew_at_4_ms_is_refused_with_the_limit_and_what_runs(tmp_pa
 
 
 def test_run_anyway_the_4_ms_slew_is_flagged_everywhere(tmp_path, capsys):
-    path = copied(
-        tmp_path, "slew_4ms", **{'step = "1 ms"': 'step = "4 ms"', 'interval = "10 ms"': 'interval = "20 ms"'}
-    )
+    path = copied(tmp_path, "slew_4ms", **{'step = "1 ms"': 'step = "4 ms"',
+                                           'interval = "10 ms"': 'interval = "20 ms"'})
     cli([str(path), "--ci", "--quiet", "--allow-unstable", "--out", str(tmp_path / "out")])
     printed = capsys.readouterr().out
     assert printed.count("FLAGGED step_beyond_limit") == 3 and "FLAGGED saturated" in printed

@@ -265,14 +265,8 @@ def test_every_limit_an_fmu_declares_is_in_the_loop_catalogue():
     assert declared == {("hexapod_plant", "stroke"), ("hexapod_plant", "actuator_force_limit"),
                         ("leg_controller", "force_limit"), ("slider_controller", "force_limit")}
     for fmu, entry in catalogue.CONTROL_LOOPS.items():
-        own = [
-            entry["force"],
-            entry["measured"],
-            entry["limit"],
-            entry["excitation"],
-            *entry["gains"],
-            *entry["motion"],
-        ]
+        own = [entry["force"], entry["measured"], entry["limit"], entry["excitation"], *entry["gains"],
+               *entry["motion"]]
         plant = [entry["plant_force"], entry["plant_measured"], *entry["loop_model"].values()]
         assert set(own) <= set(names[fmu]) and set(plant) <= set(names[entry["plant"]]), fmu
 

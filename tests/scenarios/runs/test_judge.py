@@ -79,9 +79,7 @@ def test_the_judge_sees_a_limit_cycle_and_the_stiction_that_hides_it():
         assert judge.kit_and_judge(scene) == ("refused", "clean", "")
         slick = judge._longer(scene, 6.0, **{"plant.coulomb_friction": "0 N"})
         import dataclasses
-
-        verdict, why = judge.judge(
-            slick, judge._anyway(slick), judge._anyway(dataclasses.replace(slick, step=judge.FINE))
-        )
+        verdict, why = judge.judge(slick, judge._anyway(slick), judge._anyway(dataclasses.replace(slick,
+                                                                                                  step=judge.FINE)))
     assert verdict == "bad" and why.endswith("um from the 0.1 ms run over the second half"), why
     assert judge.confirm(scene) == "stiction"

@@ -29,13 +29,9 @@ SCRIPTS = {"base": "telescope_fmu", "plant": "hexapod_plant_fmu", "controller": 
 
 def cli(tmp_path, *args):
     """python -m scenarios in a fresh process: (exit status, stdout, stderr)."""
-    done = subprocess.run(
-        [sys.executable, "-m", "movingbase", "run", *map(str, args), "--quiet", "--out", tmp_path / "out"],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=600,
-    )
+    done = subprocess.run([sys.executable, "-m", "movingbase", "run", *map(str, args), "--quiet", "--out",
+                           tmp_path / "out"],
+                          capture_output=True, text=True, cwd=ROOT, timeout=600)
     assert "Traceback" not in done.stderr, done.stderr
     return done.returncode, done.stdout, done.stderr
 
@@ -80,9 +76,8 @@ def test_an_identical_duplicate_connection_is_refused(descriptions):
 
 
 def test_one_connection_listing_a_target_twice_is_refused(descriptions):
-    text = edited(
-        SLEW, ('to = "controller.reference_acc"', 'to = ["controller.reference_acc", "controller.reference_acc"]')
-    )
+    text = edited(SLEW, ('to = "controller.reference_acc"',
+                         'to = ["controller.reference_acc", "controller.reference_acc"]'))
     refused(text, "connections[5]", "duplicate connection", "both feed controller.reference_acc[1]",
             descriptions=descriptions)
 
@@ -308,52 +303,23 @@ def test_a_path_without_toml_resolves_to_the_file(tmp_path, monkeypatch):
     assert runner.resolve(tmp_path / "mine") == tmp_path / "mine.toml"
 
 
-@pytest.mark.parametrize(
-    "change, key, parts",
-    [
-        (
-            ('target_azimuth = "20 deg"', 'target_azimuth = "3 kg"'),
-            "fmus.base.parameters.target_azimuth",
-            ["unknown unit 'kg' in '3 kg'; expected a quantity in rad (rad, deg, mrad, urad)"],
-        ),
-        (
-            ('target_azimuth = "20 deg"', 'target_azimuth = "3 mm"'),
-            "fmus.base.parameters.target_azimuth",
-            ["'3 mm' is in m; expected a quantity in rad (rad, deg, mrad, urad)"],
-        ),
-        (
-            ('measured = "plant.leg_length"', 'measured = "plant.leg_lenght"'),
-            "metrics[0].measured",
-            ["FMU instance 'plant' (hexapod_plant) has no variable 'leg_lenght'"],
-        ),
-        (
-            (
-                'reference = "base"',
-                'reference = "base"\n[[metrics]]\nkind = "tracking"\nmeasured = "plant.pose"\nreference = "base.axis"',
-            ),
-            "metrics[4]",
-            ["measured plant.pose has 6 values, reference base.axis 2"],
-        ),
-        (
-            ('measured = "plant.pose"', 'measured = "base.axis"'),
-            "metrics[1].measured",
-            ["base.axis has 2 values; a pose_tracking metric needs 6"],
-        ),
-        (
-            ('"base.axis", "base.axis_rate"', '"base.axes", "base.axis_rate"'),
-            "record.variables",
-            ["has no variable 'axes'"],
-        ),
-        (
-            (
-                'initial_pose = "@base.reference_pose"',
-                'initial_pose = "@base.reference_pose", "initial_pose[3]" = "0.1 m"',
-            ),
-            "fmus.plant.parameters.initial_pose[3]",  # the vector and one element: the later silently won
-            ["sets initial_pose[3], which fmus.plant.parameters.initial_pose sets too: set each value once"],
-        ),
-    ],
-)
+@pytest.mark.parametrize("change, key, parts", [
+    (('target_azimuth = "20 deg"', 'target_azimuth = "3 kg"'), "fmus.base.parameters.target_azimuth",
+     ["unknown unit 'kg' in '3 kg'; expected a quantity in rad (rad, deg, mrad, urad)"]),
+    (('target_azimuth = "20 deg"', 'target_azimuth = "3 mm"'), "fmus.base.parameters.target_azimuth",
+     ["'3 mm' is in m; expected a quantity in rad (rad, deg, mrad, urad)"]),
+    (('measured = "plant.leg_length"', 'measured = "plant.leg_lenght"'), "metrics[0].measured",
+     ["FMU instance 'plant' (hexapod_plant) has no variable 'leg_lenght'"]),
+    (('reference = "base"', 'reference = "base"\n[[metrics]]\nkind = "tracking"\nmeasured = "plant.pose"\n'
+      'reference = "base.axis"'), "metrics[4]", ["measured plant.pose has 6 values, reference base.axis 2"]),
+    (('measured = "plant.pose"', 'measured = "base.axis"'), "metrics[1].measured",
+     ["base.axis has 2 values; a pose_tracking metric needs 6"]),
+    (('"base.axis", "base.axis_rate"', '"base.axes", "base.axis_rate"'), "record.variables",
+     ["has no variable 'axes'"]),
+    (('initial_pose = "@base.reference_pose"', 'initial_pose = "@base.reference_pose", "initial_pose[3]" = "0.1 m"'),
+     "fmus.plant.parameters.initial_pose[3]",       # the vector and one element: the later silently won
+     ["sets initial_pose[3], which fmus.plant.parameters.initial_pose sets too: set each value once"]),
+])
 def test_unit_and_variable_mistakes_name_what_was_expected(descriptions, change, key, parts):
     refused(edited(SLEW, change), key, *parts, descriptions=descriptions)
 
@@ -387,15 +353,10 @@ def test_a_run_failing_mid_way_is_one_line_and_the_sweep_and_report_go_on(tmp_pa
     within it for the 8 s). The CLI says so in one line, the other sweep value still runs,
     and the report and metrics.json mark the failed run with its partial results."""
     path = tmp_path / "step16.toml"
-    path.write_text(
-        edited(
-            SLEW,
-            ('step = "1 ms"', 'step = "16 ms"'),
-            ('interval = "10 ms"', 'interval = "16 ms"'),
-            ('"5 s"\nmeasured = "plant.leg_length"', '"1 s"\nmeasured = "plant.leg_length"'),
-            ('values = ["none", "fixed_base", "moving_base"]', 'values = ["fixed_base", "moving_base"]'),
-        )
-    )
+    path.write_text(edited(SLEW, ('step = "1 ms"', 'step = "16 ms"'), ('interval = "10 ms"', 'interval = "16 ms"'),
+                           ('"5 s"\nmeasured = "plant.leg_length"', '"1 s"\nmeasured = "plant.leg_length"'),
+                           ('values = ["none", "fixed_base", "moving_base"]',
+                            'values = ["fixed_base", "moving_base"]')))
     status, out, err = cli(tmp_path, path, "--ci", "--allow-unstable")   # beyond the predicted limit, on purpose
     assert status == 1
     line, = err.strip().splitlines()
@@ -461,17 +422,12 @@ def test_linear_extrapolation_against_a_ramp(descriptions, fmus, tmp_path):
     180 deg - azimuth) is a ramp at -0.5 deg/s. Jacobi holds the input one step (controller input at t_k+1 = output at
     t_k); linear extrapolation adds half a step of the ramp, +0.5 h rate (the ramp's mean
     over the coming step); Gauss-Seidel, base stepped first, sees t_k+1 itself."""
-    text = edited(
-        SLEW,
-        ('start_elevation = "30 deg"', 'start_elevation = "45 deg"'),
-        ('start_delay = "5 s"', 'start_delay = "0 s", az_rate_max = "0.5 deg/s", az_acc_max = "0.25 deg/s2"'),
-        ('stop_time = "60 s"', 'stop_time = "3 s"'),
-        ('interval = "10 ms"', 'interval = "1 ms"'),
-        ('"base.axis_rate", "plant.pose"', '"base.axis_rate", "base.base_pose", "controller.base_pose", "plant.pose"'),
-        ('from = "5 s"', 'from = "1 s"'),
-        ('from = "5 s"', 'from = "1 s"'),
-        ('from = "5 s"', 'from = "1 s"'),
-    )
+    text = edited(SLEW, ('start_elevation = "30 deg"', 'start_elevation = "45 deg"'),
+                  ('start_delay = "5 s"', 'start_delay = "0 s", az_rate_max = "0.5 deg/s", az_acc_max = "0.25 deg/s2"'),
+                  ('stop_time = "60 s"', 'stop_time = "3 s"'), ('interval = "10 ms"', 'interval = "1 ms"'),
+                  ('"base.axis_rate", "plant.pose"',
+                   '"base.axis_rate", "base.base_pose", "controller.base_pose", "plant.pose"'),
+                  ('from = "5 s"', 'from = "1 s"'), ('from = "5 s"', 'from = "1 s"'), ('from = "5 s"', 'from = "1 s"'))
     scenario = spec.parse(text, "ramp.toml")
     values = spec.bind(scenario, descriptions)
     paths = {inst: fmus[script] for inst, script in SCRIPTS.items()}
