@@ -2,9 +2,9 @@
 
 The physics exists once, in C: plant/c/*.c (hexapod, 3T mechanism, telescope, small
 linear solves) and controller/c/*.c (PID). The Python API calls them through the
-extension modules built here (movingbase.plant._kernel, movingbase.controller._kernel); the native FMUs compile
-the same files into their binaries (fmu_src/native). scenarios/c/cosim.c is the
-co-simulation master's stepping loop (movingbase.scenarios._cosim, called by scenarios/master.py).
+extension modules built here (plant._kernel, controller._kernel); the native FMUs compile
+the same files into their binaries (fmu_src/native). scenarios/cosim/c/cosim.c is the
+co-simulation master's stepping loop (scenarios.cosim._cosim, called by scenarios/cosim/master.py).
 
 Every header of a folder is declared to cffi, minus its preprocessor lines, so a header
 holds only plain C declarations (functions, enums, structs without macros in them).
@@ -39,7 +39,7 @@ def builder(module, folders):
     return ffi
 
 
-plant_ffi = builder("movingbase.plant._kernel", ["plant/c"])
-controller_ffi = builder("movingbase.controller._kernel", ["controller/c"])
-scenarios_ffi = builder("movingbase.scenarios._cosim", ["scenarios/c"])
+plant_ffi = builder("plant._kernel", ["plant/c"])
+controller_ffi = builder("controller._kernel", ["controller/c"])
+scenarios_ffi = builder("scenarios.cosim._cosim", ["scenarios/cosim/c"])
 

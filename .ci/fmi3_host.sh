@@ -2,7 +2,7 @@
 # Optional, not in .ci/run: the FMI 3.0 FMUs under a third FMI 3.0 host (ecos, the second,
 # runs in the default suite): fmi-sim, the command-line simulator of the pure-Rust FMI
 # importer rust-fmi, built here from crates.io with cargo (pinned version, its own
-# Cargo.lock), then tests/test_fmi3_host.py with fmi-sim required, which runs every native
+# Cargo.lock), then tests/hosts/test_fmi3_hosts.py with fmi-sim required, which runs every native
 # FMI 3.0 FMU under it and compares with fmpy. The build takes ~25 min on two cores the
 # first time; FMI_SIM_ROOT keeps it (default ~/.cache/movingbase/fmi-sim-<version>).
 set -euo pipefail
@@ -29,4 +29,4 @@ fi
 if [ ! -x .venv/bin/python ]; then
     python3 -m venv .venv && .venv/bin/pip install -q -e '.[dev]'
 fi
-MB_FMI_SIM="$ROOT/bin/fmi-sim" MB_REQUIRE_FMI3_HOST=1 .venv/bin/python -m pytest -q tests/test_fmi3_host.py
+MB_FMI_SIM="$ROOT/bin/fmi-sim" MB_REQUIRE_FMI3_HOST=1 .venv/bin/python -m pytest -q tests/hosts/test_fmi3_hosts.py

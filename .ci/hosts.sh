@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # CI, before the test suite: what the other masters need (fmpy.ssp, libcosim, ecos). ecos
 # (pip ecospy: dev extra, pinned in constraints.txt) loads only with Debian's libtbb12;
-# without it tests/test_ecos.py (ecos as a third SSP master) and tests/test_fmi3_host.py
+# without it tests/hosts/test_ecos.py (ecos as a third SSP master) and tests/hosts/test_fmi3_hosts.py
 # (ecos as the second FMI 3.0 host) skip, so it is installed here and ecos must load.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -4,8 +4,8 @@
 # own sources/ (what an importer compiles: FMI 2.0, every sources/*.c; FMI 3.0, the files,
 # include directories and libraries its sources/buildDescription.xml lists) with
 # -fsanitize=address,undefined -fsanitize=float-cast-overflow, and the misuse harness
-# (tests/test_fmu_misuse.py, its native cases: misuse.c on the FMI 2.0 builds, misuse3.c on
-# the FMI 3.0 ones), then the random call sequences of tests/test_fmu_fuzz.py (fuzz.c), run
+# (tests/hosts/test_c_host_misuse.py, its native cases: misuse.c on the FMI 2.0 builds, misuse3.c on
+# the FMI 3.0 ones), then the random call sequences of tests/hosts/test_c_host_fuzz.py (fuzz.c), run
 # on those builds with hosts built with the same sanitizers. Any
 # report fails the run (-fno-sanitize-recover=all).
 #
@@ -26,7 +26,8 @@ import pathlib
 import sys
 import zipfile
 
-from movingbase.fmu_src import builder, native_build
+from fmu_src import native_build
+from fmu_src import python_build as builder
 
 out = pathlib.Path(sys.argv[1])
 python = builder.ensure_built(builder.available(), out / "python")
@@ -76,7 +77,7 @@ printf '%s\0' "$WORK"/fmus3/*/ | xargs -0 -n 1 -P "$(nproc)" bash -c 'build3 "$0
 
 export MOVINGBASE_MISUSE_FMUS="$WORK/fmus" MOVINGBASE_MISUSE_FMUS3="$WORK/fmus3" MOVINGBASE_HOST_CFLAGS="$SAN"
 export ASAN_OPTIONS="detect_leaks=1:halt_on_error=1" UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
-"$PY" -m pytest -q tests/test_fmu_misuse.py -k "not pythonfmu" -m "slow or not slow" -p no:cacheprovider
-# random call sequences (tests/c_host/fuzz.c) on the same builds, FMI 2.0 and FMI 3.0, the
+"$PY" -m pytest -q tests/hosts/test_c_host_misuse.py -k "not pythonfmu" -m "slow or not slow" -p no:cacheprovider
+# random call sequences (tests/hosts/c_host/fuzz.c) on the same builds, FMI 2.0 and FMI 3.0, the
 # slow seeds too: 64 runs of 5,000 calls and 480 of 10,000, 1 min 44 s (the whole script 4 min 11 s)
-MOVINGBASE_FUZZ_CALLS=5000 "$PY" -m pytest -q tests/test_fmu_fuzz.py -m "slow or not slow" -p no:cacheprovider
+MOVINGBASE_FUZZ_CALLS=5000 "$PY" -m pytest -q tests/hosts/test_c_host_fuzz.py -m "slow or not slow" -p no:cacheprovider

@@ -1,6 +1,6 @@
 """Campaign engine speed, side by side in one run: N independent slews (the sky-coverage
 campaign's runs: telescope_slew, native FMUs, 30 s) run sequentially in this process
-(scenarios.master.run, the reference), then through scenarios.engine on a LocalCluster
+(scenarios.single.run, the reference), then through scenarios.engine on a LocalCluster
 of 1 and 2 worker processes.
 
 The machine is shared, so wall times measure its free CPU as much as the engine. The
@@ -26,9 +26,10 @@ import time
 
 import numpy as np
 
-from movingbase.scenarios import campaign, engine, master, metrics, spec
-from movingbase.scenarios.fmi import unpack
-from movingbase.scenarios.runner import SHIPPED, fmu_paths
+from scenarios import spec
+from scenarios.cosim.fmi import unpack
+from scenarios.runs import campaign, engine, metrics, single
+from scenarios.runs.runner import SHIPPED, fmu_paths
 
 
 def _jobs(n, stop, offset=0.0):
@@ -85,10 +86,10 @@ def main(argv=None):
     print(f"{args.runs} runs of {args.stop:g} s simulated ({int(args.stop / scenario.step)} macro steps each), "
           f"load {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
 
-    master.run(scenario, paths, jobs[0].parameters, None, "warm", [metrics.make(m) for m in scenario.metrics])
+    single.run(scenario, paths, jobs[0].parameters, None, "warm", [metrics.make(m) for m in scenario.metrics])
     began, cpu = time.perf_counter(), time.process_time()
     for job in jobs:
-        master.run(scenario, paths, job.parameters, None, "seq", [metrics.make(m) for m in scenario.metrics])
+        single.run(scenario, paths, job.parameters, None, "seq", [metrics.make(m) for m in scenario.metrics])
     sequential, seq_cpu = time.perf_counter() - began, (time.process_time() - cpu) / args.runs
     print(f"  sequential in this process: {sequential:.2f} s, {sequential / args.runs:.3f} s per run, "
           f"{seq_cpu:.3f} s CPU per run")
@@ -108,10 +109,10 @@ def main(argv=None):
                   f"({sequential / wall:.2f}x sequential, {walls[1] / wall:.2f}x 1 worker: parallel efficiency "
                   f"{100 * walls[1] / wall / workers:.0f} % by wall time)")
             print(f"    CPU per run: {per_run[workers]:.3f} s = {per_run[workers] / seq_cpu:.3f}x the sequential run's "
-                  f"({seq_cpu:.3f} s); of it master.run on the worker {runs_cpu:.3f} s "
+                  f"({seq_cpu:.3f} s); of it single.run on the worker {runs_cpu:.3f} s "
                   f"({runs_cpu / seq_cpu:.3f}x sequential: the machine's cores shared), the engine's own "
                   f"{own * 1e3:.1f} ms (client {client / args.runs * 1e3:.1f} ms: scheduler, transfer, files; "
-                  f"workers beyond master.run {(worker_cpu / args.runs - runs_cpu) * 1e3:.1f} ms)")
+                  f"workers beyond single.run {(worker_cpu / args.runs - runs_cpu) * 1e3:.1f} ms)")
 
     print("wall time against the number of runs (2 workers):")
     with tempfile.TemporaryDirectory() as tmp, engine.Engine(jobs=args.max_workers) as eng:

@@ -3,10 +3,10 @@ side in one run (repeats interleave the two, median; machine load hits both alik
 is taken as the median of the pairs' ratios, each pair run back to back).
 
 A scene's runs ([ci] overrides, every sweep value) as the master steps them: CPU time of
-the stepping thread per macro step of master.run (stepping in C, recording, metrics;
+the stepping thread per macro step of single.run (stepping in C, recording, metrics;
 Run.cpu_time: wall time on the shared machine measures its load), every instance FMI 3
 against every instance FMI 2. The FMI 3 instances are stepped by the C loop's direct
-fmi3DoStep/fmi3GetFloat64/fmi3SetFloat64 calls (scenarios/c/cosim.c).
+fmi3DoStep/fmi3GetFloat64/fmi3SetFloat64 calls (scenarios/cosim/c/cosim.c).
 
     python benchmarks/bench_fmi3.py [scenario] [--repeats N]
 """
@@ -15,7 +15,8 @@ import os
 import statistics
 import tempfile
 
-from movingbase.scenarios import master, metrics, runner, spec
+from scenarios import spec
+from scenarios.runs import metrics, runner, single
 
 
 def scene_us(scenario, paths, descriptions, values, outdir):
@@ -26,7 +27,7 @@ def scene_us(scenario, paths, descriptions, values, outdir):
         if item is not None:
             inst, name, value = spec.sweep_value(scenario, descriptions, item)
             bound[inst][name] = value
-        run = master.run(scenario, paths, bound, outdir, "bench", [metrics.make(m) for m in scenario.metrics])
+        run = single.run(scenario, paths, bound, outdir, "bench", [metrics.make(m) for m in scenario.metrics])
         cpu, steps = cpu + run.cpu_time, steps + run.steps
     return cpu / steps * 1e6
 
@@ -50,7 +51,8 @@ def main(argv=None):
           f"{scenario.master}, every sweep value), stepping CPU time per macro step, median of {args.repeats}:")
     ratios = [t3 / t2 for t2, t3 in zip(times[2], times[3])]   # each pair back to back: the load hits both alike
     print(f"  FMI 2.0 FMUs {two:.2f} us, FMI 3.0 FMUs {three:.2f} us -> FMI 3 / FMI 2 = {three / two:.3f}; median of "
-          f"the pairs' ratios {statistics.median(ratios):.3f} (pairs {min(ratios):.3f}..{max(ratios):.3f}; spread FMI 2 "
+          f"the pairs' ratios {statistics.median(ratios):.3f} (pairs {min(ratios):.3f}..{max(ratios):.3f}; spread FMI "
+          "2 "
           f"{min(times[2]):.2f}..{max(times[2]):.2f}, FMI 3 {min(times[3]):.2f}..{max(times[3]):.2f}; load "
           f"{os.getloadavg()[0]:.1f})")
 

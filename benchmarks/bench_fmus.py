@@ -12,10 +12,10 @@ import time
 import numpy as np
 from pythonfmu.builder import FmuBuilder
 
-from movingbase.fmu_src import builder
-from movingbase.plant import mechanism3t as m3t
-from movingbase.plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
-from movingbase.scenarios.fmi import Instance, RealPort
+from fmu_src import python_build as builder
+from plant.hexapod.model import HOME_POSE, StewartParams, inverse_dynamics
+from plant.mechanism3t import model as m3t
+from scenarios.cosim.fmi import Instance, RealPort
 
 HERE = pathlib.Path(__file__).resolve().parent
 STEPS, H = 2000, 1e-3
@@ -59,7 +59,7 @@ def main():
                           + vector("reference_pose") + vector("reference_rate") + vector("reference_acc")),
         "leg_controller_fmu": ({}, vector("leg_length") + vector("leg_rate"),
                                np.r_[StewartParams.paper().home_lengths, np.zeros(6)], vector("leg_force")),
-        "mechanism3t_fmu": ({}, vector("slider_force", 3), slider_static, vector("slider_position", 3)),
+        "mechanism3t_plant_fmu": ({}, vector("slider_force", 3), slider_static, vector("slider_position", 3)),
         "slider_controller_fmu": ({}, vector("slider_position", 3) + vector("slider_rate", 3),
                                   np.r_[rho, np.zeros(3)], vector("slider_force", 3)),
         "leg_sensor_fmu": ({"resolution": 1e-7, "noise": 2e-8, "rate_cutoff": 200.0}, vector("leg_length"),
@@ -73,7 +73,7 @@ def main():
         port_in = (RealPort(inst, ins), values) if ins else None
         if port_in:
             port_in[0].write(values)    # hold the platform at rest
-        steps = 200 if name == "mechanism3t_fmu" else STEPS   # open-loop unstable: short runs
+        steps = 200 if name == "mechanism3t_plant_fmu" else STEPS   # open-loop unstable: short runs
         bare = time_steps(inst, steps=steps)
         io = time_steps(inst, port_in, RealPort(inst, outs), steps=steps)
         print(f"{name:28s} {bare:12.1f} {bare / floor_us:8.1f} {io:14.1f} {io / floor_us:8.1f}")

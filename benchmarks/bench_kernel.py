@@ -33,8 +33,8 @@ import tempfile
 
 import numpy as np
 
-from movingbase.fmu_src.native_build import CFLAGS
-from movingbase.plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
+from fmu_src.native_build import CFLAGS
+from plant.hexapod.model import HOME_POSE, StewartParams, inverse_dynamics
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 KERNEL_FILES = ("hexapod.c", "hexapod.h", "linalg.c", "linalg.h")
@@ -149,7 +149,8 @@ def main():
                   f"kernel = {ratio:.2f} x floor")
         if args.against:   # the ratio within each round, where both ran under the same load
             ratios = [a / b for a, b in zip(times["this tree"], times[args.against])]
-            print(f"this tree / {args.against}: {statistics.median(ratios):.3f} (median of the ratios of {args.repeats} "
+            print(f"this tree / {args.against}: {statistics.median(ratios):.3f} (median of the ratios of "
+                  f"{args.repeats} "
                   f"rounds of {STEPS} RK4 steps each; fastest runs: "
                   f"{min(times['this tree']) / min(times[args.against]):.3f})")
 

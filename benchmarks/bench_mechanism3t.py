@@ -16,15 +16,16 @@ import timeit
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
-from movingbase.plant import mechanism3t as m3t   # noqa: E402
-from movingbase.plant import mechanism3t_kernel as kernel   # noqa: E402
-from movingbase.plant._kernel import ffi, lib   # noqa: E402
+from plant._kernel import ffi, lib  # noqa: E402
+from plant.mechanism3t import kernel  # noqa: E402
+from plant.mechanism3t import model as m3t  # noqa: E402
 
 
 def calls(k, P, pa):
     """name -> zero-argument call of kernel module k at a state near the paper's."""
     rho = np.array(m3t.PAPER_REFERENCE_RHO_MM) * m3t.MM + 0.004
-    rho_dot, rho_ddot, forces = np.array([0.01, -0.02, 0.03]), np.array([0.1, 0.2, -0.3]), np.array([170.0, 40.0, -50.0])
+    rho_dot, rho_ddot, forces = np.array([0.01, -0.02, 0.03]), np.array([0.1, 0.2, -0.3]), np.array([170.0, 40.0,
+                                                                                                     -50.0])
     x = np.r_[rho, rho_dot]
     M, bias, p, out = np.empty((3, 3)), np.empty(3), np.empty(3), np.empty(3)
     return {
@@ -58,7 +59,8 @@ def bare_c(pa):
 
 def slave_steps(k):
     """name -> zero-argument call of one 1 ms step() of the slaves of fmu_src, using kernel k."""
-    from movingbase.fmu_src import mechanism3t_fmu, slider_controller_fmu
+    from fmu_src import mechanism3t_plant_fmu as mechanism3t_fmu
+    from fmu_src import slider_controller_fmu
     mechanism3t_fmu.kernel = slider_controller_fmu.kernel = k
     plant, controller = mechanism3t_fmu.Mechanism3TPlant(instance_name="plant"), \
         slider_controller_fmu.SliderController(instance_name="controller")
@@ -90,8 +92,9 @@ def main():
     pa = kernel.pack(P)
     old = None
     try:
-        import numba   # noqa: F401
-        from tests.test_mechanism3t_kernel_c import load_numba_kernel
+        import numba  # noqa: F401
+
+        from tests.golden.make_numba_golden import load_numba_kernel
         with tempfile.TemporaryDirectory() as tmp:
             start = time.perf_counter()
             old = load_numba_kernel(tmp)

@@ -3,7 +3,7 @@
 1. HexapodPlant doStep under fmpy (RK4, 1 ms, leg forces holding the platform at rest,
    fixed base): native vs pythonfmu, the ratio (the goal: >= 20x), and the empty
    native doStep (what FMI and ctypes cost without the kernel).
-   The same doStep in a host that is not Python (tests/c_host/fmi2_host.c timing its own
+   The same doStep in a host that is not Python (tests/hosts/c_host/fmi2_host.c timing its own
    doStep loop): the native FMU alone in the process, the pythonfmu one with libpython
    preloaded, as a C tool must run it.
 2. The paper manoeuvre (telescope, plant, controller; 1 ms; first sweep value; metrics
@@ -11,11 +11,11 @@
    (asks >= 5x), and as a multiple of the floor: three empty native FMUs (the same
    variables, initialization and doStep doing nothing, fmu_src/native_build.py
    empty=True) doing the same exchange through the same master. The master steps in C
-   (scenarios/c/cosim.c); Python records every 10 ms and feeds the metrics. Also shown:
+   (scenarios/cosim/c/cosim.c); Python records every 10 ms and feeds the metrics. Also shown:
    the same with no recording and no metrics (the stepping alone).
 3. The same paper manoeuvre stepped by the master's C loop alone (all steps in one call)
    against the monolithic C loop of the same kernels without FMI (benchmarks/monolithic.c,
-   the same leg lengths bit for bit: tests/test_monolithic.py): what FMI costs.
+   the same leg lengths bit for bit: tests/scenarios/cosim/test_monolithic.py): what FMI costs.
 4. The same HexapodPlant doStep as an FMI 3.0 FMU (fmu_src/native/fmi3_layer.c over the
    FMI 2.0 layer) against the FMI 2.0 one, timed in one C process (fmi_step_timer.c:
    through ctypes, fmi3DoStep's eight arguments cost Python more than the FMU's work),
@@ -36,23 +36,23 @@ import os
 import pathlib
 import statistics
 import subprocess
+import sys
 import tempfile
 import time
 import zipfile
 
-import sys
-
 import numpy as np
 from fmpy import read_model_description
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))   # the checkout: tests.c_host
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))   # the checkout: tests.hosts.c_host
 from benchmarks.monolithic import Pair  # noqa: E402
-from tests.c_host import HostFmu  # noqa: E402
-
-from movingbase.fmu_src import builder, native_build
-from movingbase.plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
-from movingbase.scenarios import master, metrics, runner, spec
-from movingbase.scenarios.fmi import Instance, RealPort
+from fmu_src import catalogue, native_build
+from fmu_src import python_build as builder
+from plant.hexapod.model import HOME_POSE, StewartParams, inverse_dynamics
+from scenarios import spec
+from scenarios.cosim.fmi import Instance, RealPort
+from scenarios.runs import metrics, runner, single
+from tests.hosts.c_host import HostFmu  # noqa: E402
 
 STEPS, H = 2000, 1e-3
 
@@ -100,7 +100,8 @@ def fmi3_vs_fmi2_us(fmu2, fmu3, folder, steps, repeats):
     vr = {v.name: v.valueReference for v in md.modelVariables}
     forces = ",".join(repr(float(f)) for f in rest_forces())
     run = subprocess.run([str(timer), *map(str, libraries), md.guid, str(steps), str(repeats),
-                          f"i:{vr['moving_base']}:0", f"r:{vr['leg_force[1]']}:{forces}"], capture_output=True, text=True)
+                          f"i:{vr['moving_base']}:0", f"r:{vr['leg_force[1]']}:{forces}"], capture_output=True,
+                          text=True)
     if run.returncode:
         raise RuntimeError(f"fmi_step_timer failed on {fmu2.name}:\n{run.stderr[-2000:]}")
     times = {"fmi2": [], "fmi3": []}
@@ -135,7 +136,7 @@ def bound(py, kernel, floor, host, ratio=20.0):
 
 def manoeuvre_us(scenario, paths, values, outdir, label):
     """µs of wall time per macro step of one master run."""
-    run = master.run(scenario, paths, values, outdir, label, [metrics.make(m) for m in scenario.metrics])
+    run = single.run(scenario, paths, values, outdir, label, [metrics.make(m) for m in scenario.metrics])
     return run.wall_time / run.steps * 1e6
 
 
@@ -216,7 +217,7 @@ def main(argv=None):
         for impl, paths in (("python", python), ("native", native)):
             host[impl].append(c_host_step_us(paths["hexapod_plant_fmu"], out / f"host-{impl}{r}", 5 * STEPS))
     py, nat = (statistics.median(host[k]) for k in ("python", "native"))
-    print(f"the same doStep in a C host (tests/c_host/fmi2_host.c): pythonfmu {py:.1f} us, native {nat:.2f} us "
+    print(f"the same doStep in a C host (tests/hosts/c_host/fmi2_host.c): pythonfmu {py:.1f} us, native {nat:.2f} us "
           f"-> {py / nat:.1f}x")
     print("  " + bound(py, nat, 0.0, "the C host"))
 
@@ -224,7 +225,7 @@ def main(argv=None):
     if scenario.sweep:
         inst, name, value = spec.sweep_value(scenario, descriptions, scenario.sweep[1][0])
         values[inst][name] = value
-    by_impl = {impl: {i: paths[spec.FMU_SCRIPTS[f]] for i, f in scenario.fmus.items()}
+    by_impl = {impl: {i: paths[catalogue.BY_KEY[f].script] for i, f in scenario.fmus.items()}
                for impl, paths in (("python", python), ("native", native), ("empty", empty))}
     bare = dataclasses.replace(scenario, metrics=[], record_interval=scenario.stop_time - scenario.start_time)
     macro = {(k, v): [] for v in ("scenario", "bare") for k in by_impl}

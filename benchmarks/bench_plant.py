@@ -13,7 +13,9 @@ from pathlib import Path
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 import numpy as np
 
-from movingbase.plant import hexapod_ode, kane, stewart
+from plant.hexapod import kernel as kane
+from plant.hexapod import model as stewart
+from plant.hexapod import ode as hexapod_ode
 
 ROOT = Path(__file__).resolve().parents[1]
 REVISION = "73017ff"
@@ -123,7 +125,8 @@ def cases(rng):
         ("kernel: ID, batched 1e5, moving base [states/s]", 1, n, batched_kernel),
         ("kernel: advance_fixed, 1 ms RK4, moving base [us]", 5000, None, advance_kernel),
         ("stewart.inverse_dynamics, batched 1e5 [states/s]", 1, n, api("inverse_dynamics", pose, rate, acc, *base)),
-        ("stewart.inverse_dynamics, one state [us]", 3000, None, api("inverse_dynamics", pose[0], rate[0], acc[0], *b1)),
+        ("stewart.inverse_dynamics, one state [us]", 3000, None, api("inverse_dynamics", pose[0], rate[0], acc[0],
+                                                                     *b1)),
         ("stewart.forward_dynamics, one state [us]", 3000, None, api("forward_dynamics", pose[0], rate[0], z6, *b1)),
         ("StateInverseDynamics, new (6,) views each call [us]", 5000, None, controller),
         ("StateInverseDynamics (controller FMU: kept rows) [us]", 5000, None, controller_rows),

@@ -16,9 +16,11 @@ import argparse
 import statistics
 import tempfile
 
-from bench_native import plant_step_us   # this folder: the scripts run from it
-from movingbase.fmu_src import builder, native_build
-from movingbase.scenarios import runner
+from bench_native import plant_step_us  # this folder: the scripts run from it
+
+from fmu_src import native_build
+from fmu_src import python_build as builder
+from scenarios.runs import runner
 
 STEPS = 3000
 CASES = {   # label: plant parameters

@@ -1,5 +1,5 @@
 """Wall time and real-time factor of every shipped scenario, the master's own cost
-per macro step (its stepping loop is C, scenarios/c/cosim.c) against a Python loop making
+per macro step (its stepping loop is C, scenarios/cosim/c/cosim.c) against a Python loop making
 the same FMI calls and against fmpy's list-based calls, a recorded run against the bare
 stepping (the goal: <= 1.25x, docs/speed.md), the checks before a run (the stability
 prediction along the motion, scenarios.flags) against the run, and the whole CLI process
@@ -19,7 +19,8 @@ import sys
 import tempfile
 import time
 
-from movingbase.scenarios import master, metrics, runner
+from scenarios.cosim import master
+from scenarios.runs import metrics, runner, single
 
 
 def scenario_table(ci):
@@ -33,7 +34,7 @@ def scenario_table(ci):
 
 
 def _instances(scenario, paths, values):
-    """Instances initialised as master.run does, with their exchange."""
+    """Instances initialised as single.run does, with their exchange."""
     instances = {}
     exchange, _ = master.start(scenario, paths, values, instances)
     exchange.read()
@@ -41,14 +42,14 @@ def _instances(scenario, paths, values):
 
 
 def master_overhead(steps=4000):
-    """Paper manoeuvre, moving-base feedforward: master.run against the same FMUs driven by
+    """Paper manoeuvre, moving-base feedforward: single.run against the same FMUs driven by
     a Python loop over the same ctypes calls (no extrapolation) and by fmpy's list-based calls."""
     scenario, paths, _, values = runner.prepare(runner.resolve("paper_manoeuvre"), ci=True)
     values["controller"]["feedforward"] = 2
     scenario = dataclasses.replace(scenario, metrics=[], stop_time=steps * scenario.step,
                                    record_interval=steps * scenario.step)
     out = pathlib.Path(tempfile.mkdtemp())
-    run = master.run(scenario, paths, values, out, "bench", [])
+    run = single.run(scenario, paths, values, out, "bench", [])
     per_master = run.wall_time / run.steps * 1e6
     h = scenario.step
 
@@ -83,8 +84,9 @@ def master_overhead(steps=4000):
     for i in instances.values():
         i.terminate()
     print(f"\npaper manoeuvre, 3 FMUs at 1 ms ({steps} steps):")
-    print(f"  master.run (C stepping loop)    {per_master:7.1f} us/step  (real-time factor {1e3 / per_master:.1f})")
-    print(f"  Python loop, same ctypes calls  {bare:7.1f} us/step  -> {bare - per_master:.1f} us/step more than master.run")
+    print(f"  single.run (C stepping loop)    {per_master:7.1f} us/step  (real-time factor {1e3 / per_master:.1f})")
+    print(f"  Python loop, same ctypes calls  {bare:7.1f} us/step  -> "
+        f"{bare - per_master:.1f} us/step more than single.run")
     print(f"  Python loop, fmpy list calls    {fmpy_lists:7.1f} us/step  ({fmpy_lists / bare:.2f}x the ctypes path)")
 
 
@@ -105,7 +107,7 @@ def recording_cost(repeats=15):
     out = pathlib.Path(tempfile.mkdtemp())
     for _ in range(repeats):
         for kind, variant in kinds.items():
-            run = master.run(variant, paths, values, None, "bench", [metrics.make(m) for m in variant.metrics])
+            run = single.run(variant, paths, values, None, "bench", [metrics.make(m) for m in variant.metrics])
             best[kind], cpu[kind] = min(best[kind], run.wall_time), min(cpu[kind], run.cpu_time)
             began = time.perf_counter()
             run.records.save(out / "bench.npz")
@@ -148,8 +150,10 @@ def check_cost(ci, names=("telescope_slew", "telescope_slew_realistic", "keyhole
 _PHASED = r"""
 import atexit, sys, time
 began = time.perf_counter()
-import movingbase.__main__ as program
-from movingbase.scenarios import master, records, report, runner
+import movingbase.cli as program
+from scenarios.cosim import master, records
+from scenarios.output import report
+from scenarios.runs import runner
 spent = {"imports": time.perf_counter() - began}
 def clock(owner, name, phase):
     inner = getattr(owner, name)
@@ -165,13 +169,13 @@ for owner, name, phase in ((runner, "prepare", "checks"), (runner, "pre_run_flag
                            (runner, "write_results", "results"), (report, "_error_chart", "charts"),
                            (report, "_summary_chart", "charts")):
     clock(owner, name, phase)
-run = master.run
+run = single.run
 steps = []
 def counted(*args, **kwargs):
     result = run(*args, **kwargs)
     steps.append(result.wall_time)
     return result
-runner.master.run = counted
+runner.single.run = counted
 def phases():
     spent["stepping"] = sum(steps)
     spent["inside"] = time.perf_counter() - began

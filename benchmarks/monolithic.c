@@ -1,10 +1,10 @@
 /* The monolithic loop of a telescope + HexapodPlant + LegController co-simulation: the
    kernels the native FMUs run (plant/c telescope and hexapod, controller/c pid), stepped
    in one C loop with no FMI in between. It makes the calls and floating-point operations
-   of the Jacobi master (scenarios/c/cosim.c, linear extrapolation optional) and of the
-   three model files (fmu_src/native/telescope_base.c, hexapod_plant.c, leg_controller.c)
+   of the Jacobi master (scenarios/cosim/c/cosim.c, linear extrapolation optional) and of the
+   three model files (fmu_src/native/telescope_fmu.c, hexapod_plant_fmu.c, leg_controller_fmu.c)
    in their order, so its leg lengths equal the co-simulation's bit for bit
-   (tests/test_monolithic.py): what is left between the two is the cost of FMI itself
+   (tests/scenarios/cosim/test_monolithic.py): what is left between the two is the cost of FMI itself
    (benchmarks/bench_native.py prints the ratio). Error messages and the controller's
    saturation warning are left out; the checks that stop a run are kept. */
 #include <math.h>
@@ -34,7 +34,7 @@ static void feed(double *to, const double *y, const double *y_prev, int from, in
     }
 }
 
-/* The telescope's 60-double row at t after a step of h, time formed as telescope_base.c
+/* The telescope's 60-double row at t after a step of h, time formed as telescope_fmu.c
    publish does; its six output vectors copied into y. */
 static int telescope(const mb_tel_params *p, const mb_tel_profile *prof, const int *rows, int block,
                      double *block_t, double *block_h, double t, double h, double *y)
@@ -53,7 +53,7 @@ static int telescope(const mb_tel_params *p, const mb_tel_profile *prof, const i
     return 0;
 }
 
-/* hexapod_plant.c advance: x over [t0, t0 + h]; leg lengths and rates into y. */
+/* hexapod_plant_fmu.c advance: x over [t0, t0 + h]; leg lengths and rates into y. */
 static int plant(const double *hex, const double *act, const double *bounds, double max_step, int rk4,
                  int base_mode, int legs, double singular, double *x, const double *inputs, double t0, double h,
                  double *y)
@@ -67,7 +67,7 @@ static int plant(const double *hex, const double *act, const double *bounds, dou
     return 0;
 }
 
-/* leg_controller.c update: the feedforward, and the PID with its integral on a step. */
+/* leg_controller_fmu.c update: the feedforward, and the PID with its integral on a step. */
 static int controller(const double *hex, const double *gains, int base_mode, int legs, int feedforward,
                       double singular, const double *in, int stepping, double h, double *integral, double *y)
 {
@@ -92,7 +92,7 @@ static int controller(const double *hex, const double *gains, int base_mode, int
     return 0;
 }
 
-/* Initialise as scenarios/master.py start does (telescope, plant, controller), then run
+/* Initialise as scenarios/cosim/master.py start does (telescope, plant, controller), then run
    `steps` macro steps of h from t = 0. Returns the macro steps completed (steps, or the
    one a check stopped at; -1 when initialization failed).
    hex (47)        base_joints (18), platform_joints (18), kernel data (MB_HEXAPOD_NDATA)

@@ -1,7 +1,7 @@
 """The monolithic C loop (benchmarks/monolithic.c) next to the co-simulation it mirrors.
 
 ``Pair(scenario, paths, values)`` starts the scenario's native FMUs as the master does
-(scenarios/master.py start), reads from the initialised instances every number the loop
+(scenarios/cosim/master.py start), reads from the initialised instances every number the loop
 needs (parameters, start values, the kernel constants of fmu_src/native_build.py), and
 then runs either side: ``cosim(steps)`` through the master's C stepping loop (the leg
 lengths after every step), ``monolithic(steps)`` through the C loop. Scenarios of a
@@ -16,14 +16,13 @@ import tempfile
 import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-from movingbase.controller.feedforward import FEEDFORWARD_MODES, model_fidelity
-from movingbase.fmu_src.native_build import CFLAGS
-from movingbase.fmu_src.telescope_fmu import BLOCK, PROFILES
-from movingbase.plant.integrators import INTEGRATORS
-from movingbase.plant.stewart import (FIDELITIES, HOME_POSE, S_BAND_POSE, SINGULAR_RATIO,
-                                      StewartParams, fidelity_mode)
-from movingbase.plant.telescope import TelescopeParams
-from movingbase.scenarios import master
+from controller.feedforward import FEEDFORWARD_MODES, model_fidelity
+from fmu_src.native_build import CFLAGS
+from fmu_src.telescope_fmu import BLOCK, PROFILES
+from plant.hexapod.model import FIDELITIES, HOME_POSE, S_BAND_POSE, SINGULAR_RATIO, StewartParams, fidelity_mode
+from plant.integrators import INTEGRATORS
+from plant.telescope.model import TelescopeParams
+from scenarios.cosim import master
 
 _LIB = None
 ROLES = {"telescope": "base", "hexapod_plant": "plant", "leg_controller": "controller"}
@@ -37,7 +36,8 @@ def library():
         folders = [ROOT / "plant" / "c", ROOT / "controller" / "c"]
         sources = [ROOT / "benchmarks" / "monolithic.c"] + [c for f in folders for c in sorted(f.glob("*.c"))]
         target = pathlib.Path(tempfile.mkdtemp()) / "libmonolithic.so"
-        cmd = [os.environ.get("CC", "cc"), *(f for f in CFLAGS if not f.startswith("-fvisibility")), *(f"-I{f}" for f in folders),
+        cmd = [os.environ.get("CC", "cc"), *(f for f in CFLAGS if not f.startswith("-fvisibility")),
+               *(f"-I{f}" for f in folders),
                *map(str, sources), "-o", str(target), "-lm"]
         run = subprocess.run(cmd, capture_output=True, text=True)
         if run.returncode:

@@ -34,12 +34,12 @@ circle; scenarios.flags takes it over the modes along a scenario's motion before
 """
 from dataclasses import dataclass, replace
 
-import numpy as np   # python-control (~1.3 s to import, with scipy) is imported in the functions that
-                     # use it: a run's step-limit check (step_limit) needs numpy only
+import numpy as np  # python-control (~1.3 s to import, with scipy) is imported in the functions that
 
-from movingbase.plant.stewart import HOME_POSE, dynamics_terms, forward_dynamics, inverse_dynamics, pose_jacobian
+from controller.pid import DEFAULT_FORCE_LIMIT, PIDGains
 
-from .pid import DEFAULT_FORCE_LIMIT, PIDGains
+# use it: a run's step-limit check (step_limit) needs numpy only
+from plant.hexapod.model import HOME_POSE, dynamics_terms, forward_dynamics, inverse_dynamics, pose_jacobian
 
 # Shipped design (see default_gains): crossover of the heaviest leg-space mode and its
 # phase margin, integral zero a factor 5 below crossover.
@@ -71,7 +71,7 @@ class Design:
     modal_masses: np.ndarray
     modal_phase_margin_deg: float
     modal_gain_margin_db: float
-    loop: "LoopModel" = None
+    loop: "LoopModel | None" = None
     modal_lower_gain_margin_db: float = float("nan")
 
 
@@ -145,7 +145,7 @@ class LoopModel:
     sampled at t_k, the rate a backward difference low-passed by a = 1 - exp(-2 pi
     ``rate_cutoff`` h), read out ``delay_steps`` samples late and one communication step
     later under Jacobi) instead of the plant's exact length and rate; ``extrapolate``: the
-    master's linear input extrapolation (scenarios/master.py, Jacobi: every input
+    master's linear input extrapolation (scenarios/cosim/master.py, Jacobi: every input
     u_k + (u_k - u_k-1) / 2, a lead of about half a step that doubles the gain at Nyquist);
     ``gauss_seidel``: the master steps the FMUs one after the other, so of the loop's
     connections only the one into the FMU that steps first is stale (its source has not

@@ -11,8 +11,13 @@ The mode says how much of the base motion the controller knows about:
 """
 import numpy as np
 
-from movingbase.plant.stewart import (StateInverseDynamics, inverse_dynamics, inverse_dynamics_terms, inverse_kinematics,
-                           pose_jacobian)
+from plant.hexapod.model import (
+    StateInverseDynamics,
+    inverse_dynamics,
+    inverse_dynamics_terms,
+    inverse_kinematics,
+    pose_jacobian,
+)
 
 FEEDFORWARD_MODES = ("none", "fixed_base", "moving_base")
 

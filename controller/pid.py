@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._kernel import ffi, lib
+from controller._kernel import ffi, lib
 
 DEFAULT_FORCE_LIMIT = 50e3  # N per leg (assumed, see module docstring)
 

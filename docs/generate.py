@@ -1,7 +1,7 @@
 """Write the generated reference pages of the documentation site, so they cannot drift
 from the code: the scenario-file reference from the checker's own rules
-(scenarios/spec.py KEYS and its constants, scenarios/units.py UNITS, the metric kinds of
-scenarios/metrics.py), the FMU reference from the FMUs' modelDescription.xml (built
+(scenarios/spec/__init__.py KEYS and its constants, scenarios/spec/units.py UNITS, the metric kinds of
+scenarios/runs/metrics.py), the FMU reference from the FMUs' modelDescription.xml (built
 first if missing or stale, read with fmpy), and the headline section of docs/headline.md
 from docs/headline.json, as `movingbase headline` writes it into the README, and the
 executed example notebooks as pages (docs/examples/). The reference pages are committed;
@@ -16,9 +16,13 @@ import sys
 
 from fmpy import read_model_description
 
-from movingbase.fmu_src.builder import ensure_built
-from movingbase.fmu_src.native_build import ensure_native
-from movingbase.scenarios import headline, metrics, spec, units
+from fmu_src import catalogue
+from fmu_src.native_build import ensure_native
+from fmu_src.python_build import ensure_built
+from scenarios import spec
+from scenarios.output import headline
+from scenarios.runs import metrics
+from scenarios.spec import units
 
 REFERENCE = pathlib.Path(__file__).resolve().parent / "reference"
 EXAMPLES = REFERENCE.parent / "examples"      # the example notebooks as pages (generated, not committed)
@@ -30,18 +34,18 @@ def _cell(text):
 
 
 def metric_kinds():
-    """kind -> what it computes, from the bullets of scenarios/metrics.py's docstring."""
+    """kind -> what it computes, from the bullets of scenarios/runs/metrics.py's docstring."""
     found = dict(re.findall(r"\* ``(\w+)``: (.*?)(?=\n\* |\n\n|\Z)", metrics.__doc__, re.S))
     missing = set(spec.METRIC_KINDS) - set(found)
     if missing:
-        raise SystemExit(f"scenarios/metrics.py's docstring does not describe the metric kinds {sorted(missing)}")
+        raise SystemExit(f"scenarios/runs/metrics.py's docstring does not describe the metric kinds {sorted(missing)}")
     return {kind: " ".join(found[kind].split()) for kind in spec.METRIC_KINDS}
 
 
 def scenario_reference():
     lines = ["# Scenario-file reference", "", GENERATED, "",
              "A scenario is a TOML file in UTF-8 (`scenarios/files/telescope_slew.toml` is a commented example). "
-             "This page is generated from the rules the checker applies (`scenarios/spec.py`), so every key, "
+             "This page is generated from the rules the checker applies (`scenarios/spec/__init__.py`), so every key, "
              "choice and default below is the one `movingbase run` enforces. Everything is checked before "
              "anything runs; an error names the file, the key and the problem "
              "([bad input](../bad-input.md)).", "",
@@ -63,8 +67,8 @@ def scenario_reference():
               "ranges: [FMU reference](fmus.md).", "",
               "| `fmu` | FMU (model name) | inputs that may stay unconnected |", "|---|---|---|"]
     names = _model_names()
-    for fmu in spec.FMU_SCRIPTS:
-        optional = ", ".join(f"`{n}`" for n in spec.OPTIONAL_INPUTS.get(fmu, ())) or "none"
+    for fmu in catalogue.KEYS:
+        optional = ", ".join(f"`{n}`" for n in catalogue.OPTIONAL_INPUTS.get(fmu, ())) or "none"
         lines.append(f"| `{fmu}` | [{names[fmu]}](fmus.md#{names[fmu].lower()}) | {optional} |")
     lines += ["", "## Units", "",
               'A quantity is a number (taken as SI) or a string `"<number> <unit>"`; it is converted to SI and '
@@ -81,7 +85,7 @@ _FMUS = {}
 def _fmus():
     """script -> (native FMU path, pythonfmu FMU path), built once."""
     if not _FMUS:
-        scripts = sorted(set(spec.FMU_SCRIPTS.values()))
+        scripts = sorted(catalogue.SCRIPTS)
         python, native = ensure_built(scripts), ensure_native(scripts)
         _FMUS.update({s: (native[s], python[s]) for s in scripts})
     return _FMUS
@@ -89,7 +93,7 @@ def _fmus():
 
 def _model_names():
     return {fmu: read_model_description(str(_fmus()[script][0])).modelName
-            for fmu, script in spec.FMU_SCRIPTS.items()}
+            for fmu, script in ((f.key, f.script) for f in catalogue.FMUS)}
 
 
 def _value(x):
@@ -130,10 +134,12 @@ def fmu_reference():
              "Read from each FMU's `modelDescription.xml` (co-simulation, built by `python build.py`; "
              "`movingbase.fmus()` gives the files). Every FMU comes three times with the same variables: native C "
              "as FMI 2.0 (`build/fmu/native/`, the default `implementation`) and as FMI 3.0 "
-             "(`build/fmu/native3/`, `fmi_version = 3`), and pythonfmu as FMI 2.0 (`build/fmu/`). A vector is the scalars `name[1]` ... `name[n]`: "
-             "one row `name[1..n]` when its elements differ only in their index, else a row each. min/max are what the scenario checker enforces "
+             "(`build/fmu/native3/`, `fmi_version = 3`), and pythonfmu as FMI 2.0 (`build/fmu/`). "
+        "A vector is the scalars `name[1]` ... `name[n]`: "
+             "one row `name[1..n]` when its elements differ only in their index, else a row each. "
+        "min/max are what the scenario checker enforces "
              "on parameter values.", ""]
-    for fmu, script in spec.FMU_SCRIPTS.items():
+    for fmu, script in ((f.key, f.script) for f in catalogue.FMUS):
         native, python = (read_model_description(str(p)) for p in _fmus()[script])
         if _signature(native) != _signature(python):
             raise SystemExit(f"{fmu}: the native and pythonfmu FMUs declare different variables")

@@ -37,7 +37,8 @@ def replacing(path, text=False, newline=None):
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".part")
     try:
         os.fchmod(fd, 0o666 & ~_umask())
-        with os.fdopen(fd, "w" if text else "wb", **({"encoding": "utf-8", "errors": "surrogateescape", "newline": newline} if text else {})) as f:
+        with os.fdopen(fd, "w" if text else "wb", **({"encoding": "utf-8", "errors": "surrogateescape",
+                                                      "newline": newline} if text else {})) as f:
             yield f
             f.flush()
             os.fsync(f.fileno())

@@ -1,6 +1,6 @@
 """FMU: what the controller's feedforward knows of the base motion.
 
-Between TelescopeBase (the actual motion: axis, axis_rate, base_* into axis, axis_rate,
+Between Telescope (the actual motion: axis, axis_rate, base_* into axis, axis_rate,
 true_base_*; FMI names are unique, so the true inputs carry the prefix) and the
 controller's base_pose/rate/acc inputs (from base_pose, base_rate, base_acc here):
 source 0, the antenna's axis encoders (quantised angles, differenced and filtered, through
@@ -11,11 +11,11 @@ FMU compiles. Default values are assumed, from comparable instruments (README).
 """
 import numpy as np
 
-from movingbase.fmu_src.operating_point import AXIS, BASE_POSE
-from movingbase.fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
-from movingbase.plant import telescope
-from movingbase.plant._kernel import ffi, lib
-from movingbase.plant.errors import InvalidInputError
+from fmu_src.operating_point import AXIS, BASE_POSE
+from fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
+from plant._kernel import ffi, lib
+from plant.errors import InvalidInputError
+from plant.telescope import model as telescope
 
 SOURCES = ("encoders", "imu")   # enum mb_bs_source
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
@@ -45,7 +45,7 @@ class BaseSensor(GuardedSlave):
             ("accel_bias", "m/s2", 100e-6 * 9.80665, "accelerometer constant bias on each axis (after gravity "
              "compensation). Assumed: 100 ug", (-1.0, 1.0)),
             ("lever_arm", "m", telescope.TelescopeParams.tianma().lever_arm,
-             "axis intersection to base along boresight (as TelescopeBase's; assumed)", (0.0, None)),
+             "axis intersection to base along boresight (as Telescope's; assumed)", (0.0, None)),
         ))
         self.truth = np.zeros(22)      # the inputs, INPUTS
         self.truth[0:2], self.truth[4:10] = AXIS, BASE_POSE   # start: the operating point, at rest
@@ -54,8 +54,8 @@ class BaseSensor(GuardedSlave):
         for name, start, size in INPUTS:
             units = units_of[name]
             axes = [f"actual astronomical azimuth{name[4:]}", f"actual elevation{name[4:]}"]   # "", "_rate"
-            desc = [a.replace("_", " ") + " (TelescopeBase)" for a in axes] if size == 2 else \
-                [f"actual {name[5:].replace('_', ' ')} {n} (TelescopeBase)" for n in POSE_NAMES]
+            desc = [a.replace("_", " ") + " (Telescope)" for a in axes] if size == 2 else \
+                [f"actual {name[5:].replace('_', ' ')} {n} (Telescope)" for n in POSE_NAMES]
             self.vector(name, size, INPUT, desc, units, values=self.truth[start:start + size])
         self.now = np.zeros(18)
         pose_desc = lambda prefix: [f"{prefix} {n}" for n in POSE_NAMES]

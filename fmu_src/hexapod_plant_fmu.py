@@ -19,12 +19,11 @@ fmpy.simulate_fmu) sees the platform stay put instead of falling out of its stro
 """
 import numpy as np
 
-from movingbase.fmu_src.operating_point import BASE_POSE, STATIC_LEG_FORCES
-from movingbase.fmu_src.slave import (INPUT, OUTPUT, PARAMETER, POSE_UNITS, POSITIVE_TIME, GuardedSlave, acc_units,
-                           rate_units)
-from movingbase.plant.hexapod_ode import Actuator, HexapodODE
-from movingbase.plant.integrators import INTEGRATORS
-from movingbase.plant.stewart import FIDELITIES, HOME_POSE, StewartParams
+from fmu_src.operating_point import BASE_POSE, STATIC_LEG_FORCES
+from fmu_src.slave import INPUT, OUTPUT, PARAMETER, POSE_UNITS, POSITIVE_TIME, GuardedSlave, acc_units, rate_units
+from plant.hexapod.model import FIDELITIES, HOME_POSE, StewartParams
+from plant.hexapod.ode import Actuator, HexapodODE
+from plant.integrators import INTEGRATORS
 
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 # half stroke: from 1 mm (less stops a run at the first mm of motion; no actuator has

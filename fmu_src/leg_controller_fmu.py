@@ -12,12 +12,12 @@ import pathlib
 import numpy as np
 from pythonfmu.enums import Fmi2Status
 
-from movingbase.controller.feedforward import FEEDFORWARD_MODES, Feedforward
-from movingbase.controller.pid import PIDGains, pid_update
-from movingbase.fmu_src.operating_point import BASE_POSE
-from movingbase.fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
-from movingbase.plant.errors import InvalidInputError
-from movingbase.plant.stewart import StewartParams
+from controller.feedforward import FEEDFORWARD_MODES, Feedforward
+from controller.pid import PIDGains, pid_update
+from fmu_src.operating_point import BASE_POSE
+from fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
+from plant.errors import InvalidInputError
+from plant.hexapod.model import StewartParams
 
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 DEFAULTS_FILE = "leg_controller_defaults.json"
@@ -26,7 +26,8 @@ INPUTS = ("reference_pose", "reference_rate", "reference_acc", "leg_length", "le
 
 
 class LegController(GuardedSlave):
-    description = "Hexapod leg controller: PID on leg length + inverse-dynamics feedforward (none / fixed-base / moving-base model)"
+    description = ("Hexapod leg controller: PID on leg length + inverse-dynamics feedforward "
+                   "(none / fixed-base / moving-base model)")
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -66,7 +67,8 @@ class LegController(GuardedSlave):
         saturated = bool(np.any(np.abs(self.forces) >= self.pid.force_limit))
         if saturated and not self.saturated:   # say so once per episode: an unstable loop saturates quietly
             self.log(f"leg forces saturated at +-{self.pid.force_limit:g} N at t={t + h:.6g} s "
-                     f"(legs {', '.join(str(i + 1) for i in np.flatnonzero(np.abs(self.forces) >= self.pid.force_limit))})",
+                     "(legs "
+                     f"{', '.join(str(i + 1) for i in np.flatnonzero(np.abs(self.forces) >= self.pid.force_limit))})",
                      Fmi2Status.warning, "logStatusWarning")
         self.saturated = saturated
 

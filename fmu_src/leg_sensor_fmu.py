@@ -13,9 +13,9 @@ The noise generator's state (8 bytes) is saved with the FMU state, so a replay f
 saved state repeats the same noise.
 """
 
-from movingbase.fmu_src.slave import INPUT, OUTPUT, GuardedSlave
-from movingbase.plant._kernel import ffi, lib
-from movingbase.plant.stewart import StewartParams
+from fmu_src.slave import INPUT, OUTPUT, GuardedSlave
+from plant._kernel import ffi, lib
+from plant.hexapod.model import StewartParams
 
 SEED_RANGE = (0, 2 ** 31 - 1)
 

@@ -1,40 +1,41 @@
 """Native FMI 2.0 and FMI 3.0 co-simulation FMUs of the kit: the same variables as the
-pythonfmu FMUs, compiled from C (fmu_src/native/: one FMI layer and one model file per FMU, over the
-plant/controller C kernels), so that a host needs no Python.
+pythonfmu FMUs, compiled from C (fmu_src/native/: one model file per FMU over the
+plant/controller C kernels, the instance core instance.c, and the thin FMI 2.0 or FMI 3.0
+layer over it), so that a host needs no Python.
 
-Nothing is typed twice. From the pythonfmu FMU (after fmu_src/builder.py has added units
-and ranges) this takes the modelDescription.xml (new guid, generation tool, SourceFiles,
-FMU-state capabilities) and, from an instance of its slave class, the exact start values;
+Nothing is typed twice. From the pythonfmu FMU (after fmu_src/python_build.py has added units
+and ranges) this takes the modelDescription.xml (a guid of its own (_guid), generation tool,
+SourceFiles, FMU-state capabilities) and, from an instance of its slave class, the exact start values;
 from the Python sources of truth (StewartParams.paper(), TelescopeParams.tianma(),
 mechanism3t_kernel.pack) the numbers the C needs. Both go into a generated header
 <modelIdentifier>_vars.h. The binary is compiled by the machine's cc with the flags of the
 cffi build (kernel_build.CFLAGS), so native and Python results agree bit for bit.
 """
+import hashlib
 import os
 import pathlib
 import shutil
 import subprocess
-import sys
 import tempfile
 import uuid
-import zipfile
 import xml.etree.ElementTree as ET
+import zipfile
 
 import fmpy
 import numpy as np
 from fmpy.validation import validate_fmu
 
-from movingbase.fmu_src import atomic
+from fmu_src import atomic, catalogue
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 NATIVE = ROOT / "fmu_src" / "native"
 KERNELS = (ROOT / "plant" / "c", ROOT / "controller" / "c")
 FMI_HEADERS = pathlib.Path(fmpy.__file__).parent / "c-code"
 CFLAGS = ["-shared", "-fPIC", "-O2", "-std=c99", "-ffp-contract=off", "-fvisibility=hidden"]
-MODEL_FILES = {"HexapodPlant": "hexapod_plant.c", "TelescopeBase": "telescope_base.c",
-               "LegController": "leg_controller.c", "Mechanism3TPlant": "mechanism3t_plant.c",
-               "SliderController": "slider_controller.c", "LegSensor": "leg_sensor.c", "BaseSensor": "base_sensor.c",
-               "Wind": "wind_wrench.c"}
+# The FMI layer of each version, and the C every native FMU is compiled from besides its
+# layer and model file: the version-neutral instance core and the models' shared checks.
+LAYERS = {2: "fmi2_layer.c", 3: "fmi3_layer.c"}
+SHARED = ("instance.c", "controller_checks.c")
 _CAUSALITY = {"parameter": "MB_PARAMETER", "input": "MB_INPUT", "output": "MB_OUTPUT", "local": "MB_LOCAL"}
 
 
@@ -55,7 +56,7 @@ def _array(name, values):
 
 
 def _stewart_constants():
-    from movingbase.plant.stewart import FIDELITIES, SINGULAR_RATIO, StewartParams, fidelity_mode
+    from plant.hexapod.model import FIDELITIES, SINGULAR_RATIO, StewartParams, fidelity_mode
     p = StewartParams.paper()
     modes = [fidelity_mode(f) for f in FIDELITIES]
     return [_array("BASE_JOINTS", p.base_joints), _array("PLATFORM_JOINTS", p.platform_joints),
@@ -74,7 +75,7 @@ def _strings(name, values):
 
 
 def _integrators():
-    from movingbase.plant.integrators import INTEGRATORS
+    from plant.integrators import INTEGRATORS
     return [_strings("INTEGRATOR_NAMES", INTEGRATORS),
             f"enum {{ INTEGRATOR_RK4 = {INTEGRATORS.index('rk4')}, INTEGRATOR_EULER = {INTEGRATORS.index('euler')}, "
             f"INTEGRATOR_RADAU = {INTEGRATORS.index('radau')} }};"]
@@ -85,8 +86,8 @@ def _hexapod_plant():
 
 
 def _leg_controller():
-    from movingbase.controller.feedforward import FEEDFORWARD_MODES, model_fidelity
-    from movingbase.plant.stewart import FIDELITIES
+    from controller.feedforward import FEEDFORWARD_MODES, model_fidelity
+    from plant.hexapod.model import FIDELITIES
     fid = [FIDELITIES.index(model_fidelity(m)) for m in FEEDFORWARD_MODES]
     return _stewart_constants() + [
         _strings("FEEDFORWARD_NAMES", FEEDFORWARD_MODES),
@@ -94,10 +95,10 @@ def _leg_controller():
         f"enum {{ FEEDFORWARD_NONE = {FEEDFORWARD_MODES.index('none')} }};"]
 
 
-def _telescope_base():
-    from movingbase.fmu_src.telescope_fmu import BLOCK, PROFILES
-    from movingbase.plant.stewart import HOME_POSE, S_BAND_POSE
-    from movingbase.plant.telescope import TelescopeParams
+def _telescope():
+    from fmu_src.telescope_fmu import BLOCK, PROFILES
+    from plant.hexapod.model import HOME_POSE, S_BAND_POSE
+    from plant.telescope.model import TelescopeParams
     t = TelescopeParams.tianma()
     fields = ("b_y", "c_y", "b_z", "c_z")
     return [_strings("PROFILE_NAMES", PROFILES), f"#define BLOCK {BLOCK}",
@@ -108,14 +109,16 @@ def _telescope_base():
 
 
 def _mechanism3t():
-    from movingbase.plant import mechanism3t_kernel as kernel
-    from movingbase.plant.mechanism3t import Mechanism1Params
+    from plant.mechanism3t import kernel
+    from plant.mechanism3t.model import Mechanism1Params
     return [_array("PACKED", kernel.pack(Mechanism1Params.paper()))] + _integrators()
 
 
-CONSTANTS = {"HexapodPlant": _hexapod_plant, "TelescopeBase": _telescope_base, "LegController": _leg_controller,
-             "Mechanism3TPlant": _mechanism3t, "SliderController": _mechanism3t, "LegSensor": list, "BaseSensor": list,
-             "Wind": list}
+def constants(identifier):
+    """The C constants the native model file of ``identifier`` includes (its catalogue row
+    names the generator: ``_<constants>`` here)."""
+    name = catalogue.BY_IDENTIFIER[identifier].constants
+    return globals()[f"_{name}"]() if name else []
 
 
 def _c_name(name):
@@ -157,7 +160,7 @@ def vars_header(identifier, guid, slave, root):
              f"#ifndef MB_{identifier.upper()}_VARS_H", f"#define MB_{identifier.upper()}_VARS_H",
              "#include <math.h>", '#include "model.h"', f'#define MB_IDENTIFIER "{identifier}"',
              f'#define MB_GUID "{guid}"', f"#define MB_NVARS {len(rows)}", "enum {", *enums, "};",
-             "static const mb_var MB_VARS[MB_NVARS] = {", *rows, "};", *CONSTANTS[identifier](), "#endif", ""]
+             "static const mb_var MB_VARS[MB_NVARS] = {", *rows, "};", *constants(identifier), "#endif", ""]
     return "\n".join(lines)
 
 
@@ -183,12 +186,31 @@ def model_description(xml_text, guid, sources, exact):
     return root
 
 
-def _sources(identifier):
-    """Every C file the FMU's binary is built from (flat names, as in the FMU's sources/)."""
-    files = [NATIVE / "fmi2_layer.c", NATIVE / MODEL_FILES[identifier], *sorted(NATIVE.glob("*.h"))]
+def _sources(identifier, version=2):
+    """Every C file the FMU's binary is built from (flat names, as in the FMU's sources/):
+    the FMI ``version``'s layer, the core, the model file, the headers, the kernels."""
+    return [NATIVE / LAYERS[version], *_shared_sources(identifier)]
+
+
+def _shared_sources(identifier):
+    """The C both FMI versions' binaries of a model are built from (all but the layer)."""
+    model = NATIVE / catalogue.BY_IDENTIFIER[identifier].c_file
+    files = [*(NATIVE / name for name in SHARED), model, *sorted(NATIVE.glob("*.h"))]
     for folder in KERNELS:
         files += sorted(folder.glob("*.c")) + sorted(folder.glob("*.h"))
     return files
+
+
+def _guid(identifier, xml_text, empty):
+    """The native FMUs' guid (FMI 3.0: instantiation token), from what they are made of:
+    the pythonfmu modelDescription (a new one, with its own new guid, at every pythonfmu
+    build) and the C both versions share. The FMI 2.0 and FMI 3.0 FMUs of one pythonfmu
+    FMU, built apart, so carry the same guid, and a binary never meets a description
+    made for other C."""
+    digest = hashlib.sha256(xml_text.encode())
+    for path in _shared_sources(identifier):
+        digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    return "{" + str(uuid.uuid5(uuid.NAMESPACE_URL, f"movingbase:{identifier}:{int(empty)}:{digest.hexdigest()}")) + "}"
 
 
 def compile_binary(source_dir, c_files, target, defines=(), link=()):
@@ -205,32 +227,53 @@ def build_native(python_fmu, out, empty=False):
     """The native FMU of the pythonfmu FMU ``python_fmu`` in ``out`` (same file name);
     ``empty``: the same interface with doStep and initialization doing nothing (the
     exchange floor of benchmarks/bench_native.py)."""
-    from movingbase.fmu_src import builder
     python_fmu = pathlib.Path(python_fmu)
-    out = pathlib.Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    identifier, vars_h, root2 = _from_python(python_fmu, empty)
+    return _build(2, identifier, vars_h, root2, pathlib.Path(out) / python_fmu.name, empty)
+
+
+def _from_python(python_fmu, empty):
+    """(model identifier, generated <id>_vars.h, the native FMI 2.0 modelDescription root)
+    of a pythonfmu FMU: the variable table and both versions' descriptions come from its
+    modelDescription and an instance of its slave class."""
+    from fmu_src import python_build as builder
     with zipfile.ZipFile(python_fmu) as z:
         xml_text = z.read("modelDescription.xml").decode()
     root = ET.fromstring(xml_text)
     identifier = root.find("CoSimulation").get("modelIdentifier")
-    guid = "{" + str(uuid.uuid4()) + "}"
-    builder._import_path()
+    guid = _guid(identifier, xml_text, empty)
     slave = builder.slave_instance(python_fmu)
+    names = sorted({p.name for p in _sources(identifier)} | {f"{identifier}_vars.h"})
+    return identifier, vars_header(identifier, guid, slave, root), model_description(xml_text, guid, names,
+                                                                                    starts(slave))
+
+
+def _build(version, identifier, vars_h, root2, fmu, empty):
+    """Compile the FMI ``version`` FMU ``fmu`` from the sources (the layer, the core, the
+    model file, the kernels, the generated ``vars_h``) with its modelDescription (FMI 2.0:
+    ``root2``; FMI 3.0: translated from it) into ``fmu``; returns its path."""
+    fmu.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
         sources = tmp / "sources"
         sources.mkdir()
-        for f in _sources(identifier):
+        for f in _sources(identifier, version):
             shutil.copy(f, sources / f.name)
-        (sources / f"{identifier}_vars.h").write_text(vars_header(identifier, guid, slave, root))
-        names = sorted(p.name for p in sources.iterdir())
-        binaries = tmp / "binaries" / "linux64"
+        (sources / f"{identifier}_vars.h").write_text(vars_h)
+        if version == 3:
+            (sources / "fmi3_variables.h").write_text(fmi3_variables_header(root2))
+        c_files = sorted(p.name for p in sources.glob("*.c"))
+        binaries = tmp / "binaries" / ("linux64" if version == 2 else fmi3_platform())
         binaries.mkdir(parents=True)
-        compile_binary(sources, [n for n in names if n.endswith(".c")], binaries / f"{identifier}.so",
-                       ["MB_EMPTY_MODEL"] if empty else [])
-        md = model_description(xml_text, guid, names, starts(slave))
-        (tmp / "modelDescription.xml").write_text(ET.tostring(md, encoding="unicode", xml_declaration=True))
-        return pack(tmp, out / python_fmu.name)
+        compile_binary(sources, c_files, binaries / f"{identifier}.so", ["MB_EMPTY_MODEL"] if empty else [])
+        if version == 2:
+            descriptions = {"modelDescription.xml": root2}
+        else:
+            descriptions = {"modelDescription.xml": model_description3(root2),
+                            "sources/buildDescription.xml": build_description3(identifier, c_files)}
+        for name, root in descriptions.items():
+            (tmp / name).write_text(ET.tostring(root, encoding="unicode", xml_declaration=True))
+        return pack(tmp, fmu)
 
 
 def pack(folder, fmu):
@@ -248,9 +291,11 @@ def pack(folder, fmu):
     return atomic.write_bytes(fmu, packed.read_bytes())
 
 
-def _inputs():
-    """Files a native FMU is made from: its C, and the Python its numbers come from."""
-    files = [p for p in NATIVE.glob("*") if p.name != "fmi3_layer.c"] + [p for folder in KERNELS for p in folder.glob("*")]
+def _inputs(version=2):
+    """Files a native FMU of the FMI ``version`` is made from: its C (no other version's
+    layer), and the Python its numbers come from."""
+    others = {name for v, name in LAYERS.items() if v != version}
+    files = [p for p in NATIVE.glob("*") if p.name not in others] + [p for folder in KERNELS for p in folder.glob("*")]
     files += [p for folder in ("plant", "controller", "fmu_src") for p in (ROOT / folder).glob("*.py")]
     return files
 
@@ -258,39 +303,35 @@ def _inputs():
 def ensure_native(scripts, out=None):
     """Paths of the native FMUs of ``scripts`` (fmu_src/<script>.py names), rebuilt when
     missing or older than their pythonfmu FMU or any file they are made from."""
-    from movingbase.fmu_src import builder
+    from fmu_src import python_build as builder
     out = pathlib.Path(out) if out is not None else builder.OUT / "native"
     python = builder.ensure_built(scripts)
+    return _ensure(2, python, out)
+
+
+def _ensure(version, python, out):
+    """script -> native FMU of the FMI ``version`` in ``out`` of the pythonfmu FMUs ``python``
+    (script -> path), rebuilt when missing or older than its pythonfmu FMU or any of _inputs."""
+    from fmu_src import python_build as builder
     out.mkdir(parents=True, exist_ok=True)
-    newest = max(p.stat().st_mtime for p in _inputs())
+    newest = max(p.stat().st_mtime for p in _inputs(version))
+    build = build_native if version == 2 else build_native3
     paths = {}
-    for script in scripts:
-        target = out / python[script].name
-        if not (target.exists() and target.stat().st_mtime >= max(newest, python[script].stat().st_mtime)):
-            builder.LOG.info("building the native FMI 2.0 FMU of %s", script)
-            build_native(python[script], out)
+    for script, source in python.items():
+        target = out / source.name
+        if not (target.exists() and target.stat().st_mtime >= max(newest, source.stat().st_mtime)):
+            builder.LOG.info("building the native FMI %d.0 FMU of %s", version, script)
+            build(source, out)
         paths[script] = target
     return paths
 
 
 # ------------------------------------------------------------------------- FMI 3.0
-# The FMI 3.0 FMU of a native model is made from its FMI 2.0 FMU: the same sources/ (the
-# model file, the kernels, the generated <id>_vars.h and fmi2_layer.c, whose functions a
-# linker version script keeps inside the binary) plus fmi3_layer.c, and a modelDescription translated from the FMI 2 one,
-# so names, units, ranges, starts, enumerations and the default experiment have one source.
-FMI3_EXPORTS = "{ global: fmi3*; local: *; };\n"   # fmpy's fmi2Functions.h ignores FMI2_FUNCTION_PREFIX
-_FMI2_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")
+# The FMI 3.0 FMU of a native model is compiled as its FMI 2.0 FMU is (the model file, the
+# kernels, the generated <id>_vars.h and the instance core), with fmi3_layer.c in place of
+# fmi2_layer.c, and a modelDescription translated from the native FMI 2.0 one, so names,
+# units, ranges, starts, enumerations and the default experiment have one source.
 _FMI3_KIND = {"Real": "Float64", "Integer": "Int32", "Enumeration": "Enumeration"}
-# Outputs that are the time derivative of another output (model identifier -> {derivative:
-# integrand}): the telescope kernel computes the base's and the reference's pose, rate and
-# acceleration and the axes' angle, rate and acceleration analytically at every
-# communication point. FMI 3 declares them (a Float64's derivative attribute) and
-# fmi3GetOutputDerivatives answers from them (fmi3_layer.c): base_pose has orders 1 and
-# 2 (base_rate, base_acc), base_rate order 1; base_acc none (its jerk is not computed).
-OUTPUT_DERIVATIVES = {"TelescopeBase": {
-    "base_rate": "base_pose", "base_acc": "base_rate", "reference_rate": "reference_pose",
-    "reference_acc": "reference_rate", "axis_rate": "axis", "axis_acc": "axis_rate",
-    "command_base_rate": "command_base_pose", "command_base_acc": "command_base_rate"}}
 _FMI3_ATTRIBUTES = ("declaredType", "unit", "displayUnit", "min", "max", "nominal")
 
 
@@ -325,9 +366,9 @@ def _groups(root):
 
 def _derivatives(root2):
     """FMI 2 value reference of an output's first element -> that of the output which is its
-    time derivative (OUTPUT_DERIVATIVES), element by element; and the highest order any
+    time derivative (its catalogue row's output_derivatives), element by element; and the highest order any
     output has (maxOutputDerivativeOrder)."""
-    declared = OUTPUT_DERIVATIVES.get(root2.find("CoSimulation").get("modelIdentifier"), {})
+    declared = catalogue.BY_IDENTIFIER[root2.find("CoSimulation").get("modelIdentifier")].output_derivatives
     vrs = {v.get("name"): int(v.get("valueReference")) for v in root2.iter("ScalarVariable")}
     derivative = {}
     for name, integrand in declared.items():
@@ -448,7 +489,7 @@ def fmi3_variables_header(root2):
     """fmi3_variables.h: per FMI 2 value reference, the FMI 3 variable that starts there
     (its element count and kind: Float64, Int32, or an Enumeration set as Int64; count 0:
     a later element of an array), as model_description3 declares them, and the output
-    that is its time derivative (OUTPUT_DERIVATIVES)."""
+    that is its time derivative (its catalogue row's output_derivatives)."""
     variables = list(root2.iter("ScalarVariable"))
     kinds = {"Real": "K_FLOAT64", "Integer": "K_INT32", "Enumeration": "K_ENUM"}
     counts, kind = [0] * len(variables), ["K_NONE"] * len(variables)
@@ -470,8 +511,7 @@ def fmi3_variables_header(root2):
 
 
 def build_description3(identifier, c_files):
-    """buildDescription.xml: the sources a tool compiles into the FMU (its binary then
-    also exports the inner layer's fmi2 functions, which an FMI 3 host does not look up)."""
+    """buildDescription.xml: the sources a tool compiles into the FMU."""
     root = ET.Element("fmiBuildDescription", fmiVersion="3.0")
     config = ET.SubElement(root, "BuildConfiguration", modelIdentifier=identifier)
     files = ET.SubElement(config, "SourceFileSet", language="C99")
@@ -484,60 +524,26 @@ def build_description3(identifier, c_files):
 
 
 def build_native3(native_fmu, out, empty=False):
-    """The FMI 3.0 FMU of the native FMI 2.0 FMU ``native_fmu`` in ``out`` (same file
-    name); ``empty`` as in build_native."""
-    native_fmu, out = pathlib.Path(native_fmu), pathlib.Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    """The FMI 3.0 FMU of ``native_fmu`` in ``out`` (same file name); ``empty`` as in
+    build_native. ``native_fmu`` is either the pythonfmu FMU (the variable table and the
+    FMI 2.0 description it is translated from are made as build_native makes them, with
+    the same guid: no FMI 2.0 FMU is needed) or a native FMI 2.0 FMU (its description and
+    generated variable table: the FMI 3.0 twin of that build). Either way the binary is
+    compiled from fmu_src/native/ and the kernels."""
+    native_fmu = pathlib.Path(native_fmu)
     with zipfile.ZipFile(native_fmu) as z:
         root2 = ET.fromstring(z.read("modelDescription.xml"))
-        sources2 = {n.split("/", 1)[1]: z.read(n) for n in z.namelist() if n.startswith("sources/")}
-    identifier = root2.find("CoSimulation").get("modelIdentifier")
-    with tempfile.TemporaryDirectory() as tmp:
-        tmp = pathlib.Path(tmp)
-        sources = tmp / "sources"
-        sources.mkdir()
-        for name, data in sources2.items():
-            (sources / name).write_bytes(data)
-        shutil.copy(NATIVE / "fmi3_layer.c", sources / "fmi3_layer.c")
-        for header in _FMI2_HEADERS:    # the inner FMI 2 layer's: an FMI 3 tool brings only the FMI 3 headers
-            shutil.copy(FMI_HEADERS / header, sources / header)
-        (sources / "fmi3_variables.h").write_text(fmi3_variables_header(root2))
-        c_files = sorted(p.name for p in sources.glob("*.c"))
-        binaries = tmp / "binaries" / fmi3_platform()
-        binaries.mkdir(parents=True)
-        exports = tmp / "exports.map"
-        exports.write_text(FMI3_EXPORTS)
-        compile_binary(sources, c_files, binaries / f"{identifier}.so", ["MB_EMPTY_MODEL"] if empty else [],
-                       [f"-Wl,--version-script={exports}"])
-        exports.unlink()
-        for name, root in (("modelDescription.xml", model_description3(root2)),
-                           ("sources/buildDescription.xml", build_description3(identifier, c_files))):
-            (tmp / name).write_text(ET.tostring(root, encoding="unicode", xml_declaration=True))
-        return pack(tmp, out / native_fmu.name)
+        identifier = root2.find("CoSimulation").get("modelIdentifier")
+        vars_name = f"sources/{identifier}_vars.h"
+        vars_h = z.read(vars_name).decode() if vars_name in z.namelist() else None
+    if vars_h is None:   # a pythonfmu FMU
+        identifier, vars_h, root2 = _from_python(native_fmu, empty)
+    return _build(3, identifier, vars_h, root2, pathlib.Path(out) / native_fmu.name, empty)
 
 
 def ensure_native3(scripts, out=None):
-    """Paths of the FMI 3.0 native FMUs of ``scripts``, rebuilt when missing or older than
-    their FMI 2.0 native FMU (itself rebuilt when any file it is made from changed, this
-    one included) or fmi3_layer.c."""
-    from movingbase.fmu_src import builder
+    """Paths of the FMI 3.0 native FMUs of ``scripts``, built from their pythonfmu FMUs (no
+    FMI 2.0 FMU needed) when missing or older than those or any file they are made from."""
+    from fmu_src import python_build as builder
     out = pathlib.Path(out) if out is not None else builder.OUT / "native3"
-    native = ensure_native(scripts)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = {}
-    for script in scripts:
-        target = out / native[script].name
-        newest = max(native[script].stat().st_mtime, (NATIVE / "fmi3_layer.c").stat().st_mtime)
-        if not (target.exists() and target.stat().st_mtime >= newest):
-            builder.LOG.info("building the native FMI 3.0 FMU of %s", script)
-            build_native3(native[script], out)
-        paths[script] = target
-    return paths
-
-
-if __name__ == "__main__":   # python -m movingbase.fmu_src.native_build [--fmi3] [scripts]: into build/fmu/native[3]
-    args = sys.argv[1:]
-    ensure = ensure_native3 if "--fmi3" in args else ensure_native
-    args = [a for a in args if a != "--fmi3"]
-    for path in ensure(args or __import__("movingbase.fmu_src.builder").fmu_src.builder.available()).values():
-        print(f"built {path}")
+    return _ensure(3, builder.ensure_built(scripts), out)

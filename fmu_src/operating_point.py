@@ -1,6 +1,6 @@
 """The operating point every FMU's inputs start at, so that a host's first step is valid
 with no initial exchange and a plain ``fmpy.simulate_fmu`` of any FMU runs a sensible
-second: the telescope at rest at TelescopeBase's default start pointing (azimuth 0,
+second: the telescope at rest at Telescope's default start pointing (azimuth 0,
 elevation 30 deg), the hexapod platform at home on that base, held still by the static
 leg forces; the 3T mechanism at its paper configuration, held by its static slider forces.
 The numbers come from the plant models (inverse dynamics at zero rate and acceleration),
@@ -8,16 +8,16 @@ not from a table.
 """
 import numpy as np
 
-from movingbase.plant import mechanism3t_kernel
-from movingbase.plant import telescope
-from movingbase.plant.mechanism3t import MM, PAPER_REFERENCE_RHO_MM, Mechanism1Params
-from movingbase.plant.stewart import HOME_POSE, StewartParams, inverse_dynamics
+from plant.hexapod.model import HOME_POSE, StewartParams, inverse_dynamics
+from plant.mechanism3t import kernel as mechanism3t_kernel
+from plant.mechanism3t.model import MM, PAPER_REFERENCE_RHO_MM, Mechanism1Params
+from plant.telescope import model as telescope
 
-START_AZ_EL = (0.0, float(np.radians(30.0)))   # TelescopeBase's default slew start (rad)
+START_AZ_EL = (0.0, float(np.radians(30.0)))   # Telescope's default slew start (rad)
 
 
 def _telescope_at_rest():
-    """TelescopeBase's outputs (its 60, in its order) at t = 0 with its default parameters."""
+    """Telescope's outputs (its 60, in its order) at t = 0 with its default parameters."""
     profile = telescope.motion_profile("slew", START_AZ_EL, START_AZ_EL)
     return telescope.fmu_outputs(telescope.TelescopeParams.tianma(), profile, [0.0])[0]
 

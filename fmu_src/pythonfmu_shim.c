@@ -1,5 +1,5 @@
 /* A shim in front of pythonfmu 0.7.0's C wrapper: binaries/linux64/<id>.so of each of
- * our pythonfmu FMUs (fmu_src/builder.py compiles this file with the machine's cc
+ * our pythonfmu FMUs (fmu_src/python_build.py compiles this file with the machine's cc
  * against fmpy's FMI 2 headers and renames pythonfmu's wrapper <id>.pythonfmu.so).
  *
  * Why: the wrapper turns every Python exception into fmi2Fatal, so a failed

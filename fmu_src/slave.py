@@ -13,7 +13,7 @@ Units and ranges: pythonfmu writes neither, so each variable's unit and each par
 valid range (``valid=(min, max)``, either side None for open; FMI's min/max are inclusive,
 so "> 0" is written as a tiny positive min) are recorded here, with the choice parameters'
 item names (``enumerations``) and the DefaultExperiment, and build.py writes them into
-modelDescription.xml (fmu_src/builder.py): one description of each FMU that every
+modelDescription.xml (fmu_src/python_build.py): one description of each FMU that every
 modelDescription writer reads from an instance of its slave class. At fmi2ExitInitializationMode every parameter
 is checked against its range (and enumerations with gaps against their values), every
 input must be finite, and a violation is logged naming variable, value and range.
@@ -65,7 +65,7 @@ from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, 
 from pythonfmu.enums import Fmi2Status
 from pythonfmu.variables import Boolean, Integer, Real, String
 
-from movingbase.plant.errors import InvalidInputError
+from plant.errors import InvalidInputError
 
 PARAMETER, INPUT, OUTPUT = Fmi2Causality.parameter, Fmi2Causality.input, Fmi2Causality.output
 # FMI min/max are inclusive: the smallest values standing for "> 0"
@@ -99,7 +99,7 @@ def _flat_slot(values, i, flat_views):
 
 
 STATE_MAGIC = b"movingbase-state"   # first word of a serialized state (fmu_src/pythonfmu_shim.c checks it)
-_SURVIVORS = []   # (instance, class, log queue) of instances whose initialization failed
+_SURVIVORS: list = []   # (instance, class, log queue) of instances whose initialization failed
 
 
 def _root(array):
@@ -244,7 +244,8 @@ class GuardedSlave(Fmi2Slave):
         for vr in vrs:
             var = self.vars.get(vr)
             why = (f"no {kind.__name__} variable has value reference {vr}" if not isinstance(var, kind)
-                   else f"{var.name} is an output and cannot be set" if setting and var.causality not in (INPUT, PARAMETER)
+                   else f"{var.name} is an output and cannot be set" if setting and var.causality not in (INPUT,
+                                                                                                          PARAMETER)
                    else f"parameter {var.name} cannot be set after initialization"
                    if setting and var.causality == PARAMETER and self._stepping else "")
             if why:
@@ -496,7 +497,7 @@ class GuardedSlave(Fmi2Slave):
     def _get_fmu_state(self):
         """The variables, the arrays, and the model's internal state once initialize() has
         built it (before, there is none: a state saved in the instantiated state answered
-        fmi2Fatal from BaseSensor's and TelescopeBase's extra_state, fuzz.c)."""
+        fmi2Fatal from BaseSensor's and Telescope's extra_state, fuzz.c)."""
         state = super()._get_fmu_state()
         state["__arrays__"] = {k: v.copy() for k, v in self.arrays.items()}
         # the whole arrays the outputs live in: a scalar output may read an element no

@@ -27,7 +27,7 @@ with gravity, coupling, ZOH and delay the factor 5 leaves a pole pair at zeta = 
 the factor 10 gives zeta >= 0.77 for every closed-loop pole at h = 1-2 ms (0.69 at 5 ms,
 0.15 at 10 ms: do not run these gains above ~5 ms). A 2 Hz crossover leaves zeta 0.07
 (too close to the gravity pole); 4-6 Hz buys little for a 0.08 Hz reference whose forces
-the feedforward carries, and loses damping at 5 ms. tests/test_fmus_mechanism3t.py
+the feedforward carries, and loses damping at 5 ms. tests/fmu_src/test_python_fmus_mechanism3t.py
 repeats the modal and MIMO checks.
 
 The force limit 1 kN per slider is an assumption (the paper gives no actuator rating):
@@ -36,12 +36,12 @@ about 6x the largest force of the paper example (173.5 N on x_A2 in this model).
 import numpy as np
 from pythonfmu.enums import Fmi2Status
 
-from movingbase.controller.pid import PIDGains, pid_update
-from movingbase.fmu_src.mechanism3t_fmu import POSITION_RANGE
-from movingbase.fmu_src.slave import INPUT, OUTPUT, PARAMETER, GuardedSlave
-from movingbase.plant import mechanism3t_kernel as kernel
-from movingbase.plant.errors import InvalidInputError
-from movingbase.plant.mechanism3t import MM, PAPER_REFERENCE_RHO_MM, Mechanism1Params, paper_motion
+from controller.pid import PIDGains, pid_update
+from fmu_src.mechanism3t_plant_fmu import POSITION_RANGE
+from fmu_src.slave import INPUT, OUTPUT, PARAMETER, GuardedSlave
+from plant.errors import InvalidInputError
+from plant.mechanism3t import kernel
+from plant.mechanism3t.model import MM, PAPER_REFERENCE_RHO_MM, Mechanism1Params, paper_motion
 
 SLIDERS = ("x_A2", "y_A1", "y_A3")
 DEFAULT_GAINS = {"kp": 8.6e3, "ki": 1.6e4, "kd": 890.0, "force_limit": 1e3}

@@ -20,18 +20,17 @@ from dataclasses import replace
 
 import numpy as np
 
-from movingbase.fmu_src.operating_point import START_AZ_EL
-from movingbase.fmu_src.slave import (OUTPUT, POSE_UNITS, POSITIVE_RATE, POSITIVE_TIME, GuardedSlave, acc_units,
-                           rate_units)
-from movingbase.plant import telescope
-from movingbase.plant.stewart import HOME_POSE, S_BAND_POSE
+from fmu_src.operating_point import START_AZ_EL
+from fmu_src.slave import OUTPUT, POSE_UNITS, POSITIVE_RATE, POSITIVE_TIME, GuardedSlave, acc_units, rate_units
+from plant.hexapod.model import HOME_POSE, S_BAND_POSE
+from plant.telescope import model as telescope
 
 PROFILES = telescope.PROFILE_KINDS   # slew, sidereal, paper (the base and platform motion of Yao et al.)
 BLOCK = 1000
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 
 
-class TelescopeBase(GuardedSlave):
+class Telescope(GuardedSlave):
     description = "Alt-azimuth telescope pointing (slew, sidereal tracking, paper manoeuvre) -> hexapod base motion"
 
     def __init__(self, **kwargs):
@@ -40,9 +39,11 @@ class TelescopeBase(GuardedSlave):
         self.enumeration("profile", "motion profile", PROFILES, 0)
         turn, quarter, positive = (-2 * np.pi, 2 * np.pi), (0.0, np.pi / 2), (POSITIVE_RATE, None)
         self.settings = self.parameters((
-            ("start_azimuth", "rad", START_AZ_EL[0], "slew start azimuth, astronomical (north through east; within one turn either way)", turn),
+            ("start_azimuth", "rad", START_AZ_EL[0],
+             "slew start azimuth, astronomical (north through east; within one turn either way)", turn),
             ("start_elevation", "rad", START_AZ_EL[1], "slew start elevation", quarter),
-            ("target_azimuth", "rad", np.radians(90.0), "slew target azimuth, astronomical (north through east; within one turn either way)", turn),
+            ("target_azimuth", "rad", np.radians(90.0),
+             "slew target azimuth, astronomical (north through east; within one turn either way)", turn),
             ("target_elevation", "rad", np.radians(60.0), "slew target elevation", quarter),
             ("az_rate_max", "rad/s", tianma.az_rate_max, "azimuth rate limit (assumed); > 0", positive),
             ("az_acc_max", "rad/s2", tianma.az_acc_max, "azimuth acceleration limit (assumed); > 0", positive),
@@ -58,7 +59,8 @@ class TelescopeBase(GuardedSlave):
             ("paper_duration", "s", 6.0, "duration of the paper's stress manoeuvre; > 0", (POSITIVE_TIME, None)),
             ("start_delay", "s", 0.0, "the profile starts this late; before it, the start pointing holds",
              (0.0, None)),
-            ("servo_bandwidth", "1/s", 0.0, "the antenna's axis servo bandwidth in Hz (natural frequency of each axis's "
+            ("servo_bandwidth", "1/s", 0.0,
+             "the antenna's axis servo bandwidth in Hz (natural frequency of each axis's "
              "second-order loop); 0 = off, the axes follow the command exactly. Assumed: large-antenna axis servos "
              "have ~0.5-1 Hz locked-rotor bandwidth (SRT, GBT)", (0.0, 10.0)),
             ("servo_damping", "1", 0.7, "damping ratio of the antenna's axis servo (assumed)", (0.01, 10.0)),
@@ -73,7 +75,8 @@ class TelescopeBase(GuardedSlave):
             ("reference_pose", 6, pose_desc("platform reference, in {B},"), POSE_UNITS),
             ("reference_rate", 6, pose_desc("d/dt reference"), rate_units(POSE_UNITS)),
             ("reference_acc", 6, pose_desc("d2/dt2 reference"), acc_units(POSE_UNITS)),
-            ("axis", 2, ["astronomical azimuth (north through east; the mount angle A = 180 deg - it)", "elevation"], "rad"),
+            ("axis", 2, ["astronomical azimuth (north through east; the mount angle A = 180 deg - it)", "elevation"],
+             "rad"),
             ("axis_rate", 2, ["astronomical azimuth rate", "elevation rate"], "rad/s"),
             ("command_base_pose", 6, pose_desc("commanded base, in {W},"), POSE_UNITS),
             ("command_base_rate", 6, pose_desc("d/dt commanded base"), rate_units(POSE_UNITS)),

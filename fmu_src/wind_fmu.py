@@ -18,10 +18,10 @@ height); the centre of pressure 1 m from the platform's origin along z.
 """
 import numpy as np
 
-from movingbase.fmu_src.operating_point import BASE_POSE
-from movingbase.fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave
-from movingbase.plant._kernel import ffi, lib
-from movingbase.plant.errors import InvalidInputError
+from fmu_src.operating_point import BASE_POSE
+from fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave
+from plant._kernel import ffi, lib
+from plant.errors import InvalidInputError
 
 SPECTRA = ("kaimal", "davenport")
 SETTINGS = ("mean_speed", "turbulence_intensity", "length_scale", "height", "air_density", "drag_coefficient",

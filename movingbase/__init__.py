@@ -2,16 +2,16 @@
 
 One import name over the repository's folders, one job each (the data flows one way):
 
-- ``movingbase.plant``: rigid-body models (6-UPS hexapod, 3T mechanism, telescope base), C kernel;
-- ``movingbase.controller``: PID leg control with model feedforward, its design;
-- ``movingbase.fmu_src``: the FMUs (pythonfmu FMI 2.0, native C FMI 2.0 and 3.0);
-- ``movingbase.scenarios``: scenario files, the co-simulation master, results and reports.
+- ``plant``: rigid-body models (6-UPS hexapod, 3T mechanism, telescope base), C kernel;
+- ``controller``: PID leg control with model feedforward, its design;
+- ``fmu_src``: the FMUs (pythonfmu FMI 2.0, native C FMI 2.0 and 3.0);
+- ``scenarios``: scenario files, the co-simulation master, results and reports.
 
 Command line: ``movingbase run telescope_slew`` (or ``python -m movingbase run ...``).
 In Python (notebooks): ``movingbase.run("telescope_slew", ci=True)`` returns a Result
 (time series as numpy arrays or pandas, metrics, flags, charts); ``movingbase.campaign``
 the same for campaign files; ``movingbase.fmus()`` the FMU files for other FMI tools
-(scenarios/api.py).
+(movingbase/api.py).
 """
 import typing as _typing
 
@@ -20,9 +20,8 @@ __all__ = ["run", "campaign", "load_scenario", "fmus", "Result", "RunResult", "C
            "RunWarning", "ScenarioError", "__version__"]
 
 if _typing.TYPE_CHECKING:
-    from .scenarios.api import (CampaignResult, Charts, Result, RunResult, RunWarning, campaign, fmus, load_scenario,
-                                run)
-    from .scenarios.spec import ScenarioError
+    from movingbase.api import CampaignResult, Charts, Result, RunResult, RunWarning, campaign, fmus, load_scenario, run
+    from scenarios.spec import ScenarioError
 
 
 def __dir__() -> list[str]:
@@ -34,9 +33,9 @@ def __getattr__(name: str) -> _typing.Any:
     """The API on first use: ``movingbase --version`` and the command line do not pay
     for importing matplotlib and the master (PEP 562)."""
     if name == "ScenarioError":
-        from .scenarios.spec import ScenarioError
+        from scenarios.spec import ScenarioError
         return ScenarioError
     if name in __all__:
-        from .scenarios import api
+        from movingbase import api
         return getattr(api, name)
     raise AttributeError(f"module 'movingbase' has no attribute {name!r}")

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from .errors import ConvergenceError, WorkBoundError
+from plant.errors import ConvergenceError, WorkBoundError
 
 INTEGRATORS = ("rk4", "euler", "radau")
 
@@ -56,7 +56,7 @@ def rk4(f, t, x, h, max_step):
 
 
 def radau(f, t, x, h, max_step, rtol=1e-9, atol=1e-12):
-    from scipy.integrate import solve_ivp   # here: scipy costs a run that never asks for radau ~0.3 s
+    from scipy.integrate import solve_ivp  # here: scipy costs a run that never asks for radau ~0.3 s
     sol = solve_ivp(f, (t, t + h), x, method="Radau", rtol=rtol, atol=atol, max_step=max_step)
     if not sol.success:
         raise ConvergenceError(f"Radau failed over [{t}, {t + h}]: {sol.message}")

@@ -2,7 +2,7 @@
 plant/c/telescope.c, mb_tel_quintic, which the native FMUs share)."""
 import numpy as np
 
-from movingbase.plant._kernel import ffi, lib
+from plant._kernel import ffi, lib
 
 
 def _doubles(array):

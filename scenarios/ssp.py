@@ -6,9 +6,10 @@ fmpy.ssp reads; SSP 2.0 where an instance is FMI 3.0: version "2.0", the same
 namespaces, an FMI 3 array one connector with its ssc:Dimension, connections to single
 elements by startIndices/endIndices (1-based, as FMI names the elements; SSP 2.0 leaves
 the base unsaid), parameters as ssv:Float64/Int32 and Enumerations by item name; no
-importer here reads SSP 2.0, see tests/test_ssp2.py) and the FMUs under resources/: those the scenario chose per instance
+importer here reads SSP 2.0, see tests/scenarios/test_ssp_fmi3.py) and the FMUs under resources/: those the scenario
+chose per instance
 (native by default: then the SSP needs no Python in the importing tool; libcosim runs
-it, tests/test_libcosim.py; the pythonfmu FMUs too, with Python in the tool). The SSD has
+it, tests/hosts/test_libcosim.py; the pythonfmu FMUs too, with Python in the tool). The SSD has
 
 - one Component per FMU instance (source resources/<file>.fmu), listed in our
   initialization order (master.step_order), so a tool that initialises in document order
@@ -20,7 +21,7 @@ it, tests/test_libcosim.py; the pythonfmu FMUs too, with Python in the tool). Th
   every set named PARAMETER_SET (ecos: ``init(parameter_set="scenario")``), its
   parameters named by the FMU's variable names, in the FMU's units (SI): other FMI/SSP tools
   apply them. "@inst.var" links are resolved to numbers (the source FMU is initialised
-  as master.run does and its output read at the start time), enumeration Integers are
+  as single.run does and its output read at the start time), enumeration Integers are
   written as their numbers;
 - the FMUs under resources/ with their Enumeration parameters declared as Integers
   (``integer_choices``: the SSP hosts set no FMI 2 Enumeration), everything else as built;
@@ -64,12 +65,11 @@ import zipfile
 
 import numpy as np
 
-from movingbase.fmu_src import atomic
-
-from . import spec
-from .fmi import element_count, unpack
-from .master import start, step_order
-from .spec import Link, expand
+from fmu_src import atomic
+from scenarios import spec
+from scenarios.cosim.fmi import element_count, unpack
+from scenarios.cosim.master import start, step_order
+from scenarios.spec import Link, expand
 
 SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
@@ -102,7 +102,7 @@ def _double(value):
 # ------------------------------------------------------------------------- parameters
 def resolve_links(scenario, fmu_paths, parameters):
     """``parameters`` (instance -> {variable: value}) with every ``Link`` replaced by its
-    number, read by initialising the instances exactly as master.run does (master.start).
+    number, read by initialising the instances exactly as single.run does (master.start).
     Nothing is instantiated without links."""
     if not any(isinstance(v, Link) for values in parameters.values() for v in values.values()):
         return {inst: dict(values) for inst, values in parameters.items()}
@@ -129,7 +129,7 @@ def _typed(inst, variable, value, fmi3=False):
         return "Enumeration", items[int(value)]
     if kind in ("Integer", "Enumeration"):
         if isinstance(value, str):   # an enumeration name, as in a scenario file
-            choices = spec._enumeration(variable)
+            choices = spec.enumeration(variable)
             if value not in choices:
                 raise ValueError(f"{inst}.{variable.name}: {value!r} is not one of {', '.join(choices)}")
             value = choices[value]
@@ -193,7 +193,8 @@ def _connections(pairs, where):
             out.append(base)
             continue
         for _, s_k, _, t_k in items:
-            out.append({**base, **({"startIndices": str(s_k)} if s_k else {}), **({"endIndices": str(t_k)} if t_k else {})})
+            out.append({**base, **({"startIndices": str(s_k)} if s_k else {}),
+                        **({"endIndices": str(t_k)} if t_k else {})})
     return out
 
 

@@ -17,10 +17,10 @@ import time
 
 import numpy as np
 
-from movingbase.plant.stewart import FIDELITIES, HOME_POSE, StewartParams, inverse_dynamics
-from movingbase.scenarios import fidelity, master, runner
-from movingbase.scenarios.fmi import Instance, RealPort
-from movingbase.scenarios.records import run_records
+from plant.hexapod.model import FIDELITIES, HOME_POSE, StewartParams, inverse_dynamics
+from scenarios.cosim.fmi import Instance, RealPort
+from scenarios.cosim.records import run_records
+from scenarios.runs import fidelity, runner, single
 
 SCENES = ("paper_manoeuvre", "telescope_slew", "keyhole_tracking")
 OUT = pathlib.Path(__file__).resolve().parent.parent / "docs" / "fidelity.md"
@@ -54,7 +54,7 @@ def pose_deviation(name, ci):
     poses = {}
     for level in FIDELITIES:
         values["plant"]["fidelity"] = FIDELITIES.index(level)
-        run = master.run(scenario, paths, values, None, level, [])   # records in memory only
+        run = single.run(scenario, paths, values, None, level, [])   # records in memory only
         poses[level] = run_records(run).values[:, :3]
     return {level: float(np.linalg.norm(poses[level] - poses["full"], axis=1).max() * 1e6) for level in FIDELITIES}
 
@@ -66,7 +66,7 @@ def main(argv=None):
     plant_path = runner.prepare(runner.resolve(SCENES[0]), ci=True)[1]["plant"]
     cost = {level: plant_cost(plant_path, level) for level in FIDELITIES}
     lines = ["# Model fidelity per scene", "",
-             "What each hexapod fidelity level drops is in plant/stewart.py. Force error: largest leg-force "
+             "What each hexapod fidelity level drops is in plant/hexapod/model.py. Force error: largest leg-force "
              "difference from the full model along the scene's motion (what `fidelity = \"auto\"` compares "
              "with the scenario's tolerance). Pose deviation: largest platform-position difference of the "
              "co-simulation (moving-base feedforward) from the full-fidelity one. Cost: plant FMU doStep "

@@ -10,7 +10,7 @@ the platform: the largest difference of the leg lengths [nm] and of the platform
 pose (position [nm], rotation [nrad]) from a reference run of the same scene at
 H_REF (both extrapolations agree there to the figure printed), on the common record grid;
 tracking: the scene's pose-error metric. The stability limit: the leg loop's own signals
-have no derivatives and are extrapolated linearly either way (scenarios/flags.py), so
+have no derivatives and are extrapolated linearly either way (scenarios/runs/flags.py), so
 the predicted limit is that of "linear".
 
     python -m studies.fmi3_derivatives [--stop SECONDS]
@@ -20,8 +20,9 @@ import dataclasses
 
 import numpy as np
 
-from movingbase.plant import telescope
-from movingbase.scenarios import flags, master, metrics, runner, spec
+from plant.telescope import model as telescope
+from scenarios import spec
+from scenarios.runs import flags, metrics, runner, single
 
 STEPS = (0.5e-3, 1e-3, 2e-3, 4e-3)
 H_REF = 0.1e-3
@@ -39,7 +40,7 @@ def run(extrapolation, h, stop):
     values = spec.bind(scenario, descriptions)
     inst, name, value = spec.sweep_value(scenario, descriptions, "moving_base")
     values[inst][name] = value
-    result = master.run(scenario, paths, values, None, f"{extrapolation}-{h}",
+    result = single.run(scenario, paths, values, None, f"{extrapolation}-{h}",
                         [metrics.make(m) for m in scenario.metrics])
     return result.records, result.metrics, flags.predict(scenario, paths, descriptions, values).limit, values["base"]
 

@@ -34,7 +34,6 @@ import json
 import math
 import pathlib
 import sys
-
 import tomllib
 
 import matplotlib
@@ -44,10 +43,10 @@ import matplotlib.lines
 import matplotlib.patches
 import matplotlib.pyplot as plt
 
-from movingbase.scenarios import engine, runner, spec
-from movingbase.scenarios.report import fmt
-from movingbase.scenarios.style import (FLOOR, FLOOR_NOTE, RUN_COLOURS, draw_marks, length,
-                                         plain_log_axis, save)
+from scenarios import spec
+from scenarios.output.charts import FLOOR, FLOOR_NOTE, RUN_COLOURS, draw_marks, length, plain_log_axis, save
+from scenarios.output.report import fmt
+from scenarios.runs import engine, runner
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
@@ -181,9 +180,15 @@ def variant(scene, effects=(), source="exact", modes=MODES, overrides=None, wind
     settings = lambda name, values: {**values, **over.get(name, {})}
     data = tomllib.loads(runner.resolve(scene).read_text())
     tag = "-".join([*sorted(effects), source]) if effects or source != "exact" else "ideal"
-    data["name"] = f"{scene}-{tag}" + (f"-gains_{gains[0]}" if gains else "") + (
-        f"-wind_{over['wind']['mean_speed'].replace(' ', '').replace('/', '_')}" if "wind" in effects and "mean_speed" in over.get("wind", {})
-        else "")
+    data["name"] = (
+        f"{scene}-{tag}"
+        + (f"-gains_{gains[0]}" if gains else "")
+        + (
+            f"-wind_{over['wind']['mean_speed'].replace(' ', '').replace('/', '_')}"
+            if "wind" in effects and "mean_speed" in over.get("wind", {})
+            else ""
+        )
+    )
     data["description"] = (f"{data['name']}: {scene} with " + (", ".join(EFFECT_NAMES[e] for e in sorted(effects))
                            or "the ideal loop") + f"; feedforward base motion {SOURCE_NAMES[source]}.")
     data["sweep"] = {"parameter": "controller.feedforward", "values": list(modes)}
@@ -243,8 +248,8 @@ def cases(scenes=SCENES):
 def designs():
     """{name: Design} of the redesigned gains on the realistic plant, and the shipped
     gains' margins on it (controller.design; ~20 s for the search)."""
-    from movingbase.controller import design
-    from movingbase.plant.stewart import StewartParams
+    from controller import design
+    from plant.hexapod.model import StewartParams
     params = StewartParams.paper()
     shipped = design.default_gains(params)
     return {"shipped": design.margins(params, shipped, 1e-3, design.REALISTIC),
@@ -396,7 +401,9 @@ def _verdict(ratios):
     """What fixed-base / moving-base peak ratios ({signal: ratio}) say."""
     best = max(ratios, key=ratios.get)
     if ratios[best] > 1.5:
-        return f"the moving-base model still beats the fixed-base one, best by {fmt(ratios[best])}x ({SOURCE_NAMES[best]})"
+        return (
+            f"the moving-base model still beats the fixed-base one, best by {fmt(ratios[best])}x ({SOURCE_NAMES[best]})"
+        )
     if min(ratios.values()) >= 1 / 1.5:
         return "the two models are within 1.5x of each other: the base-motion model no longer matters"
     return "the fixed-base model does better"
@@ -409,7 +416,8 @@ def statements(s):
     signal's). Errors as peak / RMS pose error."""
     out = []
     for scene in _scenes(s):
-        ideal_f, ideal_m = _get(s, scene, "ideal", "exact", "fixed_base"), _get(s, scene, "ideal", "exact", "moving_base")
+        ideal_f, ideal_m = _get(s, scene, "ideal", "exact", "fixed_base"), _get(s, scene, "ideal", "exact",
+                                                                                "moving_base")
         parts = [f"- **`{scene}`** (peak / RMS pose error). Ideal loop: fixed-base {_pp(ideal_f)}, moving-base "
                  f"{_pp(ideal_m)} ({fmt(_ratio(ideal_f['peak'], ideal_m['peak']))}x in peak)."]
         for loop in ("calm", "realistic"):
@@ -497,7 +505,8 @@ def budget_chart(s, scene, path):
         ax.set_title(title, pad=14)
     axes[0].set_yticks(range(len(rows)), [label for label, _ in rows], fontsize=8.5)
     axes[0].set_ylim(len(rows) - 0.5, -0.6)
-    handles = [matplotlib.patches.Patch(color=RUN_COLOURS[m], label=MODE_NAMES[m]) for m in ("fixed_base", "moving_base")]
+    handles = [matplotlib.patches.Patch(color=RUN_COLOURS[m], label=MODE_NAMES[m]) for m in ("fixed_base",
+                                                                                             "moving_base")]
     handles.append(matplotlib.lines.Line2D([], [], color="0.3", lw=1.2, ls=(0, (1, 2)),
                                            label="the ideal loop's value (each model in its colour)"))
     fig.legend(handles=handles, loc="outside lower center", ncol=3, fontsize=8.5, frameon=False)
@@ -581,17 +590,20 @@ def gain_statements(s):
     gains do in calm air and wind to the fixed-base and the moving-base (IMU) feedforward."""
     d = s["designs"]
     ship, method, stiff = d["shipped"], d["method"], d["stiffest"]
-    parts = [f"- **Gains for the realistic plant** (`{GAIN_SCENE}`; controller.design with the 758 kg reflected "
-             f"mass, the 50 Hz force loop, the encoders' rate filter and delays and the master's extrapolation). The "
-             f"shipped gains (designed for the ideal plant) keep {ship['modal_phase_margin_deg']:.0f} deg and "
-             f"{ship['modal_gain_margin_db']:.1f} dB on the worst mode of the realistic plant, the heaviest mode "
-             f"crossing at {ship['crossover_hz']:.1f} Hz. The shipped method re-done (8 Hz, 60 deg on the heaviest "
-             f"mode) is reachable but leaves the lightest mode {method['modal_phase_margin_deg']:.0f} deg and "
-             f"{method['modal_gain_margin_db']:.1f} dB. The stiffest design with PM >= 45 deg and GM >= 6 dB on every "
-             f"mode crosses at {stiff['crossover_hz']:.2f} Hz with ki {fmt(stiff['ki'] / ship['ki'])}x and kp "
-             f"{fmt(stiff['kp'] / ship['kp'])}x the shipped gains': within those margins the loop "
-             f"{'cannot be ' if stiff['ki'] < ship['ki'] else 'is '}"
-             f"{'as stiff as the shipped one, which trades margin for stiffness' if stiff['ki'] < ship['ki'] else 'stiffer than the shipped one'}."]
+    parts = [
+        f"- **Gains for the realistic plant** (`{GAIN_SCENE}`; controller.design with the 758 kg reflected "
+        f"mass, the 50 Hz force loop, the encoders' rate filter and delays and the master's extrapolation). The "
+        f"shipped gains (designed for the ideal plant) keep {ship['modal_phase_margin_deg']:.0f} deg and "
+        f"{ship['modal_gain_margin_db']:.1f} dB on the worst mode of the realistic plant, the heaviest mode "
+        f"crossing at {ship['crossover_hz']:.1f} Hz. The shipped method re-done (8 Hz, 60 deg on the heaviest "
+        f"mode) is reachable but leaves the lightest mode {method['modal_phase_margin_deg']:.0f} deg and "
+        f"{method['modal_gain_margin_db']:.1f} dB. The stiffest design with PM >= 45 deg and GM >= 6 dB on every "
+        f"mode crosses at {stiff['crossover_hz']:.2f} Hz with ki {fmt(stiff['ki'] / ship['ki'])}x and kp "
+        f"{fmt(stiff['kp'] / ship['kp'])}x the shipped gains': within those margins the loop "
+        f"{'cannot be ' if stiff['ki'] < ship['ki'] else 'is '}"
+        + ("as stiff as the shipped one, which trades margin for stiffness" if stiff["ki"] < ship["ki"]
+           else "stiffer than the shipped one") + "."
+    ]
     for loop in ("calm", "realistic"):
         peaks = {name: {ff: _gain_entry(s, name, loop, src, mode) for ff, (mode, src) in
                         (("fixed", ("fixed_base", "exact")), ("imu", ("moving_base", "imu")))} for name in GAINS}
@@ -611,18 +623,35 @@ def gain_statements(s):
         parts.append(
             f"Wind sweep ({', '.join(f'{u:g}' for u in WIND_SPEEDS)} m/s, docs/figures/realistic_wind_sweep.png), peak "
             f"of the stiffest design over the shipped gains' per speed: fixed-base "
-            + ", ".join(fmt(r) for r in stiffer["fixed_base"]) + ", moving-base (IMU) "
+            + ", ".join(fmt(r) for r in stiffer["fixed_base"])
+            + ", moving-base (IMU) "
             + ", ".join(fmt(r) for r in stiffer["moving_base"])
-            + "; fixed-base / moving-base (IMU) peak per speed, shipped " + ", ".join(fmt(r) for r in ratios["shipped"])
-            + ", stiffest " + ", ".join(fmt(r) for r in ratios["stiffest"]) + ". "
-            + (f"So the shipped loop's extra stiffness (ki {fmt(ship['ki'] / stiff['ki'])}x) buys "
-               f"{fmt(min(stiffer['fixed_base'][i] for i in windy))}-{fmt(max(stiffer['fixed_base'][i] for i in windy))}x "
-               f"lower fixed-base peaks in wind, paid for with {ship['modal_phase_margin_deg']:.0f} deg of phase margin"
-               if min(stiffer["fixed_base"][i] for i in windy) > 1 else
-               "The extra stiffness of the shipped loop does not lower every windy peak")
+            + "; fixed-base / moving-base (IMU) peak per speed, shipped "
+            + ", ".join(fmt(r) for r in ratios["shipped"])
+            + ", stiffest "
+            + ", ".join(fmt(r) for r in ratios["stiffest"])
+            + ". "
+            + (
+                f"So the shipped loop's extra stiffness (ki {fmt(ship['ki'] / stiff['ki'])}x) buys "
+                f"{fmt(min(stiffer['fixed_base'][i] for i in windy))}-"
+                f"{fmt(max(stiffer['fixed_base'][i] for i in windy))}x "
+                f"lower fixed-base peaks in wind, paid for with {ship['modal_phase_margin_deg']:.0f} deg "
+                "of phase margin"
+                if min(stiffer["fixed_base"][i] for i in windy) > 1
+                else "The extra stiffness of the shipped loop does not lower every windy peak"
+            )
             + "; the moving-base model keeps a lead of 1.5x or more over the fixed-base one in wind at "
-            + (", ".join(f"{WIND_SPEEDS[i]:g} m/s with the {name} gains" for name in SWEEP_GAINS for i in windy
-                         if ratios[name][i] >= 1.5) or "no speed") + ".")
+            + (
+                ", ".join(
+                    f"{WIND_SPEEDS[i]:g} m/s with the {name} gains"
+                    for name in SWEEP_GAINS
+                    for i in windy
+                    if ratios[name][i] >= 1.5
+                )
+                or "no speed"
+            )
+            + "."
+        )
     return " ".join(parts)
 
 
@@ -631,7 +660,8 @@ def costs(s):
     over the scenes, µs."""
     out = {}
     for loop in ("ideal", "realistic"):
-        times = [e["us_per_step"] for scene in _scenes(s) for e in (s[scene].get(loop, {}).get("exact", {}) or {}).values()
+        times = [e["us_per_step"] for scene in _scenes(s) for e in (s[scene].get(loop, {}).get("exact",
+                                                                                               {}) or {}).values()
                  if e]
         out[loop] = sum(times) / len(times) if times else float("nan")
     return out
@@ -639,7 +669,7 @@ def costs(s):
 
 def settings_text():
     rows = [("leg sensors (LegSensor)", LEG_SENSOR), ("computation delay (LegSensor)", DELAY),
-            ("actuator (HexapodPlant)", ACTUATOR), ("antenna axis servo (TelescopeBase)", SERVO),
+            ("actuator (HexapodPlant)", ACTUATOR), ("antenna axis servo (Telescope)", SERVO),
             ("wind (Wind)", WIND),
             ("base sensors (BaseSensor), in SI: 0.1 arcsec encoders, gyro 0.01 deg/√h and 0.05 deg/h, accelerometer "
              "50 µg/√Hz and 100 µg", BASE_SENSOR)]
@@ -656,7 +686,8 @@ def report(s, charts=True):
              "loop is the headline's: exact leg lengths and rates, the force in the leg at once, the antenna on its "
              "command, no wind. The realistic loop switches every effect on, in calm air or in a 10 m/s wind; the "
              "scenario file of every run is written to `out/realistic_loop/full/scenarios/` (`movingbase run "
-             "FILE` repeats it). Settings:", "", "| effect | settings (assumed; see the docs' assumptions) |", "|---|---|",
+             "FILE` repeats it). Settings:", "", "| effect | settings (assumed; see the docs' assumptions) |",
+             "|---|---|",
              settings_text(), "", "## The headline table, extended", "", table(s), "", "## What survives", "",
              statements(s), "", "## Error budget: each effect alone", ""]
     for scene in _scenes(s):

@@ -48,12 +48,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from movingbase.controller.feedforward import FEEDFORWARD_MODES, feedforward_and_legs
-from movingbase.plant import kane, telescope
-from movingbase.plant.rotations import rpy_matrix
-from movingbase.plant.stewart import FIDELITIES, HOME_POSE, S_BAND_POSE, StewartParams, fidelity_mode
-from movingbase.plant.trajectory import quintic
-from movingbase.scenarios.spec import Link
+from controller.feedforward import FEEDFORWARD_MODES, feedforward_and_legs
+from plant.hexapod import kernel as kane
+from plant.hexapod.model import FIDELITIES, HOME_POSE, S_BAND_POSE, StewartParams, fidelity_mode
+from plant.rotations import rpy_matrix
+from plant.telescope import model as telescope
+from plant.trajectory import quintic
+from scenarios.spec import Link
 
 PROFILES = ("slew", "sidereal", "paper")          # the telescope FMU's enumeration
 SIGNALS = ("base_pose", "base_rate", "base_acc", "reference_pose", "reference_rate", "reference_acc")
@@ -72,7 +73,7 @@ def _defaults(description):
 
 class BaseMotion:
     """The telescope FMU's outputs as functions of time, computed the way it computes
-    them (fmu_src.telescope_fmu.TelescopeBase._evaluate)."""
+    them (fmu_src.telescope_fmu.Telescope._evaluate)."""
 
     def __init__(self, settings):
         from datetime import datetime, timezone

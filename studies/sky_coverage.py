@@ -29,11 +29,11 @@ import numpy as np
 from matplotlib.colors import LogNorm
 from matplotlib.patches import Rectangle
 
-from movingbase.plant import telescope
-from movingbase.scenarios import campaign as campaigns
-from movingbase.scenarios import engine
-from movingbase.scenarios.style import FLOOR, RUN_COLOURS, RUN_NAMES, draw_marks, length, plain_log_axis, save
-from movingbase.scenarios.units import to_si
+from plant.telescope import model as telescope
+from scenarios.output.charts import FLOOR, RUN_COLOURS, RUN_NAMES, draw_marks, length, plain_log_axis, save
+from scenarios.runs import campaign as campaigns
+from scenarios.runs import engine
+from scenarios.spec.units import to_si
 
 CAMPAIGNS = ("sky_slews", "slew_sizes", "keyhole_tracks")
 MODES = ("fixed_base", "moving_base")
@@ -86,7 +86,8 @@ def _short(name, case):
                 f"el {_deg(v['base.start_elevation']):g} -> {_deg(v['base.target_elevation']):g} deg")
     if name == "keyhole_tracks":
         miss = _deg(v["base.declination"]) - math.degrees(telescope.TelescopeParams.tianma().latitude)
-        return f"dec {_deg(v['base.declination']):g} deg: {abs(miss):.2g} deg {'north' if miss > 0 else 'south'} of the zenith"
+        side = "north" if miss > 0 else "south"
+        return f"dec {_deg(v['base.declination']):g} deg: {abs(miss):.2g} deg {side} of the zenith"
     return case.label.split(";")[0]
 
 
@@ -221,7 +222,8 @@ def keyhole_chart(rows_, store, path):
                         clip_on=False)
     # the legend names each encoding once, with the markers as plotted
     keys = [plt.Line2D([], [], color=RUN_COLOURS[m], lw=2, label=RUN_NAMES[m]) for m in MODES]
-    keys += [plt.Line2D([], [], color="0.3", ls="-", label="peak"), plt.Line2D([], [], color="0.3", ls=":", label="RMS")]
+    keys += [plt.Line2D([], [], color="0.3", ls="-", label="peak"), plt.Line2D([], [], color="0.3", ls=":",
+                                                                               label="RMS")]
     keys += [plt.Line2D([], [], color="0.3", marker=m, ls="none", label=f"transits {side} of the zenith")
              for side, (m, _) in sides.items()]
     if under_any:
@@ -256,7 +258,8 @@ def keyhole_chart(rows_, store, path):
     sky.set_title(f"the tracks within {SKY_RADIUS:g} deg of the zenith (compass view, radius = zenith\n"
                   f"distance [deg]), coloured by the fixed-base pose error", fontsize=10)
     if fixed:
-        bar = fig.colorbar(points, ax=sky, label="fixed-base platform position error [µm] (floored at 1 nm)", shrink=0.8)
+        bar = fig.colorbar(points, ax=sky, label="fixed-base platform position error [µm] (floored at 1 nm)",
+                           shrink=0.8)
         plain_log_axis(bar.ax.yaxis, subs=(1.0,))
     save(fig, path)
     return path
@@ -286,7 +289,8 @@ def report(results, outdir, figures=None, name="report.md"):
     all_rows = {name: rows(c, j, s) for name, (c, j, s, _) in results.items()}
     charts = [map_chart(all_rows["sky_slews"], figures / "sky_slews_map.png"),
               size_chart(all_rows["slew_sizes"], figures / "sky_slew_sizes.png"),
-              keyhole_chart(all_rows["keyhole_tracks"], results["keyhole_tracks"][2], figures / "sky_keyhole_tracks.png")]
+              keyhole_chart(all_rows["keyhole_tracks"], results["keyhole_tracks"][2],
+                            figures / "sky_keyhole_tracks.png")]
     failed = {name: o.failed for name, (_, _, _, o) in results.items() if o.failed}
     lines = ["# Sky coverage", "", __doc__.split("\n\n")[0].replace("\n", " "), "",
              f"Runs: {', '.join(f'{n} {len(r)}' for n, r in all_rows.items())} (ok)."

@@ -59,14 +59,21 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from movingbase.controller.design import closed_loop_stable, default_gains, linearised_plant, max_stable_step
-from movingbase.plant import integrators
-from movingbase.plant.errors import ConvergenceError, PlantError
-from movingbase.plant.hexapod_ode import HexapodODE
-from movingbase.plant.stewart import (HOME_POSE, StewartParams, dynamics_terms, inverse_dynamics, inverse_kinematics,
-                           rates_from_twist)
-from movingbase.scenarios import master, spec
-from movingbase.scenarios.fmi import FmuError, unpack
+from controller.design import closed_loop_stable, default_gains, linearised_plant, max_stable_step
+from plant import integrators
+from plant.errors import ConvergenceError, PlantError
+from plant.hexapod.model import (
+    HOME_POSE,
+    StewartParams,
+    dynamics_terms,
+    inverse_dynamics,
+    inverse_kinematics,
+    rates_from_twist,
+)
+from plant.hexapod.ode import HexapodODE
+from scenarios import spec
+from scenarios.cosim.fmi import FmuError, unpack
+from scenarios.runs import single
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 FIGURES = ROOT / "docs" / "figures"
@@ -143,7 +150,7 @@ class _Decided(Exception):
 
 
 class _Trace:
-    """A metric for scenarios.master.run that keeps the leg-length error per step and the
+    """A metric for scenarios.single.run that keeps the leg-length error per step and the
     peak force, and stops the run once the error has decayed by DECAYED."""
 
     name, start = "stability trace", 0.0
@@ -250,7 +257,7 @@ class CoSim:
     def __init__(self, paths=None, fmu_dir=None):
         self._folders = []
         if paths is None:
-            from movingbase.fmu_src.builder import ensure_built
+            from fmu_src.python_build import ensure_built
             if fmu_dir is None:
                 self._folders.append(tempfile.TemporaryDirectory(prefix="stability_fmu_"))
                 fmu_dir = self._folders[-1].name
@@ -276,7 +283,7 @@ class CoSim:
         message = ""
         start = time.perf_counter()
         try:
-            master.run(scenario, self.paths, values, self.outdir, "probe", [trace])
+            single.run(scenario, self.paths, values, self.outdir, "probe", [trace])
         except _Decided:
             pass
         except FmuError as exc:
@@ -615,7 +622,7 @@ def _lengths_on_grid(cosim, h, k, duration, gains, offset, grid):
 
     text = scenario_text(h, duration, scaled(gains, k), HOME_POSE + offset)
     scenario = spec.parse(text, "studies.stability")
-    master.run(scenario, cosim.paths, spec.bind(scenario, cosim.descriptions), cosim.outdir, "order",
+    single.run(scenario, cosim.paths, spec.bind(scenario, cosim.descriptions), cosim.outdir, "order",
                [Lengths(None, False)])
     return np.array([lengths[n] for n in sorted(lengths)])
 
@@ -633,7 +640,7 @@ def plot_boundary(panels, path, gains=GAINS, resolution=48):
     force limit plays no part in it) and observed verdicts (markers) in the (h, k) plane;
     one panel per (title, BoundaryStudy) in ``panels``."""
     plt = _plt()
-    from movingbase.scenarios.style import save
+    from scenarios.output.charts import save
     first = panels[0][1]
     hs = np.geomspace(first.steps.min() / 1.3, first.steps.max() * 1.3, resolution)
     ks = np.geomspace(first.scales.min() / 1.3, first.scales.max() * 1.3, resolution)
@@ -689,7 +696,7 @@ def plot_integrators(limits, path, cosim_limits=None, gains=GAINS):
     limits against k, predicted (lines) and observed (markers); the co-simulation's
     predicted limit for comparison."""
     plt = _plt()
-    from movingbase.scenarios.style import save
+    from scenarios.output.charts import save
     fig, (left, zoom, right) = plt.subplots(1, 3, figsize=(16, 5.6), width_ratios=(1, 0.9, 1.2))
     x, y = np.meshgrid(np.linspace(-3.5, 1.0, 500), np.linspace(-3.2, 3.2, 500))
     colors = {"euler": "tab:blue", "rk4": "tab:red"}
@@ -763,7 +770,7 @@ def plot_convergence(curves, path):
     """Error against step (log-log) with the observed orders in the legend; ``curves``:
     (label, steps, errors, what the error is)."""
     plt = _plt()
-    from movingbase.scenarios.style import plain_log_axis, save
+    from scenarios.output.charts import plain_log_axis, save
     fig, ax = plt.subplots(figsize=(8.5, 5.6), layout="constrained")
     for label, steps, errors, what in curves:
         p = orders(steps, errors)
@@ -873,7 +880,7 @@ def main(argv=None):
 
 def _routh_gain_limit(gains=GAINS):
     """Continuous-time lower gain limit of the heaviest leg-space mode: k > m ki / (kd kp)."""
-    from movingbase.controller.design import leg_mass_matrix
+    from controller.design import leg_mass_matrix
     mass = np.linalg.eigvalsh(leg_mass_matrix(PARAMS))[-1]
     return mass * gains.ki / (gains.kd * gains.kp)
 

@@ -58,13 +58,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from movingbase.plant.integrators import INTEGRATORS
-from movingbase.plant.stewart import FIDELITIES
-from movingbase.scenarios import master, runner, spec
-from movingbase.scenarios.fmi import FmuError
-from movingbase.scenarios.records import run_records
-
-from . import reference
+from plant.hexapod.model import FIDELITIES
+from plant.integrators import INTEGRATORS
+from scenarios import spec
+from scenarios.cosim.fmi import FmuError
+from scenarios.cosim.records import run_records
+from scenarios.runs import runner, single
+from studies import reference
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 FIGURES = ROOT / "docs" / "figures"
@@ -85,7 +85,7 @@ class SceneSpec:
     changed (e.g. an earlier start of the slew), and the window errors are measured in."""
 
     file: str
-    stop_time: float = None            # None: the file's
+    stop_time: float | None = None            # None: the file's
     base: tuple = ()                   # (("parameter", value), ...) set on the telescope FMU
     window_from: float = 0.0
     note: str = ""
@@ -218,7 +218,7 @@ def cosimulate(prep, config, outdir, stop_time=None):
     if config.integrator == "radau":   # scipy's Radau: only the pythonfmu plant has it
         paths = runner.fmu_paths(dataclasses.replace(scenario, implementations={**scenario.implementations,
                                                                                 plant: "python"}))
-    run = master.run(scenario, paths, params, pathlib.Path(outdir), "run")
+    run = single.run(scenario, paths, params, pathlib.Path(outdir), "run")
     records = run_records(run)
     pose = [k for k, c in enumerate(records.names) if c.startswith("plant.pose[")]
     force = [k for k, c in enumerate(records.names) if c.startswith("controller.leg_force[")]
@@ -394,7 +394,7 @@ def measures(results, key):
     """(costs, errors) arrays; NaN for failed and unstable runs, which the front ignores.
     Position errors under the floor (1 nm) count as the floor: finer than the model
     resolves, they are equal, and the cheapest of them is the front there."""
-    from movingbase.scenarios.style import FLOOR
+    from scenarios.output.charts import FLOOR
     usable = [bool(r["error"]) and not r["unstable"] for r in results]
     costs = np.array([r["cpu_time"] if ok else np.nan for r, ok in zip(results, usable)])
     errors = np.array([r["error"][key] if ok else np.nan for r, ok in zip(results, usable)])
@@ -470,7 +470,7 @@ def chart(name, results, path, note=""):
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
 
-    from movingbase.scenarios.style import FLOOR, label_points, plain_log_axis, ratio, save
+    from scenarios.output.charts import FLOOR, label_points, plain_log_axis, ratio, save
 
     fig, axes = plt.subplots(1, 2, figsize=(13, 6.2), layout="constrained")
     labels = {}
@@ -499,7 +499,9 @@ def chart(name, results, path, note=""):
         v = verdict(results, key)
         if v:
             d = next(i for i, r in enumerate(results) if r["config"] == DEFAULT)
-            status = "on the front" if v["on_front"] else ("within 10 % of it" if v["near"] else "not within 10 % of it")
+            status = (
+                "on the front" if v["on_front"] else ("within 10 % of it" if v["near"] else "not within 10 % of it")
+            )
             ax.scatter(costs[d], shown[d], s=260, marker="*", facecolors="gold", edgecolors="k", zorder=4)
             title = (f"shipped default ({DEFAULT.label}): {status};\ncost {ratio(v['cost_ratio'], 1)} the front's at "
                      f"equal error, error {ratio(v['error_ratio'], 1)} at equal cost")

@@ -1,7 +1,8 @@
 """Shared fixtures: the FMUs are built once per test session into a temporary folder."""
 import pytest
 
-from movingbase.fmu_src import builder, native_build
+from fmu_src import native_build
+from fmu_src import python_build as builder
 from tests.fmu_helpers import free_all
 
 
@@ -35,5 +36,11 @@ def pytest_unconfigure(config):
     (our temp folders) ran: with pythonfmu FMUs loaded into this interpreter (fmpy runs
     them in-process), Py_Finalize ended in SIGSEGV in 2 of 6 full runs after every test had
     passed and the summary was printed; the cause is not found yet (docs/development.md)."""
-    from movingbase.__main__ import exit_now
+    from movingbase.cli import exit_now
     exit_now(getattr(config, "movingbase_status", 0))
+
+
+@pytest.fixture(scope="session")
+def native(native_fmus):
+    """Native FMU paths by script name, built from the session's pythonfmu FMUs."""
+    return native_fmus

@@ -18,10 +18,13 @@ import warnings
 import pytest
 
 import movingbase
-from movingbase.scenarios import campaign, resources, runner, spec
+from scenarios import spec
+from scenarios.runs import campaign, runner
+from scenarios.runs import estimates as resources
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), *sorted((ROOT / "docs" / "conventions").glob("*.md"))]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")),
+         *sorted((ROOT / "docs" / "conventions").glob("*.md"))]
 NOT_RUN = "<!-- not run: "
 SLOW_STEPS = 250_000     # a full-length example of more steps (all runs: ~3 s native) is a slow test
 
@@ -127,7 +130,8 @@ def test_the_python_blocks_of_a_page_run(page, fresh):
 
 
 TOMLS = [(page, code) for page, lang, code in RUN if lang == "toml"] + \
-    [(path, path.read_text(encoding="utf-8")) for path in sorted((ROOT / "examples").glob("*.toml"))]   # the notebooks' own
+    [(path,
+      path.read_text(encoding="utf-8")) for path in sorted((ROOT / "examples").glob("*.toml"))]   # the notebooks' own
 
 
 def steps(code):
@@ -142,8 +146,10 @@ def steps(code):
     given = data.get("set", {})
     base = spec.parse(runner.resolve(data["scenario"]).read_text(encoding="utf-8"),
                       overrides={k: v for k, v in given.items() if "." not in k})
-    keys = {*given, *(k for axis in data.get("grid", []) for k in axis), *(k for case in data.get("cases", []) for k in case)}
-    runs = math.prod(len(next(iter(axis.values()))) for axis in data.get("grid", [])) * max(1, len(data.get("cases", [])))
+    keys = {*given, *(k for axis in data.get("grid", []) for k in axis), *(k for case in data.get("cases",
+                                                                                                  []) for k in case)}
+    runs = math.prod(len(next(iter(axis.values()))) for axis in data.get("grid", [])) * max(1, len(data.get("cases",
+                                                                                                            [])))
     if base.sweep and base.sweep[0] not in keys:
         runs *= len(base.sweep[1])
     return runs * resources.estimate(base).steps

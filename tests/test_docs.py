@@ -1,18 +1,18 @@
 """The documentation against the code it describes: the scenario-file reference's table
-(scenarios/spec.py KEYS) against what the checker accepts, refuses and fills in; the
+(scenarios/spec/__init__.py KEYS) against what the checker accepts, refuses and fills in; the
 figures against the files; the README's commands against the constraints file; the
 constraints file against the ranges pyproject.toml declares; the layout table, the shipped
 files and the quoted step refusal against the tree and the kit."""
 import importlib.util
 import pathlib
 import re
+import tomllib
 
 import pytest
 from packaging.requirements import Requirement
 
-import tomllib
-
-from movingbase.scenarios import spec
+from fmu_src import catalogue
+from scenarios import spec
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
@@ -44,14 +44,15 @@ def _generate():
 
 def test_every_top_level_key_the_checker_accepts_is_documented():
     documented = {re.split(r"[.\[]", key)[0] for key in spec.KEYS}
-    assert documented == spec._TOP_KEYS
+    assert documented == spec.TOP_KEYS
 
 
 @pytest.mark.parametrize("table, accepted, documented_body, bogus_body", [
     ("fmus.<instance>", {"fmu", "implementation", "parameters"}, BODY.replace('fmu = "mechanism3t_plant"',
                                      'fmu = "mechanism3t_plant"\nimplementation = "python"\nparameters = {}'),
      BODY.replace('fmu = "mechanism3t_plant"', 'fmu = "mechanism3t_plant"\nbogus = 1')),
-    ("connections[]", {"from", "to"}, BODY, BODY.replace('to = "plant.slider_force"', 'to = "plant.slider_force"\nbogus = 1')),
+    ("connections[]", {"from", "to"}, BODY, BODY.replace('to = "plant.slider_force"',
+                                                         'to = "plant.slider_force"\nbogus = 1')),
     ("record", {"interval", "variables"}, BODY + '[record]\ninterval = "2 ms"\nvariables = ["plant.slider_position"]\n',
      BODY + "[record]\nbogus = 1\n"),
     ("sweep", {"parameter", "values"}, BODY + '[sweep]\nparameter = "controller.feedforward"\nvalues = ["off", "on"]\n',
@@ -108,15 +109,15 @@ def test_documented_defaults_are_what_the_checker_fills_in():
 def test_scenario_reference_lists_every_key_kind_fmu_and_unit():
     generate = _generate()
     # the FMU table needs the built FMUs; the keys, kinds and units do not
-    generate._model_names = lambda: {fmu: fmu for fmu in spec.FMU_SCRIPTS}
+    generate._model_names = lambda: {fmu: fmu for fmu in catalogue.KEYS}
     text = generate.scenario_reference()
     for key in spec.KEYS:
         assert f"| `{key}` |" in text
     for kind, needs in spec.METRIC_KINDS.items():
         assert f"| `{kind}` | {', '.join(f'`{k}`' for k in needs)} |" in text
-    for fmu in spec.FMU_SCRIPTS:
+    for fmu in catalogue.KEYS:
         assert f"| `{fmu}` |" in text
-    from movingbase.scenarios.units import UNITS
+    from scenarios.spec.units import UNITS
     for unit in UNITS:
         assert f"`{unit}`" in text
 
@@ -153,7 +154,8 @@ def test_constraints_pin_every_declared_dependency_within_its_range():
         if line:
             name, version = line.split("==")
             pins[re.sub(r"[-_.]+", "-", name).lower()] = version
-    requirements = [*project["dependencies"], *(r for extra in project["optional-dependencies"].values() for r in extra)]
+    requirements = [*project["dependencies"],
+                    *(r for extra in project["optional-dependencies"].values() for r in extra)]
     for text in requirements:
         requirement = Requirement(text)
         if requirement.marker is not None and not requirement.marker.evaluate():
@@ -215,7 +217,7 @@ def test_the_layout_table_names_every_folder_and_module():
     folders = sorted({line.split("/")[0] for line in tracked.stdout.splitlines() if "/" in line})
     missing = [f"{name}/" for name in folders if f"`{name}/`" not in table]
     for package in ("plant", "controller", "fmu_src", "scenarios", "studies", "movingbase"):
-        missing += [f"{package}/{p.name}" for p in (ROOT / package).glob("*.py")
+        missing += [f"{package}/{p.relative_to(ROOT / package)}" for p in (ROOT / package).rglob("*.py")
                     if p.name != "__init__.py" and not p.name.endswith("_fmu.py") and p.name not in table]
     assert missing == []
 
@@ -223,7 +225,7 @@ def test_the_layout_table_names_every_folder_and_module():
 def test_the_pages_list_every_shipped_scenario_and_campaign():
     """scenarios.md and campaigns.md name every shipped file (telescope_slew_realistic
     was missing from scenarios.md) and no file that is gone."""
-    from movingbase.scenarios import campaign, runner
+    from scenarios.runs import campaign, runner
 
     def listed(page, start, end):
         text = (DOCS / page).read_text(encoding="utf-8")

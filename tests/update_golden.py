@@ -9,12 +9,12 @@ behaviour, not of rounding.
     python -m tests.update_golden [names]
 """
 import json
-import re
 import pathlib
+import re
 import sys
 import tempfile
 
-from movingbase.scenarios import runner
+from scenarios.runs import runner
 
 GOLDEN = pathlib.Path(__file__).parent / "golden"
 FLOOR = 1e-8

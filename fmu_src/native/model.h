@@ -1,7 +1,7 @@
 #ifndef MB_MODEL_H
 #define MB_MODEL_H
-/* What one model file (hexapod_plant.c, telescope_base.c, ...) gives the shared FMI 2.0
-   co-simulation layer (fmi2_layer.c), and what the layer gives it back.
+/* What one model file (hexapod_plant_fmu.c, telescope_fmu.c, ...) gives the instance core
+   shared by the FMI 2.0 and FMI 3.0 layers (instance.c), and what the core gives it back.
 
    Every variable lives in one of two arrays indexed by value reference: r[vr] for Reals,
    i[vr] for Integers (the vr namespace is shared, as pythonfmu numbers them); vector
@@ -9,7 +9,7 @@
    The variable table (names, types, causalities, starts, ranges) is generated from the
    pythonfmu FMU at build time (fmu_src/native_build.py) into <modelIdentifier>_vars.h.
    The model keeps its own state in a plain struct (no pointers) of model_size bytes, so
-   the layer saves, restores and serialises an FMU state as bytes. */
+   the core saves, restores and serialises an FMU state as bytes. */
 #include <math.h>
 #include <stddef.h>
 
@@ -39,21 +39,21 @@ typedef struct {
     /* exitInitializationMode: outputs at the start time from the parameters and inputs.
        Returns 0, or 1 after mb_error. */
     int (*init)(mb_instance *inst, double *r, int *i, void *model, double start_time);
-    /* doStep(t, h): returns 0 (accepted), or 1 after mb_error (the layer answers
-       fmi2Discard and restores r, i and the model to their state before the step). */
+    /* doStep(t, h): returns 0 (accepted), or 1 after mb_error (the core answers
+       Discard and restores r, i and the model to their state before the step). */
     int (*step)(mb_instance *inst, double *r, int *i, void *model, double t, double h);
 } mb_model_info;
 
 extern const mb_model_info MB_MODEL;
 
 /* Record the failure of init/step: kind names it as the Python FMU's exception class
-   does (InvalidInputError, StrokeError, ...); the layer adds when it happened and logs
+   does (InvalidInputError, StrokeError, ...); the core adds when it happened and logs
    it at error level. */
 void mb_error(mb_instance *inst, const char *kind, const char *fmt, ...);
 
 /* The work bound of one doStep: a model integrating on substeps takes at most this many
    (the plant's RK4 substep costs ~1-3 us, so a doStep stays within seconds). A longer
-   step is refused with fmi2Discard and a line saying how many substeps it would need:
+   step is refused with Discard and a line saying how many substeps it would need:
    a 1e6 s step at max_step 1e-3 s would otherwise run 1e9 substeps for hours, and
    their count overflows an int, so the plant would integrate nothing and answer OK. */
 #define MB_MAX_SUBSTEPS 1000000
@@ -65,7 +65,8 @@ void mb_warning(mb_instance *inst, const char *fmt, ...);
 const char *mb_repr(double v, char *buf);
 
 /* The checks of controller.pid.PIDGains (gains finite and >= 0, force_limit finite and
-   > 0): 0, or 1 after mb_error naming the gain. Both native controllers use it. */
+   > 0): 0, or 1 after mb_error naming the gain. Both native controllers use it
+   (controller_checks.c). */
 int mb_check_pid_gains(mb_instance *inst, double kp, double ki, double kd, double force_limit);
 
 /* "a, b" list of the names whose row of `width` values in `rows` holds NaN or inf,
@@ -75,7 +76,7 @@ int mb_nonfinite_rows(int nrows, int width, const double *rows, const char *cons
 
 /* substeps = ceil(h / max_step) (at least 1), computed in double: 0, or 1 after mb_error
    (WorkBoundError) when it passes MB_MAX_SUBSTEPS. Every model with substeps uses it; here
-   (not in a layer) so that the FMI 2.0 and FMI 3.0 layers share it. */
+   (not in a layer) with the models' other shared code. */
 static inline int mb_substeps(mb_instance *inst, double h, double max_step, int *substeps)
 {
     char hb[32], mb[32];

@@ -3,7 +3,7 @@
 /* What the controller's feedforward can know of the base: an estimate of the base's pose,
    rate and acceleration (as the telescope kernel's mb_tel_base_motion gives them) from
    the antenna's axis encoders (source 0) or from an inertial sensor on the base (source 1).
-   The BaseSensor FMUs (fmu_src/base_sensor_fmu.py, fmu_src/native/base_sensor.c) call
+   The BaseSensor FMUs (fmu_src/base_sensor_fmu.py, fmu_src/native/base_sensor_fmu.c) call
    these functions; SI (m, rad, s).
 
    Encoders: the angles (Az, E) quantised to encoder_resolution (round to nearest), rates

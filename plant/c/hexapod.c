@@ -1,7 +1,7 @@
 /* Kane kernel of the 6-UPS hexapod (API and conventions in hexapod.h).
 
    A port, term by term and in the same operation order, of the numba kernel it replaced
-   (git 73017ff:plant/kane.py), so that both round alike (tests/test_kernel_c.py holds them
+   (git 73017ff:plant/hexapod/kernel.py), so that both round alike (tests/plant/test_hexapod_kernel.py holds them
    equal). Vectors are 3-element structs passed by value and all scratch lives on the
    stack: nothing is allocated. The legs are computed two at a time, one per lane of a
    2-double vector, with each lane's operations those of one leg: the same bits. Equations: M du/dt + h = J^T F with u = (v, w) of {P}

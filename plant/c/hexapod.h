@@ -1,7 +1,7 @@
 #ifndef MB_HEXAPOD_H
 #define MB_HEXAPOD_H
 /* Kane kernel of the 6-UPS hexapod: M, h, J per state, the ID / FD solves, the fixed-step
-   integrator of the plant FMU and the leg read-out (derivation in plant/stewart.py).
+   integrator of the plant FMU and the leg read-out (derivation in plant/hexapod/model.py).
 
    Generalised speeds u = (v, w) of the platform frame {P} relative to the base frame {B},
    expressed in {B}:  M du/dt + h = J^T F.  SI units throughout (m, rad, s, kg, N).

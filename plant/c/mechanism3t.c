@@ -1,6 +1,6 @@
 /* Single-state kernel of the 3T mechanism (mechanism3t.h says what and in which units).
 
-   The formulas are those of plant/mechanism3t.py (_forward, _limb3_motion, _two_link,
+   The formulas are those of plant/mechanism3t/model.py (_forward, _limb3_motion, _two_link,
    _along, _bodies, dynamics_terms), term by term and in the same order of operations,
    with rho_ddot = 0 for the bias and unit slider rates for the velocity Jacobians, as
    dynamics_terms does. Scalar code on the stack: no allocation. */

@@ -2,8 +2,8 @@
 #define MB_MECHANISM3T_H
 /* Single-state kernel of the 3T mechanism of Shen et al. 2024 ("mechanism 1"): O', the
    generalised mass matrix M, the bias forces, inverse and forward dynamics, the plant RHS
-   and fixed-step RK4 / Euler, for ONE state. plant/mechanism3t.py (batched numpy) is the
-   validated reference; plant/mechanism3t_kernel.py is the Python (cffi) face of this file.
+   and fixed-step RK4 / Euler, for ONE state. plant/mechanism3t/model.py (batched numpy) is the
+   validated reference; plant/mechanism3t/kernel.py is the Python (cffi) face of this file.
 
    Units: SI throughout (m, m/s, m/s^2, N, kg, kg m^2, s). Arrays are float64, contiguous,
    row-major; the callee never allocates and never keeps a pointer.

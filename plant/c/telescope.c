@@ -1,7 +1,7 @@
 /* The telescope's motion profiles and base motion (interface and law: telescope.h).
 
    Each expression keeps the operand order of the numpy implementation it replaced
-   (plant/telescope.py at 73017ff), pow() where Python raised to a power of 3 or a
+   (plant/telescope/model.py at 73017ff), pow() where Python raised to a power of 3 or a
    Python float to a power, x * x where numpy squared an array, so that the two agree
    to the last bits (up to the libm each one's sin/cos/atan2 comes from). */
 #include <math.h>

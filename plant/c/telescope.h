@@ -2,7 +2,7 @@
 #define MB_TELESCOPE_H
 /* The telescope that moves the hexapod's base: axis profiles -> base and reference motion.
    Law: docs/conventions/telescope.md. SI (m, rad, s), every derivative analytic. The Python API
-   (plant/telescope.py, plant/trajectory.py) and the telescope FMUs call these functions.
+   (plant/telescope/model.py, plant/trajectory.py) and the telescope FMUs call these functions.
 
    Arrays are row-major. "axes" is (n, 6) with columns A, A', A'', E, E', E'': A the mount's
    azimuth angle of R_WB = Rz(A) Rx(90 deg - E), A = 180 deg - Az with Az the astronomical

@@ -1,0 +1,163 @@
+/* Telescope, native: the variables of fmu_src/telescope_fmu.py over the telescope
+   kernel (plant/c/telescope.h, mb_tel_fmu_rows). The 40 outputs at a communication point
+   are the kernel's row at that time; the time is formed as the Python FMU forms it
+   (block start + h * index over blocks of BLOCK points, a new block off the grid), so the
+   two agree bit for bit. */
+#include <stdio.h>
+#include <string.h>
+
+#include "Telescope_vars.h"
+#include "telescope.h"
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+#define SERVO_MAX_WH 0.05   /* w h of one servo RK4 substep, as plant/c/telescope.c takes it */
+
+typedef struct {
+    mb_tel_params params;
+    mb_tel_profile profile;
+    double block_t, block_h;
+    int servo;               /* servo_bandwidth > 0 */
+    double command[6];       /* command axes at the last communication point */
+    double state[4];         /* actual axes (A, A', E, E') */
+} Model;
+
+/* slave.py's message for a kernel status (plant/telescope/model.py _status_error). */
+static void fail_status(mb_instance *inst, const Model *m, int status, double t)
+{
+    char buf[32];
+    const mb_tel_profile *p = &m->profile;
+    if (status == MB_TEL_BELOW_HORIZON)
+        mb_error(inst, "InvalidInputError", "the source is below the horizon at t = %s s", mb_repr(t - p->start_delay, buf));
+    else if (status == MB_TEL_DEC_RANGE)
+        mb_error(inst, "InvalidInputError", "dec must lie in [-90, 90] deg, got %.6g deg", p->dec * 57.29577951308232);
+    else if (status == MB_TEL_DURATION_NOT_POSITIVE)
+        mb_error(inst, "InvalidInputError", "T must be > 0, got %s", mb_repr(p->paper_duration, buf));
+    else if (status == MB_TEL_ELEVATION_RANGE)
+        mb_error(inst, "InvalidInputError", "slew elevation must lie in [0, 90] deg, got %.6g..%.6g deg",
+                 57.29577951308232 * (p->start_el < p->target_el ? p->start_el : p->target_el),
+                 57.29577951308232 * (p->start_el > p->target_el ? p->start_el : p->target_el));
+    else
+        mb_error(inst, "InvalidInputError", "%s", mb_tel_status_text(status));
+}
+
+/* Outputs at time t after a step of h (telescope_fmu.py Telescope._publish). */
+static int publish(mb_instance *inst, double *r, Model *m, double t, double h)
+{
+    double index = -1.0;
+    if (m->block_h == h && h > 0) index = nearbyint((t - m->block_t) / m->block_h);
+    if (!(index >= 0 && index < BLOCK && fabs(m->block_t + index * h - t) <= 1e-9 * (fabs(t) > 1.0 ? fabs(t) : 1.0))) {
+        m->block_t = t;
+        m->block_h = h;
+        index = 0.0;
+    }
+    double time = m->block_t + h * index, row[60];
+    int first_bad = -1;
+    int status = mb_tel_fmu_rows_full(&m->params, &m->profile, 1, &time, row, &first_bad);
+    if (status) {
+        fail_status(inst, m, status, time);
+        return 1;
+    }
+    memcpy(&r[VR_base_pose], row, sizeof row);   /* the 60 outputs have consecutive vrs */
+    return 0;
+}
+
+/* The command axes at t, or 1 after mb_error (servo on). */
+static int command_at(mb_instance *inst, Model *m, double t, double *axes)
+{
+    int first_bad = -1;
+    int status = mb_tel_axes(&m->params, &m->profile, 1, &t, axes, &first_bad);
+    if (status) {
+        fail_status(inst, m, status, t);
+        return 1;
+    }
+    return 0;
+}
+
+static void publish_servo(double *r, Model *m, double t)
+{
+    mb_tel_servo_row(&m->params, &m->profile, r[VR_servo_bandwidth], r[VR_servo_damping], t, m->command, m->state,
+                     &r[VR_base_pose]);
+}
+
+static int init(mb_instance *inst, double *r, int *i, void *model, double start_time)
+{
+    (void)start_time;
+    Model *m = model;
+    int kind = i[VR_profile];
+    if (kind < 0 || kind >= N_PROFILE_NAMES) {
+        mb_error(inst, "IndexError", "profile %d is not one of 0..%d (0 slew, 1 sidereal, 2 paper)", kind,
+                 N_PROFILE_NAMES - 1);
+        return 1;
+    }
+    mb_tel_params *p = &m->params;
+    p->latitude = r[VR_latitude];
+    p->longitude = r[VR_longitude];
+    p->lever_arm = r[VR_lever_arm];
+    p->az_rate_max = r[VR_az_rate_max];
+    p->az_acc_max = r[VR_az_acc_max];
+    p->el_rate_max = r[VR_el_rate_max];
+    p->el_acc_max = r[VR_el_acc_max];
+    p->b_y = TIANMA_B_Y;
+    p->c_y = TIANMA_C_Y;
+    p->b_z = TIANMA_B_Z;
+    p->c_z = TIANMA_C_Z;
+    memcpy(p->home, TIANMA_HOME, sizeof p->home);
+    mb_tel_profile *f = &m->profile;
+    f->kind = kind == PROFILE_SLEW ? MB_TEL_SLEW : kind == PROFILE_SIDEREAL ? MB_TEL_SIDEREAL : MB_TEL_PAPER;
+    f->start_az = r[VR_start_azimuth];
+    f->start_el = r[VR_start_elevation];
+    f->target_az = r[VR_target_azimuth];
+    f->target_el = r[VR_target_elevation];
+    f->ra = r[VR_right_ascension];
+    f->dec = r[VR_declination];
+    f->utc_start = r[VR_utc_start];
+    f->paper_duration = r[VR_paper_duration];
+    f->start_delay = r[VR_start_delay];
+    memcpy(f->ref_start, HOME_POSE, sizeof f->ref_start);
+    memcpy(f->ref_stop, S_BAND_POSE, sizeof f->ref_stop);
+    int status = mb_tel_check_params(p);
+    if (status) {
+        mb_error(inst, "InvalidInputError", "%s", mb_tel_status_text(status));
+        return 1;
+    }
+    m->block_t = INFINITY;
+    m->block_h = 0.0;
+    m->servo = r[VR_servo_bandwidth] > 0;
+    if (m->servo) {
+        char buf[32];
+        if (!(isfinite(r[VR_servo_damping]) && r[VR_servo_damping] > 0)) {   /* telescope.check_servo */
+            mb_error(inst, "InvalidInputError", "servo_damping must be finite and > 0, got %s",
+                     mb_repr(r[VR_servo_damping], buf));
+            return 1;
+        }
+        if (command_at(inst, m, 0.0, m->command)) return 1;
+        m->state[0] = m->command[0];   /* starts on the command */
+        m->state[1] = m->command[1];
+        m->state[2] = m->command[3];
+        m->state[3] = m->command[4];
+        publish_servo(r, m, 0.0);
+        return 0;
+    }
+    return publish(inst, r, m, 0.0, 0.0);
+}
+
+static int step(mb_instance *inst, double *r, int *i, void *model, double t, double h)
+{
+    (void)i;
+    Model *m = model;
+    if (m->servo) {
+        double command[6];
+        int substeps;   /* the count mb_tel_servo_advance takes: w h / SERVO_MAX_WH (plant/c/telescope.c) */
+        if (mb_substeps(inst, h, SERVO_MAX_WH / (2 * M_PI * r[VR_servo_bandwidth]), &substeps)) return 1;
+        if (command_at(inst, m, t + h, command)) return 1;
+        mb_tel_servo_advance(r[VR_servo_bandwidth], r[VR_servo_damping], h, m->command, command, m->state);
+        memcpy(m->command, command, sizeof command);
+        publish_servo(r, m, t + h);
+        return 0;
+    }
+    return publish(inst, r, model, t + h, h);
+}
+
+const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), init, step};

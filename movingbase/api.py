@@ -1,0 +1,621 @@
+"""The kit's Python API, for notebooks and scripts: ``movingbase.run`` and
+``movingbase.campaign`` return result objects holding the recorded time series (numpy
+arrays with units, or pandas DataFrames), the metrics, the flags of runs that went wrong,
+the report's charts as matplotlib figures and the report itself. Modelled on FMPy's
+``simulate_fmu`` (a scenario in, arrays out, nothing on disk unless asked) and on
+python-control's response objects (``.to_pandas()``, ``.plot()``; pandas optional).
+
+    >>> import movingbase
+    >>> result = movingbase.run("telescope_slew", ci=True, set={"base.start_elevation": "60 deg"})
+    >>> result.metrics["moving_base"]["leg error"]["rms"]      # µm
+    >>> result["moving_base"]["plant.pose"]                    # (rows, 6) array, SI units
+    >>> result.to_pandas()                                     # every run's series, by run and time
+
+The runs are those of the command line (``movingbase run``): the same checks, the same
+FMUs and master, the same numbers bit for bit; ``out=`` writes the same files.
+"""
+from __future__ import annotations
+
+import base64
+import copy
+import dataclasses
+import difflib
+import functools
+import html
+import io
+import os
+import pathlib
+import sys
+import time
+import warnings
+from collections.abc import Iterator, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Union
+
+import numpy as np
+
+from fmu_src import catalogue
+from scenarios import spec
+from scenarios.cosim import master
+from scenarios.cosim.records import Records, read_records, run_records
+from scenarios.output import report
+from scenarios.runs import campaign as campaigns
+from scenarios.runs import engine, runner
+from scenarios.runs import estimates as resources
+from scenarios.runs import flags as run_flags
+from scenarios.runs.flags import Flag
+from scenarios.runs.metrics import key_unit
+from scenarios.spec import units
+from scenarios.spec.units import UnitError, split
+
+if TYPE_CHECKING:   # pandas and matplotlib are imported where they are used
+    import pandas
+    from matplotlib.figure import Figure
+
+ScenarioLike = Union[str, "os.PathLike[str]", spec.Scenario]
+
+
+def _public(function: Any) -> Any:
+    """A refusal (ScenarioError) raised from the public call itself: a notebook shows the
+    call and the message (file, key, problem), not 30-60 lines of the checks it passed
+    through. Any other error keeps its whole traceback: that one is the kit's to fix."""
+    @functools.wraps(function)
+    def public(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return function(*args, **kwargs)
+        except spec.ScenarioError as exc:
+            raise exc.with_traceback(None) from None
+    return public
+
+
+def _pandas() -> Any:
+    try:
+        import pandas
+    except ModuleNotFoundError:
+        raise ModuleNotFoundError("tables (metrics_table, to_pandas, CampaignResult.table) need pandas, a "
+                                  "dependency of movingbase that is missing here: pip install pandas (or the "
+                                  "arrays: .time, .values, .names, .units)") from None
+    return pandas
+
+
+# ------------------------------------------------------------------------ loading
+def _flags_given(**given: Any) -> None:
+    """Each of ``given`` is True or False (numpy's too), as a command-line switch is: a
+    string such as "false" or "no" would be taken as true and run what was not asked for."""
+    for name, value in given.items():
+        if not isinstance(value, (bool, np.bool_)):
+            raise TypeError(f"{name} must be True or False, got {type(value).__name__} {value!r:.60}")
+
+
+@_public
+def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None,
+                  ci: bool = False) -> spec.Scenario:
+    """A checked Scenario from a shipped name, a file path or a Scenario (copied, the
+    argument is left as it is). ``set`` overrides values as the file would give them:
+    ``{"base.start_elevation": "60 deg"}`` sets an FMU instance's parameter,
+    ``{"stop_time": "10 s"}`` a top-level key (names and files only); a bare number is SI
+    (``1.0`` for an angle is 1 rad, 57.3 deg: write ``"60 deg"``); every value goes
+    through the checks of a value written in the file (units, ranges, the model's own
+    refusals) when the scenario is bound (``run``). ``ci`` applies the file's [ci] section.
+    A Scenario's fields (changed in Python) are checked as the same values in a file."""
+    _flags_given(ci=ci)
+    source = scenario.source if isinstance(scenario, spec.Scenario) else str(scenario)
+    set = _overrides(source, set)
+    top = {k: v for k, v in set.items() if "." not in k}
+    if isinstance(scenario, spec.Scenario):
+        if top or ci:
+            raise spec.ScenarioError(scenario.source, "set" if top else "ci",
+                                     f"{'top-level keys ' + ', '.join(top) if top else 'ci'} can be applied to a "
+                                     "scenario file only (load_scenario(path, set=..., ci=...)), not to a Scenario "
+                                     "object; change its fields with dataclasses.replace")
+        loaded = spec.parse_data(copy.deepcopy(spec.as_data(scenario)), scenario.source)
+        loaded.short = scenario.short
+    elif not isinstance(scenario, (str, os.PathLike)):
+        raise TypeError(f"scenario must be a shipped name, a file path or a Scenario, got "
+                        f"{type(scenario).__name__} {scenario!r:.60}")
+    else:
+        path = runner.resolve(os.fspath(scenario))
+        if not path.exists():
+            raise spec.ScenarioError(str(path), "file", runner.not_found([os.fspath(scenario)]))
+        loaded = spec.load(path)
+        overrides = {**(loaded.ci if ci else {}), **top}
+        if overrides:
+            loaded = spec.load(path, overrides=overrides)
+        loaded.short = bool(ci)
+    for key, value in set.items():
+        if "." not in key:
+            continue
+        inst, name = key.split(".", 1)
+        if inst not in loaded.fmus:
+            near = difflib.get_close_matches(inst, list(loaded.fmus), 1, 0.6)
+            raise spec.ScenarioError(_set_source(loaded.source), f"set[{key!r}]", f"unknown FMU instance {inst!r}; "
+                                     + (f"did you mean {near[0]!r}? " if near else "")
+                                     + f"declared: {', '.join(loaded.fmus)} (top-level keys: no dot)")
+        if loaded.sweep and loaded.sweep[0] == key:
+            raise spec.ScenarioError(_set_source(loaded.source), f"set[{key!r}]",
+                                     "is the swept parameter; every run sets it "
+                                     f"from sweep.values; to run one value: set={{'sweep': {{'parameter': {key!r}, "
+                                     f"'values': [{value!r}]}}}}")
+        loaded.parameters[inst][name] = value
+    return loaded
+
+
+def _set_source(source: str) -> str:
+    """Where a problem of ``set`` is told as coming from: the caller's set= on the scenario,
+    not the scenario's file (a shipped file named first read as broken)."""
+    return f"set= for {pathlib.Path(source).name}"
+
+
+def _as_set(error: spec.ScenarioError, given: Mapping[str, Any] | None) -> spec.ScenarioError:
+    """``error`` with each problem in a parameter that ``given`` (run's ``set``) set told as
+    ``set['inst.name']``, as set's own refusals are: the value is the caller's, not the file's."""
+    paths = {f"fmus.{k.split('.', 1)[0]}.parameters.{k.split('.', 1)[1]}": k for k in given or {} if "." in k}
+    told = []
+    for source, key, problem in error.problems:
+        path = next((p for p in paths if key == p or key.startswith(p + "[")), None)
+        told.append(spec.ScenarioError(source, key, problem) if path is None else
+                    spec.ScenarioError(_set_source(source), f"set[{paths[path]!r}]{key[len(path):]}", problem))
+    return spec.ScenarioError.joined(told)
+
+
+def _overrides(source: str, values: Any) -> dict[str, Any]:
+    """``set`` as a dict of text keys to values as a file gives them (numpy scalars and
+    arrays as numbers and lists); anything else is refused, naming it."""
+    if values is None:
+        return {}
+    if not isinstance(values, Mapping):
+        raise spec.ScenarioError(_set_source(source), "set",
+                                 f"expected a mapping of 'instance.parameter' or top-level keys "
+                                 f"to values, got {type(values).__name__} {values!r:.60}")
+    bad = [k for k in values if not isinstance(k, str) or not k]
+    if bad:
+        raise spec.ScenarioError(_set_source(source), "set",
+                                 f"keys are text, 'instance.parameter' or a top-level key; got "
+                                 f"{', '.join(repr(k) for k in bad)}")
+    return {k: spec.plain(v) for k, v in values.items()}
+
+
+# ------------------------------------------------------------------------ results
+class Charts(list["Figure"]):
+    """Figures that show themselves: a notebook cell ending in ``result.plot()`` draws
+    them (as python-control's ControlPlot does), a script saves them (``save``). A list of
+    matplotlib Figures (not pyplot's: drawing them leaves the caller's figures alone)."""
+
+    def _repr_html_(self) -> str:
+        images = []
+        for figure in self:
+            buffer = io.BytesIO()
+            figure.savefig(buffer, format="png", dpi=90)
+            images.append(f'<img src="data:image/png;base64,{base64.b64encode(buffer.getvalue()).decode()}"/>')
+        return "<br/>".join(images)
+
+    def save(self, folder: str | os.PathLike[str], stem: str = "chart") -> list[pathlib.Path]:
+        """Write each figure as ``folder/<stem>_<k>.png``; their paths."""
+        made: pathlib.Path = runner.make_folder(folder)
+        paths = [made / f"{stem}_{k}.png" for k in range(1, len(self) + 1)]
+        for figure, path in zip(self, paths):
+            figure.savefig(path, dpi=120)
+        return paths
+
+    def __repr__(self) -> str:
+        titles = "; ".join(t.split("\n")[0] for t in (f.get_suptitle() for f in self) if t)
+        return f"<Charts: {len(self)} figure{'s' * (len(self) != 1)}{': ' + titles if titles else ''}>"
+
+
+def _html_table(head: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    cells = "".join(f"<th>{html.escape(str(h))}</th>" for h in head)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>" for row in rows)
+    return f"<table><tr>{cells}</tr>{body}</table>"
+
+
+_STATUS_STYLE = {"ok": "", "flagged": "color:#b00020", "failed": "color:#b00020;font-weight:bold"}
+
+
+class RunResult:
+    """One run: its recorded time series (SI units), metrics and flags.
+
+    ``time``, ``values`` (rows x columns), ``names`` ("inst.var[k]") and ``units`` are
+    numpy arrays and lists; ``result["plant.pose"]`` is one variable (a vector: rows x n),
+    ``to_pandas()`` the table, ``to_numpy()`` a structured array as FMPy's simulate_fmu
+    returns. A run that failed holds what it recorded up to then (``flags`` says why)."""
+
+    def __init__(self, run: master.Run, plotted: Sequence[str] = ()):
+        self.run = run
+        self._plotted = list(plotted)    # what ``plot()`` draws by default: what the metrics read
+        self.label: str = run.label
+        self.metrics: dict = run.metrics
+        self.flags: list[Flag] = run_flags.by_severity(run.flags)
+        self.failure: str | None = run.failure   # why an FMU stopped the run before its stop time
+        self.steps: int = run.steps
+        self.wall_time: float = run.wall_time
+        self.sim_time: float = run.sim_time
+        records = run_records(run)
+        self.records: Records = records if records is not None else Records([], [], 0)
+
+    @property
+    def ok(self) -> bool:
+        """True if nothing flagged the run (as ``solve_ivp``'s ``success``)."""
+        return not self.flags
+
+    @property
+    def status(self) -> str:
+        """"failed" (cut short: an FMU stopped it), "flagged" (ran to its stop time, but its
+        numbers are not results) or "ok"."""
+        return "failed" if self.failure else "flagged" if self.flags else "ok"
+
+    @property
+    def message(self) -> str:
+        """What went wrong, worst first ('' for a clean run)."""
+        return run_flags.summary(self.flags)
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.records.time
+
+    @property
+    def values(self) -> np.ndarray:
+        return self.records.values
+
+    @property
+    def names(self) -> list[str]:
+        return self.records.names
+
+    @property
+    def units(self) -> dict[str, str]:
+        """{"inst.var[k]": unit} of every recorded column."""
+        return dict(zip(self.records.names, self.records.units))
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """A recorded variable: a scalar's column, or a vector's (rows x n) array."""
+        if name == "time" or name in self.records.names:
+            return self.records[name]
+        parts = [n for n in self.records.names if n.startswith(name + "[")]
+        if not parts and not self.records.names and self.run.failure:
+            raise KeyError(f"run {self.label}: nothing was recorded, the run failed before its first row: "
+                           f"{self.run.failure}")
+        if not parts:
+            groups = self._variables()
+            near = [g for g in groups if g.split(".", 1)[-1] == name] or difflib.get_close_matches(name, groups, 1, 0.6)
+            raise KeyError(f"run {self.label}: no recorded variable {name!r}"
+                           + (f"; did you mean {near[0]!r}?" if near else "") + "; recorded: "
+                           f"{', '.join(groups) or 'nothing (the scenario records no variable)'}")
+        return np.column_stack([self.records[n] for n in parts])
+
+    def _variables(self) -> list[str]:
+        """The recorded variables, a vector once by its name ("plant.pose")."""
+        return list(dict.fromkeys(n.split("[", 1)[0] for n in self.records.names))
+
+    def _ipython_key_completions_(self) -> list[str]:
+        """Completion inside ``run["...``: every recorded variable, vectors by their name."""
+        return list(dict.fromkeys(self._variables() + self.records.names))
+
+    def to_pandas(self) -> pandas.DataFrame:
+        """The recorded series as a DataFrame indexed by time [s], one column per
+        variable; the units in ``frame.attrs["units"]``."""
+        pd = _pandas()
+        frame = pd.DataFrame(self.values, columns=self.names, index=pd.Index(self.time, name="time"))
+        frame.attrs["units"] = self.units
+        return frame
+
+    def to_numpy(self) -> np.ndarray:
+        """A structured array with a "time" field and one field per variable (FMPy's shape)."""
+        table = np.empty(len(self.time), dtype=[(name, float) for name in ["time"] + self.names])
+        for name, column in zip(table.dtype.names or (), [self.time] + list(self.values.T)):
+            table[name] = column
+        return table
+
+    def to_csv(self, path: str | os.PathLike[str]) -> pathlib.Path:
+        """Export the records as CSV (header with units, each float exactly)."""
+        return self.records.to_csv(path)
+
+    def plot(self, *names: str) -> Charts:
+        """Recorded variables against time, one panel each (a vector's components as
+        lines), the unit on each axis: ``run.plot("plant.pose", "controller.leg_force")``;
+        without names, the variables the scenario's metrics read. A failed or flagged run
+        says so in the title."""
+        chosen = list(names) or [n for n in self._plotted if n in self._ipython_key_completions_()]
+        if not chosen:
+            raise ValueError(f"run {self.label}: name the variables to plot; recorded: "
+                             f"{', '.join(self._variables()) or 'nothing'}")
+        columns = []     # (label, unit, rows x n): a vector's components apart by unit (a pose: m and rad)
+        for name in chosen:
+            values = self[name].reshape(len(self.time), -1)
+            parts = [name] if name in self.records.names else [n for n in self.names if n.startswith(name + "[")]
+            for unit in dict.fromkeys(self.units[p] for p in parts):
+                mine = [k for k, p in enumerate(parts) if self.units[p] == unit]
+                shown = name if len(mine) == len(parts) else f"{name}[{mine[0] + 1}:{mine[-1] + 1}]"
+                columns.append((shown, unit, values[:, mine], [parts[k][len(name):] for k in mine]))
+        status = "" if self.ok else self.message if self.status == "failed" else f"FLAGGED: {self.message}"
+        return Charts([report.variables_chart(self.label, self.time, columns, status)])
+
+    def _repr_html_(self) -> str:
+        state = html.escape(self.status.upper() if self.status != "ok" else "ok")
+        said = f": {html.escape(self.message)}" if self.message else ""
+        rows = [(m, k, f"{v:.4g}" if isinstance(v, float) else v, key_unit(values, k))
+                for m, values in self.metrics.items() for k, v in values.items() if k != "unit"]
+        return (f'<p><b>run {html.escape(self.label)}</b>: <span style="{_STATUS_STYLE[self.status]}">{state}'
+                f'{said}</span>; {len(self.time)} rows x {len(self.names)} variables, {self.sim_time:g} s '
+                f'simulated</p>' + _html_table(("metric", "", "value", "unit"), rows))
+
+    def __repr__(self) -> str:
+        kinds = "; ".join(f.kind for f in self.flags)
+        state = {"ok": "ok", "flagged": f"flagged: {kinds}",
+                 "failed": f"FAILED at t = {self.sim_time:g} s: {kinds}"}[self.status]
+        return (f"<RunResult {self.label!r}: {state}; {len(self.time)} rows x {len(self.names)} variables, "
+                f"{self.sim_time:g} s simulated>")
+
+
+class Result:
+    """What ``movingbase.run`` returns: one RunResult per run (per sweep value), in sweep
+    order, by label (``result["moving_base"]``) or by iteration; the metrics of every run;
+    the report's charts (``plot``) and the report itself (``report``)."""
+
+    def __init__(self, scenario: spec.Scenario, runs: Sequence[master.Run], report_path: pathlib.Path | None = None):
+        self.scenario = scenario
+        self._runs = list(runs)
+        read = [v for m in scenario.metrics for v in m.args.values() if isinstance(v, str) and "." in v]
+        self.runs: dict[str, RunResult] = {r.label: RunResult(r, list(dict.fromkeys(read))) for r in self._runs}
+        self.report_path = report_path     # where ``out`` wrote the report, if it was given
+
+    def __getitem__(self, label: str | int) -> RunResult:
+        """A run by its label, or by its position in sweep order (as iteration gives them)."""
+        if isinstance(label, int) and not isinstance(label, bool):
+            if not -len(self.runs) <= label < len(self.runs):
+                raise IndexError(f"run {label} of {len(self.runs)} ({', '.join(self.runs)})")
+            return list(self.runs.values())[label]
+        if label not in self.runs:
+            raise KeyError(f"no run {label!r}; runs: {', '.join(self.runs)}")
+        return self.runs[label]
+
+    def _ipython_key_completions_(self) -> list[str]:
+        return list(self.runs)
+
+    def __iter__(self) -> Iterator[RunResult]:
+        return iter(self.runs.values())
+
+    def __len__(self) -> int:
+        return len(self.runs)
+
+    @property
+    def metrics(self) -> dict[str, dict]:
+        """{run label: {metric: {key: value, "unit": ...}}}, as metrics.json holds them."""
+        return {label: r.metrics for label, r in self.runs.items()}
+
+    @property
+    def flags(self) -> dict[str, list]:
+        """{run label: its flags} of the runs that were flagged."""
+        return {label: r.flags for label, r in self.runs.items() if r.flags}
+
+    def metrics_table(self) -> pandas.DataFrame:
+        """One row per run, one column per (metric, key) number (floats; NaN where nothing
+        was counted), their units in ``table.attrs["units"]`` ({("leg error", "rms"): "µm"}),
+        and the columns ("status", "") and ("flags", "") saying what went wrong with a run
+        ('' if nothing): a flagged run's numbers are not results, and the table says so
+        where they stand."""
+        pd = _pandas()
+        rows = {label: {("status", ""): r.status.upper() if r.status == "failed" else r.status,
+                        **{(m, k): (float("nan") if v is None else v)
+                           for m, values in r.metrics.items() for k, v in values.items() if k != "unit"},
+                        ("flags", ""): run_flags.summary(r.flags)}
+                for label, r in self.runs.items()}
+        table = pd.DataFrame.from_dict(rows, orient="index")
+        table.attrs["units"] = {(m, k): key_unit(values, k) for r in self.runs.values()
+                                for m, values in r.metrics.items() for k in values if k != "unit"}
+        return table
+
+    def to_pandas(self) -> pandas.DataFrame:
+        """Every run's recorded series in one DataFrame indexed by (run, time)."""
+        pd = _pandas()
+        return pd.concat({label: r.to_pandas() for label, r in self.runs.items()}, names=["run"])
+
+    def plot(self) -> Charts:
+        """The report's charts (a notebook shows them; ``.save(folder)`` writes them): error
+        against time per tracking metric, and the summary bars when there are several
+        runs. One run's recorded variables: ``result[label].plot(...)``."""
+        tracked = [m for m in self.scenario.metrics if m.kind in report.TRACKING]
+        panels = [report._error_chart(self.scenario, self._runs, m, io.BytesIO()) for m in tracked]
+        if tracked and len(self._runs) > 1:
+            panels.append(report._summary_chart(self.scenario, self._runs, tracked, io.BytesIO()))
+        return Charts(next(iter(p.values())).figure for p in panels)
+
+    def report(self, out: str | os.PathLike[str]) -> pathlib.Path:
+        """Write what ``run(..., out=out)`` and ``movingbase run --out OUT`` write, where they
+        write it: into ``out/<file stem>/`` (records as npz, metrics.json, charts,
+        report.md); the report's path."""
+        folder = runner.output_folder(out, self.scenario.source)     # made and locked there
+        earlier, started = runner.replaced(folder), time.time()
+        if earlier:       # said, as the command says it
+            print(earlier, file=sys.stderr, flush=True)
+        runs = []
+        for run in self._runs:
+            kept = self.runs[run.label].records
+            target = folder / f"{run.label}.npz"
+            if run.record_path is None or pathlib.Path(str(run.record_path)).resolve() != target.resolve():
+                run = dataclasses.replace(run, record_path=kept.save(target))
+            runs.append(run)
+        written = runner.write_results(self.scenario, runs, folder)
+        if earlier and runner.left_over(folder, started):
+            print(runner.left_over(folder, started), file=sys.stderr, flush=True)
+        return written
+
+    @property
+    def ok(self) -> bool:
+        """True if no run was flagged or failed."""
+        return all(r.ok for r in self)
+
+    def __repr__(self) -> str:
+        failed = [label for label, r in self.runs.items() if r.status == "failed"]
+        flagged = [label for label, r in self.runs.items() if r.status == "flagged"]
+        state = (f"{', FAILED: ' + ', '.join(failed) if failed else ''}"
+                 f"{', flagged: ' + ', '.join(flagged) if flagged else ''}")
+        return f"<Result {self.scenario.name!r}: runs {', '.join(self.runs)}{state or ', all ok'}>"
+
+    def _repr_html_(self) -> str:
+        """Each run's status first (FAILED and flagged in red, with why), then its metrics."""
+        tracked = [(m, k) for m, values in next(iter(self.runs.values())).metrics.items()
+                   for k in ("rms", "peak") if k in values] if self.runs else []
+        head = ["run", "status"] + [f"{m} {k} [{key_unit(self[0].metrics[m], k)}]" for m, k in tracked] + ["flags"]
+        rows = [[label, r.status.upper() if r.status != "ok" else "ok"]
+                + [f"{r.metrics[m][k]:.4g}" if isinstance(r.metrics.get(m, {}).get(k), float) else ""
+                   for m, k in tracked] + [r.message] for label, r in self.runs.items()]
+        state = "all ok" if self.ok else "NOT ALL OK: a flagged or failed run's numbers are not results"
+        return (f"<p><b>Result {html.escape(self.scenario.name)}</b>: {len(self)} runs, "
+                f'<span style="{"" if self.ok else _STATUS_STYLE["failed"]}">{state}</span></p>'
+                + _html_table(head, rows))
+
+
+@_public
+def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: bool = False,
+        implementation: str | None = None, out: str | os.PathLike[str] | None = None,
+        progress: bool = True, allow_unstable: bool = False) -> Result:
+    """Run a scenario (a shipped name, a file path or a Scenario) as ``movingbase run``
+    does, every sweep value; ``set`` and ``ci`` as in ``load_scenario`` (a bare number in
+    ``set`` is SI: ``1.0`` for an angle is 1 rad; write ``"60 deg"``);
+    ``implementation`` ("native" or "python") for every FMU. A communication step beyond
+    the predicted stability limit is refused (ScenarioError) unless ``allow_unstable``;
+    then every run is flagged. Nothing is written to disk unless ``out`` is given: then
+    the files of ``movingbase run --out OUT`` (OUT/<file stem>/)."""
+    _flags_given(ci=ci, progress=progress, allow_unstable=allow_unstable)
+    loaded = load_scenario(scenario, set=set, ci=ci)
+    try:
+        with runner.announcing_builds(progress):
+            prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation, out)
+    except spec.ScenarioError as exc:
+        raise _as_set(exc, set) from None
+    before = runner.pre_run_flags(prepared, paths, descriptions, values, loaded.short, allow_unstable)
+    outdir = None if out is None else runner.output_folder(out, prepared.source)
+    earlier, started = outdir is not None and runner.replaced(outdir), time.time()
+    if earlier:
+        print(earlier, file=sys.stderr, flush=True)
+    runs = runner.run_prepared(prepared, paths, descriptions, values, outdir, progress, before=before)
+    result = Result(prepared, runs, runner.write_results(prepared, runs, outdir) if outdir else None)
+    if earlier and runner.left_over(outdir, started):
+        print(runner.left_over(outdir, started), file=sys.stderr, flush=True)
+    for r in result:     # shown in a notebook as a warning: a failed run is no result
+        if not r.ok:
+            said = r.message if r.status == "failed" else f"flagged: {r.message}"
+            warnings.warn(f"run {r.label!r} {said}", RunWarning, stacklevel=3)   # the caller's line
+    return result
+
+
+def fmus(*names: str, implementation: str = "native", fmi_version: int = 2) -> dict[str, pathlib.Path]:
+    """The kit's FMU files, by the names scenario files give them (``fmu = "hexapod_plant"``;
+    every FMU without names), built if missing or stale: what to give
+    ``fmpy.simulate_fmu`` or any FMI tool. ``implementation`` "native" (C, no Python in
+    the host; FMI 2.0 or 3.0) or "python" (pythonfmu, FMI 2.0)."""
+    return runner.fmu_files(names or catalogue.KEYS, implementation, fmi_version)
+
+
+class RunWarning(UserWarning):
+    """A run of ``movingbase.run`` failed or was flagged: its numbers are not results."""
+
+
+# ------------------------------------------------------------------------ campaigns
+def _si_column(values: list) -> tuple[list[float], str] | None:
+    """A campaign column of quantities ("0 m", "5 m") as SI floats and their SI unit; None
+    if it is not one (words such as "moving_base", mixed dimensions)."""
+    numbers, dimensions = [], set()
+    for value in values:
+        if not isinstance(value, str):
+            return None
+        try:
+            unit = split(value)[1]
+            numbers.append(units.to_si(value))
+        except UnitError:
+            return None
+        known = units.UNITS.get(units.spelled(unit)) if unit else None
+        dimensions.add(known[1] if known else None)
+    dimension = dimensions.pop() if len(dimensions) == 1 else None
+    return (numbers, dimension) if dimension else None
+
+
+class CampaignResult:
+    """What ``movingbase.campaign`` returns: the table of its runs (``table()``: one row
+    per run with its case values, status, error and metrics, the campaign's summary.csv
+    as a DataFrame), each run's metric series and, if the campaign keeps them, records."""
+
+    def __init__(self, campaign: campaigns.Campaign, jobs: list, store: Any, summary: pathlib.Path):
+        self.campaign = campaign
+        self.store = store            # scenarios.engine.Store: the runs' result files
+        self.summary_path = summary
+        self._keys = {job.label: job.key for job in jobs}
+
+    def table(self) -> pandas.DataFrame:
+        """One row per run: label, the case values, status, error, every metric number.
+        Numbers are numbers: a case value written with a unit ("5 m", "2 ms") in SI
+        (plot a metric against it), the units in ``table.attrs["units"]`` ({"base.lever_arm":
+        "m", "leg error rms": "µm"}); summary.csv keeps the values as written."""
+        table = _pandas().read_csv(self.summary_path)   # floats exact: written as repr, read round-trip
+        for column in ("error", "flags"):               # '' (nothing went wrong) is text, not a missing number
+            table[column] = table[column].astype(object).where(table[column].notna(), "")
+        units = {}
+        for column in self.campaign.varying:
+            if column in table:
+                converted = _si_column(table[column].tolist())
+                if converted is not None:
+                    table[column], units[column] = converted
+        for job in self._keys.values():
+            metrics = (self.store.read(job) or {}).get("metrics") if self.store.status(job) else None
+            if metrics:
+                units.update({f"{name} {k}": key_unit(values, k) for name, values in metrics.items()
+                              for k in values if k != "unit"})
+                break
+        table.attrs["units"] = units
+        return table
+
+    to_pandas = table
+
+    @property
+    def labels(self) -> list[str]:
+        return list(self._keys)
+
+    def _key(self, label: str) -> str:
+        if label not in self._keys:
+            raise KeyError(f"no run {label!r} in campaign {self.campaign.name}")
+        return self._keys[label]
+
+    def series(self, label: str) -> dict:
+        """{metric: (t, values)} of one run (a failed one: as far as it got)."""
+        return self.store.series(self._key(label))
+
+    def records(self, label: str) -> Records:
+        """One run's recorded variables (the campaign must set keep_records = true)."""
+        path = self.store.path(self._key(label), engine.RECORDS)
+        if not path.exists():
+            raise FileNotFoundError(f"run {label!r} of campaign {self.campaign.name}: no records kept "
+                                    "(set keep_records = true in the campaign file)")
+        return read_records(path)
+
+    def __len__(self) -> int:
+        return len(self._keys)
+
+    def __repr__(self) -> str:
+        return f"<CampaignResult {self.campaign.name!r}: {len(self)} runs, table in {self.summary_path}>"
+
+    def _repr_html_(self) -> str:
+        """How many runs are results, then the table (its first 20 rows)."""
+        table = self.table()
+        counts = table["status"].value_counts().to_dict()
+        bad = len(table) - counts.get("ok", 0)
+        said = ", ".join(f"{n} {status.upper() if status != 'ok' else status}" for status, n in counts.items())
+        return (f"<p><b>Campaign {html.escape(self.campaign.name)}</b>: {len(self)} runs: "
+                f'<span style="{_STATUS_STYLE["failed"] if bad else ""}">{html.escape(said)}</span></p>'
+                + table.head(20).to_html(index=False, float_format=lambda v: f"{v:.4g}"))
+
+
+@_public
+def campaign(path: str | os.PathLike[str], *, out: str | os.PathLike[str] = "out", ci: bool = False,
+             jobs: int | None = None, progress: bool = True) -> CampaignResult:
+    """Run a campaign file as ``movingbase campaign`` does: on ``jobs`` worker processes,
+    results in a store under out/<name>/ (so a campaign always writes: an interrupted one
+    resumes, a finished one is read back)."""
+    if engine.started_by_a_worker():     # the worker exits with the rule, not a traceback
+        raise SystemExit(f"movingbase.campaign in a worker process: {engine.MAIN_GUARD}")
+    _flags_given(ci=ci, progress=progress)
+    warning = resources.check_jobs(jobs)     # 0 once meant "all cores", silently
+    if warning:
+        print(warning, file=sys.stderr, flush=True)
+    ran, job_list, store, outcome, summary = campaigns.run_campaign(path, out, ci=ci, jobs_=jobs, progress=progress)
+    if outcome.interrupted:   # Ctrl-C: an exception, as Python's own, not a result with runs "not run"
+        raise KeyboardInterrupt(f"campaign {ran.name} interrupted: {len(outcome.computed)} runs done now and "
+                                f"{len(outcome.skipped)} before are on disk in {store.folder}; call it again to resume")
+    return CampaignResult(ran, job_list, store, summary)

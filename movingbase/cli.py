@@ -1,0 +1,321 @@
+"""Command line of the kit: ``movingbase COMMAND ...`` (or ``python -m movingbase``).
+
+    movingbase                      the main job: the telescope slew and the paper's leg-force charts
+    movingbase run SCENARIO ...     run scenario files or shipped names (movingbase run --help)
+    movingbase campaign FILE        run a campaign of many scenario runs
+    movingbase build                build every FMU (as build.py)
+    movingbase headline             regenerate the README's headline from docs/headline.json
+    movingbase --version
+"""
+import argparse
+import atexit
+import json
+import os
+import pathlib
+import shutil
+import signal
+import sys
+
+from fmu_src import native_build
+from fmu_src.python_build import OUT, available, build, write_stamp
+from movingbase import __version__
+from scenarios import spec
+from scenarios.cosim.fmi import FmuFileError
+from scenarios.cosim.records import run_records
+from scenarios.output.headline import CHART, README, ROOT, STORE, Flagged, collect, rewrite_readme
+from scenarios.output.report import CHARTS
+from scenarios.runs import engine
+from scenarios.runs import estimates as resources
+from scenarios.runs.campaign import run_campaign
+from scenarios.runs.engine import EngineError, check_address
+from scenarios.runs.estimates import ResourceError, check_jobs
+from scenarios.runs.runner import OutputError, not_found, prepare, resolve, run_scenario, shipped_names
+from scenarios.spec import IMPLEMENTATIONS, ScenarioError, sweep_value
+from scenarios.ssp import export_ssp
+
+COMMANDS = ("run", "campaign", "build", "headline")
+
+
+def main(argv=None):
+    """The command. As the program (``argv`` None: the console command or ``python -m
+    movingbase``) the process ends right after its exit handlers, without the
+    interpreter's teardown: freeing numpy's, matplotlib's, fmpy's and the FMUs' modules one
+    by one took 0.2-0.3 s of a 2.6 s run (docs/speed.md); every file is closed by then."""
+    if argv is not None:
+        return _command(list(argv))
+    signal.signal(signal.SIGTERM, _terminated)
+    for stream in (sys.stdout, sys.stderr):   # a file name or message the locale cannot encode (ASCII,
+        stream.reconfigure(errors="backslashreplace")   # Latin-1): shown escaped, never a UnicodeEncodeError
+    try:
+        status = _command(sys.argv[1:])
+    except SystemExit as exc:
+        status = exc.code
+    if status is not None and not isinstance(status, int):   # sys.exit("message"): printed, status 1
+        print(status, file=sys.stderr)
+        status = 1
+    exit_now(status or 0)
+
+
+def _terminated(signum, frame):
+    """SIGTERM (kill, a batch system's time limit) ends the command as Ctrl-C does: through
+    its cleanup (the workers stopped, the unpacked FMUs removed), status 143."""
+    raise SystemExit(128 + signum)
+
+
+def exit_now(status):
+    """End the process with ``status`` after its exit handlers (temporary folders) and with
+    stdout and stderr flushed, without the interpreter's teardown (the command's and the
+    test session's end: see main and tests/conftest.py)."""
+    atexit._run_exitfuncs()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(status)
+
+
+def _command(argv):
+    if argv[:1] in (["--version"], ["-V"]):
+        print(f"movingbase {__version__}")
+        return
+    if argv[:1] in (["-h"], ["--help"]):
+        print(__doc__)
+        return
+    command, rest = (argv[0], argv[1:]) if argv and argv[0] in COMMANDS else ("run", argv)
+    if command == "run":
+        return run_command(rest, prog="movingbase run")
+    if command == "campaign":
+        return campaign_command(rest)
+    if command == "build":
+        try:
+            build_command(rest)    # it returns the output folder: not an exit status
+        except OSError as exc:      # --out onto a file, a folder it may not write, a full disk
+            return f"build error: {_os_problem(exc)}"
+        return None
+    try:
+        return headline_command(rest)
+    except OSError as exc:          # --from a folder without the full runs' results
+        return f"headline error: {_os_problem(exc)} (--from names the --out of the full runs: movingbase run)"
+    except (ValueError, KeyError) as exc:     # a metrics.json that is not the kit's
+        return f"headline error: --from {rest[-1] if rest else ''}: results that are not the full runs' ({exc!r:.200})"
+
+
+def _os_problem(exc):
+    """'<path>: <what>' of an OSError, a file where a folder belongs said so."""
+    target = exc.filename or ""
+    return f"{target}: {'is a file, not a folder' if os.path.isfile(target) else exc.strerror or exc}"
+
+
+def run_command(argv=None, prog="movingbase run"):
+    shipped = ", ".join(shipped_names())
+    parser = argparse.ArgumentParser(prog=prog,
+                                     description='Command line: run scenario files (or shipped scenario names) and '
+                                                 'write their reports.',
+                                     epilog=f"shipped scenarios (scenarios/files/): {shipped}. Wall time and "
+                                            "real-time factor count the co-simulation stepping loop only (FMU "
+                                            "loading and initialisation excluded).")
+    parser.add_argument("scenarios", nargs="*", help=f"scenario files or shipped names: {shipped} "
+                                                     "(default: telescope_slew, then the paper's leg-force charts)")
+    parser.add_argument("--out", default="out", help="output folder (default: out)")
+    parser.add_argument("--ci", action="store_true", help="apply each file's [ci] overrides (short runs)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--jobs", type=int, help="run the sweep values on N local worker processes")
+    parser.add_argument("--dask", metavar="ADDR", help="run the sweep values on the Dask cluster at ADDR")
+    parser.add_argument("--implementation", choices=IMPLEMENTATIONS,
+                        help="run every FMU as this implementation, whatever the file chooses")
+    parser.add_argument("--csv", action="store_true",
+                        help="also export each run's records as CSV (<label>.csv beside its <label>.npz)")
+    parser.add_argument("--allow-unstable", action="store_true",
+                        help="run a communication step beyond the predicted stability limit anyway (flagged)")
+    parser.add_argument("--charts", choices=CHARTS, default="all",
+                        help="all: error against time per metric and the summary bars (default); summary: the "
+                             "summary bars of a sweep only; none: no charts (the report's tables and the records)")
+    parser.add_argument("--ssp", metavar="FILE", help="export the (one) scenario as an SSP file, first sweep value")
+    args = parser.parse_args(argv)
+    try:
+        _run(args, shipped)
+    except KeyboardInterrupt:
+        sys.exit(f"interrupted: the runs that finished are in {args.out}; a sweep run with --jobs or --dask "
+                 "resumes where it stopped when the same command runs again")
+
+
+def _run(args, shipped):
+    """The checks of the command line (all before anything runs), then each scenario."""
+    names = args.scenarios or ["telescope_slew"]
+    if not all(n.strip() for n in names):
+        sys.exit("scenario error: an empty scenario name; give a scenario file or a shipped name: " + shipped)
+    unknown = [n for n in names if not resolve(n).exists()]
+    if unknown:
+        sys.exit(f"scenario error: {not_found(unknown)}")
+    folders = {}
+    for name in names:   # the output folder follows the file: two files of one stem would share it
+        path = resolve(name).resolve()   # (a stem differing in case only too: one folder on macOS and Windows)
+        folders.setdefault(path.stem.casefold(), set()).add(path)
+    clashes = {stem: paths for stem, paths in folders.items() if len(paths) > 1}
+    repeated = [
+        n for n in dict.fromkeys(names) if [resolve(m).resolve() for m in names].count(resolve(n).resolve()) > 1
+    ]
+    if clashes or repeated:
+        what = [f"{', '.join(sorted(map(str, p)))} would all write to {args.out}/{min(p).stem}"
+                for p in clashes.values()]
+        what += [f"{n!r} is named more than once" for n in repeated]
+        sys.exit(f"scenario error: {'; '.join(what)}: run them in separate commands with their own --out")
+    try:
+        for warning in (check_jobs(args.jobs),):
+            if warning:
+                print(warning, file=sys.stderr)
+        if args.dask is not None:   # "" too: it once ran locally, silently
+            check_address(args.dask)
+    except (ResourceError, EngineError) as exc:
+        sys.exit(f"command error: {exc}")
+    if args.ssp:
+        if len(names) > 1:   # one file holds one scenario: the others were dropped without a word
+            sys.exit(f"command error: --ssp {args.ssp}: exports one scenario, {len(names)} given "
+                     f"({', '.join(names)}); run one --ssp per scenario")
+        _export(args, names[0])
+        return
+    errors = []   # one line each; every scenario and every run is still tried
+    for name in names:
+        try:
+            scenario, runs, report = run_scenario(name, args.out, ci=args.ci, progress=not args.quiet,
+                                                  jobs=args.jobs, dask=args.dask,
+                                                  implementation=args.implementation,
+                                                  allow_unstable=args.allow_unstable, charts=args.charts)
+        except ScenarioError as exc:
+            errors.append(f"scenario error: {exc}")
+            continue
+        except (OutputError, ResourceError, FmuFileError) as exc:
+            errors.append(f"{name}: {exc}")
+            continue
+        except OSError as exc:     # the disk filled or the folder went away while writing
+            errors.append(f"{name}: output error: {exc.filename or args.out}: {exc.strerror or exc}")
+            continue
+        print(f"{scenario.name}: report {report}")
+        if args.csv:
+            for run in runs:
+                if run.record_path:
+                    run_records(run).to_csv(run.record_path.with_suffix(".csv"))
+        for run in runs:
+            if run.failure:
+                print(f"  {run.label}: FAILED after {run.steps} steps ({run.sim_time:g} s); partial results kept")
+                errors.append(f"run error: {run.failure}")
+            else:
+                print(f"  {run.label}: {run.steps} steps in {run.wall_time:.1f} s of stepping "
+                      f"(real-time factor {run.real_time_factor:.1f}; FMU loading and initialisation not counted)")
+            for flag in run.flags:
+                if flag.kind != "cut_short":   # a failed run says so above
+                    print(f"    FLAGGED {flag.kind}: {flag.message}")
+        flagged = [run.label for run in runs if run.flags]
+        if flagged:
+            print(f"  {len(flagged)} of {len(runs)} runs FLAGGED ({', '.join(flagged)}): their numbers are not "
+                  f"results; see {report}")
+    if errors:
+        sys.exit("\n".join(errors))
+    if not args.scenarios:
+        from studies.paper_forces import main as paper_charts  # pyplot: imported by what draws
+        paper_charts(f"{args.out}/paper")
+
+
+def _export(args, name):
+    """--ssp: the scenario (its first sweep value) as an SSP file; the target must be a
+    file path whose folder exists."""
+    target = pathlib.Path(args.ssp)
+    if target.is_dir() or not target.parent.is_dir():
+        blocker = next((p for p in target.parents if p.exists() and not p.is_dir()), None)
+        why = "is a folder" if target.is_dir() else f"{blocker} is a file, not a folder" if blocker else \
+            f"its folder {target.parent} does not exist"
+        sys.exit(f"command error: --ssp {target}: {why}; give the path of the .ssp file to write")
+    try:
+        scenario, paths, descriptions, values = prepare(resolve(name), ci=args.ci, implementation=args.implementation)
+        if scenario.sweep:
+            inst, var, value = sweep_value(scenario, descriptions, scenario.sweep[1][0])
+            values[inst][var] = value
+        print(f"SSP written to {export_ssp(scenario, paths, values, target)}")
+    except ScenarioError as exc:
+        sys.exit(f"scenario error: {exc}")
+    except (ResourceError, FmuFileError) as exc:
+        sys.exit(f"{name}: {exc}")
+    except OSError as exc:
+        sys.exit(f"output error: --ssp {target}: {exc.strerror or exc}")
+
+
+def campaign_command(argv=None):
+    parser = argparse.ArgumentParser(prog="movingbase campaign",
+                                     description='Run a campaign file: many scenario runs, on worker processes or a '
+                                                 'Dask cluster, results in a store.')
+    parser.add_argument("campaign", help="campaign file (TOML)")
+    parser.add_argument("--ci", action="store_true", help="apply the file's [ci] replacements (a small campaign)")
+    parser.add_argument("--jobs", type=int, help="local worker processes (default: all cores)")
+    parser.add_argument("--dask", metavar="ADDR", help="run on the Dask cluster whose scheduler is at ADDR")
+    parser.add_argument("--out", default="out", help="output folder (default: out)")
+    parser.add_argument("--retry-failed", action="store_true", help="run again the runs that failed before")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    try:
+        warning = resources.check_jobs(args.jobs)
+        if warning:
+            print(warning, file=sys.stderr)
+        if args.dask is not None:   # "" too: it once ran locally, silently
+            engine.check_address(args.dask)
+        campaign, job_list, store, outcome, summary = run_campaign(
+            args.campaign, args.out, args.ci, args.jobs, args.dask, not args.quiet, args.retry_failed)
+    except spec.ScenarioError as exc:       # a CampaignError too
+        sys.exit(f"campaign error: {exc}")
+    except (resources.ResourceError, engine.EngineError, OutputError, FmuFileError) as exc:
+        sys.exit(f"campaign error: {exc}")
+    except OSError as exc:
+        sys.exit(f"campaign error: output: {exc.filename or args.out}: {exc.strerror or exc}")
+    except KeyboardInterrupt:
+        sys.exit("interrupted: the runs finished so far are on disk; run the same command again to resume")
+    print(f"{campaign.name}: {len(outcome.computed)} runs done now, {len(outcome.skipped)} found on disk, "
+          f"{len(outcome.failed)} failed, of {outcome.total}, in {outcome.wall_time:.1f} s; summary {summary}")
+    if outcome.damaged:
+        print(f"  {len(outcome.damaged)} damaged results were found and run again (named above)")
+    if outcome.orphans:
+        print(f"  {outcome.orphans} results in {store.folder} belong to no run of this campaign (other settings, "
+              "or FMUs of other sources); they are kept: delete them to reclaim the space")
+    labels = {job.key: job.label for job in job_list}
+    for key, message in list(outcome.failed.items())[:10]:
+        print(f"  failed: {labels[key]}: {message.splitlines()[0]}")
+    if outcome.interrupted:
+        sys.exit("interrupted: the runs finished so far are on disk; run the same command again to resume")
+    if outcome.failed:
+        sys.exit(1)
+
+
+def build_command(argv=None, prog="movingbase build"):
+    parser = argparse.ArgumentParser(prog=prog,
+                                     description='Build every FMU of the kit: pythonfmu (FMI 2.0), native (FMI 2.0) '
+                                                 'and native (FMI 3.0).')
+    parser.add_argument("--out", default=str(OUT), help="output folder")
+    parser.add_argument("names", nargs="*", default=available(),
+                        help="FMU scripts to build (default: all)")
+    args = parser.parse_args(argv)
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    for name in args.names:
+        fmu = build(name, out)
+        write_stamp(out / f"{name}.built", fmu)
+        print(f"built {fmu}")
+        native = native_build.build_native(fmu, out / "native")
+        print(f"built {native}")
+        print(f"built {native_build.build_native3(native, out / 'native3')}")
+    print(f"FMUs are in {out}: pythonfmu (FMI 2.0), native/ (FMI 2.0), native3/ (FMI 3.0)")
+    return out
+
+
+def headline_command(argv=None):
+    parser = argparse.ArgumentParser(prog="movingbase headline",
+                                     description="Regenerate the README's headline from docs/headline.json.")
+    parser.add_argument("--from", dest="out", metavar="DIR", help="take the metrics of the full runs in DIR first")
+    args = parser.parse_args(argv)
+    if args.out:
+        out = pathlib.Path(args.out)
+        try:
+            store = collect(out)
+        except Flagged as exc:
+            raise SystemExit(f"headline error: {exc}") from None
+        STORE.write_text(json.dumps(store, indent=1, ensure_ascii=False) + "\n")
+        shutil.copyfile(out / CHART[0] / CHART[1], CHART[2])
+    rewrite_readme(json.loads(STORE.read_text()))
+    print(f"{README.name}: headline rewritten from {STORE.relative_to(ROOT)}")
+
+

@@ -1,0 +1,488 @@
+"""Campaign files: many runs of one base scenario over a grid or a list of cases, run
+through scenarios.engine (local worker processes or a Dask cluster), resumable.
+
+    movingbase campaign FILE [--ci] [--jobs N] [--dask tcp://HOST:PORT] [--out DIR]
+
+A campaign is TOML:
+
+    name = "sky_slews"
+    scenario = "telescope_slew"        # a shipped name, or a path relative to this file
+    set = { stop_time = "30 s", "base.lever_arm" = "25 m" }   # the same for every run
+    [[grid]]                           # one axis of a cartesian product; keys in one
+    "base.start_elevation" = ["30 deg", "60 deg"]             # axis vary together
+    "base.target_elevation" = ["35 deg", "65 deg"]
+    [[grid]]
+    "controller.feedforward" = ["fixed_base", "moving_base"]
+    [[cases]]                          # optional list of cases, crossed with the grid
+    label = "east"
+    "base.start_azimuth" = "90 deg"
+    [ci]                               # replaces name/set/grid/cases for the short CI run
+
+A key is a scenario top-level setting (start_time, stop_time, step, master,
+extrapolation) or "instance.parameter" of the base scenario (dotted keys may be written
+unquoted). The base scenario's [sweep] is one more axis unless the campaign sets that
+parameter. Every key and value is checked before anything runs; errors name the file,
+the key and the problem, like scenario files.
+
+Results: <out>/<campaign file stem>/runs/<key>.json|.npz (scenarios.engine.Store) and summary.csv,
+one row per run, read back from the files.
+"""
+import csv
+import dataclasses
+import difflib
+import itertools
+import os
+import pathlib
+import sys
+from dataclasses import dataclass
+
+from fmu_src import atomic
+from scenarios import spec
+from scenarios.cosim.fmi import description
+from scenarios.runs import engine, flags
+from scenarios.runs import estimates as resources
+from scenarios.runs.runner import fmu_paths, output_folder, resolve
+from scenarios.spec import units
+
+_TOP = ("name", "description", "scenario", "set", "grid", "cases", "ci", "keep_records")
+_CI = ("name", "description", "set", "grid", "cases", "keep_records")     # what [ci] may replace
+SCENARIO_KEYS = ("start_time", "stop_time", "step", "master", "extrapolation")
+
+
+class CampaignError(spec.ScenarioError):
+    """Problems in a campaign file; the message says file, key and problem, one line each."""
+
+
+MAX_RUNS = 200_000              # a campaign of more runs is refused before its cases are made
+
+
+@dataclass
+class Case:
+    label: str
+    values: dict                    # key -> raw value, as written in the file
+
+
+@dataclass
+class Campaign:
+    source: str
+    name: str
+    description: str
+    scenario_path: pathlib.Path
+    cases: list                     # every run, in file order
+    varying: list                   # keys that differ between cases (summary columns)
+    keep_records: bool = False
+    ci: bool = False                # its [ci] version: runs cut short on purpose (no motion_unfinished)
+
+
+def _flat(value, prefix=""):
+    """{'base': {'x': 1}} -> {'base.x': 1} (unquoted dotted TOML keys make nested tables)."""
+    if not isinstance(value, dict):
+        return {prefix: value}
+    out = {}
+    for key, item in value.items():
+        out.update(_flat(item, f"{prefix}.{key}" if prefix else key))
+    return out
+
+
+def _table(source, key, value):
+    if not isinstance(value, dict):
+        raise CampaignError(source, key, f"expected a table, got {type(value).__name__}")
+    return value
+
+
+def _axes(source, grid):
+    """[(where, [keys], [value tuples])] of the grid, each axis zipped over its keys."""
+    if isinstance(grid, dict):      # [grid]: every key its own axis
+        tables = [{k: v} for k, v in _flat(grid).items()]
+    elif isinstance(grid, list):    # [[grid]]: each table one axis
+        tables = grid
+    else:
+        raise CampaignError(source, "grid", "expected a table or an array of tables ([[grid]])")
+    axes = []
+    for i, table in enumerate(tables):
+        where = f"grid[{i}]"
+        table = _flat(_table(source, where, table))
+        if not table:
+            raise CampaignError(source, where, "an axis needs at least one key")
+        lengths = set()
+        for key, values in table.items():
+            if not isinstance(values, list) or not values:
+                raise CampaignError(source, f"{where}.{key}", "expected a non-empty list of values")
+            lengths.add(len(values))
+        if len(lengths) > 1:
+            raise CampaignError(source, where, f"the keys of one axis vary together and need lists of one "
+                                f"length; got lengths {', '.join(str(len(v)) for v in table.values())}")
+        axes.append((where, list(table), list(zip(*table.values()))))
+    return axes
+
+
+def _is_quantity(value):
+    try:
+        units.to_si(value, "s")
+        return True
+    except units.UnitError:
+        return False
+
+
+def _label(value):
+    return value if isinstance(value, str) else repr(value)
+
+
+def parse(text, source="<string>", base_dir=".", ci=False):
+    """Campaign from TOML text (``ci``: apply its [ci] replacements); the base scenario
+    is loaded and every key and value checked against it and its FMUs."""
+    data = spec.read_toml(text, source, CampaignError)
+    if "fmus" in data and "scenario" not in data:    # not a wall of unknown keys: the other kind of file
+        raise CampaignError(source, "file", "this is a scenario file (it has [fmus] and names no scenario), not "
+                                            "a campaign: run it with `movingbase run FILE` (movingbase.run)")
+    problems = spec.Problems(CampaignError)
+    for key, problem in spec.unknown_keys(set(data) - set(_TOP), _TOP):
+        problems.errors.append(CampaignError(source, key, problem))
+    ci_table = data.get("ci", {})
+    if not isinstance(ci_table, dict):
+        problems.errors.append(CampaignError(source, "ci", "expected a table of the keys it replaces"))
+    else:
+        for key, problem in spec.unknown_keys(set(ci_table) - set(_CI), _CI):
+            problems.errors.append(CampaignError(source, f"ci.{key}", problem))
+    for key in ("description", "name"):
+        if key in data and not isinstance(data[key], str):
+            problems.errors.append(CampaignError(source, key, f"expected text, got {data[key]!r:.60}"))
+    problems.raise_any()
+    if ci:
+        data.update(ci_table)
+    if "scenario" not in data or not isinstance(data["scenario"], str):
+        raise CampaignError(source, "scenario", "missing: name a shipped scenario or a scenario file")
+    name = spec.check_name(source, "name", data["name"], CampaignError) if "name" in data else \
+        pathlib.Path(source).stem       # the file's own name needs no check: it is one
+    beside = resolve(pathlib.Path(base_dir) / data["scenario"])   # relative to this file first: a file of that
+    path = beside if beside.is_file() else resolve(data["scenario"])   # name in the current folder was taken
+    if not path.exists():
+        raise CampaignError(source, "scenario", f"{data['scenario']!r} is neither a shipped scenario nor a file")
+    fixed = _flat(_table(source, "set", data.get("set", {})))
+    axes = _axes(source, data.get("grid", []))
+    raw_cases = data.get("cases", [{}])
+    if not isinstance(raw_cases, list) or not raw_cases:
+        raise CampaignError(source, "cases", "expected a non-empty array of tables ([[cases]])")
+    cases = []
+    for i, case in enumerate(raw_cases):
+        case = _flat(_table(source, f"cases[{i}]", case))
+        label = case.pop("label", None)
+        if label is not None and not isinstance(label, str):
+            raise CampaignError(source, f"cases[{i}].label", "expected a string")
+        cases.append((f"cases[{i}]", label, case))
+
+    where_set = {}                  # key -> where the campaign sets it; a key is set in one place
+    for where, keys in [("set", list(fixed)), *[(w, k) for w, k, _ in axes]]:
+        for key in keys:
+            if key in where_set:
+                raise CampaignError(source, f"{where}.{key}", f"also set in {where_set[key]}: one value would "
+                                    "silently replace the other (the run labels would name values that did not run)")
+            where_set[key] = where
+    for where, _, case in cases:
+        for key in case:
+            if key in where_set:
+                raise CampaignError(source, f"{where}.{key}", f"also set in {where_set[key]}, which would replace "
+                                    "this case's value in every run")
+    count = len(cases)
+    for _, _, rows in axes:
+        count *= len(rows)
+    if count > MAX_RUNS:
+        raise CampaignError(source, "grid", f"{count:,} runs (cases x the axes' lengths); a campaign holds at most "
+                            f"{MAX_RUNS:,}: split it or coarsen the grid")
+
+    try:
+        base = spec.load(path)
+    except spec.ScenarioError as exc:
+        raise CampaignError(source, "scenario", str(exc)) from None
+    sweep_key = base.sweep[0] if base.sweep else None
+    named = set(fixed) | {k for _, keys, _ in axes for k in keys} | {k for _, _, c in cases for k in c}
+    written = [*fixed.items(), *[(k, v) for _, keys, rows in axes for row in rows for k, v in zip(keys, row)],
+               *[(k, v) for _, _, c in cases for k, v in c.items()]]
+    steps = [base.step] + [units.to_si(v, "s") for k, v in written if k == "step" and _is_quantity(v)]
+    connected = {(t.split(".", 1)[0], t.split(".", 1)[1]) for _, targets in base.connections for t in targets}
+    if sweep_key and sweep_key not in named:
+        axes.append(("scenario sweep", [sweep_key], [(v,) for v in base.sweep[1]]))
+
+    descriptions = _descriptions(base)
+    fixed_top = {k: v for k, v in fixed.items() if k in SCENARIO_KEYS}
+    checked = {}                    # (key, repr(value)) -> the value converted, once checked
+
+    def check(where, key, value):
+        if (key, repr(value)) not in checked:
+            checked[(key, repr(value))] = converted(where, key, value)
+
+    def converted(where, key, value):
+        if key in SCENARIO_KEYS:
+            try:
+                spec.load(path, overrides={**fixed_top, key: value})   # with set's start_time, stop_time, ...
+            except spec.ScenarioError as exc:
+                raise CampaignError(source, where, str(exc).removeprefix(f"{path}: ")) from None
+            return units.to_si(value, "s") if _is_quantity(value) else value
+        if isinstance(value, str) and value.startswith("@"):
+            raise CampaignError(source, where, f"{value!r}: a link to another FMU's output at the start time is "
+                                f"written in the scenario file ({path.name}); a campaign sets values")
+        inst, _, name = key.partition(".")
+        if not name or inst not in base.fmus:
+            raise CampaignError(source, where, f"unknown key {key!r}: expected one of {', '.join(SCENARIO_KEYS)} "
+                                f"or 'instance.parameter' with an instance of {path.name} "
+                                f"({', '.join(base.fmus)})")
+        variables = {v.name: v for v in descriptions[inst].modelVariables}
+        targets = spec.expand(variables, key)
+        if not targets or any(variables[t].causality not in ("parameter", "input") for t in targets):
+            raise CampaignError(source, where, f"{inst} ({base.fmus[inst]}) has no parameter {name!r}")
+        if (inst, name) in connected or any((inst, t) in connected for t in targets):
+            raise CampaignError(source, where, f"{key} is an input that {path.name} connects: the connection "
+                                "feeds it in every run, a value set here would be ignored")
+        values = spec.plain(value) if isinstance(value, list) else [value]
+        if len(values) != len(targets):
+            raise CampaignError(source, where, f"expected {len(targets)} values, got {len(values)}")
+        out = []
+        for target, item in zip(targets, values):
+            try:
+                out.append(spec._value(source, where, variables[target], item))
+            except spec.ScenarioError as exc:
+                raise CampaignError(source, where, str(exc).removeprefix(f"{source}: {where}: ")) from None
+            try:            # the largest step of the campaign: a cut-off must lie below each run's Nyquist
+                spec.check_rates(source, where, dataclasses.replace(base, step=max(steps)),
+                                 {inst: {target: variables[target]}}, {inst: {target: out[-1]}})
+            except spec.ScenarioError as exc:
+                raise CampaignError(source, where, str(exc).removeprefix(f"{source}: {where}: ")) from None
+        return tuple(out)
+
+    every = [(f"set.{key}", key, value) for key, value in fixed.items()]
+    every += [(f"{where}.{key}[{j}]" if where != "scenario sweep" else f"{path.name}: sweep.values[{j}]", key, value)
+              for where, keys, rows in axes for j, row in enumerate(rows) for key, value in zip(keys, row)]
+    every += [(f"{where}.{key}", key, value) for where, _, case in cases for key, value in case.items()]
+    problems = spec.Problems(CampaignError)      # every bad value of the file, told at once
+    for where, key, value in every:
+        with problems.part():
+            check(where, key, value)
+    problems.raise_any()
+    for where, keys, rows in axes:   # one run per value: "1 m" and "1000 mm" are one value
+        if where == "scenario sweep":
+            continue                 # the scenario checks its own
+        seen = {}
+        for j, row in enumerate(rows):
+            same = seen.setdefault(tuple(checked[(k, repr(v))] for k, v in zip(keys, row)), j)
+            if same != j:
+                shown = ", ".join(f"{k} = {v!r}" for k, v in zip(keys, rows[same]))
+                problems.errors.append(CampaignError(
+                    source, f"{where}.{keys[0]}[{j}]" if len(keys) == 1 else f"{where}[{j}]",
+                    f"{', '.join(f'{v!r}' for v in row)} is already value [{same}] of this axis ({shown}): "
+                    "each runs once"))
+    problems.raise_any()
+
+    runs, varying = [], []
+    for where, label, case in cases:
+        for combo in itertools.product(*[rows for _, _, rows in axes]):
+            values = dict(fixed)
+            values.update(case)
+            parts = [label] if label else []
+            for (_, keys, _), row in zip(axes, combo):
+                values.update(zip(keys, row))
+                parts.append(", ".join(f"{k}={_label(v)}" for k, v in zip(keys, row)))
+            runs.append(Case("; ".join(parts) or "run", values))
+    labels = {}
+    for i, run in enumerate(runs):   # a label names one run (the table's rows, CampaignResult.series)
+        j = labels.setdefault(run.label, i)
+        if j != i:
+            first, this = cases[j // (len(runs) // len(cases))], cases[i // (len(runs) // len(cases))]
+            raise CampaignError(source, f"{this[0]}.label" if this[1] else this[0],
+                                f"its runs would have the labels of {first[0]}'s ({run.label!r}): "
+                                "give each case its own label")
+    for key in dict.fromkeys(k for run in runs for k in run.values):
+        if len({repr(run.values.get(key)) for run in runs}) > 1:
+            varying.append(key)
+    keep = data.get("keep_records", False)
+    if not isinstance(keep, bool):
+        raise CampaignError(source, "keep_records", "expected true or false")
+    return Campaign(source, name, data.get("description", ""), path, runs, varying, keep, ci)
+
+
+def _descriptions(scenario):
+    """Model descriptions per instance, of the implementation and FMI version the scenario
+    chose (FMUs built if missing or stale; an FMI 3 FMU's arrays as elements, fmi.description)."""
+    return {inst: description(p) for inst, p in fmu_paths(scenario).items()}
+
+
+SHIPPED = pathlib.Path(__file__).resolve().parents[1] / "campaigns"
+
+
+def load(path, ci=False):
+    """A campaign file, or the name of a shipped one (scenarios/campaigns/<name>.toml)."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"a campaign is a file path or a shipped name, got {type(path).__name__} {path!r:.60}")
+    path = pathlib.Path(path).expanduser()
+    if not path.exists() and path.suffix != ".toml" and (SHIPPED / f"{path}.toml").exists():
+        path = SHIPPED / f"{path}.toml"
+    if not path.exists():
+        shipped = sorted(p.stem for p in SHIPPED.glob("*.toml"))
+        near = difflib.get_close_matches(path.stem.lower(), shipped, 1, 0.6)
+        raise CampaignError(str(path), "file", "does not exist; " + (f"did you mean {near[0]!r}? " if near else "")
+                            + f"shipped campaigns: {', '.join(shipped)}")
+    return parse(spec.read_text(path, CampaignError, "campaign"), str(path), path.parent, ci)
+
+
+class CampaignJobs:
+    """The campaign's runs as engine Jobs, made as they are iterated (memory does not grow
+    with the number of runs); the scenario is loaded and bound once per distinct set of
+    top-level settings, the FMUs hashed once."""
+
+    def __init__(self, campaign):
+        self.campaign = campaign
+        self._bound = {}            # top-level overrides -> (scenario, values, descriptions, digests)
+        self.files = {}             # sha256 -> FMU path
+        self.flags = {}             # run label -> the flags of its motion (check), each run gets its own
+        self.base = self._bind({})[0]   # the FMUs, built and hashed before anything runs
+
+    def __len__(self):
+        return len(self.campaign.cases)
+
+    def _bind(self, top):
+        marker = repr(sorted(top.items()))
+        if marker not in self._bound:
+            c = self.campaign
+            try:
+                scenario = spec.load(c.scenario_path, overrides=top)
+                if any(p.get("fidelity") == "auto" for p in scenario.parameters.values()):
+                    raise CampaignError(c.source, "scenario", 'a plant fidelity "auto" is chosen per scenario '
+                                        'run; a campaign names a fidelity level (set "plant.fidelity")')
+                paths = fmu_paths(scenario)     # each instance's implementation, as the scenario says
+                digests = {inst: engine.file_digest(p) for inst, p in paths.items()}
+                self.files.update({digests[inst]: p for inst, p in paths.items()})
+                descriptions = {inst: description(p) for inst, p in paths.items()}
+                self._bound[marker] = (scenario, spec.bind(scenario, descriptions), descriptions, digests)
+            except CampaignError:
+                raise
+            except spec.ScenarioError as exc:    # the settings of some runs together, told as the campaign's
+                where = ", ".join(f"{k} = {v!r}" for k, v in sorted(top.items()))
+                raise CampaignError(c.source, f"runs of {where}" if top else "scenario", str(exc)) from None
+        return self._bound[marker]
+
+    def _case(self, case):
+        """(scenario, bound parameters, descriptions, digests) of one case."""
+        scenario, values, descriptions, digests = self._bind(
+            {k: v for k, v in case.values.items() if k in SCENARIO_KEYS})
+        params = {inst: dict(v) for inst, v in values.items()}
+        for key, raw in case.values.items():
+            if key in SCENARIO_KEYS:
+                continue
+            inst = key.split(".", 1)[0]
+            variables = {v.name: v for v in descriptions[inst].modelVariables}
+            for target, item in zip(spec.expand(variables, key), raw if isinstance(raw, list) else [raw]):
+                params[inst][target] = spec._value(self.campaign.source, key, variables[target], item)
+        return scenario, params, descriptions, digests
+
+    def cost(self):
+        """What the runs will cost (resources.estimate), each at its own top-level settings
+        (a campaign's set.stop_time, a grid of steps), with the recorded vectors' sizes."""
+        counts = {}                 # top-level overrides -> (them, runs)
+        for case in self.campaign.cases:
+            top = {k: v for k, v in case.values.items() if k in SCENARIO_KEYS}
+            marker = repr(sorted(top.items()))
+            counts[marker] = (top, counts.get(marker, (None, 0))[1] + 1)
+        estimates = []
+        for top, runs in counts.values():
+            scenario, _, descriptions, _ = self._bind(top)
+            estimates.append(resources.estimate(scenario, descriptions, runs, self.campaign.keep_records))
+        return resources.combined(estimates)
+
+    def __iter__(self):
+        for case in self.campaign.cases:
+            scenario, params, _, digests = self._case(case)
+            yield engine.Job(case.label, scenario, params, digests, self.campaign.keep_records,
+                             self.flags.get(case.label, ()))
+
+    def check(self):
+        """Each run's settings together, as a scenario file's are checked before it runs:
+        what the models refuse (the telescope's profile over the run; once per distinct
+        run; the flags of its motion are kept for its Job: a slew unfinished at the stop
+        time) and a step beyond the predicted stability limit (a campaign runs no step
+        beyond it; predicted for every run at its own values, each distinct loop once:
+        its gains, plant, sensor, motion, time grid, master and extrapolation). Every
+        refused run is told, with its limit."""
+        source, refused, seen, predicted, motion = self.campaign.source, {}, {}, {}, {}   # refused: problem -> labels
+        for case in self.campaign.cases:
+            scenario, params, descriptions, digests = self._case(case)
+            paths = {inst: self.files[digest] for inst, digest in digests.items()}
+            grid = repr((scenario.start_time, scenario.stop_time, scenario.step, scenario.master,
+                         scenario.extrapolation))
+            marker = repr((grid, sorted((i, sorted(p.items())) for i, p in params.items())))
+            if marker not in seen:
+                variables = {inst: {v.name: v for v in d.modelVariables} for inst, d in descriptions.items()}
+                written = {tuple(k.split(".", 1)): v for k, v in case.values.items() if k not in SCENARIO_KEYS}
+                try:
+                    spec.check_models(source, "run", scenario, variables, params, written)
+                    seen[marker] = ""
+                    motion[marker] = () if self.campaign.ci else tuple(
+                        flags.motion_flags(scenario, paths, descriptions, params))
+                except spec.ScenarioError as exc:
+                    seen[marker] = "; ".join(p for _, _, p in exc.problems)
+            if seen[marker]:            # the model refuses it: no motion to predict along
+                refused.setdefault(seen[marker], []).append(case.label)
+                continue
+            self.flags[case.label] = motion[marker]
+            try:
+                flags.check(scenario, flags.predict(scenario, paths, descriptions, params, cache=predicted))
+            except spec.ScenarioError as exc:    # said of the scenario's step
+                problem = "; ".join(f"{k}: {p.split('; or run it anyway')[0]}" for _, k, p in exc.problems)
+                refused.setdefault(problem, []).append(case.label)
+        if refused:
+            raise CampaignError.joined([CampaignError(source, f"run {labels[0]!r}" + (
+                f" (and {len(labels) - 1} more: "
+                f"{', '.join(map(repr, labels[1:4]))}{', ...' if len(labels) > 4 else ''})"
+                if len(labels) > 1 else ""), problem) for problem, labels in refused.items()])
+
+
+def jobs(campaign):
+    """(jobs, {sha256: FMU path}): a sized iterable of one engine Job per case, every run's
+    settings checked (CampaignJobs.check)."""
+    made = CampaignJobs(campaign)
+    made.check()
+    return made, made.files
+
+
+def results(campaign, store, job_list):
+    """(case, record) per run from the store, in campaign order; record is None for a
+    run not on disk."""
+    for case, job in zip(campaign.cases, job_list):
+        yield case, (store.read(job.key) if store.status(job.key) else None)
+
+
+def write_summary(campaign, store, job_list, path):
+    """summary.csv streamed from the result files: case values, status, flags (scenarios.flags:
+    '' for a run nothing was seen wrong in), every metric."""
+    with atomic.replacing(path, text=True, newline="") as file:
+        writer = None
+        for case, record in results(campaign, store, job_list):
+            row = {"label": case.label, **{k: case.values.get(k) for k in campaign.varying}}
+            row["status"] = record["status"] if record else "not run"
+            row["error"] = record.get("error", "") if record else ""
+            row["flags"] = flags.summary(flags.from_dicts((record or {}).get("flags")))
+            for name, values in ((record or {}).get("metrics") or {}).items():
+                row.update({f"{name} {k}": v for k, v in values.items() if k != "unit"})
+            row["run_time_s"] = (record or {}).get("run_time_s", "")
+            if writer is None:
+                writer = csv.DictWriter(file, list(row), extrasaction="ignore", restval="")
+                writer.writeheader()
+            writer.writerow(row)
+    return path
+
+
+def run_campaign(path, out="out", ci=False, jobs_=None, address=None, progress=True, retry_failed=False):
+    """Check a campaign file, run what is not on disk yet, write the summary.
+    Returns (campaign, job list, store, outcome, summary path)."""
+    campaign = load(path, ci)
+    job_list, files = jobs(campaign)
+    cost = job_list.cost()
+    warning = resources.check(cost, out, campaign.source)
+    if warning:
+        print(warning, file=sys.stderr)
+    outdir = output_folder(out, campaign.source)
+    if (outdir / "summary.csv").exists():
+        print(f"{outdir / 'summary.csv'} from an earlier run is replaced; the results in {outdir / 'runs'} are "
+              "reused where a run's key matches", file=sys.stderr)
+    store = engine.Store(outdir / "runs")
+    with engine.Engine(jobs_, address) as eng:
+        outcome = eng.run(job_list, files, store, progress, retry_failed, name=campaign.name)
+    return campaign, job_list, store, outcome, write_summary(campaign, store, job_list, outdir / "summary.csv")

@@ -1,0 +1,652 @@
+"""A run that went wrong says so: the stability prediction before a run, the detectors
+during it, and the Flag each of them raises. Both are generic over the loops of the
+scenario, as catalogue.CONTROL_LOOPS describes each controller FMU's (its plant, force output
+and limits, measured output, gains, sensor, reference).
+
+Before (``predict``, ``check``): each loop as controller.design models it, with the
+scenario's master, extrapolation, gains and plant (reflected mass, actuator lag,
+friction, sensor), and its modal masses along the reference motion (MODAL_MASSES per
+plant: the hexapod's leg-space masses at poses of the telescope's motion, stepped alone
+as fidelity="auto" does; the 3T mechanism's slider-space masses along the slider
+controller's reference). Its predicted step limit is the smallest over those masses, and
+a scenario's the smallest over its loops. It is predicted for every run at its own
+values (runner.pre_run_flags: every sweep value; campaign: every case), each distinct
+loop once. A step beyond it is refused (ScenarioError naming the runs and their limits)
+unless the run is asked for anyway; then exactly the runs beyond their limit are flagged.
+The model is linear and leaves out gravity stiffness, Coulomb friction and saturation.
+
+During (``Watch``, fed each recorded row by the master): what a prediction cannot see.
+Kinds of Flag:
+
+* ``step_beyond_limit``: run anyway beyond the predicted limit (the loop is unstable);
+* ``unstable``: a loop's force oscillation (second difference of the recorded forces,
+  which a smooth motion keeps small) or that of its measured output grows steadily, by
+  itself (per unit of the reference's excitation so far), over windows of CYCLES periods
+  of the loop's unstable oscillation;
+* ``saturated``: a loop's force command at one of its limits (the controller's, the
+  plant's actuator limit) for SATURATED (1 %) of the recorded time or more, or for a
+  detector window on end (5 periods of the loop), with the share and the longest stay;
+  a shorter touch is no flag (a stable run's transient), and the controller's
+  saturation warnings then neither (with a flag, they join it); other FMU warnings;
+* ``stroke``: a measured output within 10 % of the end of its stroke;
+* ``non_finite``: a recorded value is NaN or infinite;
+* ``cut_short``: an FMU stopped the run (RunFailed) before its stop time;
+* ``undersampled``: a metric its recorded rows cannot carry (metrics are computed from the
+  recorded rows): fewer than 10 counted, or an RMS over every other row 10 % off the RMS
+  over all (scenarios.metrics.undersampled);
+* ``motion_unfinished``: a slew whose stop time comes before the motion ends.
+"""
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from controller import design
+from fmu_src import catalogue
+from plant.hexapod.model import FIDELITIES, HOME_POSE, StewartParams, dynamics_terms
+from plant.mechanism3t import model as mechanism3t
+from scenarios.cosim.records import Block
+from scenarios.runs import fidelity as scene_fidelity
+from scenarios.spec import ScenarioError
+
+POSES = 9             # poses along the reference motion at which the leg-space masses are taken
+WINDOW = 1.0          # s: the detectors' longest envelope window
+GROWTH = 10.0         # an envelope that grows by this factor ...
+GROWTH_WINDOWS = 6    # ... steadily over at least this many windows is unstable
+CYCLES = 5            # a window: this many periods of the loop's unstable oscillation (see Watch.for_scenario)
+EXCITED = 1e-3        # the reference's excitation envelope is floored at this share of its largest
+PERSIST = 3.0         # a growth that ends at its peak counts if the envelope after it stays above peak / PERSIST
+FLOORS = (50.0, 1e-7)     # N, m: oscillation envelopes below these are noise, not growth
+SATURATED = 0.01      # a force at a limit for this share of the recorded time or more, or for a window
+                      # on end, is saturated (less: a touch)
+NEAR_STROKE = 0.9     # a leg beyond this fraction of its half stroke is near its end
+MOVING = 1e-6         # rad/s: a base still turning faster than this at stop has not arrived
+
+
+@dataclass(frozen=True)
+class Flag:
+    """Something wrong with a run: ``kind`` (see the module doc) and a sentence."""
+
+    kind: str
+    message: str
+
+
+def as_dicts(flags):
+    return [{"kind": f.kind, "message": f.message} for f in flags]
+
+
+def from_dicts(items):
+    return [Flag(d["kind"], d["message"]) for d in items or []]
+
+
+# the kinds, worst first: a run that did not reach its stop time is no result at all, so
+# its cause is said before any symptom it showed on the way (reprs, tables, summaries)
+SEVERITY = ("cut_short", "non_finite", "step_beyond_limit", "unstable", "saturated", "stroke",
+            "undersampled", "motion_unfinished", "fmu_warning")
+
+
+def by_severity(flags):
+    """The flags, worst kind first (kinds not in SEVERITY last, in their order)."""
+    rank = {kind: i for i, kind in enumerate(SEVERITY)}
+    return sorted(flags, key=lambda f: rank.get(f.kind, len(SEVERITY)))
+
+
+def summary(flags):
+    """One line of a run's flags, worst first ('' if none); a cut-short run starts FAILED."""
+    ordered = by_severity(flags)
+    text = "; ".join(f"{f.kind}: {f.message}" for f in ordered)
+    return f"FAILED ({text})" if ordered and ordered[0].kind == "cut_short" else text
+
+
+# ------------------------------------------------------------------ before the run
+@dataclass(frozen=True)
+class Prediction:
+    """The predicted step limit [s] of a scenario's hexapod loop, the loop and the
+    leg-space masses [kg] it was taken over, and the scene's flags known before it runs."""
+
+    limit: float
+    step: float
+    loop: design.LoopModel
+    gains: object
+    masses: np.ndarray
+    flags: tuple = ()
+    controller: str = "controller"
+
+    @property
+    def beyond(self):
+        return self.step > self.limit * (1 + 1e-9)   # "1.372 ms", as shown, parses an ulp above it
+
+
+def _of_type(scenario, kind):
+    return [inst for inst, fmu in scenario.fmus.items() if fmu == kind]
+
+
+def _sources(scenario, target):
+    """Instances whose outputs feed the input ``target`` ("inst.var")."""
+    return [s.split(".", 1)[0] for s, targets in scenario.connections if target in targets]
+
+
+def _value(values, descriptions, inst, name):
+    """A parameter as the run will use it: the scenario's value, else the FMU's start value."""
+    given = values.get(inst, {}).get(name)
+    if isinstance(given, (int, float)):   # not a link ("@inst.var"): those stay at the FMU's start value
+        return given
+    elements = [v.name for v in descriptions[inst].modelVariables if v.name.startswith(name + "[")]
+    if elements:   # a vector: its elements' values
+        return [_value(values, descriptions, inst, n) for n in elements]
+    start = next(v.start for v in descriptions[inst].modelVariables if v.name == name)
+    return float(start) if name != "fidelity" else int(start)
+
+
+@dataclass(frozen=True)
+class Loop:
+    """One control loop of a scenario, as catalogue.CONTROL_LOOPS describes its controller FMU:
+    the instances (``sensor`` None if the controller reads the plant directly), the
+    catalogue ``entry``, the gains and the LoopModel of its master, extrapolation, plant
+    and sensor."""
+
+    controller: str
+    plant: str
+    sensor: str
+    entry: dict
+    gains: object
+    model: design.LoopModel
+
+    def limits(self, values, descriptions):
+        """((what, force limit [N]), ...): the controller's and the plant's (if it has one)."""
+        get = lambda inst, name: _value(values, descriptions, inst, name)
+        out = [(f"{self.controller}.{self.entry['limit']}", float(get(self.controller, self.entry["limit"])))]
+        if self.entry["plant_limit"] and get(self.plant, self.entry["plant_limit"]) > 0:
+            out.append((f"{self.plant}.{self.entry['plant_limit']}", float(get(self.plant, self.entry["plant_limit"]))))
+        return tuple(out)
+
+
+def loops(scenario, descriptions, values):
+    """Every loop of the scenario: a controller of catalogue.CONTROL_LOOPS whose force output
+    feeds its plant's force input."""
+    found = []
+    for controller, fmu in scenario.fmus.items():
+        entry = catalogue.CONTROL_LOOPS.get(fmu)
+        if entry is None:
+            continue
+        force = f"{controller}.{entry['force']}"
+        plant = next((inst for inst in _of_type(scenario, entry["plant"])
+                      if force in _targets(scenario, f"{inst}.{entry['plant_force']}")), None)
+        if plant is None:
+            continue
+        feeds = _sources(scenario, f"{controller}.{entry['measured']}")
+        sensor = next((s for s in feeds if scenario.fmus[s] in catalogue.LOOP_SENSORS), None)
+        get = lambda inst, name: _value(values, descriptions, inst, name)
+        gains = design.PIDGains(*(float(get(controller, g)) for g in entry["gains"]),
+                                float(get(controller, entry["limit"])))
+        fields = {field: float(get(plant, name)) for field, name in entry["loop_model"].items()}
+        if sensor:
+            given = catalogue.LOOP_SENSORS[scenario.fmus[sensor]][2]
+            fields.update({field: get(sensor, name) for field, name in given.items()})
+            fields["delay_steps"] = int(fields.get("delay_steps", 0))
+        if scenario.fmus[plant] in GRAVITY:
+            fields["gravity_rate"] = GRAVITY[scenario.fmus[plant]](values, descriptions, controller, plant, entry)
+        model = design.LoopModel(
+            **fields, leg_sensor=sensor is not None,
+            # "derivatives" extrapolates the loop's own signals (forces, lengths, rates: no FMU
+            # of a loop gives derivatives) linearly, so the loop is the linear one
+            extrapolate=scenario.extrapolation in ("linear", "derivatives"),
+            gauss_seidel=scenario.master == "gauss-seidel")
+        found.append(Loop(controller, plant, sensor, entry, gains, model))
+    return found
+
+
+def _targets(scenario, target):
+    """The outputs ("inst.var") that feed the input ``target``."""
+    return [s for s, targets in scenario.connections if target in targets]
+
+
+def plant_params(values, descriptions, plant):
+    return StewartParams.paper(stroke=(-_value(values, descriptions, plant, "stroke"),
+                                       _value(values, descriptions, plant, "stroke")))
+
+
+def leg_masses(params, poses, loop, fidelity="full"):
+    """Leg-space modal masses [kg] (M_leg + m_r I) at every pose (n, 6), one array."""
+    terms = dynamics_terms(params, poses, np.zeros_like(poses), fidelity=fidelity)
+    inverse = np.linalg.inv(terms.jacobian)
+    m_leg = np.swapaxes(inverse, -1, -2) @ terms.mass @ inverse
+    return np.linalg.eigvalsh(m_leg).ravel() + loop.reflected_mass
+
+
+def _hexapod_masses(scenario, paths, descriptions, values, loop, motion):
+    """The hexapod's leg-space masses at POSES poses along the telescope's reference
+    (``motion``, or the home pose without one), at the plant's fidelity."""
+    poses = HOME_POSE[None, :]
+    if motion is not None:
+        poses = motion[0][np.linspace(0, len(motion[0]) - 1, POSES).round().astype(int)]
+    level = values.get(loop.plant, {}).get("fidelity", _value(values, descriptions, loop.plant, "fidelity"))
+    fidelity = FIDELITIES[level] if isinstance(level, int) else level
+    return leg_masses(plant_params(values, descriptions, loop.plant), poses, loop.model, fidelity)
+
+
+def _mechanism3t_masses(scenario, paths, descriptions, values, loop, motion):
+    """The 3T mechanism's slider-space masses (eigenvalues of its mass matrix: the same PID
+    on every slider decouples in its eigenvectors, as the hexapod's legs do) at POSES
+    points of the slider controller's sine reference over the run."""
+    get = lambda inst, name: _value(values, descriptions, inst, name)
+    centre, amplitude, omega = (np.asarray(get(loop.controller, n), dtype=float) for n in loop.entry["motion"])
+    params, mode = mechanism3t.Mechanism1Params.paper(), int(get(loop.plant, "mode"))
+    times = np.linspace(scenario.start_time, scenario.stop_time, POSES)
+    return np.concatenate([np.linalg.eigvalsh(mechanism3t.mass_matrix(
+        params, mechanism3t.paper_motion(t, centre, float(amplitude), float(omega))[0], mode)) for t in times])
+
+
+def _mechanism3t_gravity(values, descriptions, controller, plant, entry):
+    """The 3T sliders' largest destabilising gravity rate [1/s^2] (design.LoopModel) at the
+    centre of the controller's reference, held at rest by the static forces: from central
+    differences of the accelerations per slider displacement (~54, a pole at 7.4 rad/s)."""
+    params, mode = mechanism3t.Mechanism1Params.paper(), int(_value(values, descriptions, plant, "mode"))
+    centre = np.asarray(_value(values, descriptions, controller, entry["motion"][0]), dtype=float)
+    rest = np.zeros(3)
+    hold = mechanism3t.slider_forces(params, centre, rest, rest, mode)
+    step = 1e-6
+    rates = np.array([(mechanism3t.forward_dynamics(params, centre + step * e, rest, hold, mode)
+                       - mechanism3t.forward_dynamics(params, centre - step * e, rest, hold, mode)) / (2 * step)
+                      for e in np.eye(3)]).T
+    return max(0.0, float(np.linalg.eigvals(rates).real.max()))
+
+
+# plant FMU -> its loop's modal masses [kg] along the scene, and its gravity rate (the physics
+# the catalogue cannot carry); a plant not in MODAL_MASSES is watched but not predicted
+MODAL_MASSES = {"hexapod_plant": _hexapod_masses, "mechanism3t_plant": _mechanism3t_masses}
+GRAVITY = {"mechanism3t_plant": _mechanism3t_gravity}
+
+
+def _merge(masses, rtol=1e-3):
+    """The masses with those within ``rtol`` of a kept one left out: the limit moves
+    smoothly with the mass, so near-equal modes need no evaluation of their own."""
+    kept = []
+    for m in np.sort(masses):
+        if not kept or m > kept[-1] * (1 + rtol):
+            kept.append(m)
+    return np.array(kept)
+
+
+def _key(scenario, values, loop, telescope):
+    """What decides a loop's limit (and its motion's flags): the time grid, master and
+    extrapolation, the gains, the controller's motion parameters, every parameter of the
+    plant, sensor and telescope."""
+    def of(inst):
+        return repr(sorted(values.get(inst, {}).items())) if inst else ""
+    own = {n: v for n, v in values.get(loop.controller, {}).items() if n.split("[", 1)[0] in loop.entry["motion"]}
+    return repr((scenario.start_time, scenario.stop_time, scenario.step, scenario.master, scenario.extrapolation,
+                 loop.controller, loop.gains, repr(sorted(own.items())), of(loop.plant), of(loop.sensor),
+                 of(telescope)))
+
+
+def predict(scenario, paths, descriptions, values, ci=False, cache=None):
+    """The Prediction for a scenario at ``values`` (one run's: a sweep value applied): of
+    its loop with the lowest limit (None if it has no loop to predict). ``cache`` (a dict
+    kept over the runs of a sweep or campaign) predicts each distinct loop once."""
+    cache = {} if cache is None else cache
+    found = []
+    for loop in loops(scenario, descriptions, values):
+        masses_of = MODAL_MASSES.get(scenario.fmus[loop.plant])
+        if masses_of is None:
+            continue
+        telescope = _telescope(scenario, loop)
+        key = _key(scenario, values, loop, telescope)
+        if key not in cache:
+            motion = scene_fidelity.scene_motion(scenario, paths, values, telescope) if telescope else None
+            masses = _merge(masses_of(scenario, paths, descriptions, values, loop, motion))
+            unfinished = tuple(_unfinished(scenario, telescope, motion[4], _delay(values, descriptions, telescope))
+                               ) if telescope else ()
+            cache[key] = (Prediction(design.step_limit(masses, loop.gains, loop.model), scenario.step, loop.model,
+                                     loop.gains, masses, unfinished, loop.controller))
+        found.append(cache[key])
+    if not found:
+        return None
+    best = min(found, key=lambda p: p.limit)
+    return replace(best, flags=() if ci else tuple(f for p in found for f in p.flags))
+
+
+def motion_flags(scenario, paths, descriptions, values):
+    """The flags of the scene's motion alone (a slew unfinished at the stop time): what
+    ``predict`` flags per scenario, for each run of a campaign."""
+    out = []
+    for loop in loops(scenario, descriptions, values):
+        telescope = _telescope(scenario, loop)
+        if telescope:
+            out += _unfinished(scenario, telescope, scene_fidelity.scene_motion(scenario, paths, values, telescope)[4],
+                               _delay(values, descriptions, telescope))
+    return out
+
+
+def _telescope(scenario, loop):
+    """The telescope instance feeding the loop controller's reference, or None."""
+    if not loop.entry["reference"]:
+        return None
+    return next((s for s in _sources(scenario, f"{loop.controller}.{loop.entry['reference']}")
+                 if scenario.fmus[s] == "telescope"), None)
+
+
+def _delay(values, descriptions, telescope):
+    """The telescope's start_delay [s]: its profile starts this late (absolute time)."""
+    return float(_value(values, descriptions, telescope, "start_delay"))
+
+
+def _unfinished(scenario, telescope, base_rate, delay=0.0):
+    """[motion_unfinished] if the slew (or paper manoeuvre) never starts (its ``delay`` at
+    or after the stop time: the run holds the start pointing throughout) or still turns
+    the base at the stop time (``base_rate`` along the run), else []."""
+    profile = scenario.parameters.get(telescope, {}).get("profile", "slew")
+    if profile not in ("slew", "paper"):
+        return []
+    if delay >= scenario.stop_time:
+        return [Flag("motion_unfinished", f"the {profile} of {telescope!r} never starts: its start_delay "
+                                          f"{delay:g} s is at or after the stop time {scenario.stop_time:g} s, "
+                                          "so the base holds its start pointing for the whole run")]
+    turning = float(np.linalg.norm(base_rate[-1][3:]))
+    if turning > MOVING:
+        return [Flag("motion_unfinished", f"the {profile} of {telescope!r} has not ended at the stop time "
+                                          f"{scenario.stop_time:g} s: the base still turns at "
+                                          f"{math.degrees(turning):.3g} deg/s")]
+    return []
+
+
+def _describe(loop, extrapolation=None):
+    """The loop's master and extrapolation; ``extrapolation`` "derivatives" is named as
+    the scenario says, with what the loop gets (linear)."""
+    master = "gauss-seidel" if loop.gauss_seidel else "jacobi"
+    if extrapolation == "derivatives":
+        return f"master {master}, extrapolation derivatives (linear on the leg loop, whose signals have none)"
+    return f"master {master}, extrapolation {'linear' if loop.extrapolate else 'none'}"
+
+
+def _ms(seconds, down=False):
+    """``seconds`` in ms to 4 significant digits; ``down``: rounded down, so that a step
+    written as shown is within the limit (a limit of 2.00093 ms reads 2 ms, not 2.001)."""
+    if seconds == 0:
+        return "no step (the gains are unstable)"
+    ms = seconds * 1e3
+    if down and math.isfinite(ms):
+        unit = 10.0 ** (math.floor(math.log10(ms)) - 3)
+        ms = math.floor(ms / unit * (1 + 1e-12)) * unit
+    return f"{ms:.4g} ms"
+
+
+def check(scenario, prediction, allow_unstable=False):
+    """Refuse a step beyond the predicted limit (ScenarioError: the limit and what would
+    run), or with ``allow_unstable`` return the flags every run of it gets."""
+    if prediction is None:
+        return []
+    flags = list(prediction.flags)
+    if not prediction.beyond:
+        return flags
+    others = []
+    for gs in (False, True):
+        for ex in (False, True):
+            loop = replace(prediction.loop, gauss_seidel=gs, extrapolate=ex)
+            if loop != prediction.loop:
+                other = design.step_limit(prediction.masses, prediction.gains, loop)
+                if other >= scenario.step:
+                    others.append(f"{_describe(loop)} (a step of at most {_ms(other, down=True)})")
+    if prediction.limit > 0:
+        text = (f"{scenario.step * 1e3:g} ms is beyond the predicted stability limit {_ms(prediction.limit)} of "
+                f"this loop ({_describe(prediction.loop, scenario.extrapolation)}, its gains and plant, along the "
+                f"motion): the loop of {prediction.controller!r} would oscillate and grow")
+        hint = f"use a step of at most {_ms(prediction.limit, down=True)}"
+    else:
+        text = (f"no step is stable with these gains ({_describe(prediction.loop, scenario.extrapolation)}, "
+                f"along the motion): the loop of {prediction.controller!r} would drift or grow at "
+                f"{scenario.step * 1e3:g} ms as at any step")
+        hint = "choose gains that stabilise the loop (controller.design)"
+    if not allow_unstable:
+        if others:
+            hint += " or " + " or ".join(others)
+        raise ScenarioError(scenario.source, "step", f"{text}. {hint[0].upper() + hint[1:]}; or run it anyway "
+                                                     "with --allow-unstable (allow_unstable=True): it is then flagged")
+    return flags + [Flag("step_beyond_limit", text + " (run with --allow-unstable)")]
+
+
+# ------------------------------------------------------------------ during the run
+@dataclass(frozen=True)
+class Watched:
+    """What Watch watches of one loop: its ``controller`` instance, the force command
+    ``forces`` ("inst.var") and its limits ((what, N): the controller's and the plant's),
+    the measured plant output ``lengths`` and, where the plant has one, each element's
+    ``stroke`` (its ends: two arrays [m]); the reference it tracks, ``excitation``
+    (growth driven by the reference's own changes is no instability)."""
+
+    controller: str
+    forces: str
+    lengths: str
+    limits: tuple = ()
+    stroke: tuple | None = None
+    excitation: str | None = None
+
+
+class Watch:
+    """Detectors fed every recorded row (``feed``, in the recorder's blocks; rows buffered
+    and evaluated BLOCK at a time, as the metrics do), per ``window`` of time, for every
+    ``watched`` loop: the envelope of the forces' and measured outputs' second difference
+    (an oscillation; a smooth motion keeps it small), rows with a force at each of its
+    limits, the outputs' extent into their stroke; and non-finite values. Memory: a few
+    numbers per window."""
+
+    BLOCK = 256
+
+    def __init__(self, watched=(), window=WINDOW):
+        self.watched, self.window = tuple(watched), window
+        self.needs = list(dict.fromkeys(r for w in self.watched for r in (w.forces, w.lengths, w.excitation) if r))
+        self.t0 = None
+        self.env = {ref: np.zeros(0) for ref in self.needs}   # per window: largest |second difference|
+        # per window: rows with the force at each limit
+        self.held = {(w.forces, what): np.zeros(0) for w in self.watched for what, _ in w.limits}
+        self.since = dict.fromkeys(self.held)         # time the force reached the limit, while it stays there
+        self.longest = dict.fromkeys(self.held, 0.0)  # longest stay at the limit [s], first row to last
+        self.extent = {w.lengths: 0.0 for w in self.watched if w.stroke}   # largest |output - middle| / half stroke
+        self.tail = {}                # the last two rows of each reference before this block
+        self.non_finite = None        # time of the first non-finite row
+        self.rows = 0
+        self._block = None
+
+    @classmethod
+    def for_scenario(cls, scenario, descriptions, values):
+        """A Watch on every loop of the scenario (catalogue.CONTROL_LOOPS), or on non-finite values only."""
+        watched, periods = [], []
+        for loop in loops(scenario, descriptions, values):
+            stroke = STROKES.get(scenario.fmus[loop.plant])
+            watched.append(Watched(loop.controller, f"{loop.controller}.{loop.entry['force']}",
+                                   f"{loop.plant}.{loop.entry['plant_measured']}", loop.limits(values, descriptions),
+                                   stroke and stroke(values, descriptions, loop),
+                                   f"{loop.controller}.{loop.entry['excitation']}"))
+            masses_of = MODAL_MASSES.get(scenario.fmus[loop.plant])
+            if masses_of:   # the modes at rest (no motion): the window needs the period's order only
+                masses = _merge(masses_of(scenario, None, descriptions, values, loop, None))
+                limit = design.step_limit(masses, loop.gains, loop.model)
+                at = limit if 0 < limit < math.inf else scenario.step
+                periods.append(design.least_damped_period(masses, loop.gains, at, loop.model))
+        # CYCLES periods of the oscillation with which the loop goes unstable (its least-damped
+        # pole at its step limit), but at least 20 recorded rows (an envelope needs rows) and at
+        # most WINDOW; not a share of the run
+        window = min(WINDOW, max(20 * scenario.record_interval, CYCLES * min(periods, default=math.inf)))
+        return cls(watched, window)
+
+    def bind(self, slices):
+        """The recorder's columns of each recorded reference."""
+        self.slices = slices
+
+    def feed(self, t, rows):
+        """Recorded rows (n, the recorder's whole row, copied) at times t (n,)."""
+        if self._block is None:
+            self._block, self.t0 = Block(self.BLOCK, rows.shape[1]), float(t[0])
+        self._block.add(t, [(rows, slice(None))], self._flush)
+
+    def _flush(self):
+        if self._block is None or not self._block.filled:
+            return
+        t, rows = self._block.take()
+        n = len(t)
+        self.rows += n
+        if self.non_finite is None and not np.isfinite(rows).all():
+            self.non_finite = float(t[np.argmin(np.isfinite(rows).all(axis=1))])
+        window = ((t - self.t0) // self.window).astype(int)
+        size = window[-1] + 1
+        grow = lambda a: np.r_[a, np.zeros(max(0, size - len(a)))]
+        for ref in self.needs:
+            self.env[ref] = grow(self.env[ref])
+            x = rows[:, self.slices[ref]]
+            full = np.vstack([self.tail.get(ref, x[:0]), x])
+            self.tail[ref] = full[-2:]
+            if len(full) > 2:
+                second = np.abs(full[2:] - 2 * full[1:-1] + full[:-2]).max(axis=1)
+                with np.errstate(invalid="ignore"):
+                    np.fmax.at(self.env[ref], window[-len(second):], second)
+        for w in self.watched:
+            force = np.abs(rows[:, self.slices[w.forces]]).max(axis=1)
+            for what, limit in w.limits:
+                key, at = (w.forces, what), force >= limit * (1 - 1e-9)
+                self.held[key] = grow(self.held[key])
+                np.add.at(self.held[key], window, at)
+                edges = np.flatnonzero(np.diff(np.r_[0, at.astype(np.int8), 0]))   # each stay: first row, row after
+                for begin, end in zip(edges[::2], edges[1::2]):
+                    since = self.since[key] if begin == 0 and self.since[key] is not None else float(t[begin])
+                    self.longest[key] = max(self.longest[key], float(t[end - 1]) - since)
+                    self.since[key] = since if end == n else None
+                if not at[-1]:
+                    self.since[key] = None
+            if w.stroke:
+                low, high = w.stroke
+                reach = (np.abs(rows[:, self.slices[w.lengths]] - (low + high) / 2) / ((high - low) / 2)).max()
+                self.extent[w.lengths] = max(self.extent[w.lengths], float(np.nan_to_num(reach)))
+
+    def flags(self, warnings=()):
+        """The flags of what was fed, and ``warnings`` ((instance, FMU log line)) as flags
+        too; a watched controller's saturation warnings join the saturated flag, and are
+        no flag of their own: a touch of a limit shorter than SATURATED of the time is none."""
+        self._flush()
+        out = []
+        if self.non_finite is not None:
+            out.append(Flag("non_finite", f"non-finite values recorded from t = {self.non_finite:g} s"))
+        signals = [(w.forces, "force oscillation", "kN", 1e-3, FLOORS[0], w.excitation) for w in self.watched] + \
+            [(w.lengths, "oscillation", "µm", 1e6, FLOORS[1], w.excitation) for w in self.watched]
+        for ref, what, unit, scale, floor, excitation in signals:
+            grown = growth(self.t0 + self.window * np.arange(len(self.env[ref])), self.env[ref], floor,
+                           self.env.get(excitation))
+            if grown:
+                t0, t1, e0, e1 = grown
+                out.append(Flag("unstable", f"the {what} of {ref!r} (second difference of the recorded values) grows "
+                                            f"from {e0 * scale:.3g} {unit} to {e1 * scale:.3g} {unit} between t = "
+                                            f"{t0:g} s and {t1:g} s"))
+                break
+        saturated = False
+        for w in self.watched:
+            for what, limit in w.limits:
+                held, longest = self.held[w.forces, what], self.longest[w.forces, what]
+                share = held.sum() / max(1, self.rows)
+                if share >= SATURATED or longest >= self.window:
+                    saturated = True
+                    first = self.t0 + self.window * np.flatnonzero(held)[0]
+                    out.append(Flag("saturated", f"{w.forces!r} at the +-{limit * 1e-3:g} kN limit ({what}) "
+                                                 f"{100 * share:.3g} % of the recorded time (from t ~ {first:g} s; "
+                                                 f"at most {longest:.3g} s on end)"))
+            if w.stroke and self.extent[w.lengths] >= NEAR_STROKE:
+                half = (w.stroke[1] - w.stroke[0]) / 2
+                span = f"+-{half[0] * 1e3:g} mm" if np.ptp(half) == 0 else "half"
+                out.append(Flag("stroke", f"{w.lengths!r} reaches {100 * self.extent[w.lengths]:.3g} % of its "
+                                          f"{span} stroke"))
+        controllers = {w.controller for w in self.watched}
+        told = [(inst, line) for inst, line in warnings
+                if saturated or inst not in controllers or "saturated" not in line]
+        return merged(out + warning_flags(told))
+
+
+def _hexapod_stroke(values, descriptions, loop):
+    """The legs' ends: home length -+ the plant's half stroke."""
+    half = float(_value(values, descriptions, loop.plant, loop.entry["stroke"]))
+    home = plant_params(values, descriptions, loop.plant).home_lengths
+    return home - half, home + half
+
+
+# plant FMU -> the ends of its measured output's stroke (the 3T sliders: the actuator ranges)
+STROKES = {"hexapod_plant": _hexapod_stroke,
+           "mechanism3t_plant": lambda values, descriptions, loop: (
+               np.array(mechanism3t.Mechanism1Params.paper().rho_min),
+               np.array(mechanism3t.Mechanism1Params.paper().rho_max))}
+
+
+def merged(flags):
+    """One flag per kind: a second one of a kind (the detector's and the controller's
+    warnings both say 'saturated') joins the first one's message."""
+    by_kind = {}
+    for flag in flags:
+        first = by_kind.setdefault(flag.kind, flag)
+        if first is not flag:
+            by_kind[flag.kind] = Flag(flag.kind, f"{first.message}; {flag.message}")
+    return list(by_kind.values())
+
+
+def warning_flags(warnings):
+    """The FMUs' warnings, one flag per instance: how many, the first and the last (the
+    controller warns once per saturation episode: an unstable loop can log thousands)."""
+    by_instance = {}
+    for instance, line in warnings:
+        by_instance.setdefault(instance, []).append(line)
+    out = []
+    for instance, lines in by_instance.items():
+        kind = "saturated" if any("saturated" in line for line in lines) else "fmu_warning"
+        text = f"{instance!r} logged {len(lines)} warning{'s' if len(lines) > 1 else ''}: {lines[0]}"
+        out.append(Flag(kind, text + (f" ... last: {lines[-1]}" if len(lines) > 1 else "")))
+    return out
+
+
+def growth(times, envelope, floor, excitation=None):
+    """(t0, t1, e0, e1) if the envelope (floored at ``floor``) grows GROWTH-fold with a
+    steady exponential trend (least squares on its log, R^2 >= 0.8) over GROWTH_WINDOWS
+    or more windows that end at the last window or at the envelope's peak (where a growth
+    stops at the force limit, and the envelope stays near it after), else None. Steady: a
+    slew's transients raise the envelope for a window or two, an unstable loop every window.
+    Against the reference's own ``excitation`` (its envelope per window, floored at
+    EXCITED of its largest): the envelope is judged per unit of the largest excitation so
+    far (a stable loop answers what it was excited with, and its transients decay; an
+    unstable loop grows by itself), so a loop answering a reference that starts to move
+    does not grow."""
+    raw = np.maximum(np.asarray(envelope[1:-1], dtype=float), floor)   # first and last window: partial
+    t = np.asarray(times[1:-1], dtype=float)
+    drive = np.ones(len(raw))
+    if excitation is not None and len(raw) and np.nanmax(excitation) > 0:
+        excited = np.nan_to_num(np.asarray(excitation, dtype=float)[1:-1])
+        drive = np.maximum.accumulate(np.maximum(excited, EXCITED * np.nanmax(excitation)))
+    env = raw / drive
+    peaks = (int(np.argmax(env)) + 1, int(np.argmax(raw)) + 1) if len(env) else ()
+    for end in dict.fromkeys((len(env), *peaks)):   # to the end, to the peak (per unit of excitation, or not)
+        if end < GROWTH_WINDOWS:
+            continue
+        if end < len(env) and np.median(env[end:]) < env[end - 1] / PERSIST:
+            continue   # it died away after its peak: a transient (a slew's acceleration step), not a growth
+        for n in np.unique(np.geomspace(end, GROWTH_WINDOWS, 16).round().astype(int))[::-1]:   # longest first
+            x, y = t[end - n:end], np.log(env[end - n:end])
+            slope, icept = np.polyfit(x, y, 1)
+            fit = slope * x + icept
+            total = np.sum((y - y.mean()) ** 2)
+            r2 = 1 - np.sum((y - fit) ** 2) / total if total > 0 else 0.0
+            grown = math.exp(slope * (x[-1] - x[0]))
+            if slope > 0 and grown >= GROWTH and r2 >= 0.8 and raw[end - 1] >= GROWTH * floor:
+                return float(x[0]), float(x[-1]), float(raw[end - n]), float(raw[end - 1])
+    return None
+
+
+def sampling_flags(metrics, interval):
+    """``undersampled`` for each metric its recorded rows cannot carry (metrics.undersampled):
+    the metrics are computed from the recorded rows, so a coarse record interval gives a
+    number with no word (a 2-row run's RMS 1e-4 of the true one)."""
+    said = [(m.name, m.undersampled()) for m in metrics]
+    return [Flag("undersampled", f"metric {name!r} {problem}: record.interval {interval * 1e3:g} ms is too coarse "
+                 "for it; record more often") for name, problem in said if problem]
+
+
+def run_flags(watch, run, instances, before=()):
+    """The flags of a finished (or stopped) run: those known before it, the detectors',
+    the FMUs' warnings, and a cut-short run."""
+    warnings = [(name, line) for name, inst in instances.items() for line in inst.log if line.startswith("[WARNING]")]
+    out = list(before) + (watch.flags(warnings) if watch else [])
+    if run.failure:
+        out.append(Flag("cut_short", f"stopped at t = {run.sim_time:g} s of the run: {run.failure}"))
+    return out

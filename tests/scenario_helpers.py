@@ -1,0 +1,28 @@
+"""Scenario files edited as a user would, and the refusal they must get (spec and hostile-input tests)."""
+import pytest
+
+from scenarios import spec
+from scenarios.runs import runner
+
+SLEW = runner.resolve("telescope_slew").read_text()
+
+
+def edited(text, *changes):
+    """text with each (old, new) replaced once; every old must be there (no silent no-op)."""
+    for old, new in changes:
+        assert old in text, old
+        text = text.replace(old, new, 1)
+    return text
+
+
+def refused(text, key, *parts, descriptions=None, overrides=None):
+    """The ScenarioError message of parsing (and binding, with descriptions) text; asserts
+    it starts with file and key and contains every part."""
+    with pytest.raises(spec.ScenarioError) as error:
+        scenario = spec.parse(text, "bad.toml", overrides)
+        spec.bind(scenario, descriptions)
+    message = str(error.value)
+    assert message.startswith(f"bad.toml: {key}: "), message
+    for part in parts:
+        assert part in message, (part, message)
+    return message
