@@ -35,7 +35,7 @@ CFLAGS = ["-shared", "-fPIC", "-O2", "-std=c99", "-ffp-contract=off", "-fvisibil
 # The FMI layer of each version, and the C every native FMU is compiled from besides its
 # layer and model file: the version-neutral instance core and the models' shared checks.
 LAYERS = {2: "fmi2_layer.c", 3: "fmi3_layer.c"}
-SHARED = ("instance.c", "controller_checks.c")
+SHARED = ("instance.c", "model_checks.c")
 _CAUSALITY = {"parameter": "MB_PARAMETER", "input": "MB_INPUT", "output": "MB_OUTPUT", "local": "MB_LOCAL"}
 
 

@@ -214,45 +214,14 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 }
 
 /* ---------------------------------------------------------------------- stepping */
-/* The preconditions of fmi2DoStep (as the Reference FMUs' fmi2DoStep checks its own):
-   currentCommunicationPoint the FMU's time (the end of the last accepted step, to
-   STEP_TIME_TOLERANCE relative), the step finite, > 0 and large enough to advance the
-   time, and its end not past a stopTime given to fmi2SetupExperiment. Else a line, 1. */
-static int step_refused(mb_instance *inst, double t, double h)
-{
-    const mbi_core_state *s = mbi_core(inst);
-    char tb[32], hb[32], nowb[32];
-    if (!(isfinite(h) && h > 0)) {   /* the Reference FMUs: "Communication step size must be > 0" */
-        mbi_logf(inst, MBI_ERROR, "fmi2DoStep: the communication step size must be finite and > 0, got %s s",
-                 mb_repr(h, hb));
-        return 1;
-    }
-    if (!(fabs(t - s->time) <= STEP_TIME_TOLERANCE * fmax(1.0, fabs(s->time)))) {
-        mbi_logf(inst, MBI_ERROR, "fmi2DoStep: currentCommunicationPoint %s s is not the FMU's time %s s "
-                 "(the end of the last accepted step)", mb_repr(t, tb), mb_repr(s->time, nowb));
-        return 1;
-    }
-    if (t + h == t) {   /* misuse harness: at t = 1e300 a step of 1 ms left the time where it was, with OK */
-        mbi_logf(inst, MBI_ERROR, "fmi2DoStep: a step of %s s does not advance the time %s s (below its resolution)",
-                 mb_repr(h, hb), mb_repr(t, tb));
-        return 1;
-    }
-    /* to the tolerance of the communication point, so a last step ending at stopTime by sums of h runs */
-    if (s->stop_defined && t + h > s->stop_time + STEP_TIME_TOLERANCE * fmax(1.0, fabs(s->stop_time))) {
-        mbi_logf(inst, MBI_ERROR, "fmi2DoStep: the step to t=%s s passes the experiment's stopTime %s s",
-                 mb_repr(t + h, tb), mb_repr(s->stop_time, nowb));
-        return 1;
-    }
-    return 0;
-}
-
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
     (void)noSetFMUStatePriorToCurrentPoint;
     INSTANCE("fmi2DoStep", STEPPING)
     /* a failed instance refuses every step, with fmi2Discard, whatever its arguments */
-    if (!mbi_failed(inst) && step_refused(inst, currentCommunicationPoint, communicationStepSize)) return fmi2Error;
+    if (!mbi_failed(inst) && mbi_step_refused(inst, "fmi2DoStep", currentCommunicationPoint, communicationStepSize))
+        return fmi2Error;
     return (fmi2Status)mbi_do_step(inst, currentCommunicationPoint, communicationStepSize);
 }
 

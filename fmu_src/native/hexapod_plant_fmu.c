@@ -66,7 +66,6 @@ static int advance(mb_instance *inst, double *r, Model *m, double t0, double h)
 
 static int init(mb_instance *inst, double *r, int *i, void *model, double start_time)
 {
-    char buf[32];
     (void)start_time;
     Model *m = model;
     int fidelity = i[VR_fidelity], integrator = i[VR_integrator];
@@ -74,20 +73,9 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
         mb_error(inst, "IndexError", "fidelity %d is not one of 0..%d", fidelity, N_FIDELITY_NAMES - 1);
         return 1;
     }
-    if (integrator < 0 || integrator >= N_INTEGRATOR_NAMES) {
-        mb_error(inst, "IndexError", "integrator %d is not one of 0..%d", integrator, N_INTEGRATOR_NAMES - 1);
-        return 1;
-    }
-    if (integrator == INTEGRATOR_RADAU) {
-        mb_error(inst, "InvalidInputError", "integrator radau needs the python implementation (scipy's Radau); "
-                 "the native HexapodPlant has rk4 and euler");
-        return 1;
-    }
     m->max_step = r[VR_max_step];
-    if (!(m->max_step > 0)) {
-        mb_error(inst, "InvalidInputError", "max_step must be positive, got %s", mb_repr(m->max_step, buf));
+    if (mb_check_integrator(inst, "HexapodPlant", integrator, N_INTEGRATOR_NAMES, INTEGRATOR_RADAU, m->max_step))
         return 1;
-    }
     m->rk4 = integrator == INTEGRATOR_RK4;
     m->act[MB_ACT_BANDWIDTH] = r[VR_actuator_bandwidth];
     m->act[MB_ACT_REFLECTED_MASS] = r[VR_reflected_mass];

@@ -14,7 +14,7 @@
    Rules every model gets from here, whatever its file forgets:
    - A log line carries the status the call returns (Discard on a refused step, Error on
      a failed initialization or a misuse) and names the function the host called.
-   - doStep (its arguments checked by the layers: STEP_TIME_TOLERANCE): after a
+   - doStep (its arguments checked here, mbi_step_refused: STEP_TIME_TOLERANCE): after a
      Discard the instance stays failed and answers every further doStep with Discard
      ("refusing doStep"), as the pythonfmu FMUs do (where the standard lets the host call
      it). A stopTime before the startTime is refused at setup.
@@ -720,4 +720,36 @@ mbi_status mbi_deserialize(mb_instance *inst, const char *function, const unsign
     memcpy(st->data, bytes + HEADER, inst->size);
     *state = st;
     return MBI_OK;
+}
+
+/* The preconditions of a doStep (as the Reference FMUs' fmi2DoStep and fmi3DoStep check theirs):
+   currentCommunicationPoint the FMU's time (the end of the last accepted step, to
+   STEP_TIME_TOLERANCE relative), the step finite, > 0 and large enough to advance the
+   time, and its end not past the stopTime the host gave. Else a line naming ``function``, 1. */
+int mbi_step_refused(mb_instance *inst, const char *function, double t, double h)
+{
+    const mbi_core_state *s = mbi_core(inst);
+    char tb[32], hb[32], nowb[32];
+    if (!(isfinite(h) && h > 0)) {   /* the Reference FMUs: "Communication step size must be > 0" */
+        mbi_logf(inst, MBI_ERROR, "%s: the communication step size must be finite and > 0, got %s s", function,
+                 mb_repr(h, hb));
+        return 1;
+    }
+    if (!(fabs(t - s->time) <= STEP_TIME_TOLERANCE * fmax(1.0, fabs(s->time)))) {
+        mbi_logf(inst, MBI_ERROR, "%s: currentCommunicationPoint %s s is not the FMU's time %s s "
+                 "(the end of the last accepted step)", function, mb_repr(t, tb), mb_repr(s->time, nowb));
+        return 1;
+    }
+    if (t + h == t) {   /* misuse harness: at t = 1e300 a step of 1 ms left the time where it was, with OK */
+        mbi_logf(inst, MBI_ERROR, "%s: a step of %s s does not advance the time %s s (below its resolution)", function,
+                 mb_repr(h, hb), mb_repr(t, tb));
+        return 1;
+    }
+    /* to the tolerance of the communication point, so a last step ending at stopTime by sums of h runs */
+    if (s->stop_defined && t + h > s->stop_time + STEP_TIME_TOLERANCE * fmax(1.0, fabs(s->stop_time))) {
+        mbi_logf(inst, MBI_ERROR, "%s: the step to t=%s s passes the experiment's stopTime %s s", function,
+                 mb_repr(t + h, tb), mb_repr(s->stop_time, nowb));
+        return 1;
+    }
+    return 0;
 }

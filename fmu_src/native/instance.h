@@ -77,8 +77,9 @@ mbi_status mbi_exit_initialization(mb_instance *inst);
    max(1 s, |time|): a host summing t += h drifts by ulps, a host skipping or repeating a
    step is off by h. The standards' preconditions of a doStep (t the FMU's time, h finite,
    > 0 and large enough to advance the time, the step's end not past the stopTime) are
-   checked by the layers, as the Reference FMUs' fmi2DoStep and fmi3DoStep check theirs. */
+   checked by mbi_step_refused, for both layers. */
 #define STEP_TIME_TOLERANCE 1e-9
+int mbi_step_refused(mb_instance *inst, const char *function, double t, double h);
 /* One step from the FMU's time t by h: MBI_OK; MBI_DISCARD when the model refuses it or an
    output is not finite (everything restored to before the step, STEP_FAILED, the
    failure logged), and for every step after a failure ("refusing doStep"). */

@@ -16,25 +16,12 @@ typedef struct {
 
 static int init(mb_instance *inst, double *r, int *i, void *model, double start_time)
 {
-    char buf[32];
     (void)start_time;
     Model *m = model;
     int integrator = i[VR_integrator];
-    if (integrator < 0 || integrator >= N_INTEGRATOR_NAMES) {
-        mb_error(inst, "InvalidInputError", "integrator index %d is not one of 0..%d (rk4, euler, radau)", integrator,
-                 N_INTEGRATOR_NAMES - 1);
-        return 1;
-    }
-    if (integrator == INTEGRATOR_RADAU) {
-        mb_error(inst, "InvalidInputError", "integrator radau needs the python implementation (scipy's Radau); "
-                 "the native Mechanism3TPlant has rk4 and euler");
-        return 1;
-    }
     m->max_step = r[VR_max_step];
-    if (!(m->max_step > 0)) {
-        mb_error(inst, "InvalidInputError", "max_step must be positive, got %s", mb_repr(m->max_step, buf));
+    if (mb_check_integrator(inst, "Mechanism3TPlant", integrator, N_INTEGRATOR_NAMES, INTEGRATOR_RADAU, m->max_step))
         return 1;
-    }
     m->rk4 = integrator == INTEGRATOR_RK4;
     m->mode = i[VR_mode];
     if (m->mode != 1 && m->mode != -1) {

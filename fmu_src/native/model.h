@@ -66,8 +66,13 @@ const char *mb_repr(double v, char *buf);
 
 /* The checks of controller.pid.PIDGains (gains finite and >= 0, force_limit finite and
    > 0): 0, or 1 after mb_error naming the gain. Both native controllers use it
-   (controller_checks.c). */
+   (model_checks.c). */
 int mb_check_pid_gains(mb_instance *inst, double kp, double ki, double kd, double force_limit);
+
+/* The plants' integrator parameter (an index of INTEGRATOR_NAMES; radau is the pythonfmu
+   FMU's alone) and max_step > 0: 0, or 1 after mb_error. Both native plants use it. */
+int mb_check_integrator(mb_instance *inst, const char *model, int integrator, int n_integrators, int radau,
+                        double max_step);
 
 /* "a, b" list of the names whose row of `width` values in `rows` holds NaN or inf,
    written into out (size n); returns the number of such rows. */

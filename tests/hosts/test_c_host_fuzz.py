@@ -125,14 +125,14 @@ def test_the_oracle_catches_a_wrong_answer(fmus, tmp_path):
     broken = tmp_path / "LegSensor"
     (broken / "binaries" / "linux64").mkdir(parents=True)
     (broken / "modelDescription.xml").write_bytes((folder / "modelDescription.xml").read_bytes())
-    layer = (sources / "fmi2_layer.c").read_text()
+    core = (sources / "instance.c").read_text()
     check = "if (!(fabs(t - s->time) <= STEP_TIME_TOLERANCE * fmax(1.0, fabs(s->time)))) {"
-    assert check in layer
+    assert check in core
     patched = tmp_path / "src"
     patched.mkdir()
     for f in sources.iterdir():
         (patched / f.name).write_bytes(f.read_bytes())
-    (patched / "fmi2_layer.c").write_text(layer.replace(check, "if (0) {"))
+    (patched / "instance.c").write_text(core.replace(check, "if (0) {"))
     native_build.compile_binary(patched, sorted(p.name for p in patched.glob("*.c")),
                                 broken / "binaries" / "linux64" / "LegSensor.so")
     with pytest.raises(AssertionError, match="VIOLATION .*fmi2DoStep.*answered OK, the model allows only Error"):
