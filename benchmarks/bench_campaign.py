@@ -1,6 +1,6 @@
 """Campaign engine speed, side by side in one run: N independent slews (the sky-coverage
 campaign's runs: telescope_slew, native FMUs, 30 s) run sequentially in this process
-(scenarios.single.run, the reference), then through scenarios.engine on a LocalCluster
+(scenarios.runs.single.run, the reference), then through scenarios.runs.engine on a LocalCluster
 of 1 and 2 worker processes.
 
 The machine is shared, so wall times measure its free CPU as much as the engine. The
@@ -13,7 +13,7 @@ the wall times measured (with the load) beside it.
     python -m benchmarks.bench_campaign [--runs 8] [--stop 30] [--max-workers 2] [--campaign 500]
 
 --campaign N also runs a real N-run campaign (``movingbase campaign``'s path,
-scenarios.campaign.run_campaign) on 1 worker, then on 2, and prints their wall times, the
+scenarios.runs.campaign.run_campaign) on 1 worker, then on 2, and prints their wall times, the
 load, and the parallel efficiency (1 worker's time over 2 x 2 workers', and the sequential
 runs' over 2 x 2 workers').
 Every run is a different start elevation (distinct keys, nothing found on disk).

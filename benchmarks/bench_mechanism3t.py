@@ -1,4 +1,4 @@
-"""Per-call time of the 3T single-state kernel: C through cffi (plant.mechanism3t_kernel)
+"""Per-call time of the 3T single-state kernel: C through cffi (plant.mechanism3t.kernel)
 against the numba kernel it replaced (git revision 73017ff, when numba is importable),
 measured in one run and printed side by side as ratios; then the step() of the two
 pythonfmu slaves that use it (Mechanism3TPlant, SliderController, without the FMI layer)

@@ -2,7 +2,7 @@
 per macro step (its stepping loop is C, scenarios/cosim/c/cosim.c) against a Python loop making
 the same FMI calls and against fmpy's list-based calls, a recorded run against the bare
 stepping (the goal: <= 1.25x, docs/speed.md), the checks before a run (the stability
-prediction along the motion, scenarios.flags) against the run, and the whole CLI process
+prediction along the motion, scenarios.runs.flags) against the run, and the whole CLI process
 of one scenario against its stepping, phase by phase (the goal: <= 1.5x). Prints
 figures; asserts nothing.
 

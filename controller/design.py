@@ -30,7 +30,7 @@ is one step stale, under Gauss-Seidel only the one into the FMU that steps first
 (LoopModel.gauss_seidel; the linear extrapolation acts on the stale connections only).
 The limit is where the first mode's closed loop (closed_loop_polynomial, the
 characteristic polynomial of mode_loop in w = (z - 1) / h) gets a pole outside the unit
-circle; scenarios.flags takes it over the modes along a scenario's motion before it runs.
+circle; scenarios.runs.flags takes it over the modes along a scenario's motion before it runs.
 """
 from dataclasses import dataclass, replace
 

@@ -57,7 +57,7 @@ BY_IDENTIFIER = {f.identifier: f for f in FMUS}
 KEYS = tuple(BY_KEY)
 SCRIPTS = tuple(f.script for f in FMUS)
 
-# controller FMU -> the loop it closes, which the guard (scenarios.flags) predicts and watches
+# controller FMU -> the loop it closes, which the guard (scenarios.runs.flags) predicts and watches
 # from this table alone: the plant FMU it drives; its force output and the plant input that
 # output feeds; the plant output it measures and its own input of it (directly or through a
 # sensor of LOOP_SENSORS); its gains and force-limit parameters; its reference input fed by

@@ -1,12 +1,12 @@
 """FMU: the 6-UPS hexapod plant (seed 000), leg forces in, leg and platform motion out.
 
-The physics is plant.hexapod_ode / plant.stewart; this file maps FMI variables onto it.
+The physics is plant.hexapod.ode / plant.hexapod.model; this file maps FMI variables onto it.
 Over a communication step the leg forces are held and the base motion is extrapolated
 by its rates and accelerations (with moving_base = 0 the base inputs are ignored); the
 FMU variables are views of the ODE's input/output arrays, so a step copies nothing.
 The state survives get/set FMU state.
 
-The leg actuator (plant.hexapod_ode.Actuator) is off by default: the commanded force
+The leg actuator (plant.hexapod.ode.Actuator) is off by default: the commanded force
 appears in the leg at once, as before. Its defaults are 0 (off), not a real screw's
 values; the realistic scenario (scenarios/files/telescope_slew_realistic.toml) sets them,
 with their sources. With a bandwidth the six motor forces are states, saved with the FMU

@@ -1,10 +1,10 @@
 """FMU: the 3T parallel mechanism of Shen et al. 2024 ("mechanism 1"), slider forces in,
 slider and platform motion out.
 
-The physics is plant.mechanism3t; this file maps FMI variables onto it. State: the slider
+The physics is plant.mechanism3t.model; this file maps FMI variables onto it. State: the slider
 positions rho = (x_A2, y_A1, y_A3) and rates; dynamics M(rho) rho_ddot = F - bias(rho, rho_dot)
-(plant.mechanism3t.forward_dynamics: the virtual-work model of slider_forces, solved for the
-accelerations), evaluated by its compiled single-state kernel plant.mechanism3t_kernel
+(plant.mechanism3t.model.forward_dynamics: the virtual-work model of slider_forces, solved for the
+accelerations), evaluated by its compiled single-state kernel plant.mechanism3t.kernel
 (same numbers to ~1e-15 relative, ~2 µs instead of ~420 µs a state). Over a communication
 step the forces are held and the state is advanced with the chosen method: RK4 and Euler
 by the kernel's compiled advance_fixed (plant.integrators.rk4/euler's arithmetic and

@@ -33,7 +33,7 @@ from fmu_src import atomic, catalogue
 ROOT = pathlib.Path(__file__).resolve().parent.parent   # the checkout, or site-packages
 PYPROJECT = ROOT / "pyproject.toml"
 OUT = (ROOT if PYPROJECT.exists() else pathlib.Path.cwd()) / "build" / "fmu"
-LOG = logging.getLogger("movingbase.build")    # each build as it starts (scenarios.runner says it on stderr)
+LOG = logging.getLogger("movingbase.build")    # each build as it starts (scenarios.runs.runner says it on stderr)
 SHIM = ROOT / "fmu_src" / "pythonfmu_shim.c"
 
 _BASE = {"m": {"m": "1"}, "rad": {"rad": "1"}, "s": {"s": "1"}, "N": {"kg": "1", "m": "1", "s": "-2"},

@@ -1,10 +1,10 @@
 """FMU: slider controller of the 3T mechanism: the paper's reference motion, per-slider PID
-(controller.pid) and model feedforward (plant.mechanism3t.slider_forces of the reference,
-evaluated per step by the compiled single-state kernel plant.mechanism3t_kernel as
+(controller.pid) and model feedforward (plant.mechanism3t.model.slider_forces of the reference,
+evaluated per step by the compiled single-state kernel plant.mechanism3t.kernel as
 M rho_ddot + bias: the same numbers to ~1e-15 relative, ~3 µs instead of ~420 µs).
 
 Reference (paper 4.3): every slider follows initial_position + amplitude sin(omega t),
-10 mm and 0.5 rad/s by default (plant.mechanism3t.paper_motion). In doStep(t, h) it reads
+10 mm and 0.5 rad/s by default (plant.mechanism3t.model.paper_motion). In doStep(t, h) it reads
 the measured slider positions and rates at t and sets the forces, reference and
 feedforward at t; the plant holds those forces over the next step: one step of delay
 under a Jacobi master, the delay the gains were checked for. In initialization the
@@ -12,7 +12,7 @@ forces are the feedforward alone (the integral starts at zero).
 
 Default gains (constants below, no design at instantiate time). The loop in slider
 space is PID(s) M^-1 / s^2 plus gravity, M the generalised mass matrix
-(plant.mechanism3t.mass_matrix). At the paper configuration M has eigen-masses 12.5,
+(plant.mechanism3t.model.mass_matrix). At the paper configuration M has eigen-masses 12.5,
 36.7 and 50.8 kg (within 2 % over the +-10 mm motion, 5 % for the heaviest); with the
 same PID on every slider the loop decouples in M's eigenvectors (as in
 controller.design), so the gains were set with controller.design.leg_loop (ZOH plant,

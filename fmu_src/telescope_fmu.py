@@ -2,7 +2,7 @@
 
 Outputs the motion of the hexapod's base {B} in {W} (pose, rates, accelerations), the
 axis angles, and the platform's reference pose (home + the elevation-dependent
-subreflector correction) with its derivatives, all analytic (plant.telescope, whose C
+subreflector correction) with its derivatives, all analytic (plant.telescope.model, whose C
 kernel fills a whole block of output rows in one call).
 
 The profile is a known function of time, so it is evaluated ahead in blocks of BLOCK

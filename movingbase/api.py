@@ -535,7 +535,7 @@ class CampaignResult:
 
     def __init__(self, campaign: campaigns.Campaign, jobs: list, store: Any, summary: pathlib.Path):
         self.campaign = campaign
-        self.store = store            # scenarios.engine.Store: the runs' result files
+        self.store = store            # scenarios.runs.engine.Store: the runs' result files
         self.summary_path = summary
         self._keys = {job.label: job.key for job in jobs}
 

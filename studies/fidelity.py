@@ -2,7 +2,7 @@
 fidelity level adds, next to its speed gain.
 
 Per scene and level: the largest leg-force error against the full model along the
-scene's motion (scenarios.fidelity, what the "auto" rule uses), the largest deviation of
+scene's motion (scenarios.runs.fidelity, what the "auto" rule uses), the largest deviation of
 the co-simulated platform pose from the full-fidelity co-simulation (same scene,
 moving-base feedforward), and the plant FMU's cost per doStep relative to full fidelity.
 Writes docs/fidelity.md and prints it.

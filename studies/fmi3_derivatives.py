@@ -48,7 +48,7 @@ def run(extrapolation, h, stop):
 def input_errors(records, h, base):
     """Largest difference, over the record points after the slew starts, of the plant's
     held base inputs from their exact mean over the step they were held for (the step
-    ending at the record point; the telescope's outputs by plant.telescope, Gauss-Legendre):
+    ending at the record point; the telescope's outputs by plant.telescope.model, Gauss-Legendre):
     {input: (translation [nm, nm/s, nm/s2], rotation [nrad, ...])}."""
     params = dataclasses.replace(telescope.TelescopeParams.tianma(), lever_arm=base["lever_arm"])
     profile = telescope.motion_profile("slew", (base["start_azimuth"], base["start_elevation"]),

@@ -7,7 +7,7 @@ Two readings of the moving-base equations, an option of this comparison only (th
 stays right):
 
 * ``model``: eqs. 39-40 as derived, gravity once, turned into {B} (R^T g_B), with the
-  base's inertial terms: what plant.stewart computes.
+  base's inertial terms: what plant.hexapod.model computes.
 * ``eq43``: eq. 43 as printed. It subtracts both m g_B v* (the fixed-base gravity of
   eq. 37) and m (R^T g_B) v* (eq. 39's turned gravity), so gravity acts twice, and it has
   none of eq. 40's base inertial terms F_{.|B}, M_{.|B}. Evaluated exactly: inverse

@@ -16,7 +16,7 @@ Every variant is scenario text made here from the shipped scenario file (the FMU
 and connections of the effects added programmatically), written to
 <out>/realistic_loop/scenarios/ so that any run can be repeated with ``python -m
 scenarios FILE``. Its sweep is the feedforward; all runs go through one engine
-(scenarios.engine: local workers or a Dask cluster, results keyed by content, so an
+(scenarios.runs.engine: local workers or a Dask cluster, results keyed by content, so an
 interrupted study resumes). An effect that is off is not in the scenario at all: the
 ideal loop is the shipped scenario, number for number.
 

@@ -15,7 +15,7 @@ State z = [pose (6), twist (6), PID integral (6)]:
 * plant: the same compiled right-hand side as the plant FMU (StewartParams.kernel.rhs, the
   scene's fidelity and moving_base setting), but with the base motion evaluated exactly
   at t instead of held and Taylor-extrapolated from the start of a communication step;
-* base and reference motion: exactly what the telescope FMU evaluates (plant.telescope
+* base and reference motion: exactly what the telescope FMU evaluates (plant.telescope.model
   profiles, base_motion, reference_pose, or the paper's quintics), at t;
 * controller: the continuous-time limit of controller.pid and the controller FMU, with
   no sample-and-hold and no delay:
@@ -141,7 +141,7 @@ class Scene:
 
     @classmethod
     def from_prepared(cls, scenario, descriptions, values):
-        """From scenarios.runner.prepare's (scenario, _, descriptions, values)."""
+        """From scenarios.runs.runner.prepare's (scenario, _, descriptions, values)."""
         kinds = {inst: fmu for inst, fmu in scenario.fmus.items()}
         inst = {kind: name for name, kind in kinds.items()}
         base, plant, ctrl = inst["telescope"], inst["hexapod_plant"], inst["leg_controller"]

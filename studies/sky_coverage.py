@@ -154,7 +154,7 @@ def map_chart(rows_, path):
 
 
 def _mark_flagged_cells(ax, az_edges, el_edges, cells):
-    """A red frame and a red F on each flagged run's cell (scenarios.flags)."""
+    """A red frame and a red F on each flagged run's cell (scenarios.runs.flags)."""
     for i, j in cells:
         ax.add_patch(Rectangle((az_edges[j], el_edges[i]), az_edges[j + 1] - az_edges[j], el_edges[i + 1] - el_edges[i],
                                fill=False, edgecolor="red", lw=2.2, zorder=3))

@@ -11,7 +11,7 @@ convergence_order.png).
    is part of the controller: beyond a step that depends on the gains the loop goes
    unstable, however accurate the plant's integrator. Prediction:
    controller.design.closed_loop_stable (12-state linearised plant, ZOH, one-step delay,
-   discrete PID). Observation: co-simulations through scenarios.master with the real
+   discrete PID). Observation: co-simulations through scenarios.cosim.master with the real
    FMUs, the PID gains scaled by k, the platform started OFFSET off its home pose (a
    step disturbance of ~10 µm on the legs, small enough to stay linear and far from the
    force limit) and the leg-length error classified:
@@ -150,7 +150,7 @@ class _Decided(Exception):
 
 
 class _Trace:
-    """A metric for scenarios.single.run that keeps the leg-length error per step and the
+    """A metric for scenarios.runs.single.run that keeps the leg-length error per step and the
     peak force, and stops the run once the error has decayed by DECAYED."""
 
     name, start = "stability trace", 0.0
@@ -162,7 +162,7 @@ class _Trace:
         self.t, self.error, self.force_peak = [], [], 0.0
 
     def feed(self, t, columns):
-        """Rows at times t as scenarios.master's recorder hands them over, a block at a
+        """Rows at times t as scenarios.cosim.master's recorder hands them over, a block at a
         time; ``columns`` in the order of ``needs``."""
         for k, at in enumerate(t.tolist()):
             self.update(at, {name: column[k] for name, column in zip(self.needs, columns)})
@@ -248,7 +248,7 @@ def scenario_text(step, stop, gains, pose, reference=HOME_POSE, integrator="rk4"
 
 
 class CoSim:
-    """The plant and leg-controller FMUs run by scenarios.master on the probe scenario.
+    """The plant and leg-controller FMUs run by scenarios.cosim.master on the probe scenario.
 
     ``paths``: {"hexapod_plant_fmu": ..., "leg_controller_fmu": ...} of built FMUs (e.g.
     the tests' fixture); without it they are built into ``fmu_dir`` or, by default, a

@@ -14,7 +14,7 @@ not as a full factorial but as the step sweep of every master with the shipped p
 settings, plus integrator and fidelity variants with the Jacobi master (the shipped one).
 The controller always runs the shipped moving-base feedforward and default gains.
 
-Cost: CPU time of the master's stepping loop (scenarios.master.Run.cpu_time, the stepping
+Cost: CPU time of the master's stepping loop (scenarios.cosim.master.Run.cpu_time, the stepping
 thread's CPU time, FMU instantiation and initialisation excluded; CPU rather than wall time
 because the machines these run on are shared: another process's load stretches wall time,
 not this thread's CPU time), the median of ``repeats`` runs made in

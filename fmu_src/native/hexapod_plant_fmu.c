@@ -51,7 +51,7 @@ static int advance(mb_instance *inst, double *r, Model *m, double t0, double h)
     } else if (det < SINGULAR_RATIO * HOME_DET) {
         mb_error(inst, "SingularConfigurationError", "singular pose reached: |det J| is %.2e of home (< %s)",
                  det / HOME_DET, SINGULAR_RATIO_TEXT);
-    } else {   /* plant.stewart.check_stroke: the first leg outside its stroke */
+    } else {   /* plant.hexapod.model.check_stroke: the first leg outside its stroke */
         for (int leg = 0; leg < 6; leg++) {
             double l = outputs[leg], low = m->bounds[leg], high = m->bounds[6 + leg];
             if (l < low || l > high || !isfinite(l)) {

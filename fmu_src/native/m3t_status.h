@@ -1,6 +1,6 @@
 #ifndef MB_M3T_STATUS_H
 #define MB_M3T_STATUS_H
-/* The error the Python 3T FMUs report for a kernel status (plant.mechanism3t_kernel.
+/* The error the Python 3T FMUs report for a kernel status (plant.mechanism3t.kernel.
    raise_status): exception class and message, for mb_error. */
 #include "mechanism3t.h"
 #include "model.h"

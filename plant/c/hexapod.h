@@ -7,7 +7,7 @@
    expressed in {B}:  M du/dt + h = J^T F.  SI units throughout (m, rad, s, kg, N).
    Arrays are double, row-major and contiguous; "(n, 6)" means n rows of 6.
 
-   Parameters (what plant.stewart.StewartParams holds, so an FMU can keep them as arrays):
+   Parameters (what plant.hexapod.model.StewartParams holds, so an FMU can keep them as arrays):
      base_joints      (6, 3)  base joint positions B_j in {B} [m]
      platform_joints  (6, 3)  platform joint positions P_j in {P} [m]
      data             (MB_HEXAPOD_NDATA) = StewartParams.kernel_data:
@@ -45,7 +45,7 @@ enum mb_hexapod_status {
     MB_HEXAPOD_STROKE = 3      /* a leg length left [bounds[0], bounds[1]] */
 };
 
-/* Batched kernel over n states; mirrors plant.kane.kane.
+/* Batched kernel over n states; mirrors plant.hexapod.kernel.kane.
    pose       (n, 6)  platform pose [m, rad]
    rate       (n, 6)  RPY-angle pose rates [m/s, rad/s], or the twist (v, w) [m/s, rad/s]
                       in {B} when twist_speeds
@@ -122,7 +122,7 @@ double mb_hexapod_rhs_actuated(const double *base_joints, const double *platform
 /* dx/dt of one state x (12) = [pose, twist (v, w) in {B}] under leg forces (6) [N],
    with the base extrapolated from base0 (3, 6) = [base pose, rate, acc] at time t0 [s] to
    time t [s] (second-order Taylor; base0 is not read for BASE_NONE and may be NULL). Writes dx (12) = [pose rates (RPY rates), twist
-   acceleration] and returns |det J| [m^3]; mirrors plant.kane.rhs. */
+   acceleration] and returns |det J| [m^3]; mirrors plant.hexapod.kernel.rhs. */
 double mb_hexapod_rhs(const double *base_joints, const double *platform_joints, const double *data,
                       const double *x, const double *forces, const double *base0, double t0, double t,
                       int base_mode, int legs, double *dx);
@@ -134,7 +134,7 @@ double mb_hexapod_rhs(const double *base_joints, const double *platform_joints, 
    outputs (3, 6) = leg lengths [m], leg rates [m/s], pose rates at t0 + h (written when
                     the status is OK or STROKE)
    *det_min = the smallest |det J| met over all stages [m^3] (0 on BAD_INPUT).
-   Returns enum mb_hexapod_status; mirrors plant.kane.advance_fixed. */
+   Returns enum mb_hexapod_status; mirrors plant.hexapod.kernel.advance_fixed. */
 int mb_hexapod_advance_fixed(int rk4, int substeps, const double *base_joints,
                              const double *platform_joints, const double *data, double *x,
                              const double *inputs, double t0, double h, int base_mode, int legs,

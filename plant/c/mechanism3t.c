@@ -8,7 +8,7 @@
 #include "linalg.h"
 #include "mechanism3t.h"
 
-#define SINGULAR_TOL 1e-7   /* plant.mechanism3t.SINGULAR_TOL */
+#define SINGULAR_TOL 1e-7   /* plant.mechanism3t.model.SINGULAR_TOL */
 
 /* Rate-independent quantities of one configuration (_geometry). */
 typedef struct {

@@ -14,9 +14,9 @@
 
    Every function returns an mb_m3t_status (MB_M3T_OK or the first problem found) and never
    produces NaN on its own: a non-OK status means the outputs are not meaningful (except
-   where said). The codes equal the Python constants of plant.mechanism3t_kernel.
+   where said). The codes equal the Python constants of plant.mechanism3t.kernel.
 
-   pa: the packed parameters, MB_M3T_NPARAM doubles, = plant.mechanism3t_kernel.pack(P):
+   pa: the packed parameters, MB_M3T_NPARAM doubles, = plant.mechanism3t.kernel.pack(P):
      pa[0..9]   a, b, d, e, l1, l2, l3, l4, l5, l6 (m), dimensions of paper 3.1.3
      pa[10]     g (m/s^2), gravity along -z
      pa[11..12] knee_1, knee_2: knee signs (+1.0 / -1.0) of the passive limbs I and II
@@ -95,7 +95,7 @@ int mb_m3t_plant_step(const double *pa, double *x, const double *forces, int mod
 
 /* Slider reference of paper 4.3 at time t (s): rho = centre + amplitude sin(omega t) on
    every slider (centre (3, m), amplitude (m), omega (rad/s)), with its rate and
-   acceleration (3 each); plant.mechanism3t.paper_motion. */
+   acceleration (3 each); plant.mechanism3t.model.paper_motion. */
 void mb_m3t_paper_motion(double t, const double *centre, double amplitude, double omega,
                          double *rho, double *rho_dot, double *rho_ddot);
 

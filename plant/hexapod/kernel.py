@@ -7,14 +7,14 @@ module only hands it numpy arrays. Why C: numpy's fixed cost per call (~1 µs) t
 the FMU calls forward dynamics four times per RK4 substep; a C loop does a state in
 ~1-2 µs. Built ahead of time, so importing costs no compile wait.
 
-Equations (derivation in plant.stewart's docstring): generalised speeds u = (v, w) of {P}
+Equations (derivation in plant.hexapod.model's docstring): generalised speeds u = (v, w) of {P}
 relative to {B}, in {B};  M du/dt + h = J^T F.
 
 Two levels: the functions below validate their arrays on every call (float64,
 C-contiguous, shapes), for batched and occasional use; HexapodKernel validates
 long-lived arrays once and keeps their C pointers, for the per-step paths (the FMU's
 advance, a controller's inverse dynamics), where a call costs a few µs of Python.
-The public, validated, batched API is plant.stewart; this module is its engine.
+The public, validated, batched API is plant.hexapod.model; this module is its engine.
 """
 import numpy as np
 
@@ -154,7 +154,7 @@ class HexapodKernel:
 
     def run(self, pose, rate, arg, base_pose, base_rate, base_acc, base_mode, legs, twist_speeds, solve,
             batch=None):
-        """plant.kane.kane on n states given as (n, 6) arrays, its outputs views of one
+        """plant.hexapod.kernel.kane on n states given as (n, 6) arrays, its outputs views of one
         block: (M, h, J, ldot, length, out, det) with shapes batch + (6, 6), (6,), (6, 6),
         (6,), (6,), (6,), () where ``batch`` (default (n,)) is any leading shape of n states."""
         batch = (len(pose),) if batch is None else batch
@@ -168,7 +168,7 @@ class HexapodKernel:
     def checked_run(self, pose, rate, arg, base_pose, base_rate, base_acc, base_mode, legs, twist_speeds, solve,
                     batch=None):
         """``run`` on n states given as (n, 6) arrays, or on one given as (6,) arrays,
-        after the kernel's own NaN/inf check (mb_hexapod_kane_checked): plant.stewart's
+        after the kernel's own NaN/inf check (mb_hexapod_kane_checked): plant.hexapod.model's
         engine. Returns (bad, out, det, work): ``bad`` the check's bitmask (nonzero:
         nothing computed), ``out`` shaped ``batch`` + (6,) (default: the states' shape),
         det J (a float for one (6,) state and no ``batch``) and the block of all
@@ -195,7 +195,7 @@ class HexapodKernel:
                 work[78 * n:84 * n].reshape(s6), work[84 * n:90 * n].reshape(s6))
 
     def advance_fixed(self, rk4, substeps, x, inputs, t0, h, base_mode, legs, bounds, outputs):
-        """plant.kane.advance_fixed on this hexapod; ``inputs``, ``bounds`` and
+        """plant.hexapod.kernel.advance_fixed on this hexapod; ``inputs``, ``bounds`` and
         ``outputs`` are arrays or pointers from ``pointer``."""
         if isinstance(inputs, np.ndarray):
             inputs = reading(inputs, (4, 6), "inputs")
@@ -258,7 +258,7 @@ class HexapodKernel:
 
 class StateInverseDynamicsCall:
     """mb_hexapod_inverse_dynamics of one state at a time into three buffers of 6 (leg
-    forces, lengths, rates), for a caller that calls it every step (plant.stewart's
+    forces, lengths, rates), for a caller that calls it every step (plant.hexapod.model's
     StateInverseDynamics builds on it). The inputs' C pointers live in the C setup
     (mb_hexapod_state_inverse_dynamics) and are kept while the caller passes the same
     array object again (held here: the object and its memory live on, and its buffer

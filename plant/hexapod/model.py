@@ -91,12 +91,12 @@ class StewartParams:
 
     @cached_property
     def kernel(self):
-        """The C kernel (plant.kane) bound to these parameters, their pointers taken once."""
+        """The C kernel (plant.hexapod.kernel) bound to these parameters, their pointers taken once."""
         return kane.HexapodKernel(self.base_joints, self.platform_joints, self.kernel_data)
 
     @cached_property
     def kernel_data(self):
-        """Scalars in the order plant.kane.kane expects."""
+        """Scalars in the order plant.hexapod.kernel.kane expects."""
         return np.array([self.platform_mass, *self.platform_inertia, self.cylinder_mass,
                          self.cylinder_com, self.rod_mass, self.rod_com,
                          self.cylinder_inertia[0] + self.rod_inertia[0],

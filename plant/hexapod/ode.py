@@ -8,7 +8,7 @@ Over one step the leg forces are held (zero-order hold) and the base motion is
 extrapolated from the step's start by its own rates and accelerations (second-order
 Taylor), so a base turning at constant acceleration is followed exactly.
 
-Why the fixed-step methods run in C (plant.kane.HexapodKernel.advance_fixed): the FMU's
+Why the fixed-step methods run in C (plant.hexapod.kernel.HexapodKernel.advance_fixed): the FMU's
 budget per communication step is ~10x an empty FMU's doStep (~1.4 µs); RK4 in Python
 around the compiled right-hand side costs ~20 µs, one C call a few µs. Inputs and
 outputs live in two arrays the caller may share (the FMU maps its variables onto them);

@@ -1,12 +1,12 @@
-"""Single-state kernel of the 3T mechanism (plant.mechanism3t): O', the generalised mass
+"""Single-state kernel of the 3T mechanism (plant.mechanism3t.model): O', the generalised mass
 matrix M, the bias forces and the forward dynamics for ONE state, an RHS and fixed-step
 RK4 / Euler for the plant FMU: the C kernel plant/c/mechanism3t.c called through cffi
 (plant._kernel, built at install), which the native FMUs compile too.
 
-Why compiled: plant.mechanism3t evaluates the bodies with numpy on tiny arrays, ~420 µs of
+Why compiled: plant.mechanism3t.model evaluates the bodies with numpy on tiny arrays, ~420 µs of
 fixed per-call costs for a single state; the plant FMU calls forward dynamics four times per
 RK4 substep and the slider controller the inverse dynamics once per step. The validated,
-batched numpy API in plant.mechanism3t stays the reference (tests hold the two equal to
+batched numpy API in plant.mechanism3t.model stays the reference (tests hold the two equal to
 ~1e-12 relative); the C code repeats its formulas term by term (its header documents the
 arguments and the packed parameters of pack()).
 
@@ -34,7 +34,7 @@ SING_SIN, SING_W, SING_LIMB1, SING_LIMB2, SING_MASS = (
     lib.MB_M3T_SING_SIN, lib.MB_M3T_SING_W, lib.MB_M3T_SING_LIMB1, lib.MB_M3T_SING_LIMB2, lib.MB_M3T_SING_MASS)
 DIVERGED = lib.MB_M3T_DIVERGED
 
-# Body order of the packed masses (that of plant.mechanism3t._bodies) and of the turning ones.
+# Body order of the packed masses (that of plant.mechanism3t.model._bodies) and of the turning ones.
 BODIES = ("slider_2", "slider_1", "slider_3", "b1c1", "c1d1", "b2c2", "c2d2", "b3c3", "c3d3", "d3e3", "platform")
 TURNING = ("b1c1", "c1d1", "b2c2", "c2d2", "b3c3", "d3e3")
 assert (len(BODIES), len(TURNING)) == (lib.MB_M3T_NBODY, lib.MB_M3T_NTURN)
@@ -199,7 +199,7 @@ _UNREACHABLE = {
 
 
 def raise_status(status, mode):
-    """Raise the error plant.mechanism3t raises for a kernel status (nothing for OK)."""
+    """Raise the error plant.mechanism3t.model raises for a kernel status (nothing for OK)."""
     if status == OK:
         return
     if status in _INVALID:
@@ -217,7 +217,7 @@ def raise_status(status, mode):
 
 
 def dynamics_terms(P, rho, rho_dot, mode=1):
-    """(M (3, 3), bias (3,), O' (3,)) of one state: plant.mechanism3t.dynamics_terms compiled."""
+    """(M (3, 3), bias (3,), O' (3,)) of one state: plant.mechanism3t.model.dynamics_terms compiled."""
     mode = _mode(mode)
     (M, pm), (bias, pb), (p, pp) = _fresh((3, 3)), _fresh(3), _fresh(3)
     raise_status(lib.mb_m3t_terms(_params(P), _in("rho", rho), _in("rho_dot", rho_dot), mode, pm, pb, pp), mode)
@@ -225,7 +225,7 @@ def dynamics_terms(P, rho, rho_dot, mode=1):
 
 
 def slider_forces(P, rho, rho_dot, rho_ddot, mode=1):
-    """plant.mechanism3t.slider_forces for one state, as M rho_ddot + bias."""
+    """plant.mechanism3t.model.slider_forces for one state, as M rho_ddot + bias."""
     mode = _mode(mode)
     out, ptr = _fresh(3)
     raise_status(lib.mb_m3t_slider_forces(_params(P), _in("rho", rho), _in("rho_dot", rho_dot),
@@ -234,7 +234,7 @@ def slider_forces(P, rho, rho_dot, rho_ddot, mode=1):
 
 
 def forward_dynamics(P, rho, rho_dot, forces, mode=1):
-    """plant.mechanism3t.forward_dynamics for one state: rho_ddot = M^-1 (forces - bias)."""
+    """plant.mechanism3t.model.forward_dynamics for one state: rho_ddot = M^-1 (forces - bias)."""
     mode = _mode(mode)
     out, ptr = _fresh(3)
     raise_status(lib.mb_m3t_forward_dynamics(_params(P), _in("rho", rho), _in("rho_dot", rho_dot),
@@ -243,7 +243,7 @@ def forward_dynamics(P, rho, rho_dot, forces, mode=1):
 
 
 def forward_branch(P, rho, mode=1):
-    """plant.mechanism3t.forward_branch for one rho (3,)."""
+    """plant.mechanism3t.model.forward_branch for one rho (3,)."""
     mode = _mode(mode)
     p, ptr = _fresh(3)
     raise_status(lib.mb_m3t_position(_params(P), _in("rho", rho), mode, ptr), mode)

@@ -12,10 +12,10 @@ the reading of the recorded values run in C (scenarios/cosim/c/cosim.c, class Lo
 record points per call; Python sets up, hands the blocks of rows to the records, the
 metrics and the watch, and reports.
 
-Every FMI call is status-checked (scenarios.fmi); a Discard/Error stops the run with
+Every FMI call is status-checked (scenarios.cosim.fmi); a Discard/Error stops the run with
 RunFailed: one line naming the instance, the time and the FMU's error log line, and the
 run so far (the rows recorded so far are kept and written, the metrics cover them).
-Records go into arrays preallocated for the record grid (scenarios.records), written once
+Records go into arrays preallocated for the record grid (scenarios.cosim.records), written once
 as npz; metrics keep running sums. A failed read of a recorded value stops the run as a
 failed step does, the rows before it kept.
 """
@@ -44,8 +44,8 @@ class Run:
     metrics: dict = field(default_factory=dict)
     series: dict = field(default_factory=dict)
     failure: str = ""       # why the run stopped early ("" if it reached stop_time)
-    records: object = None  # scenarios.records.Records (None: the run failed before recording began)
-    flags: list = field(default_factory=list)  # scenarios.flags.Flag: what went wrong ([]: nothing seen)
+    records: object = None  # scenarios.cosim.records.Records (None: the run failed before recording began)
+    flags: list = field(default_factory=list)  # scenarios.runs.flags.Flag: what went wrong ([]: nothing seen)
     cpu_time: float = float(
         "nan"
     )  # this thread's CPU time over the stepping: what a cost comparison on a shared machine uses
@@ -318,8 +318,8 @@ class Loop:
 class Recorder:
     """Recorded variables, read by the C loop (Loop) into ``block`` a row per record
     point, one FMI call per instance, and handed over a block at a time (``take``) to
-    preallocated arrays (scenarios.records: one row per record point, units with the
-    names), the metrics and the watch (scenarios.flags.Watch). What only the watch needs
+    preallocated arrays (scenarios.cosim.records: one row per record point, units with the
+    names), the metrics and the watch (scenarios.runs.flags.Watch). What only the watch needs
     is read but not recorded."""
 
     ROWS = 256   # the most rows one C call records before it returns them

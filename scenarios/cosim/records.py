@@ -99,7 +99,7 @@ class Records:
 
 
 class Block:
-    """Recorded rows buffered for an evaluation a block at a time (scenarios.metrics,
+    """Recorded rows buffered for an evaluation a block at a time (scenarios.runs.metrics,
     flags.Watch): ``size`` rows of ``width`` values and their times. ``add`` copies rows in
     slices and calls ``full()`` whenever the block fills, so blocks end at the same row
     counts however the rows arrive (one at a time or many)."""

@@ -1,7 +1,7 @@
 """One look for every chart and number the kit prints: the floor, the number format, the
 marks, a colour per run kind and the resolution charts are saved at.
 
-Used by scenarios.report, scenarios.paper_forces, scenarios.mechanism3t_charts and the
+Used by scenarios.output.report, scenarios.paper_forces, scenarios.mechanism3t_charts and the
 studies, so that "1 nm", "5.44 µm" and "moving-base blue" mean the same on every page."""
 import functools
 import pathlib

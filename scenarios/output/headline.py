@@ -1,5 +1,5 @@
 """The README's headline, generated: a table and one sentence per scene, written with the
-report's own formatting (scenarios.report.fmt / compare / base_effect_text) from the
+report's own formatting (scenarios.output.report.fmt / compare / base_effect_text) from the
 metrics of the full runs, so the README and the reports print the same numbers.
 
     movingbase run telescope_slew paper_manoeuvre keyhole_tracking   # full runs into out/

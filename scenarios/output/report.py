@@ -4,7 +4,7 @@ underneath, a summary bar chart against the telescope's 0.1 mm and 10 µm marks,
 what the base motion adds and why.
 
 The sentences and numbers comparing the runs come from ``compare`` and ``fmt``, which
-the README's generated headline (``scenarios.headline``) uses too: one source for each
+the README's generated headline (``scenarios.output.headline``) uses too: one source for each
 number."""
 import textwrap
 

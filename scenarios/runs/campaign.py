@@ -1,5 +1,5 @@
 """Campaign files: many runs of one base scenario over a grid or a list of cases, run
-through scenarios.engine (local worker processes or a Dask cluster), resumable.
+through scenarios.runs.engine (local worker processes or a Dask cluster), resumable.
 
     movingbase campaign FILE [--ci] [--jobs N] [--dask tcp://HOST:PORT] [--out DIR]
 
@@ -24,7 +24,7 @@ unquoted). The base scenario's [sweep] is one more axis unless the campaign sets
 parameter. Every key and value is checked before anything runs; errors name the file,
 the key and the problem, like scenario files.
 
-Results: <out>/<campaign file stem>/runs/<key>.json|.npz (scenarios.engine.Store) and summary.csv,
+Results: <out>/<campaign file stem>/runs/<key>.json|.npz (scenarios.runs.engine.Store) and summary.csv,
 one row per run, read back from the files.
 """
 import csv
@@ -450,7 +450,7 @@ def results(campaign, store, job_list):
 
 
 def write_summary(campaign, store, job_list, path):
-    """summary.csv streamed from the result files: case values, status, flags (scenarios.flags:
+    """summary.csv streamed from the result files: case values, status, flags (scenarios.runs.flags:
     '' for a run nothing was seen wrong in), every metric."""
     with atomic.replacing(path, text=True, newline="") as file:
         writer = None

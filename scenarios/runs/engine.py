@@ -5,13 +5,13 @@ cluster given its scheduler's address. Both go through the same code path.
 Why this shape:
 
 * A run is a ``Job``: the checked scenario, its bound parameter values, and the content
-  digest of every FMU it needs (scenarios.fmi.content_digest: the same for two builds of
+  digest of every FMU it needs (scenarios.cosim.fmi.content_digest: the same for two builds of
   the same sources). Its key is a hash of exactly what decides its numbers (time grid,
   master, connections, recording, metrics, parameters, FMU contents, the kit's own code:
   ``code_digest``), so a result on disk is found again by any later campaign that asks
   for the same run, after a rebuild too, and never by other code.
 * The FMU files travel once to every worker (scattered, not per task); each worker
-  process writes them to a local folder and extracts each once (``scenarios.fmi.unpack``
+  process writes them to a local folder and extracts each once (``scenarios.cosim.fmi.unpack``
   caches by path). A run then instantiates its FMUs from the extracted folders: ~13 ms
   against seconds for the run, and a fresh instance is the only reset that cannot leak
   state from one run into the next.
@@ -25,7 +25,7 @@ Why this shape:
   keys on disk. At most a few jobs per worker are in flight, so the client's memory
   does not grow with the number of runs; summaries are read back from the files.
 
-Results are bit-for-bit those of a sequential ``scenarios.single.run`` in one process:
+Results are bit-for-bit those of a sequential ``scenarios.runs.single.run`` in one process:
 each run is the same deterministic computation in a fresh set of instances; floats go
 through JSON as their repr (exact) and series through npz.
 """
@@ -57,7 +57,7 @@ from scenarios.runs import flags, metrics, single
 from scenarios.runs.estimates import cores
 from scenarios.spec import Link, file_label
 
-RECORDS = ".records.npz"     # a kept run's recorded variables (scenarios.records), next to <key>.json
+RECORDS = ".records.npz"     # a kept run's recorded variables (scenarios.cosim.records), next to <key>.json
 # Runs per Dask task, at most: each task costs the client ~10 ms of CPU (scheduler and
 # messages, in the client's process for a local cluster), as much as 4 % of a 30 s slew;
 # in tasks of 4 runs a quarter of it. Fewer when there are few runs (every worker gets
@@ -100,7 +100,7 @@ def check_address(address, timeout=5.0):
 
 
 def file_digest(path):
-    """The FMU's content digest (scenarios.fmi.content_digest): a rebuild of the same
+    """The FMU's content digest (scenarios.cosim.fmi.content_digest): a rebuild of the same
     sources keeps every cached result's key."""
     return content_digest(path)
 
@@ -123,7 +123,7 @@ class Job:
     parameters: dict
     fmus: dict                      # instance -> sha256 of its FMU file
     keep_record: bool = True        # store the recorded variables too
-    flags: tuple = ()               # scenarios.flags.Flag known before the run (its motion's); not in the key
+    flags: tuple = ()               # scenarios.runs.flags.Flag known before the run (its motion's); not in the key
     key: str = ""
 
     def __post_init__(self):
@@ -217,7 +217,7 @@ def execute(job, blobs):
 # ------------------------------------------------------------------------ results on disk
 class Store:
     """One folder of run results keyed by run key: <key>.json (written last), <key>.npz,
-    <key>.records.npz (scenarios.records)."""
+    <key>.records.npz (scenarios.cosim.records)."""
 
     def path(self, key, suffix):
         return self.folder / f"{key}{suffix}"

@@ -33,7 +33,7 @@ Kinds of Flag:
 * ``cut_short``: an FMU stopped the run (RunFailed) before its stop time;
 * ``undersampled``: a metric its recorded rows cannot carry (metrics are computed from the
   recorded rows): fewer than 10 counted, or an RMS over every other row 10 % off the RMS
-  over all (scenarios.metrics.undersampled);
+  over all (scenarios.runs.metrics.undersampled);
 * ``motion_unfinished``: a slew whose stop time comes before the motion ends.
 """
 import math

@@ -184,7 +184,7 @@ def prepare(path, ci=False, implementation=None, out=None, fmi_version=None):
     before anything runs. ``ci`` applies the file's [ci] overrides (a shorter run);
     ``implementation`` ("native" or "python") and ``fmi_version`` (2 or 3; 3 with the
     native FMUs) override every instance's choice; ``out`` (a folder) is checked to hold
-    the records (scenarios.resources), warnings printed."""
+    the records (scenarios.runs.estimates), warnings printed."""
     scenario = spec.load(path)
     told = spec.sources_of(scenario.ci, "the value of [ci], for --ci") if ci else {}
     if told:
@@ -197,7 +197,7 @@ def prepare(path, ci=False, implementation=None, out=None, fmi_version=None):
 
 
 def prepare_loaded(scenario, implementation=None, out=None, fmi_version=None):
-    """prepare for a Scenario already loaded (and changed in Python, scenarios.api)."""
+    """prepare for a Scenario already loaded (and changed in Python, movingbase.api)."""
     if implementation is not None:
         if implementation not in spec.IMPLEMENTATIONS:
             raise ValueError(f"implementation must be one of {spec.IMPLEMENTATIONS}, got {implementation!r}")
@@ -309,7 +309,7 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
         outdir.mkdir(parents=True, exist_ok=True)
     before = before or {}
     runs, todo = [], list(sweep_runs(scenario, descriptions, values))
-    if jobs or dask:   # the values on worker processes or a Dask cluster (scenarios.engine)
+    if jobs or dask:   # the values on worker processes or a Dask cluster (scenarios.runs.engine)
         items = scenario.sweep[1] if scenario.sweep else [None]
         runs, todo = engine.run_sweep(scenario, paths, descriptions, values, items, outdir, jobs, dask, progress), []
         for run in runs:
@@ -367,7 +367,7 @@ def sweep_runs(scenario, descriptions, values):
 
 
 def pre_run_flags(scenario, paths, descriptions, values, ci=False, allow_unstable=False):
-    """The stability prediction and the scene's own checks (scenarios.flags) of every run
+    """The stability prediction and the scene's own checks (scenarios.runs.flags) of every run
     at its own values (a sweep value can move the limit; each distinct loop is predicted
     once): {label: the flags the run gets}. Raises ScenarioError before anything runs if
     any run's step is beyond its own limit, naming each such run and its limit, unless

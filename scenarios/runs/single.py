@@ -20,7 +20,7 @@ def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), p
     memory (Run.records); with an ``outdir`` they are also written to outdir/<label>.npz
     (also those of a run that fails or is interrupted). ``progress(done_fraction)`` is
     called about 200 times. Run.flags: ``flags`` known before the run, the detectors'
-    (scenarios.flags.Watch, fed every recorded row), the FMUs' warnings and a stop before
+    (scenarios.runs.flags.Watch, fed every recorded row), the FMUs' warnings and a stop before
     stop_time."""
     instances = {}
     recorder = None

@@ -247,7 +247,7 @@ def _value(source, key, var, raw):
         converted = isinstance(raw, str) and split(raw)[1] not in (None, var.unit)
         shown = f"{raw!r} = {value:.6g} {var.unit or ''}".rstrip() if converted else repr(raw)
         hint = ""
-        if _bare(raw) and var.unit:     # the rule (scenarios.units): a bare number is SI
+        if _bare(raw) and var.unit:     # the rule (scenarios.spec.units): a bare number is SI
             number = float(raw) if not isinstance(raw, str) else split(raw)[0]
             other = {"rad": "deg", "rad/s": "deg/s", "rad/s2": "deg/s2", "m": "mm"}.get(var.unit)
             hint = (f" (a bare number is SI: {number:g} {var.unit}" +

@@ -256,7 +256,7 @@ def check_models(src, key, scenario, variables, values, written=None):
 
 
 def _check_telescope(src, key, scenario, inst, md_variables, values, written):
-    """The profile evaluated as the FMU will (plant.telescope, the same parameters) on a
+    """The profile evaluated as the FMU will (plant.telescope.model, the same parameters) on a
     coarse grid over the run; its refusal becomes a ScenarioError naming the settings."""
     if any(isinstance(v, Link) for v in values.values()):
         return   # values known only at the start time

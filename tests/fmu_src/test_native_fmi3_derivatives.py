@@ -4,7 +4,7 @@ analytically, so a master may take their derivatives instead of extrapolating.
 
 Truth: the derivatives against central finite differences of the FMU's own outputs
 along the shipped slew (accelerating, cruising, decelerating), and against the chain
-rule worked here by hand from the axis profile (plant.telescope.profile_axes):
+rule worked here by hand from the axis profile (plant.telescope.model.profile_axes):
 roll = 90 deg - E, pitch = 0, yaw = A, p = L (cos E sin A, -cos E cos A, sin E)."""
 import dataclasses
 from ctypes import CFUNCTYPE, POINTER, c_double, c_int, c_int32, c_size_t, c_uint, c_void_p
@@ -174,7 +174,7 @@ def test_the_master_feeds_the_taylor_mean_where_derivatives_exist(master_kind):
 
 def test_derivatives_make_the_base_coupling_exact_to_third_order():
     """The plant's held base_pose against its exact mean over the step (Gauss-Legendre of
-    plant.telescope's outputs): linear extrapolation errs by O(h^2) (39 nm at 1 ms, 25 m
+    plant.telescope.model's outputs): linear extrapolation errs by O(h^2) (39 nm at 1 ms, 25 m
     lever arm), the Taylor mean by O(h^3) (1e-4 nm); base_acc, without derivatives, is
     fed alike by both."""
     from studies import fmi3_derivatives as study

@@ -104,7 +104,7 @@ def test_plant_fmu_equals_direct_integration(fmus, integrator, method):
 
 
 def test_compiled_advance_equals_plant_integrators():
-    """The plant FMU's compiled RK4 / Euler (plant.mechanism3t_kernel.advance_fixed) against
+    """The plant FMU's compiled RK4 / Euler (plant.mechanism3t.kernel.advance_fixed) against
     plant.integrators.advance on the same compiled right-hand side, and on the numpy model."""
     from plant.mechanism3t import kernel
     packed, forces = kernel.pack(P), STATIC + np.array([40.0, -30.0, 20.0])

@@ -1,5 +1,5 @@
 """The electromechanical leg actuator and the platform wrench of the hexapod plant
-(plant/c/hexapod.c mb_hexapod_advance_actuated, plant.hexapod_ode.Actuator), each against
+(plant/c/hexapod.c mb_hexapod_advance_actuated, plant.hexapod.ode.Actuator), each against
 an independent truth:
 
 - force loop: step and frequency response of the delivered force against the transfer

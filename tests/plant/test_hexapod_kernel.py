@@ -1,4 +1,4 @@
-"""The C Kane kernel (plant/c/hexapod.c through plant.kane) against the numba kernel it
+"""The C Kane kernel (plant/c/hexapod.c through plant.hexapod.kernel) against the numba kernel it
 replaced (git revision 73017ff, plant/hexapod/kernel.py + plant/linalg.py), state by state: the
 port must keep every term, so both agree to rounding. The numba kernel's inputs and
 outputs are stored in tests/golden/kernel_c_numba.npz (150 random states per case, where

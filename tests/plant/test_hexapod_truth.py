@@ -128,7 +128,7 @@ def test_reference_statics_virtual_work():
 # --------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def stewart():
-    return pytest.importorskip("plant.stewart")
+    return pytest.importorskip("plant.hexapod.model")
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""The C kernel of the 3T mechanism (plant/c/mechanism3t.c through plant.mechanism3t_kernel)
+"""The C kernel of the 3T mechanism (plant/c/mechanism3t.c through plant.mechanism3t.kernel)
 against the numba kernel it replaced (git revision 73017ff), function by function, and its
 C-only per-step calls against the calls they combine. The numba kernel's inputs and outputs
 are stored in tests/golden/mechanism3t_kernel_c_numba.npz; regenerate with

@@ -310,7 +310,7 @@ def _outcome(call):
 
 
 def test_compiled_kernel_equals_the_numpy_model():
-    """plant.mechanism3t_kernel (one state, compiled) against the batched numpy reference:
+    """plant.mechanism3t.kernel (one state, compiled) against the batched numpy reference:
     O', M, bias, slider_forces and forward_dynamics to 1e-12 relative on random reachable
     states of both assembly modes, and the same error (type and message) elsewhere."""
     from plant.mechanism3t import kernel

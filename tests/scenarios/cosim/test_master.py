@@ -1,5 +1,5 @@
 """The master's stepping loop in C (scenarios/cosim/c/cosim.c) and its recording into arrays
-(scenarios.records, written as npz) against the per-step numpy loop and the CSV recorder
+(scenarios.cosim.records, written as npz) against the per-step numpy loop and the CSV recorder
 they replaced, kept here as the independent reference (a copy of that code driving the
 same FMUs through fmpy's ctypes functions): the npz file read back and exported as CSV is
 byte for byte the CSV the reference streamed, for every shipped scenario's [ci] version,

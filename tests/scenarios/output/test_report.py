@@ -213,7 +213,7 @@ def test_ratio_and_fmt_are_three_digits():
 
 
 def test_readme_headline_is_generated_from_the_stored_metrics():
-    """The README's headline section is what scenarios.headline writes from
+    """The README's headline section is what scenarios.output.headline writes from
     docs/headline.json, with the report's own sentences: no number typed by hand."""
     store = json.loads(headline.STORE.read_text())
     text = headline.README.read_text()

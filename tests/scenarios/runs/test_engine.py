@@ -1,4 +1,4 @@
-"""scenarios.engine: a local Dask cluster of 2 worker processes gives the sequential
+"""scenarios.runs.engine: a local Dask cluster of 2 worker processes gives the sequential
 numbers bit for bit, a failing run is reported while the others finish, and a campaign
 whose worker is killed and whose client is interrupted resumes without losing or
 repeating a run."""

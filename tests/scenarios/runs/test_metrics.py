@@ -24,7 +24,7 @@ def rpy(R):
 
 
 def leg_lengths(pose):
-    """|p + R a_i - B_i| from the spec's joint tables, independent of plant.stewart."""
+    """|p + R a_i - B_i| from the spec's joint tables, independent of plant.hexapod.model."""
     table = ne.Table()
     R = Rotation.from_euler("ZYX", pose[5:2:-1]).as_matrix()
     return np.linalg.norm(pose[:3] + table.platform_joints @ R.T - table.base_joints, axis=1)
