@@ -76,6 +76,8 @@ def main(argv=None):
     parser.add_argument("--states", type=int, default=2000)
     parser.add_argument("--rounds", type=int, default=5)
     args = parser.parse_args(argv)
+    if pin is None:
+        raise SystemExit("this benchmark needs Pinocchio: pip install -c constraints.txt -e '.[dev]'")
     params = StewartParams.paper(d=0.2)
     rng = np.random.default_rng(30)
     print(f"pinocchio {pin.__version__}; {args.states} random states near home; medians of {args.rounds} rounds")
