@@ -190,16 +190,22 @@ def subreflector_motion(pose, reference):
     return np.column_stack([pose[:, :3] - reference[:, :3], (axis * scale[:, None])[:, :2]])
 
 
+def _rows(matrix, motion):
+    """matrix @ each motion row, summed term by term in a fixed order: a row's result does
+    not depend on how many rows come with it (a product's BLAS kernel would)."""
+    return sum(motion[:, j, None] * matrix[:, j] for j in range(motion.shape[1]))
+
+
 def pointing(motion, optics):
     """(n, 2) beam deviation [rad] along x_B and y_B of the subreflector motion(s)
     (``subreflector_motion``)."""
-    return np.atleast_2d(motion) @ sensitivities(optics)[0].T
+    return _rows(sensitivities(optics)[0], np.atleast_2d(motion))
 
 
 def path_error(motion, optics):
     """(n,) RMS path-length error over the aperture [m], piston and tilt removed."""
     motion = np.atleast_2d(motion)
-    square = np.einsum("ni,ij,nj->n", motion, sensitivities(optics)[1], motion)
+    square = np.sum(motion * _rows(sensitivities(optics)[1], motion), axis=1)
     return np.sqrt(np.maximum(square, 0.0))
 
 
