@@ -373,6 +373,10 @@ def _measures(m):
     if m.kind == "base_effect":
         return ("leg-force change the base motion causes along the reference and base motion (inverse "
                 "dynamics, full against no-base model); the same for every run, kN")
+    if m.kind == "pointing":
+        return (f"`{a['measured']}` against `{a['reference']}` in the telescope's units (Tianma's Cassegrain, "
+                "plant/telescope/optics.py): pointing error [arcsec], path-length error over the aperture less "
+                "piston and tilt [µm], aperture efficiency lost by Ruze's law at 15-43 GHz [%]")
     return m.kind
 
 
@@ -380,6 +384,11 @@ def _cell(result):
     if "rotation_rms" in result:   # a pose: position and rotation, each with its unit
         return (f"position RMS {fmt(result['rms'])} µm, peak {fmt(result['peak'])} µm; rotation RMS "
                 f"{fmt(result['rotation_rms'])} µrad, peak {fmt(result['rotation_peak'])} µrad")
+    if "path_rms" in result:       # pointing: angle, path-length error, efficiency losses
+        losses = ", ".join(f"{k.removeprefix('efficiency_loss_').replace('GHz', ' GHz')} {fmt(v)} %"
+                           for k, v in result.items() if k.startswith("efficiency_loss_"))
+        return (f"pointing RMS {fmt(result['rms'])} arcsec, peak {fmt(result['peak'])} arcsec; path error RMS "
+                f"{fmt(result['path_rms'])} µm, peak {fmt(result['path_peak'])} µm; efficiency lost {losses}")
     return ", ".join(f"{k} {fmt(v)}" for k, v in result.items() if k != "unit")
 
 

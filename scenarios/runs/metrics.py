@@ -17,6 +17,11 @@ Kinds (scenario key ``kind``):
 * ``base_effect``: along the reference motion and the base motion, the peak leg-force
   change the base motion causes, split into gravity turning with the base and the
   transport/centripetal/Coriolis terms (inverse dynamics at three fidelities) [kN].
+* ``pointing``: what the platform pose's error against the reference pose costs the
+  telescope (plant/telescope/optics.py, Tianma's Cassegrain): the beam's pointing error
+  [arcsec], the path-length error over the aperture once piston and tilt are removed
+  [µm] and the aperture efficiency it loses by Ruze's law at 15, 22, 31 and 43 GHz (at
+  the run's RMS path-length error, the mean loss to first order) [%].
 """
 import math
 
@@ -25,6 +30,7 @@ import numpy as np
 from plant.errors import PlantError
 from plant.hexapod.model import StewartParams, inverse_dynamics, inverse_kinematics
 from plant.rotations import rpy_matrix
+from plant.telescope import optics
 from scenarios.cosim.records import Block
 
 MAX_POINTS = 4000
@@ -167,8 +173,9 @@ class LegTracking(_Metric):
         self._accumulate(t, measured - inverse_kinematics(self.params, reference))
 
 
-class _Rotation(_Metric):
-    """PoseTracking's rotation angle, fed by it: reading it flushes its owner's block."""
+class _Part(_Metric):
+    """A second quantity of a metric (a pose's rotation angle, a path-length error), fed by
+    it: reading it flushes its owner's block."""
 
     def __init__(self, name, owner):
         super().__init__(name)
@@ -180,9 +187,13 @@ class _Rotation(_Metric):
 
 def key_unit(values, key):
     """The unit of one number of a metric's result ({"rms": ..., "unit": "µm, µrad"}): a
-    pose metric's rotation_* keys are in its second unit."""
-    position, _, rotation = values.get("unit", "").partition(", ")
-    return rotation if rotation and key.startswith("rotation") else position
+    pose metric's rotation_* keys are in its second unit, a pointing metric's path_* keys
+    in its second and efficiency_loss_* keys in its third."""
+    units = values.get("unit", "").split(", ")
+    second = ("rotation", "path")
+    if len(units) > 2 and key.startswith("efficiency_loss"):
+        return units[2]
+    return units[1] if len(units) > 1 and key.startswith(second) else units[0]
 
 
 class PoseTracking(_Metric):
@@ -192,7 +203,7 @@ class PoseTracking(_Metric):
         super().__init__(name)
         self.needs = [measured, reference]
         self.measured, self.reference = measured, reference
-        self.rotation = _Rotation(name + " rotation", self)
+        self.rotation = _Part(name + " rotation", self)
 
     def _evaluate(self, t, columns):
         pose, ref = columns
@@ -268,8 +279,45 @@ class BaseEffect(_Metric):
         return out
 
 
+LOSS_BANDS = ("Ku", "K", "Ka", "Q")   # optics.BANDS whose efficiency loss a pointing metric gives
+
+
+def loss_key(band):
+    """'efficiency_loss_22GHz': the result key of the loss at an optics.BANDS band."""
+    return f"efficiency_loss_{optics.BANDS[band] / 1e9:g}GHz"
+
+
+class Pointing(_Metric):
+    """The pose error in the telescope's units: the beam's pointing error (its angle,
+    arcsec), and a part for the path-length error (µm) whose RMS gives the efficiency
+    loss at LOSS_BANDS."""
+
+    scale, unit = 1.0 / optics.ARCSEC, "arcsec"
+
+    def __init__(self, name, measured, reference, geometry=None):
+        super().__init__(name)
+        self.geometry = geometry or optics.Cassegrain.tianma()
+        self.needs = [measured, reference]
+        self.measured, self.reference = measured, reference
+        self.path = _Part(name + " path", self)
+        self.path.scale = 1e6
+
+    def _evaluate(self, t, columns):
+        motion = optics.subreflector_motion(*columns)
+        beam = optics.pointing(motion, self.geometry)
+        self._accumulate(t, np.hypot(beam[:, 0], beam[:, 1])[:, None])
+        self.path._accumulate(t, optics.path_error(motion, self.geometry)[:, None])
+
+    def result(self):
+        angle, path = super().result(), self.path.result()
+        losses = {loss_key(band): 100.0 * float(optics.efficiency_loss(path["rms"] * 1e-6, optics.BANDS[band]))
+                  if math.isfinite(path["rms"]) else math.nan for band in LOSS_BANDS}
+        return {"rms": angle["rms"], "peak": angle["peak"], "path_rms": path["rms"], "path_peak": path["peak"],
+                **losses, "unit": "arcsec, µm, %"}
+
+
 KINDS = {"leg_tracking": LegTracking, "pose_tracking": PoseTracking, "tracking": Tracking,
-         "peak": Peak, "base_effect": BaseEffect}
+         "peak": Peak, "base_effect": BaseEffect, "pointing": Pointing}
 
 
 def make(metric):

@@ -219,7 +219,8 @@ def check_metric(src, key, metric, scalars):
                                 "a metric measures what the run changes: an output or an input")
         sizes[arg] = len(read)
     needed = {"leg_tracking": {"measured": 6, "reference_pose": 6},
-              "pose_tracking": {"measured": 6, "reference": 6}}.get(metric.kind, {})
+              "pose_tracking": {"measured": 6, "reference": 6},
+              "pointing": {"measured": 6, "reference": 6}}.get(metric.kind, {})
     for arg, size in needed.items():
         if sizes[arg] != size:
             raise ScenarioError(src, f"{key}.{arg}", f"{metric.args[arg]} has {sizes[arg]} values; "

@@ -18,16 +18,19 @@ METRIC_KINDS = {  # kind -> required keys
     "tracking": ("measured", "reference"),
     "peak": ("variable",),
     "base_effect": ("base", "reference"),
+    "pointing": ("measured", "reference"),
 }
 _POSE = ("m", "m", "m", "rad", "rad", "rad")
 # kind -> {argument: the unit of each of its values (one string: of every value)}: what the
 # metric's own unit (metrics.py: µm, µrad, kN) takes its variables to be
-METRIC_RESULT_UNITS = {"leg_tracking": "µm", "pose_tracking": "µm and µrad", "tracking": "µm", "peak": "kN"}
+METRIC_RESULT_UNITS = {"leg_tracking": "µm", "pose_tracking": "µm and µrad", "tracking": "µm", "peak": "kN",
+                       "pointing": "arcsec, µm and %"}
 METRIC_UNITS = {
     "leg_tracking": {"measured": "m", "reference_pose": _POSE},
     "pose_tracking": {"measured": _POSE, "reference": _POSE},
     "tracking": {"measured": "m", "reference": "m"},
     "peak": {"variable": "N"},
+    "pointing": {"measured": _POSE, "reference": _POSE},
 }
 TOP_KEYS = {"name", "description", "start_time", "stop_time", "step", "master", "extrapolation",
              "fmus", "connections", "record", "metrics", "sweep", "ci", "fidelity_tolerance"}

@@ -512,6 +512,8 @@ def test_tables_hold_numbers_with_their_units(result):
     assert table.attrs["units"][("leg error", "rms")] == "µm"
     assert table.attrs["units"][("pose error", "rotation_peak")] == "µrad"
     assert table.attrs["units"][("leg force", "peak")] == "kN"
+    keys = ("rms", "peak", "path_rms", "efficiency_loss_22GHz", "efficiency_loss_43GHz")
+    assert [table.attrs["units"][("pointing", k)] for k in keys] == ["arcsec"] * 2 + ["µm"] + ["%"] * 2
     assert set(table.attrs["units"]) == set(numbers)
 
 

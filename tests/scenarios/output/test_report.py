@@ -45,6 +45,10 @@ def _runs(tmp_path, scales=(1.0, 1.0 + 1e-4, 1e-2)):
         metrics = {"leg error": {"rms": rms(leg) * 1e6, "peak": leg.max() * 1e6, "unit": "µm"},
                    "pose error": {"rms": rms(pos) * 1e6, "peak": pos.max() * 1e6, "rotation_rms": rms(rot) * 1e6,
                                   "rotation_peak": rot.max() * 1e6, "unit": "µm, µrad"},
+                   "pointing": {"rms": 0.125 * scale, "peak": 0.5 * scale, "path_rms": 1.5 * scale,
+                                "path_peak": 5.5 * scale, "efficiency_loss_15GHz": 2e-5, "efficiency_loss_22GHz": 4e-5,
+                                "efficiency_loss_31GHz": 9e-5, "efficiency_loss_43GHz": 1.75e-4,
+                                "unit": "arcsec, µm, %"},
                    "leg force": {"rms": 11.0, "peak": 16.25, "unit": "kN"},
                    "base effect": {"rms": 11.7, "peak": 17.5432, "gravity_peak": 17.3, "transport_peak": 0.245,
                                    "unit": "kN"}}
@@ -172,6 +176,9 @@ def test_report_names_runs_states_settings_and_gives_base_effect_once(tmp_path):
                  "fixed-base model (the base motion ignored)", "stepping loop only"):
         assert part in text, part
     assert text.count("17.5") == 1                       # the base effect, once, not per run
+    assert ("| pointing (arcsec, µm, %) |" in text and "pointing RMS 0.125 arcsec, peak 0.5 arcsec; path error RMS "
+            "1.5 µm, peak 5.5 µm; efficiency lost 15 GHz 2e-05 %, 22 GHz 4e-05 %, 31 GHz 9e-05 %, 43 GHz 0.000175 %"
+            in text)
     fixed, moving = runs[1].metrics["pose error"], runs[2].metrics["pose error"]
     assert f"{fixed['rms'] / moving['rms']:.3g}x the RMS" in text
     for name in ("leg_error_vs_time.png", "pose_error_vs_time.png", "summary.png"):

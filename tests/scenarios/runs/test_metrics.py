@@ -10,12 +10,14 @@ from scipy.spatial.transform import Rotation
 from plant.errors import InvalidInputError
 from plant.hexapod.model import StateInverseDynamics, StewartParams, inverse_kinematics
 from plant.rotations import rpy_matrix
+from plant.telescope import optics
 from scenarios import spec
 from scenarios.runs import metrics
 from tests.plant import newton_euler as ne
 
 HOME = np.array([0.0, 0.0, -2.6815, 0.0, 0.0, 0.0])
 PAPER = StewartParams.paper()
+TIANMA = optics.Cassegrain.tianma()
 
 
 def rpy(R):
@@ -145,6 +147,10 @@ def _per_row_errors(kind, values):
         r = ref_R.T @ pose_R
         axis = math.hypot(r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1])
         return [math.sqrt(offset @ offset)], [math.atan2(axis, r[0, 0] + r[1, 1] + r[2, 2] - 1.0)]
+    if kind == "pointing":
+        motion = optics.subreflector_motion(values["p.pose"], values["r.pose"])
+        beam = optics.pointing(motion[0], TIANMA)[0]
+        return [math.hypot(*beam)], optics.path_error(motion[0], TIANMA)
     motion = [values[f"r.reference_{k}"] for k in ("pose", "rate", "acc")] + \
              [values[f"b.base_{k}"] for k in ("pose", "rate", "acc")]
     full, gravity, none = (StateInverseDynamics(PAPER, f)(*motion)[0][0].copy()
@@ -186,6 +192,8 @@ ROWS = {  # kind: scenario args, {variable: (centre, random spread)}
                       "r.pose": (HOME, 0.02)}),
     "pose_tracking": ({"measured": "p.pose", "reference": "r.pose"},
                       {"p.pose": (HOME, 0.02), "r.pose": (HOME, 0.02)}),
+    "pointing": ({"measured": "p.pose", "reference": "r.pose"},
+                 {"p.pose": (HOME, 0.02), "r.pose": (HOME, 0.02)}),
     "base_effect": ({"base": "b", "reference": "r"},
                     {"b.base_pose": (0.0, 0.5), "b.base_rate": (0.0, 0.2), "b.base_acc": (0.0, 0.2),
                      "r.reference_pose": (HOME, 0.02), "r.reference_rate": (0.0, 0.05), "r.reference_acc": (0.0, 0.1)}),
@@ -201,7 +209,8 @@ def test_block_evaluation_equals_row_by_row_evaluation(kind, monkeypatch):
     monkeypatch.setattr(metrics, "MAX_POINTS", 40)
     args, spread = ROWS[kind]
     metric = metrics.make(spec.Metric("m", kind, args))
-    rows = [_RowByRow() for _ in range(2 if kind == "pose_tracking" else 1)]
+    two = kind in ("pose_tracking", "pointing")    # a second part: rotation, path-length error
+    rows = [_RowByRow() for _ in range(2 if two else 1)]
     peaks = [0.0, 0.0]
     rng = np.random.default_rng(9)
     buffer = {name: np.empty(6 if kind != "tracking" else 2) for name in spread}
@@ -215,7 +224,7 @@ def test_block_evaluation_equals_row_by_row_evaluation(kind, monkeypatch):
         if kind == "base_effect":
             errors, *more = errors
             peaks = [max(p, float(m)) for p, m in zip(peaks, more)]
-        for row, error in zip(rows, errors if kind == "pose_tracking" else [errors]):
+        for row, error in zip(rows, errors if two else [errors]):
             row.add(t, error)
         if k == metrics.BLOCK + metrics.BLOCK // 3:
             rows[0].check(metric)
@@ -223,6 +232,8 @@ def test_block_evaluation_equals_row_by_row_evaluation(kind, monkeypatch):
     rows[0].check(metric)
     if kind == "pose_tracking":
         rows[1].check(metric.rotation)
+    if kind == "pointing":
+        rows[1].check(metric.path)
     if kind == "base_effect":
         result = metric.result()
         assert [result["gravity_peak"], result["transport_peak"]] == [p * 1e-3 for p in peaks]
@@ -300,3 +311,62 @@ def test_a_record_interval_too_coarse_for_a_metric_is_flagged_never_missed(slews
     coarse = slews[8.0]["none"].flags
     assert coarse[0].message.startswith("metric 'leg error' is counted from 1 recorded row")
     assert "record.interval 8000 ms is too coarse" in coarse[0].message
+
+
+# ------------------------------------------------------------- pointing (the telescope's units)
+def test_pointing_of_known_offsets_in_arcsec_microns_and_ruze_percent():
+    """Half the rows 0.1 mm lateral, half 0.2 mm axial: the pointing RMS is the lateral
+    row's angle over sqrt(2), its peak that angle; the path-length RMS mixes both rows'
+    errors; the loss at each band is 1 - exp(-(4 pi (path RMS / 2) / lambda)^2), by hand."""
+    metric = metrics.make(spec.Metric("pointing", "pointing", {"measured": "p.pose", "reference": "r.pose"}))
+    lateral, axial = np.array([1e-4, 0, 0, 0, 0, 0]), np.array([0, 0, 2e-4, 0, 0, 0])
+    for k in range(40):
+        reference = HOME + [0.0, 0.01 * k, 0.0, 0.0, 0.0, 0.2]     # the reference moves; its error does not
+        metric.update(k * 1e-2, {"p.pose": reference + (lateral if k % 2 else axial), "r.pose": reference})
+    result = metric.result()
+    geometry = TIANMA
+    angle = 6.146864 * 0.1 * optics.ARCSEC          # the ray trace's 6.1469 arcsec per mm (test_telescope_optics)
+    assert result["peak"] == pytest.approx(angle / optics.ARCSEC, rel=1e-6)
+    assert result["rms"] == pytest.approx(angle / optics.ARCSEC / math.sqrt(2), rel=1e-6)
+    paths = optics.path_error(np.array([[1e-4, 0, 0, 0, 0], [0, 0, 2e-4, 0, 0]]), geometry)
+    assert result["path_rms"] == pytest.approx(1e6 * math.sqrt(np.mean(paths**2)), rel=1e-12)
+    assert result["path_peak"] == pytest.approx(1e6 * paths.max(), rel=1e-12)
+    for band, ghz in (("Ku", 15), ("K", 22), ("Ka", 31), ("Q", 43)):
+        wavelength = 299_792_458.0 / (ghz * 1e9)
+        by_hand = 100 * (1 - math.exp(-(4 * math.pi * result["path_rms"] * 1e-6 / 2 / wavelength) ** 2))
+        assert result[f"efficiency_loss_{ghz}GHz"] == pytest.approx(by_hand, rel=1e-12)
+    assert result["unit"] == "arcsec, µm, %"
+    assert [metrics.key_unit(result, k) for k in ("rms", "path_peak", "efficiency_loss_43GHz")] == ["arcsec", "µm", "%"]
+    assert result["efficiency_loss_43GHz"] > result["efficiency_loss_22GHz"] > 0
+
+
+def test_pointing_of_a_run_that_counted_nothing_is_nan():
+    result = metrics.make(spec.Metric("p", "pointing", {"measured": "p.pose", "reference": "r.pose"})).result()
+    assert all(math.isnan(v) for k, v in result.items() if k != "unit")
+
+
+def test_pointing_on_a_shipped_scene_equals_its_records():
+    """paper_manoeuvre [ci], its moving-base run, with the reference pose recorded too: the
+    metric equals plant/telescope/optics.py applied to the recorded rows from the metric's
+    'from' on (the rows the metric was fed), and its arcsec are the pose error's lateral
+    and tilt parts in the telescope's units."""
+    import dataclasses
+
+    import movingbase
+    scenario = movingbase.load_scenario("paper_manoeuvre", ci=True)
+    scenario = dataclasses.replace(scenario, record=scenario.record + ["base.reference_pose"],
+                                   sweep=(scenario.sweep[0], ["moving_base"]))
+    run = movingbase.run(scenario, progress=False)["moving_base"]
+    metric = next(m for m in scenario.metrics if m.kind == "pointing")
+    counted = run.time >= metric.start
+    pose = np.column_stack([run[f"plant.pose[{i}]"] for i in range(1, 7)])[counted]
+    reference = np.column_stack([run[f"base.reference_pose[{i}]"] for i in range(1, 7)])[counted]
+    motion = optics.subreflector_motion(pose, reference)
+    geometry = TIANMA
+    angle = np.hypot(*optics.pointing(motion, geometry).T) / optics.ARCSEC
+    path = optics.path_error(motion, geometry) * 1e6
+    got = run.metrics["pointing"]
+    assert got["rms"] == pytest.approx(math.sqrt(np.mean(angle**2)), rel=1e-9)
+    assert got["peak"] == pytest.approx(angle.max(), rel=1e-12)
+    assert got["path_rms"] == pytest.approx(math.sqrt(np.mean(path**2)), rel=1e-9)
+    assert 0 < got["efficiency_loss_22GHz"] < got["efficiency_loss_43GHz"]

@@ -427,7 +427,8 @@ def test_linear_extrapolation_against_a_ramp(descriptions, fmus, tmp_path):
                   ('stop_time = "60 s"', 'stop_time = "3 s"'), ('interval = "10 ms"', 'interval = "1 ms"'),
                   ('"base.axis_rate", "plant.pose"',
                    '"base.axis_rate", "base.base_pose", "controller.base_pose", "plant.pose"'),
-                  ('from = "5 s"', 'from = "1 s"'), ('from = "5 s"', 'from = "1 s"'), ('from = "5 s"', 'from = "1 s"'))
+                  ('from = "5 s"', 'from = "1 s"'), ('from = "5 s"', 'from = "1 s"'), ('from = "5 s"', 'from = "1 s"'),
+                  ('from = "5 s"', 'from = "1 s"'))
     scenario = spec.parse(text, "ramp.toml")
     values = spec.bind(scenario, descriptions)
     paths = {inst: fmus[script] for inst, script in SCRIPTS.items()}
