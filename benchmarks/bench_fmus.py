@@ -51,7 +51,7 @@ def main():
     print(f"{'empty pythonfmu (floor)':28s} {floor_us:12.1f} {1.0:8.1f}")
     static = inverse_dynamics(StewartParams.paper(), HOME_POSE, np.zeros(6), np.zeros(6))
     rho = np.array(m3t.PAPER_REFERENCE_RHO_MM) * m3t.MM
-    slider_static = m3t.slider_forces(m3t.Mechanism1Params.paper(), rho, np.zeros(3), np.zeros(3))
+    slider_static = m3t.slider_forces(m3t.Mechanism3TParams.paper(), rho, np.zeros(3), np.zeros(3))
     cases = {   # name: (parameters, inputs written every step, their values, outputs read every step)
         "hexapod_plant_fmu": ({}, vector("leg_force") + vector("base_pose") + vector("base_rate") + vector("base_acc"),
                               np.r_[static, np.zeros(18)], vector("leg_length") + vector("leg_rate")),

@@ -64,7 +64,7 @@ def slave_steps(k):
     mechanism3t_fmu.kernel = slider_controller_fmu.kernel = k
     plant, controller = mechanism3t_fmu.Mechanism3TPlant(instance_name="plant"), \
         slider_controller_fmu.SliderController(instance_name="controller")
-    P = m3t.Mechanism1Params.paper()
+    P = m3t.Mechanism3TParams.paper()
     plant.force[:] = kernel.slider_forces(P, plant.initial_position, np.zeros(3), np.zeros(3))   # static
     plant.initialize()
     controller.initialize()
@@ -88,7 +88,7 @@ def main():
     parser.add_argument("--repeat", type=int, default=7)
     parser.add_argument("--number", type=int, default=20000)
     args = parser.parse_args()
-    P = m3t.Mechanism1Params.paper()
+    P = m3t.Mechanism3TParams.paper()
     pa = kernel.pack(P)
     old = None
     try:

@@ -31,12 +31,12 @@ from fmu_src.slave import INPUT, OUTPUT, PARAMETER, POSITIVE_TIME, GuardedSlave
 from plant.errors import ConvergenceError, InvalidInputError
 from plant.integrators import INTEGRATORS, advance, substep_count
 from plant.mechanism3t import kernel
-from plant.mechanism3t.model import MM, PAPER_REFERENCE_RHO_MM, Mechanism1Params, _check_mode
+from plant.mechanism3t.model import MM, PAPER_REFERENCE_RHO_MM, Mechanism3TParams, _check_mode
 
 SLIDERS = ("x_A2", "y_A1", "y_A3")
 AXES = ("x", "y", "z")
 # the sliders' actuator ranges (paper 3.4); rates up to 1 m/s (assumed: a screw-driven slider)
-POSITION_RANGE = list(zip(Mechanism1Params.paper().rho_min, Mechanism1Params.paper().rho_max))
+POSITION_RANGE = list(zip(Mechanism3TParams.paper().rho_min, Mechanism3TParams.paper().rho_max))
 RATE_RANGE = (-1.0, 1.0)
 
 
@@ -68,7 +68,7 @@ class Mechanism3TPlant(GuardedSlave):
                     values=self.x[:3])
         self.vector("slider_rate", 3, OUTPUT, [f"slider rate d/dt {s}" for s in SLIDERS], "m/s",
                     values=self.x[3:])
-        self.params = Mechanism1Params.paper()
+        self.params = Mechanism3TParams.paper()
         self.packed = kernel.pack(self.params)
         self.platform = self.vector("platform_position", 3, OUTPUT,
                                     [f"moving platform centre O' {a} in frame O" for a in AXES], "m",

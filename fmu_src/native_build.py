@@ -39,7 +39,7 @@ SHARED = ("instance.c", "model_checks.c")
 _CAUSALITY = {"parameter": "MB_PARAMETER", "input": "MB_INPUT", "output": "MB_OUTPUT", "local": "MB_LOCAL"}
 
 
-def _c(value):
+def _c_literal(value):
     """A C literal that parses to exactly this double (repr round-trips)."""
     value = float(value)
     if np.isnan(value):
@@ -52,7 +52,7 @@ def _c(value):
 
 def _array(name, values):
     values = np.asarray(values, dtype=float).ravel()
-    return f"static const double {name}[{values.size}] = {{{', '.join(map(_c, values))}}};"
+    return f"static const double {name}[{values.size}] = {{{', '.join(map(_c_literal, values))}}};"
 
 
 def _stewart_constants():
@@ -61,8 +61,8 @@ def _stewart_constants():
     modes = [fidelity_mode(f) for f in FIDELITIES]
     return [_array("BASE_JOINTS", p.base_joints), _array("PLATFORM_JOINTS", p.platform_joints),
             _array("KERNEL_DATA", p.kernel_data), _array("HOME_LENGTHS", p.home_lengths),
-            f"static const double HOME_DET = {_c(p.home_det)};",
-            f"static const double SINGULAR_RATIO = {_c(SINGULAR_RATIO)};",
+            f"static const double HOME_DET = {_c_literal(p.home_det)};",
+            f"static const double SINGULAR_RATIO = {_c_literal(SINGULAR_RATIO)};",
             f'#define SINGULAR_RATIO_TEXT "{SINGULAR_RATIO}"',
             f"static const int FIDELITY_BASE_MODE[{len(modes)}] = {{{', '.join(str(int(m)) for m, _ in modes)}}};",
             f"static const int FIDELITY_LEGS[{len(modes)}] = {{{', '.join(str(int(bool(l))) for _, l in modes)}}};",
@@ -102,7 +102,7 @@ def _telescope():
     t = TelescopeParams.tianma()
     fields = ("b_y", "c_y", "b_z", "c_z")
     return [_strings("PROFILE_NAMES", PROFILES), f"#define BLOCK {BLOCK}",
-            *(f"static const double TIANMA_{f.upper()} = {_c(getattr(t, f))};" for f in fields),
+            *(f"static const double TIANMA_{f.upper()} = {_c_literal(getattr(t, f))};" for f in fields),
             _array("TIANMA_HOME", t.home), _array("HOME_POSE", HOME_POSE), _array("S_BAND_POSE", S_BAND_POSE),
             f"enum {{ PROFILE_SLEW = {PROFILES.index('slew')}, PROFILE_SIDEREAL = {PROFILES.index('sidereal')}, "
             f"PROFILE_PAPER = {PROFILES.index('paper')} }};"]
@@ -110,8 +110,8 @@ def _telescope():
 
 def _mechanism3t():
     from plant.mechanism3t import kernel
-    from plant.mechanism3t.model import Mechanism1Params
-    return [_array("PACKED", kernel.pack(Mechanism1Params.paper()))] + _integrators()
+    from plant.mechanism3t.model import Mechanism3TParams
+    return [_array("PACKED", kernel.pack(Mechanism3TParams.paper()))] + _integrators()
 
 
 def constants(identifier):
@@ -144,9 +144,9 @@ def vars_header(identifier, guid, slave, root):
         kind = element[0]
         is_real = kind.tag == "Real"
         start = exact[vr]
-        limits = [(1, _c(kind.get(k))) if kind.get(k) is not None else (0, "0.0") for k in ("min", "max")]
+        limits = [(1, _c_literal(kind.get(k))) if kind.get(k) is not None else (0, "0.0") for k in ("min", "max")]
         rows.append(f'    {{"{var.name}", "{kind.get("unit", "")}", {"MB_REAL" if is_real else "MB_INTEGER"}, '
-                    f'{_CAUSALITY[element.get("causality", "local")]}, {_c(start)}, '
+                    f'{_CAUSALITY[element.get("causality", "local")]}, {_c_literal(start)}, '
                     f"{limits[0][0]}, {limits[1][0]}, {limits[0][1]}, {limits[1][1]}, "
                     f"{len(allowed.get(var.name, ()))}, {{{', '.join(map(str, allowed.get(var.name, ()))) or '0'}}}}},")
         base = _c_name(var.name)

@@ -10,7 +10,7 @@ import numpy as np
 
 from plant.hexapod.model import HOME_POSE, StewartParams, inverse_dynamics
 from plant.mechanism3t import kernel as mechanism3t_kernel
-from plant.mechanism3t.model import MM, PAPER_REFERENCE_RHO_MM, Mechanism1Params
+from plant.mechanism3t.model import MM, PAPER_REFERENCE_RHO_MM, Mechanism3TParams
 from plant.telescope import model as telescope
 
 START_AZ_EL = (0.0, float(np.radians(30.0)))   # Telescope's default slew start (rad)
@@ -30,5 +30,5 @@ STATIC_LEG_FORCES = inverse_dynamics(StewartParams.paper(), HOME_POSE, np.zeros(
                                      np.zeros(6), np.zeros(6))
 SLIDER_POSITION = np.array(PAPER_REFERENCE_RHO_MM) * MM
 # slider forces holding the 3T mechanism still there (assembly mode +1, the paper's)
-STATIC_SLIDER_FORCES = mechanism3t_kernel.slider_forces(Mechanism1Params.paper(), SLIDER_POSITION, np.zeros(3),
+STATIC_SLIDER_FORCES = mechanism3t_kernel.slider_forces(Mechanism3TParams.paper(), SLIDER_POSITION, np.zeros(3),
                                                         np.zeros(3))

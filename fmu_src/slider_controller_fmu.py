@@ -41,7 +41,7 @@ from fmu_src.mechanism3t_plant_fmu import POSITION_RANGE
 from fmu_src.slave import INPUT, OUTPUT, PARAMETER, GuardedSlave
 from plant.errors import InvalidInputError
 from plant.mechanism3t import kernel
-from plant.mechanism3t.model import MM, PAPER_REFERENCE_RHO_MM, Mechanism1Params, paper_motion
+from plant.mechanism3t.model import MM, PAPER_REFERENCE_RHO_MM, Mechanism3TParams, paper_motion
 
 SLIDERS = ("x_A2", "y_A1", "y_A3")
 DEFAULT_GAINS = {"kp": 8.6e3, "ki": 1.6e4, "kd": 890.0, "force_limit": 1e3}
@@ -72,7 +72,7 @@ class SliderController(GuardedSlave):
                     values=self.measured[0])
         self.vector("slider_rate", 3, INPUT, [f"measured slider rate d/dt {s}" for s in SLIDERS], "m/s",
                     values=self.measured[1])
-        self.params = Mechanism1Params.paper()
+        self.params = Mechanism3TParams.paper()
         self.packed = kernel.pack(self.params)
         ff0 = kernel.slider_forces(self.packed, *paper_motion(0.0, rho0, self.amplitude, self.omega))
         self.forces = self.vector("slider_force", 3, OUTPUT,

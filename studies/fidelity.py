@@ -2,7 +2,7 @@
 fidelity level adds, next to its speed gain.
 
 Per scene and level: the largest leg-force error against the full model along the
-scene's motion (scenarios.runs.fidelity, what the "auto" rule uses), the largest deviation of
+scene's motion (scenarios.runs.auto_fidelity, what the "auto" rule uses), the largest deviation of
 the co-simulated platform pose from the full-fidelity co-simulation (same scene,
 moving-base feedforward), and the plant FMU's cost per doStep relative to full fidelity.
 Writes docs/fidelity.md and prints it.
@@ -20,7 +20,7 @@ import numpy as np
 from plant.hexapod.model import FIDELITIES, HOME_POSE, StewartParams, inverse_dynamics
 from scenarios.cosim.fmi import Instance, RealPort
 from scenarios.cosim.records import run_records
-from scenarios.runs import fidelity, runner, single
+from scenarios.runs import auto_fidelity, runner, single
 
 SCENES = ("paper_manoeuvre", "telescope_slew", "keyhole_tracking")
 OUT = pathlib.Path(__file__).resolve().parent.parent / "docs" / "fidelity.md"
@@ -75,7 +75,7 @@ def main(argv=None):
              "|---|---|---|---|---|---|"]
     for name in SCENES:
         scenario, paths, _, values = runner.prepare(runner.resolve(name), ci=args.ci)
-        errors = fidelity.fidelity_errors(fidelity.scene_motion(scenario, paths, values, "base"))
+        errors = auto_fidelity.fidelity_errors(auto_fidelity.scene_motion(scenario, paths, values, "base"))
         deviation = pose_deviation(name, args.ci)
         for level in FIDELITIES:
             lines.append(f"| {name} | {level} | {errors[level]:.3g} | {deviation[level]:.3g} | "

@@ -38,7 +38,7 @@ def write_charts(outdir, step=0.005):
     """Write the PNG charts into outdir; return the headline figures and the chart paths."""
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
-    params = m3t.Mechanism1Params.paper()
+    params = m3t.Mechanism3TParams.paper()
     full = m3t.workspace(params, step)
     paper = m3t.workspace(params, step, passive_limbs=False)
     history = m3t.paper_example(params)

@@ -508,7 +508,7 @@ def stability_function(method, z):
     raise ValueError(f"no stability function for {method!r}")
 
 
-def step_limit(eigenvalues, method, h_max=1.0, points=4000):
+def integrator_step_limit(eigenvalues, method, h_max=1.0, points=4000):
     """Largest step h with |R(h lambda)| <= 1 for every eigenvalue (first crossing along
     each eigenvalue's ray, refined by bisection); 0 if an eigenvalue has Re >= 0."""
     eigenvalues = np.atleast_1d(eigenvalues)
@@ -532,7 +532,7 @@ def step_limit(eigenvalues, method, h_max=1.0, points=4000):
 def predicted_integrator_limit(method, k=1.0, gains=GAINS):
     """(step limit [s], eigenvalue that sets it) of the linearised monolithic loop."""
     eigenvalues = np.linalg.eigvals(closed_loop_matrix(scaled(gains, k)))
-    limits = [step_limit(lam, method) for lam in eigenvalues]
+    limits = [integrator_step_limit(lam, method) for lam in eigenvalues]
     i = int(np.argmin(limits))
     return limits[i], eigenvalues[i]
 

@@ -25,7 +25,7 @@
                 platform (platform + payload)
      pa[24..29] (MB_M3T_I0) own inertias about the swing axes through the centres
                 (kg m^2) of b1c1, c1d1, b2c2, c2d2, b3c3, d3e3
-   The paper's values (Mechanism1Params.paper(), whose inertias come from Table 1 by a
+   The paper's values (Mechanism3TParams.paper(), whose inertias come from Table 1 by a
    parallel-axis shift) are computed in Python; a pure C user takes them from pack(P). */
 
 enum mb_m3t_size {

@@ -23,7 +23,7 @@ import numpy as np
 
 from plant._kernel import ffi, lib
 from plant.errors import ConvergenceError, InvalidInputError, SingularConfigurationError
-from plant.mechanism3t.model import Mechanism1Params, UnreachableError, _check_mode
+from plant.mechanism3t.model import Mechanism3TParams, UnreachableError, _check_mode
 
 OK = lib.MB_M3T_OK
 BAD_RHO, BAD_RHO_DOT, BAD_FORCE, BAD_RHO_DDOT, BAD_MODE = (
@@ -42,7 +42,7 @@ assert (len(BODIES), len(TURNING)) == (lib.MB_M3T_NBODY, lib.MB_M3T_NTURN)
 
 @functools.lru_cache(maxsize=16)
 def pack(P):
-    """Mechanism1Params as the float64 array the kernels read (layout: plant/c/mechanism3t.h)."""
+    """Mechanism3TParams as the float64 array the kernels read (layout: plant/c/mechanism3t.h)."""
     head = [P.a, P.b, P.d, P.e, P.l1, P.l2, P.l3, P.l4, P.l5, P.l6, P.g, float(P.knee_1), float(P.knee_2)]
     masses = [P.m_slider] * 3 + [getattr(P, "m_" + n) for n in BODIES[3:-1]] + [P.m_platform + P.m_payload]
     inertias = [getattr(P, "i_" + n) for n in TURNING]
@@ -62,14 +62,14 @@ _POINTERS: dict = {}   # id(P or packed array) -> (it, its C pointer, the array 
 
 
 def _params(P):
-    """The C pointer of the packed parameters of Mechanism1Params P or of a packed array,
+    """The C pointer of the packed parameters of Mechanism3TParams P or of a packed array,
     made once per object (P is frozen; pack() arrays are read-only)."""
     hit = _POINTERS.get(id(P))
     if hit is not None:
         return hit[1]
-    arr = _array("packed parameters", pack(P) if type(P) is Mechanism1Params else P, (lib.MB_M3T_NPARAM,))
+    arr = _array("packed parameters", pack(P) if type(P) is Mechanism3TParams else P, (lib.MB_M3T_NPARAM,))
     ptr = _new_buffer(_DOUBLES, arr)
-    if arr is P or type(P) is Mechanism1Params:   # not a converted temporary: cache
+    if arr is P or type(P) is Mechanism3TParams:   # not a converted temporary: cache
         if len(_POINTERS) >= 64:
             _POINTERS.clear()
         _POINTERS[id(P)] = (P, ptr, arr)

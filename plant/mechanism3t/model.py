@@ -91,7 +91,7 @@ class UnreachableError(UnreachablePoseError):
 
 
 @dataclass(frozen=True)
-class Mechanism1Params:
+class Mechanism3TParams:
     """Dimensions (m), masses (kg), own inertias about the swing axes through the centres (kg m^2),
     knee signs of the passive limbs I and II (-1: B_iC_i turned clockwise from B_iD_i in the
     (x or y, z) plane, i.e. knee outward), gravity (m/s^2) and actuator ranges (m)."""
@@ -506,7 +506,7 @@ class SliderForceHistory:
 
 def paper_example(P=None, t=None, amplitude=0.010, omega=0.5):
     """Paper 4.3: every slider moves amplitude*sin(omega t) about the numerical-check configuration."""
-    P = Mechanism1Params.paper() if P is None else P
+    P = Mechanism3TParams.paper() if P is None else P
     t = np.linspace(0.0, 4 * np.pi / omega, 401) if t is None else np.asarray(t, float)
     s = np.sin(omega * t)[:, None] * np.ones(3)
     rho = np.array(PAPER_REFERENCE_RHO_MM) * MM + amplitude * s

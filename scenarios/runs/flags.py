@@ -46,7 +46,7 @@ from fmu_src import catalogue
 from plant.hexapod.model import FIDELITIES, HOME_POSE, StewartParams, dynamics_terms
 from plant.mechanism3t import model as mechanism3t
 from scenarios.cosim.records import Block
-from scenarios.runs import fidelity as scene_fidelity
+from scenarios.runs import auto_fidelity
 from scenarios.spec import ScenarioError
 
 POSES = 9             # poses along the reference motion at which the leg-space masses are taken
@@ -231,7 +231,7 @@ def _mechanism3t_masses(scenario, paths, descriptions, values, loop, motion):
     points of the slider controller's sine reference over the run."""
     get = lambda inst, name: _value(values, descriptions, inst, name)
     centre, amplitude, omega = (np.asarray(get(loop.controller, n), dtype=float) for n in loop.entry["motion"])
-    params, mode = mechanism3t.Mechanism1Params.paper(), int(get(loop.plant, "mode"))
+    params, mode = mechanism3t.Mechanism3TParams.paper(), int(get(loop.plant, "mode"))
     times = np.linspace(scenario.start_time, scenario.stop_time, POSES)
     return np.concatenate([np.linalg.eigvalsh(mechanism3t.mass_matrix(
         params, mechanism3t.paper_motion(t, centre, float(amplitude), float(omega))[0], mode)) for t in times])
@@ -241,7 +241,7 @@ def _mechanism3t_gravity(values, descriptions, controller, plant, entry):
     """The 3T sliders' largest destabilising gravity rate [1/s^2] (design.LoopModel) at the
     centre of the controller's reference, held at rest by the static forces: from central
     differences of the accelerations per slider displacement (~54, a pole at 7.4 rad/s)."""
-    params, mode = mechanism3t.Mechanism1Params.paper(), int(_value(values, descriptions, plant, "mode"))
+    params, mode = mechanism3t.Mechanism3TParams.paper(), int(_value(values, descriptions, plant, "mode"))
     centre = np.asarray(_value(values, descriptions, controller, entry["motion"][0]), dtype=float)
     rest = np.zeros(3)
     hold = mechanism3t.slider_forces(params, centre, rest, rest, mode)
@@ -293,7 +293,7 @@ def predict(scenario, paths, descriptions, values, ci=False, cache=None):
         telescope = _telescope(scenario, loop)
         key = _key(scenario, values, loop, telescope)
         if key not in cache:
-            motion = scene_fidelity.scene_motion(scenario, paths, values, telescope) if telescope else None
+            motion = auto_fidelity.scene_motion(scenario, paths, values, telescope) if telescope else None
             masses = _merge(masses_of(scenario, paths, descriptions, values, loop, motion))
             unfinished = tuple(_unfinished(scenario, telescope, motion[4], _delay(values, descriptions, telescope))
                                ) if telescope else ()
@@ -313,7 +313,7 @@ def motion_flags(scenario, paths, descriptions, values):
     for loop in loops(scenario, descriptions, values):
         telescope = _telescope(scenario, loop)
         if telescope:
-            out += _unfinished(scenario, telescope, scene_fidelity.scene_motion(scenario, paths, values, telescope)[4],
+            out += _unfinished(scenario, telescope, auto_fidelity.scene_motion(scenario, paths, values, telescope)[4],
                                _delay(values, descriptions, telescope))
     return out
 
@@ -568,8 +568,8 @@ def _hexapod_stroke(values, descriptions, loop):
 # plant FMU -> the ends of its measured output's stroke (the 3T sliders: the actuator ranges)
 STROKES = {"hexapod_plant": _hexapod_stroke,
            "mechanism3t_plant": lambda values, descriptions, loop: (
-               np.array(mechanism3t.Mechanism1Params.paper().rho_min),
-               np.array(mechanism3t.Mechanism1Params.paper().rho_max))}
+               np.array(mechanism3t.Mechanism3TParams.paper().rho_min),
+               np.array(mechanism3t.Mechanism3TParams.paper().rho_max))}
 
 
 def merged(flags):

@@ -22,7 +22,7 @@ from scenarios import spec
 from scenarios.cosim import master
 from scenarios.cosim.fmi import description
 from scenarios.output import report
-from scenarios.runs import engine, fidelity, flags, metrics, single
+from scenarios.runs import auto_fidelity, engine, flags, metrics, single
 from scenarios.runs import estimates as resources
 
 SHIPPED = pathlib.Path(__file__).resolve().parents[1] / "files"
@@ -193,7 +193,7 @@ def prepare(path, ci=False, implementation=None, out=None, fmi_version=None):
     try:
         return prepare_loaded(scenario, implementation, out, fmi_version)
     except spec.ScenarioError as exc:
-        raise spec.retold(exc, told) from None
+        raise spec.with_sources(exc, told) from None
 
 
 def prepare_loaded(scenario, implementation=None, out=None, fmi_version=None):
@@ -269,8 +269,8 @@ def _choose_fidelity(scenario, paths, values, plant):
     if telescope is None:
         raise spec.ScenarioError(scenario.source, f"fmus.{plant}.parameters.fidelity",
                                  '"auto" needs the plant\'s base_pose fed by a telescope FMU')
-    errors = fidelity.fidelity_errors(fidelity.scene_motion(scenario, paths, values, telescope))
-    choice = fidelity.choose(errors, scenario.fidelity_tolerance)
+    errors = auto_fidelity.fidelity_errors(auto_fidelity.scene_motion(scenario, paths, values, telescope))
+    choice = auto_fidelity.choose(errors, scenario.fidelity_tolerance)
     values[plant]["fidelity"] = FIDELITIES.index(choice)
     scenario.parameters[plant]["fidelity"] = choice
     listed = ", ".join(f"{f} {e:.3g} N" for f, e in errors.items())

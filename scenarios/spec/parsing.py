@@ -328,12 +328,12 @@ def load(path, overrides=None, told_as=None):
     try:
         return parse(read_text(path), str(pathlib.Path(path)), overrides)
     except ScenarioError as exc:
-        raise retold(exc, told_as) from None
+        raise with_sources(exc, told_as) from None
 
 
 def sources_of(overrides, note):
     """{key path: note} of every value ``overrides`` sets ("fmus.base.parameters.lever_arm"),
-    for retold."""
+    for with_sources."""
     out = {}
     for key, value in (overrides or {}).items():
         if isinstance(value, dict) and value:
@@ -343,7 +343,7 @@ def sources_of(overrides, note):
     return out
 
 
-def retold(error, sources):
+def with_sources(error, sources):
     """``error`` with each problem in a key that ``sources`` names followed by where its
     value came from (a stop_time off the grid in [ci], not in the file's top level)."""
     if not sources:

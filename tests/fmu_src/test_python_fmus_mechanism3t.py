@@ -18,7 +18,7 @@ from plant.mechanism3t import model as m3t
 from scenarios.cosim.fmi import FmuError, RealPort
 from tests.fmu_helpers import open_fmu
 
-P = m3t.Mechanism1Params.paper()
+P = m3t.Mechanism3TParams.paper()
 RHO_REF = np.array(m3t.PAPER_REFERENCE_RHO_MM) * m3t.MM
 STATIC = m3t.slider_forces(P, RHO_REF, np.zeros(3), np.zeros(3))   # holds the paper configuration at rest
 PLANT, CONTROLLER = "mechanism3t_plant_fmu", "slider_controller_fmu"

@@ -15,7 +15,7 @@ from plant.mechanism3t import model as m3t
 # benchmarks/bench_mechanism3t.py imports the numba kernel's loader from here
 
 GOLDEN = pathlib.Path(__file__).resolve().parents[1] / "golden" / "mechanism3t_kernel_c_numba.npz"
-P = m3t.Mechanism1Params.paper()
+P = m3t.Mechanism3TParams.paper()
 RHO_REF = np.array(m3t.PAPER_REFERENCE_RHO_MM) * m3t.MM
 REL = 1e-13
 

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from plant.mechanism3t import model as m3t
-from plant.mechanism3t.model import MM, Mechanism1Params
+from plant.mechanism3t.model import MM, Mechanism3TParams
 
-P = Mechanism1Params.paper()
+P = Mechanism3TParams.paper()
 RHO_REF = np.array(m3t.PAPER_REFERENCE_RHO_MM) * MM
 FD8 = np.array([1 / 280, -4 / 105, 1 / 5, -4 / 5, 0, 4 / 5, -1 / 5, 4 / 105, -1 / 280])
 

@@ -11,7 +11,7 @@ from scenarios import spec
 from scenarios.cosim import master
 from scenarios.cosim.fmi import FmuError, unpack
 from scenarios.cosim.records import read_records
-from scenarios.runs import fidelity, metrics, runner, single
+from scenarios.runs import auto_fidelity, metrics, runner, single
 
 GOLDEN = pathlib.Path(__file__).resolve().parents[1] / "golden"
 SHIPPED = sorted(p.stem for p in runner.SHIPPED.glob("*.toml"))
@@ -193,10 +193,10 @@ def test_shipped_scenario_matches_its_golden_metrics(name, tmp_path):
 # ----------------------------------------------------------------------- fidelity auto
 def test_fidelity_rule_picks_the_cheapest_level_within_tolerance():
     errors = {"full": 0.0, "massless_legs": 900.0, "base_gravity": 0.1, "no_base": 150.0}
-    assert fidelity.choose(errors, 1.0) == "base_gravity"
-    assert fidelity.choose(errors, 200.0) == "no_base"
-    assert fidelity.choose(errors, 1e3) == "massless_legs"
-    assert fidelity.choose(errors, 0.0) == "full"
+    assert auto_fidelity.choose(errors, 1.0) == "base_gravity"
+    assert auto_fidelity.choose(errors, 200.0) == "no_base"
+    assert auto_fidelity.choose(errors, 1e3) == "massless_legs"
+    assert auto_fidelity.choose(errors, 0.0) == "full"
 
 
 def test_auto_needs_a_tolerance():
