@@ -44,7 +44,7 @@ def cosim(fmus):
 
 
 @pytest.fixture(scope="module")
-def integrator_step_limit():
+def step_limit():
     return max_stable_step(PARAMS, GAINS)
 
 
