@@ -7,15 +7,12 @@ with either kernel swapped in.
     .venv/bin/python benchmarks/bench_mechanism3t.py [--repeat 7] [--number 20000]
 """
 import argparse
-import pathlib
-import sys
 import tempfile
 import time
 import timeit
 
 import numpy as np
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 from plant._kernel import ffi, lib  # noqa: E402
 from plant.mechanism3t import kernel  # noqa: E402
 from plant.mechanism3t import model as m3t  # noqa: E402

@@ -36,7 +36,6 @@ import os
 import pathlib
 import statistics
 import subprocess
-import sys
 import tempfile
 import time
 import zipfile
@@ -44,7 +43,6 @@ import zipfile
 import numpy as np
 from fmpy import read_model_description
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))   # the checkout: tests.hosts.c_host
 from benchmarks.monolithic import Pair  # noqa: E402
 from fmu_src import catalogue, native_build
 from fmu_src import python_build as builder
