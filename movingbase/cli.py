@@ -16,24 +16,11 @@ import shutil
 import signal
 import sys
 
-from fmu_src import native_build
-from fmu_src.python_build import OUT, available, build, write_stamp
 from movingbase import __version__
-from scenarios import spec
-from scenarios.cosim.fmi import FmuFileError
-from scenarios.cosim.records import run_records
-from scenarios.output.headline import CHART, README, ROOT, STORE, Flagged, collect, rewrite_readme
-from scenarios.output.report import CHARTS
-from scenarios.runs import engine
-from scenarios.runs import estimates as resources
-from scenarios.runs.campaign import run_campaign
-from scenarios.runs.engine import EngineError, check_address
-from scenarios.runs.estimates import ResourceError, check_jobs
-from scenarios.runs.runner import OutputError, not_found, prepare, resolve, run_scenario, shipped_names
-from scenarios.spec import IMPLEMENTATIONS, ScenarioError, sweep_value
-from scenarios.ssp import export_ssp
 
 COMMANDS = ("run", "campaign", "build", "headline")
+# Each command imports what it runs when it runs: `movingbase --version` and `--help` pay for
+# no master, fmpy or Dask (0.04 s, against 0.3 s with every command's imports at the top).
 
 
 def main(argv=None):
@@ -105,6 +92,9 @@ def _os_problem(exc):
 
 
 def run_command(argv=None, prog="movingbase run"):
+    from scenarios.output.report import CHARTS
+    from scenarios.runs.runner import shipped_names
+    from scenarios.spec import IMPLEMENTATIONS
     shipped = ", ".join(shipped_names())
     parser = argparse.ArgumentParser(prog=prog,
                                      description='Command line: run scenario files (or shipped scenario names) and '
@@ -139,6 +129,12 @@ def run_command(argv=None, prog="movingbase run"):
 
 def _run(args, shipped):
     """The checks of the command line (all before anything runs), then each scenario."""
+    from scenarios.cosim.fmi import FmuFileError
+    from scenarios.cosim.records import run_records
+    from scenarios.runs.engine import EngineError, check_address
+    from scenarios.runs.estimates import ResourceError, check_jobs
+    from scenarios.runs.runner import OutputError, not_found, resolve, run_scenario
+    from scenarios.spec import ScenarioError
     names = args.scenarios or ["telescope_slew"]
     if not all(n.strip() for n in names):
         sys.exit("scenario error: an empty scenario name; give a scenario file or a shipped name: " + shipped)
@@ -217,6 +213,11 @@ def _run(args, shipped):
 def _export(args, name):
     """--ssp: the scenario (its first sweep value) as an SSP file; the target must be a
     file path whose folder exists."""
+    from scenarios.cosim.fmi import FmuFileError
+    from scenarios.runs.estimates import ResourceError
+    from scenarios.runs.runner import prepare, resolve
+    from scenarios.spec import ScenarioError, sweep_value
+    from scenarios.ssp import export_ssp
     target = pathlib.Path(args.ssp)
     if target.is_dir() or not target.parent.is_dir():
         blocker = next((p for p in target.parents if p.exists() and not p.is_dir()), None)
@@ -238,6 +239,12 @@ def _export(args, name):
 
 
 def campaign_command(argv=None):
+    from scenarios import spec
+    from scenarios.cosim.fmi import FmuFileError
+    from scenarios.runs import engine
+    from scenarios.runs import estimates as resources
+    from scenarios.runs.campaign import run_campaign
+    from scenarios.runs.runner import OutputError
     parser = argparse.ArgumentParser(prog="movingbase campaign",
                                      description='Run a campaign file: many scenario runs, on worker processes or a '
                                                  'Dask cluster, results in a store.')
@@ -282,6 +289,8 @@ def campaign_command(argv=None):
 
 
 def build_command(argv=None, prog="movingbase build"):
+    from fmu_src import native_build
+    from fmu_src.python_build import OUT, available, build, write_stamp
     parser = argparse.ArgumentParser(prog=prog,
                                      description='Build every FMU of the kit: pythonfmu (FMI 2.0), native (FMI 2.0) '
                                                  'and native (FMI 3.0).')
@@ -303,6 +312,7 @@ def build_command(argv=None, prog="movingbase build"):
 
 
 def headline_command(argv=None):
+    from scenarios.output.headline import CHART, README, ROOT, STORE, Flagged, collect, rewrite_readme
     parser = argparse.ArgumentParser(prog="movingbase headline",
                                      description="Regenerate the README's headline from docs/headline.json.")
     parser.add_argument("--from", dest="out", metavar="DIR", help="take the metrics of the full runs in DIR first")

@@ -623,18 +623,25 @@ mbi_status mbi_set_integer(mb_instance *inst, const char *function, const mbi_vr
 }
 
 /* ------------------------------------------------------------------- FMU states */
-mbi_status mbi_get_state(mb_instance *inst, const char *function, mbi_state **state)
+/* The state to write into: the host's (it must be this FMU's size) or a new one; NULL
+   after a log line, or when memory runs out. */
+static mbi_state *state_slot(mb_instance *inst, const char *function, mbi_state *st)
 {
-    mbi_state *st = *state;
     if (st && st->size != inst->size) {
         mbi_logf(inst, MBI_ERROR, "%s: the given state is not one of this FMU's", function);
-        return MBI_ERROR;
+        return NULL;
     }
     if (!st) {
         st = calloc(1, sizeof *st + inst->size);
-        if (!st) return MBI_ERROR;
-        st->size = inst->size;
+        if (st) st->size = inst->size;
     }
+    return st;
+}
+
+mbi_status mbi_get_state(mb_instance *inst, const char *function, mbi_state **state)
+{
+    mbi_state *st = state_slot(inst, function, *state);
+    if (!st) return MBI_ERROR;
     memcpy(st->data, inst->block, inst->size);
     *state = st;
     return MBI_OK;
@@ -707,16 +714,8 @@ mbi_status mbi_deserialize(mb_instance *inst, const char *function, const unsign
                  MB_MODEL.identifier, size, size == HEADER + inst->size ? ", or damaged: header or checksum" : "");
         return MBI_ERROR;
     }
-    mbi_state *st = *state;
-    if (st && st->size != inst->size) {
-        mbi_logf(inst, MBI_ERROR, "%s: the given state is not one of this FMU's", function);
-        return MBI_ERROR;
-    }
-    if (!st) {
-        st = calloc(1, sizeof *st + inst->size);
-        if (!st) return MBI_ERROR;
-        st->size = inst->size;
-    }
+    mbi_state *st = state_slot(inst, function, *state);
+    if (!st) return MBI_ERROR;
     memcpy(st->data, bytes + HEADER, inst->size);
     *state = st;
     return MBI_OK;
