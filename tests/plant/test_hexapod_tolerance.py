@@ -10,8 +10,16 @@ import pytest
 
 from plant.errors import InvalidInputError, UnreachablePoseError
 from plant.hexapod import tolerance as tl
-from plant.hexapod.model import (HOME_POSE, S_BAND_POSE, StewartParams, _legs, _to_pose_jacobian, _twist_jacobian,
-                                 inverse_kinematics, jacobian)
+from plant.hexapod.model import (
+    HOME_POSE,
+    S_BAND_POSE,
+    StewartParams,
+    _legs,
+    _to_pose_jacobian,
+    _twist_jacobian,
+    inverse_kinematics,
+    jacobian,
+)
 
 TILTED = HOME_POSE + [0.05, -0.04, 0.06, 0.03, -0.02, 0.04]
 
