@@ -46,7 +46,8 @@ METRICS = {
                  lambda e: np.linalg.norm(e[:, :3], axis=1)),
     "tilt": ("|(droll, dpitch)|, the tilt error", "rad", lambda e: np.hypot(e[:, 3], e[:, 4])),
 }
-_TOP = ("name", "samples", "seed", "probability", "sobol_samples", "inputs", "workspace", "targets", "cost")
+_TOP = ("name", "samples", "seed", "probability", "sobol_samples", "allocation_samples", "inputs", "workspace",
+        "targets", "cost")
 _MEMBERS = {name: (group, k) for group, columns in tl.GROUPS.items() for k in columns
             for name in [tl.INPUT_NAMES[k]]}
 READS = {"focus": [2], "lateral": [0, 1], "position": [0, 1, 2], "tilt": [3, 4]}   # metric -> components
@@ -75,6 +76,7 @@ class Budget:
     samples: int
     sobol_samples: int
     seed: int
+    allocation_samples: int = ALLOCATION_SAMPLES
     cost: dict = field(default_factory=dict)   # group -> weight (ASSUMED cost model), 1 when not given
 
     @property
@@ -198,6 +200,8 @@ def parse(text, source="<string>"):
         if n and n & (n - 1):
             raise BudgetError(source, "sobol_samples", f"must be a power of 2 (Saltelli's sampling) or 0, got {n}")
         values["sobol_samples"] = n
+        values["allocation_samples"] = _number(source, "allocation_samples",
+                                               data.get("allocation_samples", ALLOCATION_SAMPLES), int, 1000, 10 ** 7)
     with problems.part():
         cost = data.get("cost", {})
         if not isinstance(cost, dict):
@@ -208,7 +212,8 @@ def parse(text, source="<string>"):
     problems.raise_any()
     low, high, poses, elevation = values["workspace"]
     return Budget(values["name"], source, values["inputs"], low, high, poses, elevation, values["targets"],
-                  values["probability"], values["samples"], values["sobol_samples"], values["seed"], values["cost"])
+                  values["probability"], values["samples"], values["sobol_samples"], values["seed"],
+                  values["allocation_samples"], values["cost"])
 
 
 def load(path):
@@ -364,7 +369,7 @@ def _group_errors(params, budget, samples, seed, bar=None):
     return np.array(out)
 
 
-def allocate(params, budget, seed, bar=None, samples=ALLOCATION_SAMPLES, verify=None):
+def allocate(params, budget, seed, bar=None, samples=None, verify=None):
     """Per-group scale factors s_g of the file's tolerances that meet every target at the
     probability for the least cost sum_g w_g / s_g (ASSUMED: tightening by s costs 1/s).
 
@@ -376,6 +381,7 @@ def allocate(params, budget, seed, bar=None, samples=ALLOCATION_SAMPLES, verify=
     the cheapest candidate wins. A fresh nonlinear Monte Carlo (``verify`` samples, default
     the budget's) checks it: its quantile's upper 95 % bound must be under each target; if
     not, the scales shrink by 2 % and are checked again (at most 10 times)."""
+    samples = samples or budget.allocation_samples
     contributions = _group_errors(params, budget, samples, seed, bar)
     weights = np.array([budget.cost.get(g, 1.0) for g in budget.groups])
 
@@ -428,7 +434,7 @@ def run_budget(path, samples=None, out=None, progress=True, sobol_samples=None, 
     n_sobol = budget.sobol_samples if sobol_samples is None else sobol_samples
     params = StewartParams.paper()
     sobol_evaluations = n_sobol * (len(budget.groups) + (1 if _workspace_dims(budget) else 0) + 2)
-    alloc_evaluations = (ALLOCATION_SAMPLES * len(budget.groups) + samples) if allocation else 0
+    alloc_evaluations = (budget.allocation_samples * len(budget.groups) + samples) if allocation else 0
     with tqdm(total=samples + sobol_evaluations + alloc_evaluations, desc=f"budget {budget.name}", unit="sample",
               unit_scale=True, disable=not progress) as bar:
         found, errors = monte_carlo(params, budget, samples, budget.seed, bar)
