@@ -337,10 +337,11 @@ def sobol(params, budget, n, seed, bar=None, resamples=200):
                 total_conf=found.total_conf.tolist(), evaluations=found.evaluations, base_samples=n)
 
 
-def leading_inputs(params, budget, poses=16, count=8):
-    """The ``count`` inputs with the largest share of each target metric's first-order variance
-    (the analytic sensitivity, averaged over ``poses`` points of the workspace): {metric:
-    [(name, share)]}; a metric's variance is that of the pose error components it reads."""
+def linear_shares(params, budget, poses=16, count=8):
+    """The first-order (analytic sensitivity) variance shares, averaged over ``poses`` points
+    of the workspace: ({metric: [(input, share)] of its ``count`` largest inputs}, {component:
+    {group: share}} for the components the targets read); a metric's variance is that of the
+    components it reads. The Sobol indices' first-order truth for small tolerances."""
     u = np.random.default_rng(budget.seed + 1).random((poses, _dimensions(budget)))
     _, pose_list, elevation = _map(budget, u)
     variances = np.array([0.0 if d is None else d.std ** 2 for d in budget.inputs])
@@ -349,13 +350,14 @@ def leading_inputs(params, budget, poses=16, count=8):
         if d is not None:
             variances[k] = d.scale ** 2 / 12 if d.kind == "uniform" else d.scale ** 2 * (1 - 2 / np.pi)
     parts = np.mean([tl.sensitivity(params, p, e) ** 2 * variances for p, e in zip(pose_list, elevation)], axis=0)
-    out = {}
+    leading = {}
     for metric in budget.targets:
         share = parts[READS[metric]].sum(axis=0)
         share = share / share.sum()
-        top = np.argsort(share)[::-1][:count]
-        out[metric] = [(tl.INPUT_NAMES[k], float(share[k])) for k in top]
-    return out
+        leading[metric] = [(tl.INPUT_NAMES[k], float(share[k])) for k in np.argsort(share)[::-1][:count]]
+    groups = {POSE_KEYS[j]: {g: float(parts[j, list(tl.GROUPS[g])].sum() / parts[j].sum()) for g in budget.groups}
+              for j in _components(budget)}
+    return leading, groups
 
 
 # ---------------------------------------------------------------------------- allocation
@@ -440,8 +442,8 @@ def run_budget(path, samples=None, out=None, progress=True, sobol_samples=None, 
         found, errors = monte_carlo(params, budget, samples, budget.seed, bar)
         result = dict(name=budget.name, source=budget.source, probability=budget.probability, samples=samples,
                       metrics={m: METRICS[m][0] for m in budget.targets}, quantiles=found,
-                      mean_error=errors.mean(axis=0).tolist(), std_error=errors.std(axis=0).tolist(),
-                      leading_inputs=leading_inputs(params, budget))
+                      mean_error=errors.mean(axis=0).tolist(), std_error=errors.std(axis=0).tolist())
+        result["leading_inputs"], result["linear_shares"] = linear_shares(params, budget)
         if n_sobol:
             result["sobol"] = sobol(params, budget, n_sobol, budget.seed, bar)
         if allocation:

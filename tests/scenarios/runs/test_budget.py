@@ -106,6 +106,7 @@ def test_quantiles_and_sobol_against_the_first_order_model():
     assert np.abs(np.array(sobol["first"][z]) - shares).max() < 0.05
     assert max(sobol["first_conf"][z]) < 0.1
     assert result["leading_inputs"]["focus"][0][0] == "base_joint_2_z"
+    assert result["linear_shares"]["z"] == pytest.approx(dict(zip(sobol["groups"], shares)), abs=0.01)
 
 
 def test_allocation_meets_the_targets_for_less_than_a_plain_scaling():
