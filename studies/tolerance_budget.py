@@ -1,0 +1,282 @@
+"""The geometric tolerance budget of the kit's hexapod, and NanShan's allocation put on it.
+
+    python -m studies.tolerance_budget               # run both shipped budgets (about a minute), then
+                                                     # docs/tolerance-budget.md and its charts
+    python -m studies.tolerance_budget --from-store  # the page and charts from docs/tolerance_budget.json
+
+Runs scenarios/budgets/default.toml and nanshan.toml (scenarios.runs.budget: 10^6 Monte Carlo
+samples over the workspace and elevation range, group Sobol indices, the allocation and its
+check), the pose-error distributions before and after the allocation, and the first-order
+model against Monte Carlo as the tolerances grow (where the linear budget stops being true).
+"""
+import argparse
+import json
+import pathlib
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from plant.hexapod import tolerance as tl
+from plant.hexapod.model import StewartParams
+from scenarios.output.charts import MARK_COLOUR, OTHER_COLOURS, plain_log_axis, save
+from scenarios.runs import budget as bg
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+DOCS = ROOT / "docs"
+STORE = DOCS / "tolerance_budget.json"
+REPORT = DOCS / "tolerance-budget.md"
+FIGURES = DOCS / "figures"
+BUDGETS = ("default", "nanshan")
+SCALES = (1, 3, 10, 30, 100, 300)        # tolerance factors of the linear-vs-Monte-Carlo sweep
+SWEEP_SAMPLES = 20_000
+BINS = np.geomspace(1e-8, 1e-2, 121)     # m: the stored histograms' edges
+GROUP_COLOURS = dict(zip(list(tl.GROUPS) + [bg.WORKSPACE_GROUP], ("#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd",
+                                                                  "#8c564b", "#e377c2", "#17becf", "#7f7f7f")))
+
+
+def histograms(params, budget, samples, seed, scales=None):
+    """Counts of each target metric in BINS (and the total), from one Monte Carlo run."""
+    _, errors = bg.monte_carlo(params, budget, samples, seed, scales=scales)
+    return {m: np.histogram(bg.METRICS[m][2](errors), BINS)[0].tolist() for m in budget.targets}
+
+
+def linear_sweep(params, budget, seed=5):
+    """The first-order model against the nonlinear pose error as every tolerance of ``budget``
+    grows by SCALES, at home and the zenith, on the same draws: what the first order misses
+    (RMS of the difference over RMS of the first-order error, per component: sampling noise
+    cancels, only the nonlinearity is left) and the Monte Carlo variance over the analytic one."""
+    u = np.clip(np.random.default_rng(seed).random((SWEEP_SAMPLES, tl.N_INPUTS)), 1e-12, 1 - 1e-12)
+    base = np.zeros((SWEEP_SAMPLES, tl.N_INPUTS))
+    for k, dist in enumerate(budget.inputs):
+        if dist is not None:
+            base[:, k] = dist.ppf(u[:, k])
+    pose = params.home_pose
+    gradient = tl.sensitivity(params, pose)
+    folded = np.concatenate([base[:, :tl.CLEARANCE.start], np.abs(base[:, tl.CLEARANCE])], axis=1)
+    variances = folded.var(axis=0)
+    linear_variance, _ = tl.linear_indices(params, pose, variances)
+    rows = []
+    for scale in SCALES:
+        errors = tl.pose_errors(params, pose, scale * base)
+        linear = scale * folded @ gradient.T
+        missed = np.sqrt(((errors - linear) ** 2).mean(axis=0)) / np.sqrt((linear ** 2).mean(axis=0))
+        rows.append(dict(scale=scale, missed=missed.tolist(),
+                         ratio=(errors.var(axis=0) / (scale ** 2 * linear_variance)).tolist()))
+    return rows
+
+
+def compute(progress=True):
+    """Every number the page shows, as stored in STORE."""
+    params = StewartParams.paper()
+    store = {}
+    for name in BUDGETS:
+        budget = bg.load(name)
+        result = bg.run_budget(budget, progress=progress)
+        result["source"] = str(pathlib.Path(budget.source).relative_to(ROOT))
+        scales = {g: v["scale"] for g, v in result["allocation"]["groups"].items()}
+        result["histogram"] = histograms(params, budget, 200_000, budget.seed + 11)
+        result["histogram_allocated"] = histograms(params, budget, 200_000, budget.seed + 12, scales)
+        store[name] = result
+    store["linear_sweep"] = linear_sweep(params, bg.load("default"))
+    store["bins"] = BINS.tolist()
+    return store
+
+
+# ------------------------------------------------------------------------------- charts
+def sobol_chart(store, path):
+    fig, axes = plt.subplots(1, len(BUDGETS), figsize=(11, 4), sharey=True)
+    for ax, name in zip(axes, BUDGETS):
+        s = store[name]["sobol"]
+        groups, components = s["groups"], s["components"]
+        width = 0.8 / len(components)
+        for i, component in enumerate(components):
+            x = np.arange(len(groups)) + (i - (len(components) - 1) / 2) * width
+            ax.bar(x, s["total"][i], width, yerr=s["total_conf"][i], capsize=2, color=OTHER_COLOURS[i],
+                   label=f"{component}: total", alpha=0.85)
+            ax.errorbar(x, s["first"][i], yerr=s["first_conf"][i], fmt="k_", ms=8, capsize=0, lw=1,
+                        label="first order" if i == 0 else None)
+            shares = store[name]["linear_shares"][component]
+            ax.plot(x, [shares.get(g, 0.0) for g in groups], "r.", ms=5,
+                    label="first-order model (analytic)" if i == 0 else None)
+        ax.set_xticks(np.arange(len(groups)), groups, fontsize=7, rotation=30, ha="right")
+        ax.set_title(f"{name}: Sobol indices of the pose error by input group\n"
+                     f"({s['evaluations']:,d} evaluations, 95 % bootstrap intervals)", fontsize=9)
+        ax.set_ylim(0, 1)
+        ax.grid(axis="y", alpha=0.3)
+    axes[0].set_ylabel("share of the variance")
+    axes[0].legend(fontsize=7, loc="upper left")
+    fig.tight_layout()
+    save(fig, path)
+
+
+def distribution_chart(store, path):
+    bins = np.array(store["bins"]) * 1e6
+    centres = np.sqrt(bins[1:] * bins[:-1])
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for ax, metric in zip(axes, ("focus", "position")):
+        for k, name in enumerate(BUDGETS):
+            for key, style, label in (("histogram", "-", "as given"), ("histogram_allocated", "--", "allocated")):
+                counts = np.array(store[name][key][metric], dtype=float)
+                ax.plot(centres, counts / counts.sum(), style, color=OTHER_COLOURS[k], label=f"{name}, {label}")
+            q = store[name]["quantiles"][metric]["value"] * 1e6
+            ax.axvline(q, color=OTHER_COLOURS[k], lw=0.8, alpha=0.6)
+        target = store[BUDGETS[0]]["quantiles"][metric]["target"] * 1e6
+        ax.axvline(target, color=MARK_COLOUR, ls=":", lw=1.5, label=f"target {target:g} µm")
+        ax.set_xscale("log")
+        ax.set_xlim(0.1, 1000)
+        ax.set_xlabel(f"{metric} error {bg.METRICS[metric][0].split(', the')[0]} [µm]")
+        ax.set_ylabel("fraction of samples per bin")
+        ax.set_title(f"{metric}: over the workspace (thin: 99.7 % quantile as given)", fontsize=9)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    save(fig, path)
+
+
+def allocation_chart(store, path):
+    fig, axes = plt.subplots(1, len(BUDGETS), figsize=(11, 4))
+    units = {"m": (1e6, "µm"), "1": (1e6, "ppm")}
+    for ax, name in zip(axes, BUDGETS):
+        budget = bg.load(name)
+        groups = store[name]["allocation"]["groups"]
+        names = list(groups)
+        given = [bg._scale_of(budget, g) * units[tl.UNITS[g]][0] for g in names]
+        allocated = [groups[g]["tolerance"][0] * units[tl.UNITS[g]][0] for g in names]
+        x = np.arange(len(names))
+        ax.bar(x - 0.2, given, 0.4, color="0.7", label="as given")
+        ax.bar(x + 0.2, allocated, 0.4, color=OTHER_COLOURS[0], label="allocated")
+        for xi, g in zip(x, names):
+            ax.text(xi + 0.2, allocated[names.index(g)] * 1.1,
+                    f"x{groups[g]['scale']:.2g}\ncost {groups[g]['cost']:.3g}", ha="center", fontsize=6)
+        ax.set_yscale("log")
+        plain_log_axis(ax.yaxis)
+        ax.set_xticks(x, [f"{g.replace('_', chr(10))}\n[{units[tl.UNITS[g]][1]}]" for g in names], fontsize=7)
+        a = store[name]["allocation"]
+        ax.set_title(f"{name}: tolerances (half-width) meeting the targets at 99.7 %\n"
+                     f"cost {a['cost']:.3g} against {a['cost_as_given']:.3g} as given (cost = weight / scale)",
+                     fontsize=9)
+        ax.grid(axis="y", alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    save(fig, path)
+
+
+def linear_chart(store, path):
+    rows = store["linear_sweep"]
+    scales = np.array([r["scale"] for r in rows])
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
+    for j, name in enumerate(tl.POSE_NAMES):
+        axes[0].plot(scales, [r["missed"][j] for r in rows], "o-", color=OTHER_COLOURS[j % 6], label=name)
+        axes[1].plot(scales, [r["ratio"][j] for r in rows], "o-", color=OTHER_COLOURS[j % 6], label=name)
+    first = rows[0]["missed"]
+    axes[0].plot(scales, max(first) * scales / scales[0], "k:", lw=1, label="slope 1 (second order)")
+    axes[0].set_yscale("log")
+    axes[0].set_ylabel("RMS(nonlinear - linear) / RMS(linear)")
+    axes[0].set_title("what the first order misses, same draws: grows as the tolerances", fontsize=9)
+    axes[1].axhline(1, color="k", lw=0.8)
+    axes[1].set_ylabel("Monte Carlo / first-order variance")
+    axes[1].set_title(f"variance ({SWEEP_SAMPLES:,d} samples: about +-2 % sampling noise)", fontsize=9)
+    for ax in axes:
+        ax.set_xscale("log")
+        ax.set_xlabel("tolerance factor (x1: the default budget, joints 0.2 mm)")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    save(fig, path)
+
+
+CHARTS = {"tolerance_sobol.png": sobol_chart, "tolerance_pose_error.png": distribution_chart,
+          "tolerance_allocation.png": allocation_chart, "tolerance_linear_vs_mc.png": linear_chart}
+
+
+# ------------------------------------------------------------------------------- report
+def _um(value):
+    return f"{value * 1e6:.3g}"
+
+
+def report(store):
+    lines = ["# Geometric tolerance budget", "",
+             "Generated by `python -m studies.tolerance_budget` (`--from-store` rewrites it from "
+             "`docs/tolerance_budget.json` without running). What the files, the model and the numbers are: "
+             "[the budget files](#budget-files) below.", ""]
+    for name in BUDGETS:
+        r = store[name]
+        lines += [f"## `{name}` ({r['samples']:,d} samples over the workspace and elevation range)", "",
+                  "| metric | at 99.7 % [µm] | 95 % interval [µm] | target [µm] | met |", "|---|---|---|---|---|"]
+        for metric, q in r["quantiles"].items():
+            said = r["metrics"][metric].replace("|", "\\|")   # a pipe would end the cell
+            lines.append(f"| {metric}: {said} | {_um(q['value'])} | {_um(q['low'])}..{_um(q['high'])} "
+                         f"| {_um(q['target'])} | {'yes' if q['met'] else 'no'} |")
+        s = r["sobol"]
+        lines += ["", f"Sobol indices by group ({s['evaluations']:,d} evaluations, Saltelli n = {s['base_samples']}; "
+                  "total index ± its 95 % half-width; in brackets the first-order model's share):", "",
+                  "| group | " + " | ".join(s["components"]) + " |", "|---|" + "---|" * len(s["components"])]
+        for g, group in enumerate(s["groups"]):
+            cells = [f"{s['total'][i][g]:.3f} ± {s['total_conf'][i][g]:.3f} "
+                     f"({r['linear_shares'][c].get(group, 0.0):.3f})" for i, c in enumerate(s["components"])]
+            lines.append(f"| {group} | " + " | ".join(cells) + " |")
+        widest = 2 * max(max(row) for row in s["total_conf"] + s["first_conf"])
+        lines += ["", f"Widest 95 % interval of an index: {widest:.3f}. Leading inputs of the focus error "
+                  "(first-order shares): " + ", ".join(f"`{n}` {v:.3f}" for n, v in r["leading_inputs"]["focus"][:6])
+                  + ".", ""]
+        a = r["allocation"]
+        lines += [f"Allocation (cost {a['cost']:.3g} against {a['cost_as_given']:.3g} as given; checked by a fresh "
+                  f"Monte Carlo of {r['samples']:,d} samples: " + ", ".join(
+                      f"{m} {_um(c['value'])} µm (upper 95 % bound {_um(c['high'])}) against {_um(c['target'])}"
+                      for m, c in a["check"].items()) + f"; {'met' if a['verified'] else 'NOT met'}):", "",
+                  "| group | scale | tolerance | cost | extra cost of the tightening |", "|---|---|---|---|---|"]
+        for g, v in a["groups"].items():
+            tol, unit = v["tolerance"]
+            shown = f"{tol * 1e6:.3g} µm" if unit == "m" else f"{tol * 1e6:.3g} ppm"
+            lines.append(f"| {g} | {v['scale']:.3g} | {shown} | {v['cost']:.3g} | {v['extra_cost']:.3g} |")
+        lines.append("")
+    sweep = store["linear_sweep"]
+    lines += ["## First order against Monte Carlo", "",
+              "At home and the zenith, every tolerance of `default` multiplied by a factor, on the same "
+              f"{SWEEP_SAMPLES:,d} draws: what the first order misses (RMS of the nonlinear error minus the "
+              "first-order one, over the RMS of the first-order one) per component, and the Monte Carlo variance "
+              "over the analytic first-order variance (z):", "",
+              "| factor | " + " | ".join(tl.POSE_NAMES) + " | variance ratio, z |",
+              "|---|" + "---|" * 7]
+    for row in sweep:
+        lines.append(f"| x{row['scale']:g} | " + " | ".join(f"{v:.2g}" for v in row["missed"])
+                     + f" | {row['ratio'][2]:.3f} |")
+    lines += ["", "![first order against Monte Carlo](figures/tolerance_linear_vs_mc.png)", "",
+              "![Sobol indices](figures/tolerance_sobol.png)", "",
+              "![pose error distributions](figures/tolerance_pose_error.png)", "",
+              "![allocation](figures/tolerance_allocation.png)", ""]
+    return "\n".join(lines) + "\n" + NOTES
+
+
+NOTES = """## Budget files
+
+TODO
+"""
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--from-store", action="store_true", help=f"no runs: read {STORE.relative_to(ROOT)}")
+    parser.add_argument("--sweep-only", action="store_true", help="only the linear-vs-Monte-Carlo sweep again")
+    parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    args = parser.parse_args(argv)
+    if args.sweep_only:   # the sweep again into the stored results (it is the cheap part)
+        store = json.loads(STORE.read_text())
+        store["linear_sweep"] = linear_sweep(StewartParams.paper(), bg.load("default"))
+        STORE.write_text(json.dumps(store, indent=1) + "\n")
+    elif args.from_store:
+        store = json.loads(STORE.read_text())
+    else:
+        store = compute(not args.quiet)
+        STORE.write_text(json.dumps(store, indent=1) + "\n")
+    for file, chart in CHARTS.items():
+        chart(store, FIGURES / file)
+    REPORT.write_text(report(store))
+    print(f"wrote {REPORT.relative_to(ROOT)} and {', '.join(CHARTS)} in {FIGURES.relative_to(ROOT)}")
+
+
+if __name__ == "__main__":
+    main()
