@@ -245,16 +245,17 @@ def _map(budget, u, scales=None):
     """(samples (n, 66), commanded poses (n, 6), elevations (n,)) of unit-cube points ``u``
     (n, k): one column per uncertain input (INPUT_NAMES' order), then one per varying
     workspace dimension (``_workspace_dims``). ``scales``: a factor per group (allocation)."""
-    u = np.clip(u, 1e-12, 1 - 1e-12)   # a normal's ppf at 0 or 1 is infinite
-    samples = np.zeros((len(u), tl.N_INPUTS))
+    columns = np.zeros((tl.N_INPUTS, len(u)))   # filled a row at a time, then laid out (n, 66)
     col = 0
     for k, dist in enumerate(budget.inputs):
         if dist is not None:
-            samples[:, k] = dist.ppf(u[:, col])
+            x = u[:, col] if dist.kind == "uniform" else np.clip(u[:, col], 1e-12, 1 - 1e-12)   # ppf(0) = -inf
+            columns[k] = dist.ppf(x)
             col += 1
     if scales is not None:
         for group, s in scales.items():
-            samples[:, tl.GROUPS[group]] *= s
+            columns[list(tl.GROUPS[group])] *= s
+    samples = np.ascontiguousarray(columns.T)
     travel = np.zeros((len(u), 6))
     if len(budget.poses):
         travel[:] = budget.poses[0]
@@ -275,14 +276,24 @@ def _map(budget, u, scales=None):
 
 
 def _errors(params, budget, u, bar=None, scales=None):
-    """Pose errors (n, 6) of the unit-cube points ``u``, chunk by chunk (``bar`` advanced)."""
-    out = np.empty((len(u), 6))
-    for start in range(0, len(u), tl.CHUNK):
-        samples, poses, elevation = _map(budget, u[start:start + tl.CHUNK], scales)
-        out[start:start + tl.CHUNK] = tl.pose_errors(params, poses, samples, elevation)
+    """Pose errors (n, 6) of the unit-cube points ``u``: an array (n, k), or (seed, n, k) for
+    ``_draws``; chunk by chunk (``bar`` advanced), ``scales`` as ``_map``'s."""
+    chunks = _draws(*u) if isinstance(u, tuple) else (u[s:s + tl.CHUNK] for s in range(0, len(u), tl.CHUNK))
+    out = []
+    for points in chunks:
+        samples, poses, elevation = _map(budget, points, scales)
+        out.append(tl.pose_errors(params, poses, samples, elevation))
         if bar is not None:
             bar.update(len(samples))
-    return out
+    return np.concatenate(out)
+
+
+def _draws(seed, n, dimensions):
+    """The points of ``np.random.default_rng(seed).random((n, dimensions))``, CHUNK rows at a
+    time (the generator's stream is the same; the whole array of 10^6 samples would be 0.6 GB)."""
+    rng = np.random.default_rng(seed)
+    for start in range(0, n, tl.CHUNK):
+        yield rng.random((min(tl.CHUNK, n - start), dimensions))
 
 
 def _dimensions(budget):
@@ -303,8 +314,7 @@ def quantile(values, probability, confidence=CONFIDENCE):
 def monte_carlo(params, budget, samples, seed, bar=None, scales=None):
     """Each target's metric at the budget's probability: {metric: {value, low, high, target,
     met}} from ``samples`` draws, and the pose errors (n, 6)."""
-    u = np.random.default_rng(seed).random((samples, _dimensions(budget)))
-    errors = _errors(params, budget, u, bar, scales)
+    errors = _errors(params, budget, (seed, samples, _dimensions(budget)), bar, scales)
     found = {}
     for metric, limit in budget.targets.items():
         value, low, high = quantile(METRICS[metric][2](errors), budget.probability)
@@ -363,11 +373,10 @@ def linear_shares(params, budget, poses=16, count=8):
 # ---------------------------------------------------------------------------- allocation
 def _group_errors(params, budget, samples, seed, bar=None):
     """Each group's own pose error (g, n, 6) on one set of draws (the others at nominal)."""
-    u = np.random.default_rng(seed).random((samples, _dimensions(budget)))
     out = []
     for group in budget.groups:
         alone = {g: 0.0 for g in budget.groups if g != group}
-        out.append(_errors(params, budget, u, bar, alone))
+        out.append(_errors(params, budget, (seed, samples, _dimensions(budget)), bar, alone))
     return np.array(out)
 
 
