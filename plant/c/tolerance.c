@@ -53,7 +53,7 @@ int mb_tolerance_pose_errors(int n, const double *base_joints, const double *pla
         for (int i = 0; i < 6; i++) {
             target[i] = home_lengths[i] + in[i] + (1.0 + in[6 + i]) * (commanded[i] - home_lengths[i] + in[12 + i]);
             if (play != NULL)
-                target[i] += play[6 * (size_t)k + i];
+                target[i] += play[6 * (size_t)k + (size_t)i];
             x[i] = cmd[i];
         }
         int ok = 0;
