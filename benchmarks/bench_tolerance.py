@@ -12,6 +12,7 @@ Sobol analysis of the default budget. Prints figures; asserts nothing (speed is 
 """
 import argparse
 import time
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -23,7 +24,8 @@ from scenarios.runs import budget as bg
 def numpy_pose_errors(params, poses, samples, signs):
     """The batched numpy Newton of the pipeline before the C kernel, all samples at once."""
     joints = samples[:, 18:54].reshape(-1, 2, 6, 3)
-    geometry = tl_geometry(params.base_joints + joints[:, 0], params.platform_joints + joints[:, 1])
+    geometry = SimpleNamespace(base_joints=params.base_joints + joints[:, 0],   # what the kinematics reads
+                               platform_joints=params.platform_joints + joints[:, 1])
     home = params.home_lengths
     play = signs * (np.abs(samples[:, 54:60]) + np.abs(samples[:, 60:66]))
     lengths = (home + samples[:, :6] + (1 + samples[:, 6:12]) * (inverse_kinematics(params, poses) - home
@@ -36,13 +38,6 @@ def numpy_pose_errors(params, poses, samples, signs):
             break
         x -= np.linalg.solve(_to_pose_jacobian(_twist_jacobian(rho, s), x), error[..., None])[..., 0]
     return x - poses
-
-
-class tl_geometry:
-    """Joint positions of a batch of hexapods, as the kinematics of plant.hexapod.model reads them."""
-
-    def __init__(self, base_joints, platform_joints):
-        self.base_joints, self.platform_joints = base_joints, platform_joints
 
 
 def main(argv=None):
