@@ -110,9 +110,9 @@ def _batch(pose, elevation, n):
         raise InvalidInputError(f"pose must be one pose (6,) or one per sample ({n}, 6), got {pose.shape}")
     elevation = np.asarray(elevation, dtype=float)
     if elevation.shape not in ((), (n,)) or not np.all((elevation >= 0) & (elevation <= np.pi / 2)):
+        said = f", from {np.min(elevation):.4g} to {np.max(elevation):.4g} rad" if elevation.size else ""
         raise InvalidInputError(f"elevation must be one or {n} angles in [0, pi/2] rad, got shape "
-                                f"{elevation.shape}, range {np.min(elevation, initial=0):.4g}.."
-                                f"{np.max(elevation, initial=0):.4g}")
+                                f"{elevation.shape}{said}")
     return np.ascontiguousarray(np.broadcast_to(pose, (n, 6))), np.broadcast_to(elevation, (n,))
 
 
