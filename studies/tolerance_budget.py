@@ -68,6 +68,25 @@ def linear_sweep(params, budget, seed=5):
     return rows
 
 
+def clearance_sweep(params, budget, seed=6, samples=20_000):
+    """The joints' plays of ``budget`` alone, at home, over the elevation (every 5 deg): which
+    legs are in compression (+1) or tension (-1), the mean pose error [m] (the plays are a bias)
+    and the focus error at the budget's probability."""
+    draws = np.zeros((samples, tl.N_INPUTS))
+    u = np.random.default_rng(seed).random((samples, tl.N_INPUTS))
+    for k in range(tl.CLEARANCE.start, tl.N_INPUTS):
+        if budget.inputs[k] is not None:
+            draws[:, k] = budget.inputs[k].ppf(np.clip(u[:, k], 1e-12, 1 - 1e-12))
+    rows = []
+    for degrees in range(0, 91, 5):
+        elevation = np.radians(degrees)
+        errors = tl.pose_errors(params, params.home_pose, draws, elevation)
+        signs = tl.load_signs(params, params.home_pose[None], np.array([elevation]))[0]
+        rows.append(dict(elevation=degrees, signs=signs.astype(int).tolist(), mean=errors[:, :3].mean(axis=0).tolist(),
+                         focus=float(np.quantile(np.abs(errors[:, 2]), budget.probability))))
+    return rows
+
+
 def compute(progress=True):
     """Every number the page shows, as stored in STORE."""
     params = StewartParams.paper()
@@ -81,6 +100,7 @@ def compute(progress=True):
         result["histogram_allocated"] = histograms(params, budget, 200_000, budget.seed + 12, scales)
         store[name] = result
     store["linear_sweep"] = linear_sweep(params, bg.load("default"))
+    store["clearance_sweep"] = clearance_sweep(params, bg.load("default"))
     store["bins"] = BINS.tolist()
     return store
 
@@ -244,7 +264,21 @@ def report(store):
     for row in sweep:
         lines.append(f"| x{row['scale']:g} | " + " | ".join(f"{v:.2g}" for v in row["missed"])
                      + f" | {row['ratio'][2]:.3f} |")
-    lines += ["", "![first order against Monte Carlo](figures/tolerance_linear_vs_mc.png)", "",
+    lines += ["", "## Joint clearance and the elevation", "",
+              "The `default` plays alone (10 µm per joint), at home, as the telescope's elevation changes: the "
+              "legs in compression (+) or tension (-) under gravity, the mean position error (a play is a bias "
+              "as well as a spread) and the focus error at 99.7 %:", "",
+              "| elevation [deg] | leg loads 1..6 | mean dx, dy, dz [µm] | focus at 99.7 % [µm] |",
+              "|---|---|---|---|"]
+    previous = None
+    for row in store["clearance_sweep"]:
+        loads = "".join("+" if s > 0 else "-" for s in row["signs"])
+        if loads != previous or row["elevation"] in (0, 90):
+            lines.append(f"| {row['elevation']} | {loads} | " + ", ".join(f"{v * 1e6:.2f}" for v in row["mean"])
+                         + f" | {row['focus'] * 1e6:.3g} |")
+        previous = loads
+    lines += ["", "(Rows where the loads change, and the ends.)", "",
+              "![first order against Monte Carlo](figures/tolerance_linear_vs_mc.png)", "",
               "![Sobol indices](figures/tolerance_sobol.png)", "",
               "![pose error distributions](figures/tolerance_pose_error.png)", "",
               "![allocation](figures/tolerance_allocation.png)", ""]
@@ -322,6 +356,11 @@ inputs.leg_ofset: unknown key; did you mean 'leg_offset'?`).
   carry 88 % of the variance (their z components lead the focus error), the leg offsets 11 %;
   the encoder scale, homing (20 um) and clearance (10 um) under 1 % each. The workspace carries
   under 0.5 %: over +-30 mm the sensitivities hardly change.
+- The variance shares miss what the clearance does: it is mostly a bias. Plays of up to 10 um
+  move the platform 11.6 um up at the zenith (six legs in tension) and 24 um sideways near the
+  horizon (legs 3 and 6 in compression below about 72 deg at home): the elevation decides its
+  direction. The quantiles, which the targets and the allocation read, see it; the Sobol
+  indices, which share out the variance, do not.
 - Meeting the 10 um focus target at 99.7 % needs every group tightened, the joints most (to about
   6.6 um): the focus target binds, and the position then sits near 27 um, well under 0.1 mm.
 - NanShan's 0.08 / 0.04 mm on this hexapod gives the values in its table above (about 78 um focus
@@ -339,12 +378,13 @@ inputs.leg_ofset: unknown key; did you mean 'leg_offset'?`).
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--from-store", action="store_true", help=f"no runs: read {STORE.relative_to(ROOT)}")
-    parser.add_argument("--sweep-only", action="store_true", help="only the linear-vs-Monte-Carlo sweep again")
+    parser.add_argument("--sweeps-only", action="store_true", help="only the first-order and clearance sweeps again")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     args = parser.parse_args(argv)
-    if args.sweep_only:   # the sweep again into the stored results (it is the cheap part)
+    if args.sweeps_only:   # the sweeps again into the stored results (the cheap part)
         store = json.loads(STORE.read_text())
         store["linear_sweep"] = linear_sweep(StewartParams.paper(), bg.load("default"))
+        store["clearance_sweep"] = clearance_sweep(StewartParams.paper(), bg.load("default"))
         STORE.write_text(json.dumps(store, indent=1) + "\n")
     elif args.from_store:
         store = json.loads(STORE.read_text())
