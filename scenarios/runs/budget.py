@@ -233,7 +233,8 @@ def load(path):
 
 # ------------------------------------------------------------------------------ sampling
 def _workspace_dims(budget):
-    """The workspace's varying coordinates: (names, columns of the unit sample) for Sobol."""
+    """The names of the workspace's varying dimensions ("pose" for a list of poses, coordinates
+    of ranges, "elevation"): one unit-cube column each, after the inputs'."""
     if len(budget.poses):
         names = ["pose"] if len(budget.poses) > 1 else []
     else:
@@ -297,6 +298,7 @@ def _draws(seed, n, dimensions):
 
 
 def _dimensions(budget):
+    """The number of unit-cube columns of a sample: the uncertain inputs and the workspace's."""
     return sum(d is not None for d in budget.inputs) + len(_workspace_dims(budget))
 
 
