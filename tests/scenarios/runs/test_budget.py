@@ -128,3 +128,17 @@ def test_allocation_meets_the_targets_for_less_than_a_plain_scaling():
     for _ in range(8):
         low, high = ((low + high) / 2, high) if plain_meets((low + high) / 2) else (low, (low + high) / 2)
     assert found["cost"] < len(scales) / high
+
+
+def test_a_list_of_poses_is_drawn_from_evenly():
+    """`poses` instead of ranges: every commanded pose is home plus one of them, each drawn about
+    as often; giving both is refused."""
+    listed = 'poses = [["10 mm", 0, 0, 0, 0, 0], [0, "-5 mm", 0, 0, "0.1 deg", 0]]\n'
+    budget = bg.parse(SMALL.replace("[workspace]\n", "[workspace]\n" + listed))
+    _, poses, elevation = bg._map(budget, np.random.default_rng(2).random((4000, bg._dimensions(budget))))
+    travel = poses - StewartParams.paper().home_pose
+    first = np.all(np.isclose(travel, [0.01, 0, 0, 0, 0, 0]), axis=1)
+    second = np.all(np.isclose(travel, [0, -0.005, 0, 0, np.radians(0.1), 0]), axis=1)
+    assert np.all(first | second) and 0.45 < first.mean() < 0.55 and np.all(elevation == np.radians(60))
+    with pytest.raises(bg.BudgetError, match="workspace.poses: give either ranges"):
+        bg.parse(SMALL.replace("[workspace]\n", '[workspace]\n' + listed + 'x = ["-1 mm", "1 mm"]\n'))
