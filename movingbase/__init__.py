@@ -10,17 +10,28 @@ One import name over the repository's folders, one job each (the data flows one 
 Command line: ``movingbase run telescope_slew`` (or ``python -m movingbase run ...``).
 In Python (notebooks): ``movingbase.run("telescope_slew", ci=True)`` returns a Result
 (time series as numpy arrays or pandas, metrics, flags, charts); ``movingbase.campaign``
-the same for campaign files; ``movingbase.fmus()`` the FMU files for other FMI tools
-(movingbase/api.py).
+the same for campaign files; ``movingbase.budget`` a geometric tolerance budget;
+``movingbase.fmus()`` the FMU files for other FMI tools (movingbase/api.py).
 """
 import typing as _typing
 
 __version__ = "0.2.0"
-__all__ = ["run", "campaign", "load_scenario", "fmus", "Result", "RunResult", "CampaignResult", "Charts",
+__all__ = ["run", "campaign", "budget", "load_scenario", "fmus", "Result", "RunResult", "CampaignResult", "Charts",
            "RunWarning", "ScenarioError", "__version__"]
 
 if _typing.TYPE_CHECKING:
-    from movingbase.api import CampaignResult, Charts, Result, RunResult, RunWarning, campaign, fmus, load_scenario, run
+    from movingbase.api import (
+        CampaignResult,
+        Charts,
+        Result,
+        RunResult,
+        RunWarning,
+        budget,
+        campaign,
+        fmus,
+        load_scenario,
+        run,
+    )
     from scenarios.spec import ScenarioError
 
 

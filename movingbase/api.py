@@ -619,3 +619,16 @@ def campaign(path: str | os.PathLike[str], *, out: str | os.PathLike[str] = "out
         raise KeyboardInterrupt(f"campaign {ran.name} interrupted: {len(outcome.computed)} runs done now and "
                                 f"{len(outcome.skipped)} before are on disk in {store.folder}; call it again to resume")
     return CampaignResult(ran, job_list, store, summary)
+
+
+@_public
+def budget(path: str | os.PathLike[str], *, samples: int | None = None, out: str | os.PathLike[str] | None = None,
+           progress: bool = True) -> dict[str, Any]:
+    """Run a geometric tolerance budget file (or a shipped name: ``"default"``, ``"nanshan"``) as
+    ``movingbase budget`` does: the pose error's quantile per target with its 95 % interval,
+    Sobol indices by input group with their intervals, the leading inputs and the allocation
+    (scenarios/runs/budget.py says what each holds). ``samples`` overrides the file's Monte
+    Carlo draws; ``out`` writes <out>/<name>.json. No FMU runs: the kinematics alone."""
+    from scenarios.runs.budget import run_budget
+    _flags_given(progress=progress)
+    return run_budget(path, samples=samples, out=out, progress=progress)
