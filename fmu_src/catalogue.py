@@ -41,7 +41,7 @@ class FMU:
 # answers from them: base_pose has orders 1 and 2, base_rate order 1, base_acc none.
 FMUS = (
     FMU("hexapod_plant", constants="hexapod_plant", optional_inputs=("platform_wrench",)),
-    FMU("telescope", constants="telescope", output_derivatives={
+    FMU("telescope", constants="telescope", optional_inputs=("support_load",), output_derivatives={
         "base_rate": "base_pose", "base_acc": "base_rate", "reference_rate": "reference_pose",
         "reference_acc": "reference_rate", "axis_rate": "axis", "axis_acc": "axis_rate",
         "command_base_rate": "command_base_pose", "command_base_acc": "command_base_rate"}),
