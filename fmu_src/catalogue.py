@@ -90,6 +90,8 @@ LOOP_SENSORS = {"leg_sensor": ("leg_length", "measured_length", {"rate_cutoff": 
 # connections through these alone is an algebraic loop that the master cannot solve, and an
 # output wired back into such an input of its own FMU measures nothing (_check_wiring). A
 # sensor's delay line counts as no state: it holds no dynamics of what it measures.
+# No telescope row: its support_load input reaches base_* only through the support modes' state
+# (fmu_src/telescope_fmu.py), so wind -> telescope -> wind is no algebraic loop.
 ALL = "*"
 FEEDTHROUGH = {
     "leg_sensor": {"measured_length": ("leg_length",), "estimated_rate": ("leg_length",)},

@@ -195,7 +195,7 @@ class Telescope(GuardedSlave):
     def _publish_servo(self, t):
         s = self.settings
         self.now[:60] = telescope.servo_row(self.params, self.motion, s["servo_bandwidth"], s["servo_damping"], t,
-                                          self.command, self.state)
+                                            self.command, self.state)
 
     def extra_state(self):
         return ((self.command.copy(), self.state.copy()) if self.servo else None, self.support_state.copy())

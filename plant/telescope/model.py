@@ -487,7 +487,8 @@ def support_advance(modes, h, load, state, row, sway):
     """Advance the support's ``state`` (6) over h [s] under the wrench ``load`` (6, held) and add
     its motion to the telescope's ``row`` (columns 0..17, in place; sway (6) gets the modal
     displacement in {B}); h = None: the start, in equilibrium under the preload
-    (mb_tel_support_start / _step). Arguments are cffi double* (hot path) or float arrays."""
+    (mb_tel_support_start / _step). Arguments are cffi double* (hot path) or contiguous float64
+    arrays (written in place)."""
     ptr = [a if isinstance(a, ffi.CData) else _doubles(a) for a in (load, state, row, sway)]
     status = (lib.mb_tel_support_start(modes, *ptr) if h is None else lib.mb_tel_support_step(modes, h, *ptr))
     if status:
