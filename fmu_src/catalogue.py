@@ -41,7 +41,7 @@ class FMU:
 # answers from them: base_pose has orders 1 and 2, base_rate order 1, base_acc none.
 FMUS = (
     FMU("hexapod_plant", constants="hexapod_plant", optional_inputs=("platform_wrench",)),
-    FMU("telescope", constants="telescope", output_derivatives={
+    FMU("telescope", constants="telescope", optional_inputs=("support_load",), output_derivatives={
         "base_rate": "base_pose", "base_acc": "base_rate", "reference_rate": "reference_pose",
         "reference_acc": "reference_rate", "axis_rate": "axis", "axis_acc": "axis_rate",
         "command_base_rate": "command_base_pose", "command_base_acc": "command_base_rate"}),
@@ -90,6 +90,8 @@ LOOP_SENSORS = {"leg_sensor": ("leg_length", "measured_length", {"rate_cutoff": 
 # connections through these alone is an algebraic loop that the master cannot solve, and an
 # output wired back into such an input of its own FMU measures nothing (_check_wiring). A
 # sensor's delay line counts as no state: it holds no dynamics of what it measures.
+# No telescope row: its support_load input reaches base_* only through the support modes' state
+# (fmu_src/telescope_fmu.py), so wind -> telescope -> wind is no algebraic loop.
 ALL = "*"
 FEEDTHROUGH = {
     "leg_sensor": {"measured_length": ("leg_length",), "estimated_rate": ("leg_length",)},

@@ -21,13 +21,32 @@ from dataclasses import replace
 import numpy as np
 
 from fmu_src.operating_point import START_AZ_EL
-from fmu_src.slave import OUTPUT, POSE_UNITS, POSITIVE_RATE, POSITIVE_TIME, GuardedSlave, acc_units, rate_units
+from fmu_src.slave import (
+    INPUT,
+    OUTPUT,
+    PARAMETER,
+    POSE_UNITS,
+    POSITIVE_RATE,
+    POSITIVE_TIME,
+    GuardedSlave,
+    acc_units,
+    rate_units,
+)
 from plant.hexapod.model import HOME_POSE, S_BAND_POSE
 from plant.telescope import model as telescope
 
 PROFILES = telescope.PROFILE_KINDS   # slew, sidereal, paper (the base and platform motion of Yao et al.)
 BLOCK = 1000
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
+WRENCH_NAMES = ("force x", "force y", "force z", "moment x", "moment y", "moment z")
+WRENCH_UNITS = ("N", "N", "N", "N.m", "N.m", "N.m")
+SHAPE_UNITS = ("1", "1", "1", "rad/m", "rad/m", "rad/m")   # m of sway per m of q; rad per m
+# Assumed support values (the modes are off by default: support_frequency 0): a 1.8 Hz class
+# as AtLAST's first support mode (A&A 694 A142, 2025); 1.5 % structural damping; 10 t of modal
+# mass (the kit's 2.1 t subreflector and 2.3 t of hexapod legs, the apex structure and part of
+# the quadripod's legs); sway along {B}'s x and y with the tilt a cantilever's tip carries
+# under a tip load, 1.5 / L with the 25 m legs (0.06 rad/m).
+SUPPORT_SHAPES = ((1.0, 0.0, 0.0, 0.0, 0.06, 0.0), (0.0, 1.0, 0.0, -0.06, 0.0, 0.0))
 
 
 class Telescope(GuardedSlave):
@@ -66,7 +85,7 @@ class Telescope(GuardedSlave):
             ("servo_damping", "1", 0.7, "damping ratio of the antenna's axis servo (assumed)", (0.01, 10.0)),
         ))
         pose_desc = lambda prefix: [f"{prefix} {n}" for n in POSE_NAMES]
-        self.now = np.zeros(60)   # every output, one row of the evaluated block
+        self.now = np.zeros(66)   # every output: one row of the evaluated block (60), the support's sway
         self.now[18:24] = tianma.home
         for start, (name, size, desc, units) in zip((0, 6, 12, 18, 24, 30, 36, 38, 40, 46, 52, 58), (
             ("base_pose", 6, pose_desc("base, in {W},"), POSE_UNITS),
@@ -84,6 +103,46 @@ class Telescope(GuardedSlave):
             ("axis_acc", 2, ["astronomical azimuth acceleration", "elevation acceleration"], "rad/s2"),
         )):
             self.vector(name, size, OUTPUT, desc, units, values=self.now[start:start + size])
+        self._support_variables(tianma)
+
+    def _support_variables(self, tianma):
+        """The flexible feed support's parameters, its load input and its sway output."""
+        per_mode = lambda what: [f"mode {j + 1}: {what}" for j in range(telescope.SUPPORT_MODES)]
+        self.support_settings = {name: self.vector(name, 2, PARAMETER, per_mode(desc), unit, start=start, valid=valid)
+                                 for name, unit, start, desc, valid in (
+            ("support_frequency", "1/s", (0.0, 0.0), "natural frequency in Hz of the feed support's sway mode; "
+             "0 = off, a rigid support. Assumed 1.5-2.5 Hz: AtLAST's first support mode is 1.8 Hz "
+             "(A&A 694 A142, 2025)", (0.0, 50.0)),
+            ("support_damping", "1", (0.015, 0.015), "damping ratio of the sway mode (assumed 1.5 %, structural)",
+             (0.0, 0.99)),
+            ("support_modal_mass", "kg", (1e4, 1e4), "modal mass of the sway mode (assumed 10 t: subreflector, "
+             "hexapod, apex and part of the quadripod's legs)", (1e-9, None)),
+            ("support_participation", "1", (1.0, 1.0), "participation: the mode's forcing is -participation x the "
+             "rigid base's acceleration along the shape (assumed 1: the apex's mass dominates)", (-10.0, 10.0)),
+        )}
+        for j, shape in enumerate(SUPPORT_SHAPES):
+            name = f"support_shape_{j + 1}"
+            self.support_settings[name] = self.vector(
+                name, 6, PARAMETER, [f"mode {j + 1}: base {n} per unit modal coordinate, in {{B}} (assumed: sway "
+                                     "with a cantilever tip's tilt 1.5 / 25 m)" for n in POSE_NAMES],
+                SHAPE_UNITS, start=shape, valid=(-1e3, 1e3))
+        self.support_gain = self.parameters((
+            ("support_load_gain", "1", 1.0, "the modes' force from support_load times this: 1 = the wrench alone; "
+             "> 1 adds the quadripod legs' own drag as a share of it (assumed: the same gusts, fully coherent)",
+             (0.0, 10.0)),))
+        self.support_settings["support_load_point"] = self.vector(
+            "support_load_point", 3, PARAMETER, [f"point where support_load's moment is taken, {n} in {{B}} (the "
+                                                 "platform's home origin: where Wind gives its wrench)" for n in "xyz"],
+            "m", start=tianma.home[:3], valid=(-100.0, 100.0))
+        self.support_settings["support_preload"] = self.vector(
+            "support_preload", 6, PARAMETER, [f"steady {n} on the support the modes start in equilibrium under, in "
+                                              "{B} (e.g. the mean wind's drag)" for n in WRENCH_NAMES],
+            WRENCH_UNITS, start=np.zeros(6), valid=(-1e7, 1e7))
+        self.support_load = self.vector("support_load", 6, INPUT, [f"{n} on the feed support's tip (through the "
+                                                                   "hexapod), in {B}" for n in WRENCH_NAMES],
+                                        WRENCH_UNITS, start=np.zeros(6))
+        self.vector("support_sway", 6, OUTPUT, [f"the support's sway of the base: {n} in {{B}}" for n in POSE_NAMES],
+                    POSE_UNITS, values=self.now[60:66])
 
     def initialize(self):
         s = self.settings
@@ -98,6 +157,15 @@ class Telescope(GuardedSlave):
             paper_duration=s["paper_duration"], start_delay=s["start_delay"],
             reference=(HOME_POSE, S_BAND_POSE))   # the paper's platform motion: home to S-band
         self.block_t, self.block_h, self.block = np.inf, 0.0, None
+        g = {name: np.array(values) for name, values in self.support_settings.items()}
+        self.modes = telescope.support(g["support_frequency"], g["support_damping"], g["support_modal_mass"],
+                                       g["support_participation"], [g["support_shape_1"], g["support_shape_2"]],
+                                       self.support_gain["support_load_gain"], g["support_load_point"],
+                                       g["support_preload"])
+        self.support = telescope.support_on(self.modes)
+        self.support_state = np.zeros(6)
+        self._row = telescope.ffi.from_buffer("double[]", self.now)
+        self._pointers = [telescope.ffi.from_buffer("double[]", a) for a in (self.support_load, self.support_state)]
         self.servo = s["servo_bandwidth"] > 0
         if self.servo:
             telescope.check_servo(s["servo_bandwidth"], s["servo_damping"])
@@ -106,6 +174,7 @@ class Telescope(GuardedSlave):
             self._publish_servo(0.0)
         else:
             self._publish(0.0, 0.0)
+        self._sway(None)
 
     def step(self, t, h):
         if self.servo:
@@ -116,25 +185,33 @@ class Telescope(GuardedSlave):
             self._publish_servo(t + h)
         else:
             self._publish(t + h, h)
+        self._sway(h)
+
+    def _sway(self, h):
+        """The support's modes over the step h (None: the start) added to the rigid row."""
+        if self.support:
+            telescope.support_advance(self.modes, h, *self._pointers, self._row, self._row + 60)
 
     def _publish_servo(self, t):
         s = self.settings
-        self.now[:] = telescope.servo_row(self.params, self.motion, s["servo_bandwidth"], s["servo_damping"], t,
-                                          self.command, self.state)
+        self.now[:60] = telescope.servo_row(self.params, self.motion, s["servo_bandwidth"], s["servo_damping"], t,
+                                            self.command, self.state)
 
     def extra_state(self):
-        return (self.command.copy(), self.state.copy()) if self.servo else None
+        return ((self.command.copy(), self.state.copy()) if self.servo else None, self.support_state.copy())
 
     def set_extra_state(self, extra):
-        if extra is not None:
-            self.command, self.state = (a.copy() for a in extra)
+        servo, support = extra
+        if servo is not None:
+            self.command, self.state = (a.copy() for a in servo)
+        self.support_state[:] = support   # in place: the C holds a pointer to it
 
     def _publish(self, t, h):
         index = round((t - self.block_t) / self.block_h) if self.block_h == h and h > 0 else -1
         if not (0 <= index < BLOCK and abs(self.block_t + index * h - t) <= 1e-9 * max(1.0, abs(t))):
             self.block_t, self.block_h, index = t, h, 0
             self.block = telescope.fmu_outputs(self.params, self.motion, t + h * np.arange(BLOCK if h > 0 else 1))
-        self.now[:] = self.block[index]
+        self.now[:60] = self.block[index]
 
     def _evaluate(self, times):
         """Today's 40 outputs (no servo) at the given times, (n, 40) in the order of self.now."""

@@ -21,6 +21,9 @@ typedef struct {
     int servo;               /* servo_bandwidth > 0 */
     double command[6];       /* command axes at the last communication point */
     double state[4];         /* actual axes (A, A', E, E') */
+    mb_tel_support support;  /* the flexible feed support (telescope.h) */
+    int support_on;          /* a mode's frequency > 0 */
+    double support_state[6];
 } Model;
 
 /* slave.py's message for a kernel status (plant/telescope/model.py _status_error). */
@@ -81,6 +84,45 @@ static void publish_servo(double *r, Model *m, double t)
                      &r[VR_base_pose]);
 }
 
+/* The support's modes over the step h (< 0: the start) added to the rigid row (telescope_fmu.py _sway). */
+static int sway(mb_instance *inst, double *r, Model *m, double h)
+{
+    if (!m->support_on) return 0;
+    int status = h < 0 ? mb_tel_support_start(&m->support, &r[VR_support_load], m->support_state, &r[VR_base_pose],
+                                              &r[VR_support_sway])
+                       : mb_tel_support_step(&m->support, h, &r[VR_support_load], m->support_state, &r[VR_base_pose],
+                                             &r[VR_support_sway]);
+    if (status) {
+        mb_error(inst, "InvalidInputError", "support_load input contains NaN or inf");
+        return 1;
+    }
+    return 0;
+}
+
+/* The support's settings (telescope_fmu.py _support_variables), checked. */
+static int support_init(mb_instance *inst, double *r, Model *m)
+{
+    mb_tel_support *s = &m->support;
+    memset(s, 0, sizeof *s);
+    for (int j = 0; j < 2; j++) {
+        s->mode[j].frequency = r[VR_support_frequency + j];
+        s->mode[j].damping = r[VR_support_damping + j];
+        s->mode[j].modal_mass = r[VR_support_modal_mass + j];
+        s->mode[j].participation = r[VR_support_participation + j];
+        memcpy(s->mode[j].shape, &r[j ? VR_support_shape_2 : VR_support_shape_1], sizeof s->mode[j].shape);
+    }
+    s->load_gain = r[VR_support_load_gain];
+    memcpy(s->load_point, &r[VR_support_load_point], sizeof s->load_point);
+    memcpy(s->preload, &r[VR_support_preload], sizeof s->preload);
+    if (mb_tel_support_check(s)) {
+        mb_error(inst, "InvalidInputError", "%s", mb_tel_status_text(MB_TEL_SUPPORT_RANGE));
+        return 1;
+    }
+    m->support_on = mb_tel_support_on(s);
+    memset(m->support_state, 0, sizeof m->support_state);
+    return 0;
+}
+
 static int init(mb_instance *inst, double *r, int *i, void *model, double start_time)
 {
     (void)start_time;
@@ -122,6 +164,7 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
         mb_error(inst, "InvalidInputError", "%s", mb_tel_status_text(status));
         return 1;
     }
+    if (support_init(inst, r, m)) return 1;
     m->block_t = INFINITY;
     m->block_h = 0.0;
     m->servo = r[VR_servo_bandwidth] > 0;
@@ -138,9 +181,9 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
         m->state[2] = m->command[3];
         m->state[3] = m->command[4];
         publish_servo(r, m, 0.0);
-        return 0;
+        return sway(inst, r, m, -1.0);
     }
-    return publish(inst, r, m, 0.0, 0.0);
+    return publish(inst, r, m, 0.0, 0.0) || sway(inst, r, m, -1.0);
 }
 
 static int step(mb_instance *inst, double *r, int *i, void *model, double t, double h)
@@ -155,9 +198,9 @@ static int step(mb_instance *inst, double *r, int *i, void *model, double t, dou
         mb_tel_servo_advance(r[VR_servo_bandwidth], r[VR_servo_damping], h, m->command, command, m->state);
         memcpy(m->command, command, sizeof command);
         publish_servo(r, m, t + h);
-        return 0;
+        return sway(inst, r, m, h);
     }
-    return publish(inst, r, model, t + h, h);
+    return publish(inst, r, m, t + h, h) || sway(inst, r, m, h);
 }
 
 const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), init, step};

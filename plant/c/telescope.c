@@ -30,6 +30,8 @@ const char *mb_tel_status_text(int status)
     case MB_TEL_BELOW_HORIZON: return "the source is below the horizon";
     case MB_TEL_DURATION_NOT_POSITIVE: return "the manoeuvre's duration must be > 0";
     case MB_TEL_BAD_KIND: return "unknown profile kind (0 slew, 1 sidereal, 2 paper)";
+    case MB_TEL_SUPPORT_RANGE: return "a support mode needs a frequency >= 0, a damping in [0, 1) and a modal "
+                                      "mass > 0, and every support setting finite";
     default: return "unknown status";
     }
 }
@@ -504,4 +506,163 @@ void mb_tel_servo_row(const mb_tel_params *p, const mb_tel_profile *prof, double
     fmu_row(p, prof, t, actual, row, 40);
     base_row(p->lever_arm, cmd, row + 40, row + 46, row + 52);
     row[58] = -actual[2]; row[59] = actual[5];
+}
+
+/* --- the flexible feed support ------------------------------------------------------------ */
+
+enum { MODES = 2 };
+
+int mb_tel_support_check(const mb_tel_support *s)
+{
+    double sum = s->load_gain;
+    for (int k = 0; k < 3; k++) sum += s->load_point[k];
+    for (int k = 0; k < 6; k++) sum += s->preload[k];
+    for (int j = 0; j < MODES; j++) {
+        const mb_tel_mode *m = &s->mode[j];
+        sum += m->participation;
+        for (int k = 0; k < 6; k++) sum += m->shape[k];
+        if (!(m->frequency >= 0 && m->damping >= 0 && m->damping < 1 && m->modal_mass > 0 && isfinite(m->frequency)
+              && isfinite(m->modal_mass)))
+            return MB_TEL_SUPPORT_RANGE;
+    }
+    return isfinite(sum) ? MB_TEL_OK : MB_TEL_SUPPORT_RANGE;
+}
+
+int mb_tel_support_on(const mb_tel_support *s)
+{
+    for (int j = 0; j < MODES; j++)
+        if (s->mode[j].frequency > 0) return 1;
+    return 0;
+}
+
+static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+/* The forcing per modal mass of each mode: inertial (of the rigid row's base acceleration)
+   and of a wrench. */
+static void inertial_forcing(const mb_tel_support *s, const double *row, double *f)
+{
+    double roll = row[3], yaw = row[5], cr = cos(roll), sr = sin(roll), cy = cos(yaw), sy = sin(yaw);
+    const double *acc = row + 12;   /* a_B = R_WB^T p'', R_WB = Rz(yaw) Rx(roll) */
+    double a[3] = {cy * acc[0] + sy * acc[1],
+                   -sy * cr * acc[0] + cy * cr * acc[1] + sr * acc[2],
+                   sy * sr * acc[0] - cy * sr * acc[1] + cr * acc[2]};
+    for (int j = 0; j < MODES; j++) f[j] = -s->mode[j].participation * dot3(s->mode[j].shape, a);
+}
+
+static void load_forcing(const mb_tel_support *s, const double *load, double *f)
+{
+    double moment[3];
+    cross3(s->load_point, load, moment);
+    for (int k = 0; k < 3; k++) moment[k] += load[3 + k];
+    for (int j = 0; j < MODES; j++) {
+        const mb_tel_mode *m = &s->mode[j];
+        f[j] = s->load_gain * (dot3(m->shape, load) + dot3(m->shape + 3, moment)) / m->modal_mass;
+    }
+}
+
+/* q'' + 2 zeta w q' + w^2 q = f0 + (f1 - f0) s / h over s in [0, h], exactly: the
+   particular solution a + b s plus the homogeneous response e^{-zeta w s} (cos, sin wd s). */
+static void mode_advance(double w, double zeta, double h, double f0, double f1, double *q, double *v)
+{
+    double w2 = w * w, b = (f1 - f0) / h / w2, a = (f0 - 2 * zeta * w * b) / w2;
+    double x0 = *q - a, y0 = *v - b, sigma = zeta * w, wd = w * sqrt(1 - zeta * zeta);
+    double c = cos(wd * h), sn = sin(wd * h), decay = exp(-sigma * h);
+    *q = a + b * h + decay * (x0 * (c + sigma / wd * sn) + y0 * sn / wd);
+    *v = b + decay * (y0 * (c - sigma / wd * sn) - x0 * w2 / wd * sn);
+}
+
+/* out = (R d0, R (w x d0 + d1), R (e x d0 + w x (w x d0) + 2 w x d1 + d2)): a displacement d
+   fixed in a frame turning with R (angular velocity w, acceleration e in that frame),
+   and its two time derivatives. */
+static void carried(const double R[3][3], const double w[3], const double e[3], const double d[3][3],
+                    double out[3][3])
+{
+    double c1[3], c2[3], c3[3], c4[3], local[3][3];
+    cross3(w, d[0], c1);
+    cross3(e, d[0], c2);
+    cross3(w, c1, c3);
+    cross3(w, d[1], c4);
+    for (int k = 0; k < 3; k++) {
+        local[0][k] = d[0][k];
+        local[1][k] = c1[k] + d[1][k];
+        local[2][k] = c2[k] + c3[k] + 2 * c4[k] + d[2][k];
+    }
+    for (int i = 0; i < 3; i++)
+        for (int k = 0; k < 3; k++) out[i][k] = dot3(R[k], local[i]);
+}
+
+static void add_sway(const mb_tel_support *s, const double *f, const double *state, double *row, double *sway)
+{
+    double d[3][3] = {{0}}, u[3][3] = {{0}};   /* (value, rate, acceleration) of translation, rotation */
+    for (int j = 0; j < MODES; j++) {
+        const mb_tel_mode *m = &s->mode[j];
+        if (!(m->frequency > 0)) continue;
+        double w = TWO_PI * m->frequency, q = state[2 * j], v = state[2 * j + 1];
+        double qdd = f[j] - 2 * m->damping * w * v - w * w * q;
+        double mode[3] = {q, v, qdd};
+        for (int i = 0; i < 3; i++)
+            for (int k = 0; k < 3; k++) {
+                d[i][k] += m->shape[k] * mode[i];
+                u[i][k] += m->shape[3 + k] * mode[i];
+            }
+    }
+    double roll = row[3], yaw = row[5], droll = row[9], dyaw = row[11], ddroll = row[15], ddyaw = row[17];
+    double cr = cos(roll), sr = sin(roll), cy = cos(yaw), sy = sin(yaw);
+    const double R[3][3] = {{cy, -sy * cr, sy * sr}, {sy, cy * cr, -cy * sr}, {0.0, sr, cr}};
+    const double Rx[3][3] = {{1.0, 0.0, 0.0}, {0.0, cr, -sr}, {0.0, sr, cr}};
+    const double w_B[3] = {droll, dyaw * sr, dyaw * cr};
+    const double e_B[3] = {ddroll, ddyaw * sr + dyaw * droll * cr, ddyaw * cr - dyaw * droll * sr};
+    const double w_x[3] = {droll, 0.0, 0.0}, e_x[3] = {ddroll, 0.0, 0.0};
+    double dp[3][3], de[3][3];
+    carried(R, w_B, e_B, d, dp);
+    carried(Rx, w_x, e_x, u, de);
+    for (int i = 0; i < 3; i++)
+        for (int k = 0; k < 3; k++) {
+            row[6 * i + k] += dp[i][k];
+            row[6 * i + 3 + k] += de[i][k];
+        }
+    for (int k = 0; k < 3; k++) {
+        sway[k] = d[0][k];
+        sway[3 + k] = u[0][k];
+    }
+}
+
+static int load_finite(const double *load)
+{
+    for (int k = 0; k < 6; k++)
+        if (!isfinite(load[k])) return 0;
+    return 1;
+}
+
+int mb_tel_support_start(const mb_tel_support *s, const double *load, double *state, double *row, double *sway)
+{
+    if (!load_finite(load)) return MB_TEL_NONFINITE;
+    double pre[MODES];
+    inertial_forcing(s, row, state + 4);
+    load_forcing(s, s->preload, pre);
+    for (int j = 0; j < MODES; j++) {
+        double w = TWO_PI * s->mode[j].frequency;
+        state[2 * j] = s->mode[j].frequency > 0 ? (state[4 + j] + pre[j]) / (w * w) : 0.0;
+        state[2 * j + 1] = 0.0;
+    }
+    return mb_tel_support_step(s, 0.0, load, state, row, sway);
+}
+
+int mb_tel_support_step(const mb_tel_support *s, double h, const double *load, double *state, double *row,
+                        double *sway)
+{
+    if (!load_finite(load)) return MB_TEL_NONFINITE;
+    double inertial[MODES], loaded[MODES], f[MODES];
+    inertial_forcing(s, row, inertial);
+    load_forcing(s, load, loaded);
+    for (int j = 0; j < MODES; j++) {
+        const mb_tel_mode *m = &s->mode[j];
+        if (h > 0 && m->frequency > 0)
+            mode_advance(TWO_PI * m->frequency, m->damping, h, state[4 + j] + loaded[j], inertial[j] + loaded[j],
+                         &state[2 * j], &state[2 * j + 1]);
+        state[4 + j] = inertial[j];
+        f[j] = inertial[j] + loaded[j];
+    }
+    add_sway(s, f, state, row, sway);
+    return MB_TEL_OK;
 }

@@ -56,7 +56,9 @@ enum mb_tel_status {
     MB_TEL_ZENITH = 7,             /* |dec - latitude| < 1e-6: the source passes the zenith */
     MB_TEL_BELOW_HORIZON = 8,      /* the tracked source has E < 0 at a requested time */
     MB_TEL_DURATION_NOT_POSITIVE = 9, /* paper_duration (or a quintic's duration) <= 0 */
-    MB_TEL_BAD_KIND = 10           /* profile kind not in enum mb_tel_kind */
+    MB_TEL_BAD_KIND = 10,          /* profile kind not in enum mb_tel_kind */
+    MB_TEL_SUPPORT_RANGE = 11      /* a support mode's frequency < 0, damping outside [0, 1) or
+                                      modal mass <= 0, or a support setting not finite */
 };
 
 /* A sentence naming the problem of a status (for FMU logs). */
@@ -137,5 +139,59 @@ void mb_tel_servo_axes(double bandwidth, double damping, const double *cmd, cons
 void mb_tel_servo_row(const mb_tel_params *p, const mb_tel_profile *prof, double bandwidth,
                       double damping, double t, const double *cmd, const double *state,
                       double *row);
+
+/* --- the flexible feed support ------------------------------------------------------------
+   The quadripod that carries the hexapod's base sways: up to two modes, each a modal coordinate
+   q [m] with q'' + 2 zeta w q' + w^2 q = f, w = 2 pi frequency, and
+       f = -participation (shape_t . a_B) + load_gain (shape . W) / modal_mass,
+   a_B the rigid telescope's inertial acceleration of the base origin in {B} (the angular
+   acceleration's own term, J shape_r . eps_B, is left out: ~1 % of it for a tip mass of a few
+   tonnes at 2 m radius of gyration; gravity is left out: its slow change with elevation is the
+   reference's gravity correction), W the wrench on the support's tip in {B} (force F, moment
+   M at load_point: shape . W = shape_t . F + shape_r . (M + load_point x F)). A unit q moves
+   the base by shape = (translation m/m, rotation rad/m) in {B}; the modes' displacement
+   d = sum shape_t q, u = sum shape_r q is added to the base motion: position
+   p + R_WB d, angles (roll, pitch, yaw) + Rx(roll) u (the first-order change of the Z-Y-X
+   angles of R_WB exp([u]x) at pitch 0, which the alt-az base always has), with their exact
+   first and second time derivatives (the base rate and acceleration stay those of the pose).
+   One-way: the hexapod's reaction on the support is not fed back beyond W.
+   The state, double[6] = (q1, q1', q2, q2', inertial f1, inertial f2 at the last point), is
+   advanced exactly over a step (the linear mode's exact discretisation) for the inertial
+   forcing linear between its values at the step's ends and the load held at its value
+   during the step (the master's zero-order hold); the acceleration published at the step's
+   end is the mode's q'' there under that load. A mode with frequency 0 is off. */
+typedef struct {
+    double frequency;      /* Hz; 0 = off (rigid) */
+    double damping;        /* fraction of critical, [0, 1) */
+    double modal_mass;     /* kg, > 0 */
+    double participation;  /* 1: the inertial forcing per unit base acceleration along shape_t */
+    double shape[6];       /* base displacement in {B} per unit q: m/m (x, y, z), rad/m (about x, y, z) */
+} mb_tel_mode;
+
+typedef struct {
+    mb_tel_mode mode[2];
+    double load_gain;      /* 1: the generalized force of W times this (the legs' own drag) */
+    double load_point[3];  /* m, where W's moment is taken, in {B} */
+    double preload[6];     /* N, N m: the steady wrench the mode starts in equilibrium under */
+} mb_tel_support;
+
+/* MB_TEL_OK or MB_TEL_SUPPORT_RANGE. */
+int mb_tel_support_check(const mb_tel_support *s);
+
+/* 1 if a mode is on (frequency > 0), else 0: the rigid base, rows untouched. */
+int mb_tel_support_on(const mb_tel_support *s);
+
+/* At the start: the modes at rest in static equilibrium under the inertial forcing of the
+   rigid row and the preload; then as mb_tel_support_step with h = 0. */
+int mb_tel_support_start(const mb_tel_support *s, const double *load, double *state, double *row,
+                         double *sway);
+
+/* Advance state over h from the last point to this one (row: the rigid telescope's row at
+   this point, columns 0..17 = base pose, rate, acceleration), then add the support's motion
+   to row's columns 0..17 and write sway (6) = (d, u), the modal displacement in {B}.
+   load (6) is the wrench W held over the step. MB_TEL_NONFINITE (nothing changed) if load
+   is not finite. */
+int mb_tel_support_step(const mb_tel_support *s, double h, const double *load, double *state, double *row,
+                        double *sway);
 
 #endif

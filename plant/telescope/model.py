@@ -444,3 +444,52 @@ def axis_servo(axes, bandwidth, damping):
                                      cmd_c + 6 * i, state_c)
         lib.mb_tel_servo_axes(bandwidth, damping, cmd_c + 6 * i, state_c, out + 6 * i)
     return AxisMotion(axes.t, *actual.T.copy())
+
+
+# --- the flexible feed support ------------------------------------------------------------
+
+SUPPORT_MODES = 2   # mb_tel_support.mode
+
+
+def support(frequency, damping, modal_mass, participation, shapes, load_gain=1.0, load_point=(0.0,) * 3,
+            preload=(0.0,) * 6):
+    """The quadripod's sway modes (plant/c/telescope.h, mb_tel_support: law and assumptions) as
+    an mb_tel_support: per mode (SUPPORT_MODES each) the frequency [Hz, 0 = off], damping
+    ratio [1, in [0, 1)], modal mass [kg], participation [1] and shape (6: the base's
+    translation [m/m] and rotation [rad/m] in {B} per unit modal coordinate); the load's
+    gain [1], moment point [m, {B}] and the preload [N, N m] the modes start in equilibrium
+    under. InvalidInputError naming the problem."""
+    c = ffi.new("mb_tel_support *")
+    columns = {"frequency": frequency, "damping": damping, "modal_mass": modal_mass, "participation": participation}
+    shapes = _finite("support shapes", shapes)
+    if shapes.shape != (SUPPORT_MODES, 6):
+        raise InvalidInputError(f"support shapes must be {SUPPORT_MODES} x 6, got shape {shapes.shape}")
+    for name, values in columns.items():
+        values = np.asarray(values, dtype=float)
+        if values.shape != (SUPPORT_MODES,):
+            raise InvalidInputError(f"support {name} must hold {SUPPORT_MODES} numbers, got shape {values.shape}")
+        for j in range(SUPPORT_MODES):
+            setattr(c.mode[j], name, float(values[j]))
+    for j in range(SUPPORT_MODES):
+        c.mode[j].shape = list(shapes[j])
+    c.load_gain, c.load_point, c.preload = float(load_gain), list(map(float, load_point)), list(map(float, preload))
+    if lib.mb_tel_support_check(c):
+        raise InvalidInputError(ffi.string(lib.mb_tel_status_text(lib.MB_TEL_SUPPORT_RANGE)).decode())
+    return c
+
+
+def support_on(modes):
+    """True if a mode of ``modes`` (``support``) is on: otherwise the base is rigid."""
+    return bool(lib.mb_tel_support_on(modes))
+
+
+def support_advance(modes, h, load, state, row, sway):
+    """Advance the support's ``state`` (6) over h [s] under the wrench ``load`` (6, held) and add
+    its motion to the telescope's ``row`` (columns 0..17, in place; sway (6) gets the modal
+    displacement in {B}); h = None: the start, in equilibrium under the preload
+    (mb_tel_support_start / _step). Arguments are cffi double* (hot path) or contiguous float64
+    arrays (written in place)."""
+    ptr = [a if isinstance(a, ffi.CData) else _doubles(a) for a in (load, state, row, sway)]
+    status = (lib.mb_tel_support_start(modes, *ptr) if h is None else lib.mb_tel_support_step(modes, h, *ptr))
+    if status:
+        raise InvalidInputError("support_load input contains NaN or inf")
