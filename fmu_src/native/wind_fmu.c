@@ -17,6 +17,7 @@ static int publish(mb_instance *inst, double *r, Model *m, double t)
         mb_error(inst, "InvalidInputError", "base pose input contains NaN or inf");
         return 1;
     }
+    mb_wind_anemometer(&m->wind, 1, &t, &r[VR_anemometer_speed]);
     return 0;
 }
 
@@ -35,6 +36,10 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     p.drag_area = r[VR_drag_area];
     p.moment_arm = r[VR_moment_arm];
     p.direction = r[VR_direction];
+    p.anemometer_distance = r[VR_anemometer_distance];
+    p.anemometer_upstream = r[VR_anemometer_upstream];
+    p.anemometer_time_constant = r[VR_anemometer_time_constant];
+    p.coherence_decay = r[VR_coherence_decay];
     p.spectrum = i[VR_spectrum];
     int status = mb_wind_init(&m->wind, &p, (unsigned long long)i[VR_seed]);
     if (status) {
