@@ -71,6 +71,8 @@ class LegController(GuardedSlave):
              "{P}'s origin (assumed 1 m, as the Wind FMU's)", (-50.0, 50.0)),
             ("wind_direction", "rad", WIND["direction"], "the controller's azimuth the wind comes from (assumed "
              "known, e.g. from a vane)", (-2 * np.pi, 2 * np.pi)),
+            ("wind_cutoff", "1/s", 0.0, "first-order low-pass of the measured speed, Hz (0 = none): keeps the "
+             "gusts the anemometer shares with the disc (design choice)", (0.0, 1e3)),
         ))
         self.wind_speed = 0.0
         self.real("wind_speed", INPUT, "measured along-wind speed (an anemometer); read when wind_feedforward > 0",
@@ -84,6 +86,7 @@ class LegController(GuardedSlave):
         self._kernel = self.params.kernel.params
         self._wind_out = np.zeros(12)   # predicted wrench, leg forces
         self._wind_ptr = ffi.from_buffer("double[]", self._wind_out)
+        self._wind_filtered = self.wind_speed
         self._update(None)
 
     def step(self, t, h):
@@ -104,7 +107,7 @@ class LegController(GuardedSlave):
         ref, ref_rate, ref_acc, lengths, rates, *base = self.input_rows
         ff, ref_lengths, ref_rates = self.feedforward_model(ref, ref_rate, ref_acc, *base)
         if self.wind["wind_feedforward"]:
-            ff = ff + self._wind_forces(ref, base[0])
+            ff = ff + self._wind_forces(ref, base[0], h)
         if h is None:   # initialization: the feedforward alone, integral untouched
             self.forces[:] = ff
         else:
@@ -112,11 +115,22 @@ class LegController(GuardedSlave):
                                                           ref_rates - rates, ff, h)
         self.feedforward_force[:] = ff
 
-    def _wind_forces(self, ref, base_pose):
+    def _wind_forces(self, ref, base_pose, h):
         if not np.isfinite(self.wind_speed):
             raise InvalidInputError("wind_speed input contains NaN or inf")
         w = self.wind
+        speed = self.wind_speed
+        if w["wind_cutoff"] > 0.0:
+            self._wind_filtered = lib.mb_wind_speed_filter(self._wind_filtered, speed, w["wind_cutoff"],
+                                                           -1.0 if h is None else h)
+            speed = self._wind_filtered
         lib.mb_wind_feedforward(*self._kernel, ffi.from_buffer("double[]", ref), ffi.from_buffer("double[]", base_pose),
-                                w["wind_drag"], w["wind_moment_arm"], w["wind_direction"], self.wind_speed,
+                                w["wind_drag"], w["wind_moment_arm"], w["wind_direction"], speed,
                                 w["wind_feedforward"], self._wind_ptr, self._wind_ptr + 6)
         return self._wind_out[6:]
+
+    def extra_state(self):
+        return self._wind_filtered   # the wind speed filter's state
+
+    def set_extra_state(self, extra):
+        self._wind_filtered = extra

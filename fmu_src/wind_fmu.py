@@ -110,7 +110,7 @@ class Wind(GuardedSlave):
         self.base_pose = self.vector("base_pose", 6, INPUT, [f"base, in {{W}}, {n}" for n in
                                                            ("x", "y", "z", "roll", "pitch", "yaw")], POSE_UNITS,
                                      start=BASE_POSE)   # the operating point
-        self.out = np.zeros(8)   # wrench (6), gust, anemometer speed
+        self.out = np.zeros(9)   # wrench (6), gust, anemometer speed, drag speed
         self.vector("platform_wrench", 6, OUTPUT,
                     [f"wind {n} on the platform at {{P}}'s origin, in {{B}}" for n in
                      ("force x", "force y", "force z", "moment x", "moment y", "moment z")],
@@ -120,6 +120,9 @@ class Wind(GuardedSlave):
                   getter=lambda: self.out.item(6))
         self.real("anemometer_speed", OUTPUT, "along-wind speed U + u_a the anemometer reads: its gust partly "
                   "coherent with the disc's, through its lag", "m/s", getter=lambda: self.out.item(7))
+        self.real("drag_speed", OUTPUT, "U + u_A, the speed whose drag the platform takes (the gust averaged over the "
+                  "drag area): what no instrument reads, a feedforward's upper bound", "m/s",
+                  getter=lambda: self.out.item(8))
 
     def initialize(self):
         self.model = gust_model(self.settings, self.spectrum, self.seed)
@@ -128,6 +131,7 @@ class Wind(GuardedSlave):
         self._gust = ffi.from_buffer("double[]", self.out[6:])
         self._time = ffi.new("double[1]")
         self._speed = ffi.from_buffer("double[]", self.out[7:])
+        self._drag_speed = ffi.from_buffer("double[]", self.out[8:])
         self._publish(0.0)
 
     def step(self, t, h):
@@ -138,3 +142,5 @@ class Wind(GuardedSlave):
             raise InvalidInputError("base pose input contains NaN or inf")
         self._time[0] = t
         lib.mb_wind_anemometer(self.model, 1, self._time, self._speed)
+        lib.mb_wind_area_gusts(self.model, 1, self._time, self._drag_speed)
+        self.out[8] += self.settings["mean_speed"]

@@ -18,6 +18,8 @@ static int publish(mb_instance *inst, double *r, Model *m, double t)
         return 1;
     }
     mb_wind_anemometer(&m->wind, 1, &t, &r[VR_anemometer_speed]);
+    mb_wind_area_gusts(&m->wind, 1, &t, &r[VR_drag_speed]);
+    r[VR_drag_speed] += m->wind.p.mean_speed;
     return 0;
 }
 

@@ -168,6 +168,12 @@ void mb_wind_drag(double drag, double moment_arm, double direction, double speed
     wrench[5] = 0.0;
 }
 
+double mb_wind_speed_filter(double state, double speed, double cutoff, double h)
+{
+    if (h < 0.0) return speed;
+    return state + (1.0 - exp(-TWO_PI * cutoff * h)) * (speed - state);
+}
+
 double mb_wind_feedforward(const double *base_joints, const double *platform_joints, const double *data,
                            const double *pose, const double *base_pose, double drag, double moment_arm,
                            double direction, double speed, double gain, double *wrench, double *forces)

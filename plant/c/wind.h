@@ -121,6 +121,10 @@ void mb_wind_anemometer(const mb_wind *w, int n, const double *t, double *speed)
 void mb_wind_drag(double drag, double moment_arm, double direction, double speed, const double *base_pose,
                   double *wrench);
 
+/* One step h (s) of a first-order low-pass at cutoff (Hz) from its state to the speed
+   (h < 0: the filter starts at the speed). Returns the new state. */
+double mb_wind_speed_filter(double state, double speed, double cutoff, double h);
+
 /* Wind feedforward: the leg forces (6, N) that hold the drag wrench of the measured speed
    at the platform pose `pose` (in {B}): J^T F = -gain W, J the leg Jacobian at `pose`
    (rows s, rho x s). Writes the predicted wrench W (6) and forces; returns det J (0: singular,

@@ -52,3 +52,26 @@ def test_off_by_default_whatever_the_speed(fmus, native):
 def test_nan_wind_speed_discards(fmus, native):
     text = _stepping_failure(fmus, native, "leg_controller_fmu", {"wind_feedforward": 1.0}, {"wind_speed": math.nan})
     assert text == "InvalidInputError at t=0 s: wind_speed input contains NaN or inf"
+
+
+def test_low_pass_follows_a_speed_step_as_the_first_order_response(fmus, native):
+    """wind_cutoff: the speed steps from 12 to 6 m/s after initialization; n steps later the
+    forces are those of 6 + 6 exp(-2 pi f_c n h) m/s (exact for a speed held over each step)."""
+    cutoff, h, n = 2.0, 1e-3, 40
+    got = []
+    for paths in (fmus, native):
+        inst, status = opened(paths["leg_controller_fmu"], feedforward=0, wind_feedforward=1.0, wind_cutoff=cutoff,
+                              wind_speed=12.0, **WIND)
+        assert status == OK, inst.log
+        for k, v in enumerate(BASE):
+            inst.set(f"base_pose[{k + 1}]", v)
+        inst.set("wind_speed", 6.0)
+        for k in range(n):
+            assert step(inst, k * h, h) == OK, inst.log
+        got.append(reals(inst, FF))
+        pose = np.array([inst.get_real(f"reference_pose[{k}]") for k in range(1, 7)])
+    speed = 6.0 + 6.0 * np.exp(-2 * np.pi * cutoff * n * h)
+    w = drag_wrench(WIND["wind_drag"], WIND["wind_moment_arm"], WIND["wind_direction"], speed, np.array(BASE))
+    expected = -np.linalg.solve(jacobian(StewartParams.paper(), pose).T, w)
+    assert np.allclose(got[0], expected, rtol=1e-9)
+    assert np.allclose(got[1], got[0], rtol=1e-12, atol=1e-9)
