@@ -128,19 +128,12 @@ class Wind(GuardedSlave):
         self.model = gust_model(self.settings, self.spectrum, self.seed)
         self._pose = ffi.from_buffer("double[]", self.base_pose)
         self._wrench = ffi.from_buffer("double[]", self.out)
-        self._gust = ffi.from_buffer("double[]", self.out[6:])
-        self._time = ffi.new("double[1]")
-        self._speed = ffi.from_buffer("double[]", self.out[7:])
-        self._drag_speed = ffi.from_buffer("double[]", self.out[8:])
+        self._speeds = ffi.from_buffer("double[]", self.out[6:])   # gust, anemometer speed, drag speed
         self._publish(0.0)
 
     def step(self, t, h):
         self._publish(t + h)
 
     def _publish(self, t):
-        if lib.mb_wind_wrench(self.model, t, self._pose, self._wrench, self._gust):
+        if lib.mb_wind_sample(self.model, t, self._pose, self._wrench, self._speeds):
             raise InvalidInputError("base pose input contains NaN or inf")
-        self._time[0] = t
-        lib.mb_wind_anemometer(self.model, 1, self._time, self._speed)
-        lib.mb_wind_area_gusts(self.model, 1, self._time, self._drag_speed)
-        self.out[8] += self.settings["mean_speed"]

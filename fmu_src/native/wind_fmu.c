@@ -13,13 +13,14 @@ typedef struct {
 
 static int publish(mb_instance *inst, double *r, Model *m, double t)
 {
-    if (mb_wind_wrench(&m->wind, t, &r[VR_base_pose], &r[VR_platform_wrench], &r[VR_gust])) {
+    double speeds[3];
+    if (mb_wind_sample(&m->wind, t, &r[VR_base_pose], &r[VR_platform_wrench], speeds)) {
         mb_error(inst, "InvalidInputError", "base pose input contains NaN or inf");
         return 1;
     }
-    mb_wind_anemometer(&m->wind, 1, &t, &r[VR_anemometer_speed]);
-    mb_wind_area_gusts(&m->wind, 1, &t, &r[VR_drag_speed]);
-    r[VR_drag_speed] += m->wind.p.mean_speed;
+    r[VR_gust] = speeds[0];
+    r[VR_anemometer_speed] = speeds[1];
+    r[VR_drag_speed] = speeds[2];
     return 0;
 }
 

@@ -42,23 +42,24 @@ double mb_wind_cumulative(const mb_wind *w, double f)
     return sigma * sigma * (1.0 - above(w, f));
 }
 
-/* The anemometer's components (wind.h): the independent phases psi_k drawn last. */
+/* The anemometer's components (wind.h), relative to the drag gust's phase phi_k so that one
+   cos and sin of omega_k t + phi_k give both: the independent phases psi_k drawn last. */
 static void anemometer(mb_wind *w, mb_rng *rng)
 {
     const mb_wind_params *p = &w->p;
     double d = hypot(p->anemometer_distance, p->anemometer_upstream);
     for (int k = 0; k < N_COMPONENTS; k++) {
-        double omega = w->omega[k], psi = TWO_PI * mb_rng_uniform(rng);
+        double omega = w->omega[k], psi = TWO_PI * mb_rng_uniform(rng) - w->phase[k];
         double gamma = 1.0, lead = 0.0;
         if (p->mean_speed > 0.0) {
             gamma = exp(-p->coherence_decay * omega / TWO_PI * d / p->mean_speed);
             lead = omega * p->anemometer_upstream / p->mean_speed;
         }
         double wt = omega * p->anemometer_time_constant, rest = sqrt(1.0 - gamma * gamma);
-        double re = gamma * cos(w->phase[k] + lead) + rest * cos(psi);
-        double im = gamma * sin(w->phase[k] + lead) + rest * sin(psi);
-        w->anemometer_amplitude[k] = w->amplitude[k] * hypot(re, im) / sqrt(1.0 + wt * wt);
-        w->anemometer_phase[k] = atan2(im, re) - atan(wt);
+        double re = gamma * cos(lead) + rest * cos(psi), im = gamma * sin(lead) + rest * sin(psi);
+        double m = w->amplitude[k] * hypot(re, im) / sqrt(1.0 + wt * wt), delta = atan2(im, re) - atan(wt);
+        w->anemometer_cos[k] = m * cos(delta);
+        w->anemometer_sin[k] = m * sin(delta);
     }
 }
 
@@ -113,6 +114,22 @@ static void gust(const mb_wind *w, double t, double *u, double *u_area)
     *u_area = b;
 }
 
+/* gust() and the anemometer's gust u_a from the same angles: m_k cos(x + delta_k) =
+   c_k cos x - s_k sin x. */
+static void gust_and_anemometer(const mb_wind *w, double t, double *u, double *u_area, double *u_anemometer)
+{
+    double a = 0.0, b = 0.0, e = 0.0;
+    for (int k = 0; k < N_COMPONENTS; k++) {
+        double x = w->omega[k] * t + w->phase[k], c = cos(x), s = sin(x);
+        a += w->amplitude[k] * c;
+        b += w->area_amplitude[k] * c;
+        e += w->anemometer_cos[k] * c - w->anemometer_sin[k] * s;
+    }
+    *u = a;
+    *u_area = b;
+    *u_anemometer = e;
+}
+
 void mb_wind_gusts(const mb_wind *w, int n, const double *t, double *u)
 {
     double ignored;
@@ -129,12 +146,25 @@ void mb_wind_area_gusts(const mb_wind *w, int n, const double *t, double *u)
 
 void mb_wind_anemometer(const mb_wind *w, int n, const double *t, double *speed)
 {
+    double u, u_area, u_anemometer;
     for (int i = 0; i < n; i++) {
-        double a = w->p.mean_speed;
-        for (int k = 0; k < N_COMPONENTS; k++)
-            a += w->anemometer_amplitude[k] * cos(w->omega[k] * t[i] + w->anemometer_phase[k]);
-        speed[i] = a;
+        gust_and_anemometer(w, t[i], &u, &u_area, &u_anemometer);
+        speed[i] = w->p.mean_speed + u_anemometer;
     }
+}
+
+int mb_wind_sample(const mb_wind *w, double t, const double *base_pose, double *wrench, double *speeds)
+{
+    for (int k = 0; k < 6; k++)
+        if (!isfinite(base_pose[k])) return MB_WIND_NONFINITE;
+    double u, u_area, u_anemometer;
+    gust_and_anemometer(w, t, &u, &u_area, &u_anemometer);
+    double drag = 0.5 * w->p.air_density * w->p.drag_coefficient * w->p.drag_area;
+    mb_wind_drag(drag, w->p.moment_arm, w->p.direction, w->p.mean_speed + u_area, base_pose, wrench);
+    speeds[0] = u;
+    speeds[1] = w->p.mean_speed + u_anemometer;
+    speeds[2] = w->p.mean_speed + u_area;
+    return MB_WIND_OK;
 }
 
 int mb_wind_wrench(const mb_wind *w, double t, const double *base_pose, double *wrench, double *gust_out)

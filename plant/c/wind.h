@@ -44,7 +44,8 @@
    and Taylor's frozen-turbulence lead of upstream / U. The lag is applied per component,
    exactly: amplitude 1 / sqrt(1 + (omega tau)^2), phase -atan(omega tau). The two
    cosines of a component share omega, so they are summed into one (amplitude, phase):
-       u_a(t) = sum_k m_k cos(omega_k t + theta_k),   no state.
+       u_a(t) = sum_k m_k cos(omega_k t + theta_k),   no state,
+   evaluated from the drag gust's angle omega_k t + phi_k (one sin and cos for both).
    The coherence of u_a with the point gust u and with the area-averaged u_A (the same
    phases phi_k) is gamma(f)^2. psi_k are drawn after every other draw of the seed, so u,
    u_A and the wrench are those of the same seed without the anemometer. */
@@ -83,8 +84,8 @@ typedef struct {
     double amplitude[256]; /* m/s, of the point gust u */
     double area_amplitude[256]; /* m/s, of the area-averaged gust u_A (chi(f) amplitude) */
     double phase[256];     /* rad */
-    double anemometer_amplitude[256]; /* m/s, m_k of the anemometer's lagged gust u_a */
-    double anemometer_phase[256];     /* rad, theta_k */
+    double anemometer_cos[256]; /* m/s, m_k cos(theta_k - phi_k) of the anemometer's lagged gust u_a */
+    double anemometer_sin[256]; /* m/s, m_k sin(theta_k - phi_k) */
 } mb_wind;
 
 /* A sentence naming the problem of a status. */
@@ -113,6 +114,11 @@ int mb_wind_wrench(const mb_wind *w, double t, const double *base_pose, double *
 
 /* The anemometer's reading U + u_a (m/s) at the n times t. */
 void mb_wind_anemometer(const mb_wind *w, int n, const double *t, double *speed);
+
+/* mb_wind_wrench and, from the same angles (one pass), speeds (3) = the point gust u, the
+   anemometer's reading U + u_a and the speed the drag sees U + u_A (m/s): what the Wind
+   FMUs publish each step. */
+int mb_wind_sample(const mb_wind *w, double t, const double *base_pose, double *wrench, double *speeds);
 
 /* The quasi-steady drag wrench (as mb_wind_wrench's, in {B}) of the air speed `speed`
    (m/s) with drag = 0.5 rho Cd A (kg/m), the moment arm (m) and the wind's azimuth

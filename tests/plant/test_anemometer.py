@@ -143,7 +143,10 @@ def test_older_outputs_are_bit_for_bit_those_before_the_anemometer():
             m = gust_model(DEFAULTS, spectrum, seed)
             assert np.array_equal(gusts(m, g["times"]), g[key + "_gust"])
             assert np.array_equal(gusts(m, g["times"], area=True), g[key + "_area"])
-            w, u = np.empty(6), np.empty(1)
-            for t, row in zip(g["times"], g[key + "_wrench"]):
+            w, u, speeds = np.empty(6), np.empty(1), np.empty(3)
+            for t, row, gust, area in zip(g["times"], g[key + "_wrench"], g[key + "_gust"], g[key + "_area"]):
                 lib.mb_wind_wrench(m, t, pose, ffi.from_buffer("double[]", w), ffi.from_buffer("double[]", u))
                 assert np.array_equal(w, row)
+                # the FMUs' one-pass sample (the anemometer from the same angles) changes none of them
+                lib.mb_wind_sample(m, t, pose, ffi.from_buffer("double[]", w), ffi.from_buffer("double[]", speeds))
+                assert np.array_equal(w, row) and speeds[0] == gust and speeds[2] == DEFAULTS["mean_speed"] + area
