@@ -45,7 +45,7 @@ FMUS = (
         "base_rate": "base_pose", "base_acc": "base_rate", "reference_rate": "reference_pose",
         "reference_acc": "reference_rate", "axis_rate": "axis", "axis_acc": "axis_rate",
         "command_base_rate": "command_base_pose", "command_base_acc": "command_base_rate"}),
-    FMU("leg_controller", constants="leg_controller"),
+    FMU("leg_controller", constants="leg_controller", optional_inputs=("wind_speed",)),
     FMU("mechanism3t_plant", constants="mechanism3t"),
     FMU("slider_controller", constants="mechanism3t"),
     FMU("leg_sensor"),

@@ -16,6 +16,8 @@ from controller.feedforward import FEEDFORWARD_MODES, Feedforward
 from controller.pid import PIDGains, pid_update
 from fmu_src.operating_point import BASE_POSE
 from fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
+from fmu_src.wind_fmu import DEFAULTS as WIND
+from plant._kernel import ffi, lib
 from plant.errors import InvalidInputError
 from plant.hexapod.model import StewartParams
 
@@ -54,12 +56,37 @@ class LegController(GuardedSlave):
         self.forces = self.vector("leg_force", 6, OUTPUT, "commanded actuator force, + extends", "N")
         self.integral = self.vector("integral", 6, OUTPUT, "integral of the leg-length error", "m.s")
         self.feedforward_force = self.vector("feedforward_force", 6, OUTPUT, "model feedforward part of leg_force", "N")
+        self._wind_variables()
+
+    def _wind_variables(self):
+        """Wind feedforward (plant/c/wind.h mb_wind_feedforward): the drag of the measured wind
+        speed, by the controller's own drag model, held by the legs at the reference pose."""
+        drag = 0.5 * WIND["air_density"] * WIND["drag_coefficient"] * WIND["drag_area"]
+        self.wind = self.parameters((
+            ("wind_feedforward", "1", 0.0, "gain of the wind feedforward (0 = off; 1 = the whole predicted drag)",
+             (0.0, 2.0)),
+            ("wind_drag", "kg/m", drag, "the controller's 0.5 rho Cd A of the subreflector (assumed the Wind "
+             "FMU's defaults: 1.225 kg/m3, Cd 1.2, a 6.5 m disc)", (0.0, 1e4)),
+            ("wind_moment_arm", "m", WIND["moment_arm"], "the controller's centre of pressure along {B}'s z from "
+             "{P}'s origin (assumed 1 m, as the Wind FMU's)", (-50.0, 50.0)),
+            ("wind_direction", "rad", WIND["direction"], "the controller's azimuth the wind comes from (assumed "
+             "known, e.g. from a vane)", (-2 * np.pi, 2 * np.pi)),
+            ("wind_cutoff", "1/s", 0.0, "first-order low-pass of the measured speed, Hz (0 = none): keeps the "
+             "gusts the anemometer shares with the disc (design choice)", (0.0, 1e3)),
+        ))
+        self.wind_speed = 0.0
+        self.real("wind_speed", INPUT, "measured along-wind speed (an anemometer); read when wind_feedforward > 0",
+                  "m/s")
 
     def initialize(self):
         self.params = StewartParams.paper()
         self.pid = PIDGains(**self.gains)
         self.feedforward_model = Feedforward(self.params, FEEDFORWARD_MODES[self.feedforward])
         self.saturated = False
+        self._kernel = self.params.kernel.params
+        self._wind_out = np.zeros(12)   # predicted wrench, leg forces
+        self._wind_ptr = ffi.from_buffer("double[]", self._wind_out)
+        self._wind_filtered = self.wind_speed
         self._update(None)
 
     def step(self, t, h):
@@ -79,9 +106,31 @@ class LegController(GuardedSlave):
             raise InvalidInputError(f"{', '.join(bad)} input contains NaN or inf")
         ref, ref_rate, ref_acc, lengths, rates, *base = self.input_rows
         ff, ref_lengths, ref_rates = self.feedforward_model(ref, ref_rate, ref_acc, *base)
+        if self.wind["wind_feedforward"]:
+            ff = ff + self._wind_forces(ref, base[0], h)
         if h is None:   # initialization: the feedforward alone, integral untouched
             self.forces[:] = ff
         else:
             self.forces[:], self.integral[:] = pid_update(self.pid, self.integral, ref_lengths - lengths,
                                                           ref_rates - rates, ff, h)
         self.feedforward_force[:] = ff
+
+    def _wind_forces(self, ref, base_pose, h):
+        if not np.isfinite(self.wind_speed):
+            raise InvalidInputError("wind_speed input contains NaN or inf")
+        w = self.wind
+        speed = self.wind_speed
+        if w["wind_cutoff"] > 0.0:
+            self._wind_filtered = lib.mb_wind_speed_filter(self._wind_filtered, speed, w["wind_cutoff"],
+                                                           -1.0 if h is None else h)
+            speed = self._wind_filtered
+        lib.mb_wind_feedforward(*self._kernel, ffi.from_buffer("double[]", ref), ffi.from_buffer("double[]", base_pose),
+                                w["wind_drag"], w["wind_moment_arm"], w["wind_direction"], speed,
+                                w["wind_feedforward"], self._wind_ptr, self._wind_ptr + 6)
+        return self._wind_out[6:]
+
+    def extra_state(self):
+        return self._wind_filtered   # the wind speed filter's state
+
+    def set_extra_state(self, extra):
+        self._wind_filtered = extra

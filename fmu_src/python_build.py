@@ -41,7 +41,8 @@ _BASE = {"m": {"m": "1"}, "rad": {"rad": "1"}, "s": {"s": "1"}, "N": {"kg": "1",
          "rad/s2": {"rad": "1", "s": "-2"}, "N/m": {"kg": "1", "s": "-2"},
          "N/(m.s)": {"kg": "1", "s": "-3"}, "N.s/m": {"kg": "1", "s": "-1"}, "m.s": {"m": "1", "s": "1"},
          "1/s": {"s": "-1"},
-         "m2": {"m": "2"}, "kg/m3": {"kg": "1", "m": "-3"}, "N.m": {"kg": "1", "m": "2", "s": "-2"},
+         "m2": {"m": "2"}, "kg/m3": {"kg": "1", "m": "-3"}, "kg/m": {"kg": "1", "m": "-1"},
+         "N.m": {"kg": "1", "m": "2", "s": "-2"},
          # noise densities: s^(-1/2), which FMI's integer BaseUnit exponents cannot say (no BaseUnit)
          "rad/s/sqrt(Hz)": None, "m/s2/sqrt(Hz)": None, "1": {}}   # "1": dimensionless
 _DISPLAY = {"m": ("mm", 1e3), "rad": ("deg", 57.29577951308232), "m/s": ("mm/s", 1e3),

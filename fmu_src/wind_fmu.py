@@ -15,6 +15,11 @@ own figure not found in public sources) -> drag area pi 6.5^2 / 4 = 33.2 m2; Cd 
 a flat disc's (a concave subreflector face-on lies near it); the subreflector 60 m above
 ground (the antenna is 70 m high); turbulence intensity 0.15 (open country at that
 height); the centre of pressure 1 m from the platform's origin along z.
+
+The anemometer (output anemometer_speed, what a wind feedforward reads; Tianma carries one on
+its subreflector, ICCT 2017): assumed on the subreflector's rim, 3.25 m across the wind from
+the centre, a cup anemometer of ~2.5 m distance constant (0.25 s at 10 m/s; IEC 61400-12-1
+class cups have 1.5-5 m), Davenport's C = 8 (7-10 across the wind; Simiu and Scanlan).
 """
 import numpy as np
 
@@ -25,11 +30,13 @@ from plant.errors import InvalidInputError
 
 SPECTRA = ("kaimal", "davenport")
 SETTINGS = ("mean_speed", "turbulence_intensity", "length_scale", "height", "air_density", "drag_coefficient",
-            "drag_area", "moment_arm", "direction")
+            "drag_area", "moment_arm", "direction", "anemometer_distance", "anemometer_upstream",
+            "anemometer_time_constant", "coherence_decay")
 SUBREFLECTOR_DIAMETER = 6.5   # m (assumed)
 DEFAULTS = {"mean_speed": 10.0, "turbulence_intensity": 0.15, "length_scale": 0.0, "height": 60.0,
             "air_density": 1.225, "drag_coefficient": 1.2, "drag_area": np.pi * SUBREFLECTOR_DIAMETER ** 2 / 4,
-            "moment_arm": 1.0, "direction": 0.0}
+            "moment_arm": 1.0, "direction": 0.0, "anemometer_distance": SUBREFLECTOR_DIAMETER / 2,
+            "anemometer_upstream": 0.0, "anemometer_time_constant": 0.25, "coherence_decay": 8.0}
 
 
 def gust_model(settings, spectrum=0, seed=0):
@@ -51,6 +58,14 @@ def gusts(model, times, area=False):
     out = np.empty_like(times)
     f = lib.mb_wind_area_gusts if area else lib.mb_wind_gusts
     f(model, times.size, ffi.from_buffer("double[]", times), ffi.from_buffer("double[]", out))
+    return out
+
+
+def anemometer_speeds(model, times):
+    """The anemometer's reading U + u_a (m/s) at the given times."""
+    times = np.ascontiguousarray(times, dtype=float)
+    out = np.empty_like(times)
+    lib.mb_wind_anemometer(model, times.size, ffi.from_buffer("double[]", times), ffi.from_buffer("double[]", out))
     return out
 
 
@@ -79,13 +94,23 @@ class Wind(GuardedSlave):
              (-50.0, 50.0)),
             ("direction", "rad", d["direction"], "astronomical azimuth the wind comes from (north through east)",
              (-2 * np.pi, 2 * np.pi)),
+            ("anemometer_distance", "m", d["anemometer_distance"], "anemometer's distance across the wind from the "
+             "subreflector's centre (assumed 3.25 m: on the rim of the 6.5 m disc)", (0.0, 1e3)),
+            ("anemometer_upstream", "m", d["anemometer_upstream"], "anemometer's distance up the wind from the "
+             "centre, e.g. on a mast (assumed 0; it leads the gust by upstream / U, Taylor's frozen turbulence)",
+             (-1e3, 1e3)),
+            ("anemometer_time_constant", "s", d["anemometer_time_constant"], "anemometer's first-order lag (assumed "
+             "0.25 s: a cup anemometer of 2.5 m distance constant at 10 m/s; a sonic one ~0)", (0.0, 100.0)),
+            ("coherence_decay", "1", d["coherence_decay"], "Davenport's decay C of the gust's root-coherence "
+             "exp(-C f d / U) between anemometer and disc (assumed 8: 7-10 across the wind, Simiu and Scanlan)",
+             (0.0, 100.0)),
         ))
         self.enumeration("spectrum", "gust spectrum", SPECTRA, 0)
         self.integer("seed", "seed of the gust's random phases and frequencies", 0, (0, 2 ** 31 - 1))
         self.base_pose = self.vector("base_pose", 6, INPUT, [f"base, in {{W}}, {n}" for n in
                                                            ("x", "y", "z", "roll", "pitch", "yaw")], POSE_UNITS,
                                      start=BASE_POSE)   # the operating point
-        self.out = np.zeros(7)   # wrench (6), gust
+        self.out = np.zeros(9)   # wrench (6), gust, anemometer speed, drag speed
         self.vector("platform_wrench", 6, OUTPUT,
                     [f"wind {n} on the platform at {{P}}'s origin, in {{B}}" for n in
                      ("force x", "force y", "force z", "moment x", "moment y", "moment z")],
@@ -93,17 +118,22 @@ class Wind(GuardedSlave):
         self.real("gust", OUTPUT, "along-wind gust u at a point (the wind speed is U + u; the drag sees it averaged "
                   "over the drag area)", "m/s",
                   getter=lambda: self.out.item(6))
+        self.real("anemometer_speed", OUTPUT, "along-wind speed U + u_a the anemometer reads: its gust partly "
+                  "coherent with the disc's, through its lag", "m/s", getter=lambda: self.out.item(7))
+        self.real("drag_speed", OUTPUT, "U + u_A, the speed whose drag the platform takes (the gust averaged over the "
+                  "drag area): what no instrument reads, a feedforward's upper bound", "m/s",
+                  getter=lambda: self.out.item(8))
 
     def initialize(self):
         self.model = gust_model(self.settings, self.spectrum, self.seed)
         self._pose = ffi.from_buffer("double[]", self.base_pose)
         self._wrench = ffi.from_buffer("double[]", self.out)
-        self._gust = ffi.from_buffer("double[]", self.out[6:])
+        self._speeds = ffi.from_buffer("double[]", self.out[6:])   # gust, anemometer speed, drag speed
         self._publish(0.0)
 
     def step(self, t, h):
         self._publish(t + h)
 
     def _publish(self, t):
-        if lib.mb_wind_wrench(self.model, t, self._pose, self._wrench, self._gust):
+        if lib.mb_wind_sample(self.model, t, self._pose, self._wrench, self._speeds):
             raise InvalidInputError("base pose input contains NaN or inf")

@@ -10,13 +10,32 @@
 #include "LegController_vars.h"
 #include "hexapod.h"
 #include "pid.h"
+#include "wind.h"
 
 typedef struct {
     int base_mode, legs, feedforward_on, saturated;
+    double wind_filtered;   /* the wind speed filter's state */
 } Model;
 
 static const char *const INPUT_NAMES[8] = {"reference_pose", "reference_rate", "reference_acc", "leg_length",
                                            "leg_rate", "base_pose", "base_rate", "base_acc"};
+
+/* Wind feedforward (mb_wind_feedforward): the legs' hold of the measured speed's drag, added to ff. */
+static int wind_forces(mb_instance *inst, const double *r, Model *m, const double *ref, const double *base,
+                       double h, double *ff)
+{
+    double speed = r[VR_wind_speed], wrench[6], forces[6];
+    if (!isfinite(speed)) {
+        mb_error(inst, "InvalidInputError", "wind_speed input contains NaN or inf");
+        return 1;
+    }
+    if (r[VR_wind_cutoff] > 0.0)
+        speed = m->wind_filtered = mb_wind_speed_filter(m->wind_filtered, speed, r[VR_wind_cutoff], h);
+    mb_wind_feedforward(BASE_JOINTS, PLATFORM_JOINTS, KERNEL_DATA, ref, base, r[VR_wind_drag], r[VR_wind_moment_arm],
+                        r[VR_wind_direction], speed, r[VR_wind_feedforward], wrench, forces);
+    for (int k = 0; k < 6; k++) ff[k] += forces[k];
+    return 0;
+}
 
 /* Forces from the inputs now; the integral advances only on a real step (h > 0 given). */
 static int update(mb_instance *inst, double *r, Model *m, int stepping, double h)
@@ -39,6 +58,7 @@ static int update(mb_instance *inst, double *r, Model *m, int stepping, double h
         return 1;
     }
     if (!m->feedforward_on) memset(ff, 0, sizeof ff);
+    if (r[VR_wind_feedforward] != 0.0 && wind_forces(inst, r, m, ref, base, stepping ? h : -1.0, ff)) return 1;
     double *forces = &r[VR_leg_force], *integral = &r[VR_integral];
     if (!stepping) {
         memcpy(forces, ff, sizeof ff);

@@ -13,10 +13,14 @@ typedef struct {
 
 static int publish(mb_instance *inst, double *r, Model *m, double t)
 {
-    if (mb_wind_wrench(&m->wind, t, &r[VR_base_pose], &r[VR_platform_wrench], &r[VR_gust])) {
+    double speeds[3];
+    if (mb_wind_sample(&m->wind, t, &r[VR_base_pose], &r[VR_platform_wrench], speeds)) {
         mb_error(inst, "InvalidInputError", "base pose input contains NaN or inf");
         return 1;
     }
+    r[VR_gust] = speeds[0];
+    r[VR_anemometer_speed] = speeds[1];
+    r[VR_drag_speed] = speeds[2];
     return 0;
 }
 
@@ -35,6 +39,10 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     p.drag_area = r[VR_drag_area];
     p.moment_arm = r[VR_moment_arm];
     p.direction = r[VR_direction];
+    p.anemometer_distance = r[VR_anemometer_distance];
+    p.anemometer_upstream = r[VR_anemometer_upstream];
+    p.anemometer_time_constant = r[VR_anemometer_time_constant];
+    p.coherence_decay = r[VR_coherence_decay];
     p.spectrum = i[VR_spectrum];
     int status = mb_wind_init(&m->wind, &p, (unsigned long long)i[VR_seed]);
     if (status) {

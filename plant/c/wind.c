@@ -1,6 +1,9 @@
 /* The gust and drag wrench of plant/c/wind.h. */
 #include <math.h>
+#include <stddef.h>
 
+#include "hexapod.h"
+#include "linalg.h"
 #include "random.h"
 #include "wind.h"
 
@@ -39,10 +42,31 @@ double mb_wind_cumulative(const mb_wind *w, double f)
     return sigma * sigma * (1.0 - above(w, f));
 }
 
+/* The anemometer's components (wind.h), relative to the drag gust's phase phi_k so that one
+   cos and sin of omega_k t + phi_k give both: the independent phases psi_k drawn last. */
+static void anemometer(mb_wind *w, mb_rng *rng)
+{
+    const mb_wind_params *p = &w->p;
+    double d = hypot(p->anemometer_distance, p->anemometer_upstream);
+    for (int k = 0; k < N_COMPONENTS; k++) {
+        double omega = w->omega[k], psi = TWO_PI * mb_rng_uniform(rng) - w->phase[k];
+        double gamma = 1.0, lead = 0.0;
+        if (p->mean_speed > 0.0) {
+            gamma = exp(-p->coherence_decay * omega / TWO_PI * d / p->mean_speed);
+            lead = omega * p->anemometer_upstream / p->mean_speed;
+        }
+        double wt = omega * p->anemometer_time_constant, rest = sqrt(1.0 - gamma * gamma);
+        double re = gamma * cos(lead) + rest * cos(psi), im = gamma * sin(lead) + rest * sin(psi);
+        double m = w->amplitude[k] * hypot(re, im) / sqrt(1.0 + wt * wt), delta = atan2(im, re) - atan(wt);
+        w->anemometer_cos[k] = m * cos(delta);
+        w->anemometer_sin[k] = m * sin(delta);
+    }
+}
+
 int mb_wind_init(mb_wind *w, const mb_wind_params *p, unsigned long long seed)
 {
     const double *values = &p->mean_speed;
-    for (int k = 0; k < 9; k++)   /* the nine doubles of mb_wind_params, in order */
+    for (int k = 0; k < 13; k++)   /* the 13 doubles of mb_wind_params, in order */
         if (!isfinite(values[k])) return MB_WIND_NONFINITE;
     if (p->spectrum != MB_WIND_KAIMAL && p->spectrum != MB_WIND_DAVENPORT) return MB_WIND_BAD_SPECTRUM;
     w->p = *p;
@@ -73,6 +97,7 @@ int mb_wind_init(mb_wind *w, const mb_wind_params *p, unsigned long long seed)
         low = high;
         above_low = above_high;
     }
+    anemometer(w, &rng);
     return MB_WIND_OK;
 }
 
@@ -89,6 +114,22 @@ static void gust(const mb_wind *w, double t, double *u, double *u_area)
     *u_area = b;
 }
 
+/* gust() and the anemometer's gust u_a from the same angles: m_k cos(x + delta_k) =
+   c_k cos x - s_k sin x. */
+static void gust_and_anemometer(const mb_wind *w, double t, double *u, double *u_area, double *u_anemometer)
+{
+    double a = 0.0, b = 0.0, e = 0.0;
+    for (int k = 0; k < N_COMPONENTS; k++) {
+        double x = w->omega[k] * t + w->phase[k], c = cos(x), s = sin(x);
+        a += w->amplitude[k] * c;
+        b += w->area_amplitude[k] * c;
+        e += w->anemometer_cos[k] * c - w->anemometer_sin[k] * s;
+    }
+    *u = a;
+    *u_area = b;
+    *u_anemometer = e;
+}
+
 void mb_wind_gusts(const mb_wind *w, int n, const double *t, double *u)
 {
     double ignored;
@@ -103,16 +144,47 @@ void mb_wind_area_gusts(const mb_wind *w, int n, const double *t, double *u)
         gust(w, t[i], &ignored, &u[i]);
 }
 
+void mb_wind_anemometer(const mb_wind *w, int n, const double *t, double *speed)
+{
+    double u, u_area, u_anemometer;
+    for (int i = 0; i < n; i++) {
+        gust_and_anemometer(w, t[i], &u, &u_area, &u_anemometer);
+        speed[i] = w->p.mean_speed + u_anemometer;
+    }
+}
+
+int mb_wind_sample(const mb_wind *w, double t, const double *base_pose, double *wrench, double *speeds)
+{
+    for (int k = 0; k < 6; k++)
+        if (!isfinite(base_pose[k])) return MB_WIND_NONFINITE;
+    double u, u_area, u_anemometer;
+    gust_and_anemometer(w, t, &u, &u_area, &u_anemometer);
+    double drag = 0.5 * w->p.air_density * w->p.drag_coefficient * w->p.drag_area;
+    mb_wind_drag(drag, w->p.moment_arm, w->p.direction, w->p.mean_speed + u_area, base_pose, wrench);
+    speeds[0] = u;
+    speeds[1] = w->p.mean_speed + u_anemometer;
+    speeds[2] = w->p.mean_speed + u_area;
+    return MB_WIND_OK;
+}
+
 int mb_wind_wrench(const mb_wind *w, double t, const double *base_pose, double *wrench, double *gust_out)
 {
     for (int k = 0; k < 6; k++)
         if (!isfinite(base_pose[k])) return MB_WIND_NONFINITE;
     double u, u_area;
     gust(w, t, &u, &u_area);
-    double speed = w->p.mean_speed + u_area;
-    double force = 0.5 * w->p.air_density * w->p.drag_coefficient * w->p.drag_area * speed * fabs(speed);
+    double drag = 0.5 * w->p.air_density * w->p.drag_coefficient * w->p.drag_area;
+    mb_wind_drag(drag, w->p.moment_arm, w->p.direction, w->p.mean_speed + u_area, base_pose, wrench);
+    *gust_out = u;
+    return MB_WIND_OK;
+}
+
+void mb_wind_drag(double drag, double moment_arm, double direction, double speed, const double *base_pose,
+                  double *wrench)
+{
+    double force = drag * speed * fabs(speed);
     /* the wind comes from azimuth `direction`: it blows towards -(sin, cos, 0) in {W} */
-    double fw[3] = {-force * sin(w->p.direction), -force * cos(w->p.direction), 0.0};
+    double fw[3] = {-force * sin(direction), -force * cos(direction), 0.0};
     double cr = cos(base_pose[3]), sr = sin(base_pose[3]);
     double cp = cos(base_pose[4]), sp = sin(base_pose[4]);
     double cy = cos(base_pose[5]), sy = sin(base_pose[5]);
@@ -121,10 +193,29 @@ int mb_wind_wrench(const mb_wind *w, double t, const double *base_pose, double *
                    -sp, cp * sr, cp * cr};   /* R_WB, rows */
     for (int i = 0; i < 3; i++)   /* F_B = R_WB^T F_W */
         wrench[i] = R[i] * fw[0] + R[3 + i] * fw[1] + R[6 + i] * fw[2];
-    double a = w->p.moment_arm;
-    wrench[3] = -a * wrench[1];   /* (0, 0, a) x F */
-    wrench[4] = a * wrench[0];
+    wrench[3] = -moment_arm * wrench[1];   /* (0, 0, a) x F */
+    wrench[4] = moment_arm * wrench[0];
     wrench[5] = 0.0;
-    *gust_out = u;
-    return MB_WIND_OK;
+}
+
+double mb_wind_speed_filter(double state, double speed, double cutoff, double h)
+{
+    if (h < 0.0) return speed;
+    return state + (1.0 - exp(-TWO_PI * cutoff * h)) * (speed - state);
+}
+
+double mb_wind_feedforward(const double *base_joints, const double *platform_joints, const double *data,
+                           const double *pose, const double *base_pose, double drag, double moment_arm,
+                           double direction, double speed, double gain, double *wrench, double *forces)
+{
+    static const double zero[6] = {0.0};
+    double M[36], h[6], J[36], ldot[6], length[6], det, JT[36], b[6];
+    mb_wind_drag(drag, moment_arm, direction, speed, base_pose, wrench);
+    mb_hexapod_kane(base_joints, platform_joints, data, 1, pose, zero, zero, NULL, NULL, NULL,
+                    MB_HEXAPOD_BASE_NONE, 0, 1, MB_HEXAPOD_TERMS, M, h, J, ldot, length, NULL, &det);
+    for (int i = 0; i < 6; i++) {
+        b[i] = -gain * wrench[i];
+        for (int j = 0; j < 6; j++) JT[6 * i + j] = J[6 * j + i];
+    }
+    return mb_solve6(JT, b, forces);
 }

@@ -32,7 +32,23 @@
    R_WB = Rz(yaw) Ry(pitch) Rx(roll). Moment about {P}'s origin from a centre of pressure
    at moment_arm along {B}'s z (the platform's attitude relative to the base,
    micro-radians, is neglected):
-       M = (0, 0, moment_arm) x F. */
+       M = (0, 0, moment_arm) x F.
+
+   Anemometer: the along-wind speed U + u_a(t) at a point `anemometer_distance` across the
+   wind from the disc's centre and `anemometer_upstream` up the wind, through a first-order
+   sensor lag of time constant tau. Per component, u_a keeps the drag gust's phase with
+   weight gamma_k and takes an independent phase psi_k with weight sqrt(1 - gamma_k^2)
+   (spectral representation of two partly coherent points, Shinozuka and Deodatis 1991),
+   with Davenport's root-coherence gamma(f) = exp(-C f d / U), d the separation
+   (Davenport 1961; Simiu and Scanlan, Wind Effects on Structures: C ~ 7-10 across the wind),
+   and Taylor's frozen-turbulence lead of upstream / U. The lag is applied per component,
+   exactly: amplitude 1 / sqrt(1 + (omega tau)^2), phase -atan(omega tau). The two
+   cosines of a component share omega, so they are summed into one (amplitude, phase):
+       u_a(t) = sum_k m_k cos(omega_k t + theta_k),   no state,
+   evaluated from the drag gust's angle omega_k t + phi_k (one sin and cos for both).
+   The coherence of u_a with the point gust u and with the area-averaged u_A (the same
+   phases phi_k) is gamma(f)^2. psi_k are drawn after every other draw of the seed, so u,
+   u_A and the wrench are those of the same seed without the anemometer. */
 
 enum mb_wind_spectrum { MB_WIND_KAIMAL = 0, MB_WIND_DAVENPORT = 1 };
 
@@ -52,6 +68,10 @@ typedef struct {
     double drag_area;             /* m2 */
     double moment_arm;            /* m, centre of pressure along {B}'s z from {P}'s origin */
     double direction;             /* rad, astronomical azimuth the wind comes from */
+    double anemometer_distance;   /* m, across the wind from the disc's centre */
+    double anemometer_upstream;   /* m, up the wind from the disc's centre (Taylor's lead) */
+    double anemometer_time_constant; /* s, first-order lag of the sensor */
+    double coherence_decay;       /* 1, Davenport's C */
     int spectrum;                 /* enum mb_wind_spectrum */
 } mb_wind_params;
 
@@ -64,6 +84,8 @@ typedef struct {
     double amplitude[256]; /* m/s, of the point gust u */
     double area_amplitude[256]; /* m/s, of the area-averaged gust u_A (chi(f) amplitude) */
     double phase[256];     /* rad */
+    double anemometer_cos[256]; /* m/s, m_k cos(theta_k - phi_k) of the anemometer's lagged gust u_a */
+    double anemometer_sin[256]; /* m/s, m_k sin(theta_k - phi_k) */
 } mb_wind;
 
 /* A sentence naming the problem of a status. */
@@ -89,5 +111,32 @@ void mb_wind_area_gusts(const mb_wind *w, int n, const double *t, double *u);
 /* The platform wrench (Fx, Fy, Fz in N, Mx, My, Mz in N.m, in {B}) at time t with the
    base pose (x, y, z, roll, pitch, yaw of {B} in {W}); *gust receives the point gust u(t). */
 int mb_wind_wrench(const mb_wind *w, double t, const double *base_pose, double *wrench, double *gust);
+
+/* The anemometer's reading U + u_a (m/s) at the n times t. */
+void mb_wind_anemometer(const mb_wind *w, int n, const double *t, double *speed);
+
+/* mb_wind_wrench and, from the same angles (one pass), speeds (3) = the point gust u, the
+   anemometer's reading U + u_a and the speed the drag sees U + u_A (m/s): what the Wind
+   FMUs publish each step. */
+int mb_wind_sample(const mb_wind *w, double t, const double *base_pose, double *wrench, double *speeds);
+
+/* The quasi-steady drag wrench (as mb_wind_wrench's, in {B}) of the air speed `speed`
+   (m/s) with drag = 0.5 rho Cd A (kg/m), the moment arm (m) and the wind's azimuth
+   `direction` (rad), the base pose (x, y, z, roll, pitch, yaw of {B} in {W}). The one
+   drag model of the Wind FMU and of the controller's wind feedforward. */
+void mb_wind_drag(double drag, double moment_arm, double direction, double speed, const double *base_pose,
+                  double *wrench);
+
+/* One step h (s) of a first-order low-pass at cutoff (Hz) from its state to the speed
+   (h < 0: the filter starts at the speed). Returns the new state. */
+double mb_wind_speed_filter(double state, double speed, double cutoff, double h);
+
+/* Wind feedforward: the leg forces (6, N) that hold the drag wrench of the measured speed
+   at the platform pose `pose` (in {B}): J^T F = -gain W, J the leg Jacobian at `pose`
+   (rows s, rho x s). Writes the predicted wrench W (6) and forces; returns det J (0: singular,
+   forces NaN). base_joints, platform_joints, data as for plant/c/hexapod.h. */
+double mb_wind_feedforward(const double *base_joints, const double *platform_joints, const double *data,
+                           const double *pose, const double *base_pose, double drag, double moment_arm,
+                           double direction, double speed, double gain, double *wrench, double *forces);
 
 #endif
