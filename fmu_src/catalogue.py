@@ -45,12 +45,13 @@ FMUS = (
         "base_rate": "base_pose", "base_acc": "base_rate", "reference_rate": "reference_pose",
         "reference_acc": "reference_rate", "axis_rate": "axis", "axis_acc": "axis_rate",
         "command_base_rate": "command_base_pose", "command_base_acc": "command_base_rate"}),
-    FMU("leg_controller", constants="leg_controller"),
+    FMU("leg_controller", constants="leg_controller", optional_inputs=("leg_force_measured",)),
     FMU("mechanism3t_plant", constants="mechanism3t"),
     FMU("slider_controller", constants="mechanism3t"),
     FMU("leg_sensor"),
     FMU("base_sensor"),
     FMU("wind"),
+    FMU("load_cell"),
 )
 BY_KEY = {f.key: f for f in FMUS}
 BY_IDENTIFIER = {f.identifier: f for f in FMUS}
@@ -94,7 +95,10 @@ ALL = "*"
 FEEDTHROUGH = {
     "leg_sensor": {"measured_length": ("leg_length",), "estimated_rate": ("leg_length",)},
     "base_sensor": {"base_pose": ALL, "base_rate": ALL, "base_acc": ALL},
-    "leg_controller": {"leg_force": ALL, "feedforward_force": ALL},
+    # the observer's load-cell input acts one step later (controller/c/observer.c)
+    "leg_controller": {out: ("reference_pose", "reference_rate", "reference_acc", "leg_length", "leg_rate",
+                             "base_pose", "base_rate", "base_acc")
+                       for out in ("leg_force", "feedforward_force", "disturbance_estimate")},
     "slider_controller": {"slider_force": ("slider_position", "slider_rate")},
     "wind": {"platform_wrench": ("base_pose",)},
     "hexapod_plant": {"leg_force_actual": ("leg_force",)},
