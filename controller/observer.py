@@ -3,7 +3,7 @@
 The moving-base model already predicts the leg forces the reference motion needs; a load
 cell says what the legs really push with. Their gap, corrected by the leg-space mass times
 the measured acceleration off the reference, is the force the plant got from elsewhere (the
-wind), which the controller adds to its command through the low-pass Q at
+wind), which the controller subtracts from its command through the low-pass Q at
 ``observer_bandwidth``. One C function for the pythonfmu FMU and its native twin, so both
 give the same numbers bit for bit; its state (two filter states and two past length errors per leg) is explicit so an
 FMU saves it with its state.
@@ -19,7 +19,8 @@ def observer_start(length_error):
     """The state at the start: filters at rest, the length-error history at ``length_error``
     (so the second difference starts at 0)."""
     state = np.empty(STATES_PER_LEG * len(length_error))
-    lib.mb_observer_start(len(length_error), ffi.from_buffer("double[]", length_error), ffi.from_buffer("double[]", state))
+    buf = lambda a: ffi.from_buffer("double[]", a)
+    lib.mb_observer_start(len(length_error), buf(length_error), buf(state))
     return state
 
 

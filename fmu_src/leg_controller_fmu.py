@@ -8,7 +8,7 @@ so instantiating the FMU does not rerun the design.
 
 Disturbance observer (controller/observer.py; off at ``observer_bandwidth`` 0, the default,
 which leaves every result bit for bit as it was): from the load cells' ``leg_force_measured``
-it estimates the force the legs get from elsewhere (the wind) and adds it to the command.
+it estimates the force the legs get from elsewhere (the wind) and subtracts it from the command.
 Its model force is the feedforward's (with feedforward none: 0, so it estimates the whole
 load); its state is the ``observer_state`` output, saved with the FMU state.
 """
@@ -75,8 +75,8 @@ class LegController(GuardedSlave):
         ))
         self.force_measured = self.vector("leg_force_measured", 6, INPUT, "leg force from the load cells (for "
                                           "the disturbance observer)", "N", start=STATIC_LEG_FORCES)
-        self.disturbance = self.vector("disturbance_estimate", 6, OUTPUT, "disturbance observer: force added "
-                                       "to the command (external force on the leg, - extends)", "N")
+        self.disturbance = self.vector("disturbance_estimate", 6, OUTPUT, "disturbance observer: external force "
+                                       "on the leg (+ extends), subtracted from the command", "N")
         self.observer_state = self.vector("observer_state", STATES_PER_LEG * 6, OUTPUT,
                                           "disturbance observer: Q filter states [N, N/s] and "
                                           "past length errors [m] per leg", "")
@@ -115,10 +115,10 @@ class LegController(GuardedSlave):
         self.feedforward_force[:] = ff
 
     def _observe(self, ff, length_error, h):
-        """The feedforward plus the observer's estimate; advances the observer's state."""
+        """The feedforward minus the observer's estimate; advances the observer's state."""
         if not np.isfinite(self.force_measured).all():
             raise InvalidInputError("leg_force_measured input contains NaN or inf")
         o = self.observer
         self.disturbance[:], self.observer_state[:] = observer_update(
             o["observer_bandwidth"], o["observer_mass"], self.observer_state, ff - self.force_measured, length_error, h)
-        return ff + self.disturbance
+        return ff - self.disturbance

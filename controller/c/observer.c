@@ -3,8 +3,8 @@
    The controller's model says the leg force f_model(reference) makes the platform follow
    the reference. A leg that moves off it by e = l_measured - l_reference needs M e'' more
    (M: the leg-space mass of one leg, reflected mass included, one scalar: ``mass``). What
-   the leg really pushes with is f_measured (the load cell). So the force the plant got from
-   elsewhere (wind, friction the model lacks), counted as a force the actuator must add, is
+   the leg really pushes with is f_measured (the load cell). So the force the leg got from
+   elsewhere (wind, friction the model lacks; leg space, + extends) is
        d = f_model(ref) + M e'' - f_measured,
    made proper by a second-order low-pass Q(s) = w^2 / (s^2 + 2 zeta w s + w^2),
    w = 2 pi bandwidth, zeta = 1/sqrt(2) (Butterworth: no overshoot of |Q|). Sampled every
@@ -14,8 +14,8 @@
        x' = [[0, 1], [-w^2, -2 zeta w]] x + [0, w^2] u,   d_hat = x1,
    with u held over the step (zero-order hold, exact: the exponential in closed form for the
    complex poles). The estimate of step k is the state before it: u_k acts from the next
-   step, so the load cell does not feed through to the command. The controller adds d_hat
-   to its command. ``state`` holds (x1, x2, e_{k-1}, e_{k-2}) of leg i at [4 i ..]. */
+   step, so the load cell does not feed through to the command. The controller subtracts
+   d_hat from its command (the classical disturbance observer: u = u_c - d_hat). ``state`` holds (x1, x2, e_{k-1}, e_{k-2}) of leg i at [4 i ..]. */
 #include <math.h>
 #include "observer.h"
 

@@ -20,7 +20,7 @@ typedef struct {
 static const char *const INPUT_NAMES[8] = {"reference_pose", "reference_rate", "reference_acc", "leg_length",
                                            "leg_rate", "base_pose", "base_rate", "base_acc"};
 
-/* The disturbance observer: command = ff + its estimate; advances its state. error is
+/* The disturbance observer: command = ff - its estimate; advances its state. error is
    reference - measured length, the observer takes measured - reference. */
 static int observe(mb_instance *inst, double *r, const double *ff, const double *error, double h, double *command)
 {
@@ -39,7 +39,7 @@ static int observe(mb_instance *inst, double *r, const double *ff, const double 
     memcpy(state, &r[VR_observer_state], sizeof state);
     mb_observer_update(6, r[VR_observer_bandwidth], r[VR_observer_mass], h, state, gap, off, &r[VR_disturbance_estimate],
                        &r[VR_observer_state]);
-    for (int k = 0; k < 6; k++) command[k] += r[VR_disturbance_estimate + k];
+    for (int k = 0; k < 6; k++) command[k] -= r[VR_disturbance_estimate + k];
     return 0;
 }
 

@@ -234,7 +234,8 @@ def test_state_get_set_and_serialisation_replay_bit_for_bit(fmus, native, implem
     assert read_model_description(str(paths[script])).coSimulation.canSerializeFMUstate
     values = {"telescope_fmu": {"profile": 2}, "leg_sensor_fmu": {"noise": 1e-6, "rate_cutoff": 20.0},
               "base_sensor_fmu": {"source": 1}, "leg_controller_fmu": {"observer_bandwidth": 20.0},
-              "load_cell_fmu": {"noise": 5.0, "bandwidth": 500.0, "delay_steps": 1}}.get(script, {})   # random and filter states in play
+              "load_cell_fmu": {"noise": 5.0, "bandwidth": 500.0, "delay_steps": 1},
+              }.get(script, {})   # random and filter states in play
     inst, status = opened(paths[script], **values)
     assert status == OK
 
