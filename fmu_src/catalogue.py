@@ -66,7 +66,9 @@ SCRIPTS = tuple(f.script for f in FMUS)
 # reference from its own ``motion`` parameters) and the variable of it whose changes excite
 # the loop (``excitation``: the reference it tracks); the plant's force limit parameter (the plant
 # clips its force input there; 0: none), stroke parameter (half stroke about the home value)
-# and the LoopModel fields (controller.design) its parameters give.
+# and the LoopModel fields (controller.design) its parameters give; a disturbance observer's
+# LoopModel fields from the controller's parameters (``observer``) and its force input
+# (``force_measured``), fed by a sensor of LOAD_CELLS.
 CONTROL_LOOPS = {
     "leg_controller": {
         "plant": "hexapod_plant", "force": "leg_force", "plant_force": "leg_force",
@@ -74,7 +76,9 @@ CONTROL_LOOPS = {
         "limit": "force_limit", "reference": "reference_pose", "motion": (), "excitation": "reference_pose",
         "plant_limit": "actuator_force_limit", "stroke": "stroke",
         "loop_model": {"reflected_mass": "reflected_mass", "actuator_bandwidth": "actuator_bandwidth",
-                       "viscous_friction": "viscous_friction"}},
+                       "viscous_friction": "viscous_friction"},
+        "observer": {"observer_bandwidth": "observer_bandwidth", "observer_mass": "observer_mass"},
+        "force_measured": "leg_force_measured"},
     "slider_controller": {
         "plant": "mechanism3t_plant", "force": "slider_force", "plant_force": "slider_force",
         "measured": "slider_position", "plant_measured": "slider_position", "gains": ("kp", "ki", "kd"),
@@ -86,6 +90,9 @@ CONTROL_LOOPS = {
 # fields its parameters give): a sensor between plant and controller in a loop of CONTROL_LOOPS
 LOOP_SENSORS = {"leg_sensor": ("leg_length", "measured_length", {"rate_cutoff": "rate_cutoff",
                                                                   "delay_steps": "delay_steps"})}
+# force sensor FMU -> the LoopModel fields its parameters give (a sensor between the plant's
+# delivered force and a controller's ``force_measured`` input)
+LOAD_CELLS = {"load_cell": {"load_cell_bandwidth": "bandwidth", "load_cell_delay_steps": "delay_steps"}}
 # FMU -> {output: the inputs it follows within one communication step, with no state between
 # them (direct feedthrough; the modelDescriptions declare no dependencies)}: a cycle of
 # connections through these alone is an algebraic loop that the master cannot solve, and an
