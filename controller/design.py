@@ -247,11 +247,12 @@ def mode_loop(mass, gains, comm_step, loop=IDEAL):
         split = control.ss([], [], [], [[1.0], [1.0]], h)
         sensor = control.append(control.ss(late), control.ss(rate)) * split
         feedback, reads = sensor * plant[0, 0], sensor * pick(0)   # plant -> sensor -> controller -> plant
+        length = control.ss(late) * pick(0)
     else:
-        feedback, reads = plant, pick(0, 1)
+        feedback, reads, length = plant, pick(0, 1), pick(0)
     outer = 1 / z * lead if stale > 1 else lead * control.tf([1], [1], h)
     if loop.observer_bandwidth > 0:   # the plant once, read by the PID and the observer
-        return control.ss(outer) * (pid * reads + _observer(loop, h, z, reads[0, :], pick(2))) * full
+        return control.ss(outer) * (pid * reads + _observer(loop, h, z, length, pick(2))) * full
     return control.ss(outer) * pid * feedback
 
 
