@@ -203,6 +203,9 @@ def _observer_fields(scenario, controller, entry, get):
     fields = {field: float(get(controller, name)) for field, name in entry.get("observer", {}).items()}
     if not fields.get("observer_bandwidth"):
         return {}
+    if scenario.master == "gauss-seidel":
+        raise ScenarioError(scenario.source, "master", f"the disturbance observer of {controller!r} has its "
+                            "stability predicted under the Jacobi master only: use master = \"jacobi\"")
     feeds = _sources(scenario, f"{controller}.{entry['force_measured']}")
     cell = next((s for s in feeds if scenario.fmus[s] in catalogue.LOAD_CELLS), None)
     if cell:
