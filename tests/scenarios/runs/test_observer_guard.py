@@ -111,5 +111,6 @@ def test_the_observer_under_gauss_seidel_is_refused_naming_the_master(tmp_path):
     """Its loop is modelled under Jacobi only: the guard says so instead of guessing."""
     path = _scene(tmp_path, 8, "6 s")
     path.write_text(path.read_text().replace('master = "jacobi"', 'master = "gauss-seidel"'))
-    with pytest.raises(spec.ScenarioError, match="the disturbance observer of 'controller' has its stability predicted under the Jacobi master"):
+    said = "the disturbance observer of 'controller' has its stability predicted under the Jacobi master"
+    with pytest.raises(spec.ScenarioError, match=said):
         runner.pre_run_flags(*runner.prepare(path))
