@@ -78,8 +78,10 @@ class LegController(GuardedSlave):
         self.disturbance = self.vector("disturbance_estimate", 6, OUTPUT, "disturbance observer: external force "
                                        "on the leg (+ extends), subtracted from the command", "N")
         self.observer_state = self.vector("observer_state", STATES_PER_LEG * 6, OUTPUT,
-                                          "disturbance observer: Q filter states [N, N/s] and "
-                                          "past length errors [m] per leg", "")
+                                          ["disturbance observer: Q filter state", "disturbance observer: its rate",
+                                           "disturbance observer: last length error",
+                                           "disturbance observer: length error before it"] * 6,
+                                          ("N", "N/s", "m", "m") * 6)
 
     def initialize(self):
         self.params = StewartParams.paper()
