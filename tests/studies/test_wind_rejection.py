@@ -42,9 +42,9 @@ def test_the_observer_estimates_the_true_wind_force_through_q(tmp_path):
     wrench on the platform mapped to leg space (F = J^-T W at the pose, J the plant's own
     twist Jacobian: M du + h - W = J^T F) is the truth. The estimate is that force through
     Q (2nd-order Butterworth at 8 Hz, filtered here with scipy) to < 1.5 N RMS per leg,
-    against 40-220 N RMS of wind force: what is left is the load cells' noise and the
-    friction. Unfiltered, the error within the band is Q's own: |1 - Q(f)| of the force at
-    0.5-2 Hz."""
+    against 13-98 N RMS of wind force: what is left is the load cells' noise and the
+    friction. Unfiltered, the estimate is within 10 % RMS of the true force, and its error
+    within the band is Q's own: |1 - Q(f)| of the force at 0.5-2 Hz (the heaviest-loaded leg)."""
     text = runner.resolve("telescope_slew_observer").read_text()
     text = text.replace('values = ["0 Hz", "8 Hz"]', 'values = ["8 Hz"]').replace('stop_time = "60 s"',
                                                                                      'stop_time = "12 s"')
@@ -68,8 +68,8 @@ def test_the_observer_estimates_the_true_wind_force_through_q(tmp_path):
     through_q = np.array([signal.lsim(q, f - f[0], t)[1] + f[0] for f in truth.T]).T
     settled = t >= 2.0
     residual = (estimate - through_q)[settled].std(axis=0)
-    assert np.all(residual < 1.5) and np.all(truth.std(axis=0) > 30)
-    assert np.all((estimate - truth).std(axis=0) > 2 * residual)   # Q's lag is most of the raw error
+    assert np.all(residual < 1.5) and np.all(truth.std(axis=0) > 10)
+    assert np.all((estimate - truth).std(axis=0) < 0.1 * truth.std(axis=0))   # unfiltered: within 10 %
     f, s_ff = signal.welch(truth[:, 2] - truth[:, 2].mean(), 1000.0, nperseg=4096)
     _, s_ee = signal.welch((estimate - truth)[:, 2], 1000.0, nperseg=4096)
     jw = 2j * np.pi * f
