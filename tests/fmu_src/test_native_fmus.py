@@ -75,7 +75,9 @@ def _numbers(tree, prefix=""):
     return {prefix[:-1]: tree} if isinstance(tree, (int, float)) else {}
 
 
-@pytest.mark.parametrize("name", sorted(p.stem for p in runner.SHIPPED.glob("*.toml")))
+@pytest.mark.parametrize("name", [   # the observer scenes' FMUs: test_observer_twins.py, in the default run
+    pytest.param(p.stem, marks=[pytest.mark.slow] if p.stem.endswith("_observer") else [])
+    for p in sorted(runner.SHIPPED.glob("*.toml"))])
 def test_shipped_scenario_same_native_and_python(name, tmp_path):
     """Every recorded variable of every sweep value of the [ci] run agrees to 1e-12 of its
     vector's largest magnitude, and so do the metrics (the same C kernels behind both)."""
