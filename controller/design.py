@@ -167,7 +167,7 @@ class LoopModel:
     ``load_cell_bandwidth`` [Hz], ``load_cell_delay_steps`` samples late, one communication
     step later under Jacobi as a sensor FMU is); without a load cell the observer's force
     input is held (no force path). Its poles are found with python-control (no
-    closed-form polynomial), under the Jacobi master only."""
+    closed-form polynomial)."""
 
     reflected_mass: float = 0.0
     actuator_bandwidth: float = 0.0
@@ -197,8 +197,6 @@ class LoopModel:
         if not self.load_cell and (self.load_cell_bandwidth or self.load_cell_delay_steps):
             raise ValueError("load_cell_bandwidth and load_cell_delay_steps belong to the load cell: "
                              "set load_cell=True")
-        if self.observer_bandwidth and self.gauss_seidel:
-            raise ValueError("the disturbance observer's loop is modelled under the Jacobi master only")
 
 
 IDEAL = LoopModel()
@@ -268,11 +266,14 @@ def _observer(loop, h, z, length, force):
     if not loop.load_cell:
         return q * acc
     b = 1 - np.exp(-2 * np.pi * loop.load_cell_bandwidth * h) if loop.load_cell_bandwidth > 0 else 1.0
-    cell = b * z / (z - (1 - b)) * z ** -(1 + loop.load_cell_delay_steps)
-    # plant -> cell -> controller -> plant: when the PID reads the plant directly, one
-    # connection (a step, the extrapolation) more than its path
-    if not loop.leg_sensor:
-        cell = cell * ((1.5 * z - 0.5) / z if loop.extrapolate else 1) / z
+    # plant -> cell -> controller -> plant, as the leg sensor's path: under Jacobi one step
+    # late (and extrapolated) more than the PID's path when the PID reads the plant directly
+    if loop.gauss_seidel:
+        cell = b * z / (z - (1 - b)) * z ** -loop.load_cell_delay_steps
+    else:
+        cell = b * z / (z - (1 - b)) * z ** -(1 + loop.load_cell_delay_steps)
+        if not loop.leg_sensor and loop.extrapolate:
+            cell = cell * (1.5 * z - 0.5) / z
     return q * (acc - control.ss(cell) * force)
 
 

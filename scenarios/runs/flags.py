@@ -203,9 +203,6 @@ def _observer_fields(scenario, controller, entry, get):
     fields = {field: float(get(controller, name)) for field, name in entry.get("observer", {}).items()}
     if not fields.get("observer_bandwidth"):
         return {}
-    if scenario.master == "gauss-seidel":
-        raise ScenarioError(scenario.source, "master", f"the disturbance observer of {controller!r} has its "
-                            "stability predicted under the Jacobi master only: use master = \"jacobi\"")
     feeds = _sources(scenario, f"{controller}.{entry['force_measured']}")
     cell = next((s for s in feeds if scenario.fmus[s] in catalogue.LOAD_CELLS), None)
     if cell:
@@ -401,8 +398,6 @@ def check(scenario, prediction, allow_unstable=False):
     others = []
     for gs in (False, True):
         for ex in (False, True):
-            if gs and prediction.loop.observer_bandwidth:   # its loop is modelled under Jacobi only
-                continue
             loop = replace(prediction.loop, gauss_seidel=gs, extrapolate=ex)
             if loop != prediction.loop:
                 other = design.step_limit(prediction.masses, prediction.gains, loop)

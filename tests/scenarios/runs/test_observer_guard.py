@@ -106,11 +106,3 @@ def test_cosimulation_confirms_the_limit(prediction, tmp_path):
     beyond, within = _jitter(tmp_path, 1.15 * limit), _jitter(tmp_path, 0.85 * limit)
     assert beyond > 1e3 and beyond > 20 * within, (beyond, within)
 
-
-def test_the_observer_under_gauss_seidel_is_refused_naming_the_master(tmp_path):
-    """Its loop is modelled under Jacobi only: the guard says so instead of guessing."""
-    path = _scene(tmp_path, 8, "6 s")
-    path.write_text(path.read_text().replace('master = "jacobi"', 'master = "gauss-seidel"'))
-    said = "the disturbance observer of 'controller' has its stability predicted under the Jacobi master"
-    with pytest.raises(spec.ScenarioError, match=said):
-        runner.pre_run_flags(*runner.prepare(path))
