@@ -19,6 +19,7 @@ one communication step late. The defaults are off; the scenes set values, ASSUME
 The noise generator's state is saved with the FMU state.
 """
 
+from fmu_src.operating_point import STATIC_LEG_FORCES
 from fmu_src.slave import INPUT, OUTPUT, GuardedSlave
 from plant._kernel import ffi, lib
 
@@ -40,8 +41,10 @@ class LoadCell(GuardedSlave):
         self.integer("delay_steps", "samples of conversion delay on top of the communication step", 0,
                      (0, lib.MB_SENSOR_MAX_DELAY))
         self.integer("seed", "seed of the noise generator (same seed: same noise)", 1, SEED_RANGE)
-        self.true_force = self.vector("leg_force", 6, INPUT, "true actuator force on the leg, + extends", "N")
-        self.measured = self.vector("measured_force", 6, OUTPUT, "measured leg force, + extends", "N")
+        self.true_force = self.vector("leg_force", 6, INPUT, "true actuator force on the leg, + extends", "N",
+                                      start=STATIC_LEG_FORCES)
+        self.measured = self.vector("measured_force", 6, OUTPUT, "measured leg force, + extends", "N",
+                                    start=STATIC_LEG_FORCES)
         self.state = ffi.new("mb_load_cell *")
         self._pointers = [ffi.from_buffer("double[]", a) for a in (self.true_force, self.measured)]
 
