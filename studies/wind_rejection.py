@@ -257,7 +257,8 @@ def report(s, charts=True):
         f"## The bound: peak error at {BOUND_SPEED:g} m/s against the observer's bandwidth", "", bound_table(s), "",
         "From the shipped bandwidth up, the slew's peak stays at its calm-air figure: what is left in wind "
         "is the calm loop's own error (servo, sensors, friction of the realistic loop), not the wind. The "
-        "keyhole track gains little above 8 Hz and loses again at 24 Hz. The bound is the loop's margins, not the load cells: the guard "
+        "keyhole track gains little above 8 Hz and loses again at 24 Hz. The bound is the loop's margins, "
+        "not the load cells: the guard "
         f"refuses a scene above {d['limit_hz']:.3g} Hz (the study's runs go through the engine without the "
         "guard; the 24 Hz run stays stable only through the Coulomb friction the prediction leaves out). "
         "Higher would need a wider force loop or less delay (a faster step), or an observer mass per mode "
