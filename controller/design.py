@@ -516,11 +516,17 @@ def closed_loop_polynomial(mass, gains, comm_step, loop=IDEAL):
     return _add(den, num)
 
 
-def _radius(mass, gains, comm_step, loop):
-    if loop.observer_bandwidth > 0:   # no closed-form polynomial: python-control's poles
+def _poles(mass, gains, comm_step, loop):
+    """The closed loop's poles in z: from closed_loop_polynomial, or with the observer (no
+    closed-form polynomial) python-control's."""
+    if loop.observer_bandwidth > 0:
         import control
-        return float(np.abs(control.feedback(mode_loop(mass, gains, comm_step, loop)).poles()).max())
-    return float(np.abs(1 + comm_step * np.roots(closed_loop_polynomial(mass, gains, comm_step, loop))).max())
+        return control.feedback(mode_loop(mass, gains, comm_step, loop)).poles()
+    return 1 + comm_step * np.roots(closed_loop_polynomial(mass, gains, comm_step, loop))
+
+
+def _radius(mass, gains, comm_step, loop):
+    return float(np.abs(_poles(mass, gains, comm_step, loop)).max())
 
 
 def least_damped_period(masses, gains, comm_step, loop=IDEAL):
@@ -529,7 +535,7 @@ def least_damped_period(masses, gains, comm_step, loop=IDEAL):
     loop that lasts longest, or grows. inf if no pole oscillates."""
     largest, period = -1.0, float("inf")
     for mass in _distinct(np.sort(np.asarray(masses, dtype=float))):
-        z = 1 + comm_step * np.roots(closed_loop_polynomial(mass, gains, comm_step, loop))
+        z = _poles(mass, gains, comm_step, loop)
         turning = z[np.abs(np.angle(z)) > 1e-9]
         if len(turning) and np.abs(turning).max() > largest:
             pole = turning[np.argmax(np.abs(turning))]
