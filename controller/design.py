@@ -156,7 +156,18 @@ class LoopModel:
     (conservative: gravity's mode shapes are not the mass's); the hexapod's is left out
     (its modal limit is the full linearised plant's). Coulomb friction is left out
     (nonlinear: below its smoothing velocity it is a stiff damper, above it a constant
-    force, a disturbance), and so are quantisation and noise."""
+    force, a disturbance), and so are quantisation and noise.
+
+    The disturbance observer (controller/c/observer.c; ``observer_bandwidth`` [Hz] > 0):
+    the controller also subtracts Q_d(z) [M_o (z - 1)^2 / (z^2 h^2) l_meas - F_meas] from
+    its command (Q_d: the observer's zero-order-hold Q, its output the state before the
+    step; M_o = ``observer_mass`` [kg], the one leg-space mass it assumes, against each
+    mode's own mass). F_meas: the force the plant delivers (its lag state less the viscous
+    friction) through the LoadCell FMU (``load_cell``: its first-order low-pass
+    ``load_cell_bandwidth`` [Hz], ``load_cell_delay_steps`` samples late, one communication
+    step later under Jacobi as a sensor FMU is); without a load cell the observer's force
+    input is held (no force path). Its poles are found with python-control (no
+    closed-form polynomial)."""
 
     reflected_mass: float = 0.0
     actuator_bandwidth: float = 0.0
@@ -167,9 +178,15 @@ class LoopModel:
     extrapolate: bool = False
     gauss_seidel: bool = False
     gravity_rate: float = 0.0
+    observer_bandwidth: float = 0.0
+    observer_mass: float = 0.0
+    load_cell: bool = False
+    load_cell_bandwidth: float = 0.0
+    load_cell_delay_steps: int = 0
 
     def __post_init__(self):
-        for name in ("reflected_mass", "actuator_bandwidth", "viscous_friction", "rate_cutoff", "gravity_rate"):
+        for name in ("reflected_mass", "actuator_bandwidth", "viscous_friction", "rate_cutoff", "gravity_rate",
+                     "observer_bandwidth", "observer_mass", "load_cell_bandwidth"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"loop model {name} must be finite and >= 0, got {value}")
@@ -177,6 +194,9 @@ class LoopModel:
             raise ValueError(f"loop model delay_steps must be an integer >= 0, got {self.delay_steps}")
         if not self.leg_sensor and (self.rate_cutoff or self.delay_steps):
             raise ValueError("rate_cutoff and delay_steps belong to the leg sensor: set leg_sensor=True")
+        if not self.load_cell and (self.load_cell_bandwidth or self.load_cell_delay_steps):
+            raise ValueError("load_cell_bandwidth and load_cell_delay_steps belong to the load cell: "
+                             "set load_cell=True")
 
 
 IDEAL = LoopModel()
@@ -205,27 +225,56 @@ def mode_loop(mass, gains, comm_step, loop=IDEAL):
     h = comm_step
     w_a = 2 * np.pi * loop.actuator_bandwidth
     g = loop.gravity_rate
-    if w_a > 0:   # states (F, l, dl/dt), input F_cmd
-        A = [[-w_a, 0, 0], [0, 0, 1], [1 / mass, g, -loop.viscous_friction / mass]]
-        B, C = [[w_a], [0], [0]], [[0, 1, 0], [0, 0, 1]]
+    c = loop.viscous_friction
+    if w_a > 0:   # states (F, l, dl/dt), input F_cmd; outputs l, dl/dt, the delivered force F - c dl/dt
+        A = [[-w_a, 0, 0], [0, 0, 1], [1 / mass, g, -c / mass]]
+        B, C, D = [[w_a], [0], [0]], [[0, 1, 0], [0, 0, 1], [1, 0, -c]], [[0], [0], [0]]
     else:
-        A, B, C = [[0, 1], [g, -loop.viscous_friction / mass]], [[0], [1 / mass]], np.eye(2)
-    plant = control.c2d(control.ss(A, B, C, 0), h, "zoh")   # outputs: length, exact rate
+        A, B, C, D = [[0, 1], [g, -c / mass]], [[0], [1 / mass]], [[1, 0], [0, 1], [0, -c]], [[0], [0], [1]]
+    full = control.c2d(control.ss(A, B, C, D), h, "zoh")
+    plant = full[:2, 0]   # outputs: length, exact rate
     pid = control.ss([[1.0]], [[h, 0.0]], [[gains.ki]], [[gains.kp + gains.ki * h, gains.kd]], h)
     z = control.tf([1, 0], [1], h)
     stale = _stale_connections(loop)
     lead = ((1.5 * z - 0.5) / z) ** stale if loop.extrapolate else 1
+    pick = lambda *rows: control.ss([], [], [], np.eye(3)[list(rows)], h)   # of the plant's outputs
     if loop.leg_sensor:   # length only into the sensor; out: measured length and rate
         a = 1 - np.exp(-2 * np.pi * loop.rate_cutoff * h) if loop.rate_cutoff > 0 else 1.0
         late = z ** -(stale - 2 + loop.delay_steps) if stale > 1 else (1 / z) ** loop.delay_steps
         rate = late * a * (z - 1) / (h * (z - (1 - a)))
         split = control.ss([], [], [], [[1.0], [1.0]], h)
         sensor = control.append(control.ss(late), control.ss(rate)) * split
-        feedback = sensor * plant[0, 0]   # plant -> sensor -> controller -> plant
+        feedback, reads = sensor * plant[0, 0], sensor * pick(0)   # plant -> sensor -> controller -> plant
+        length = control.ss(late) * pick(0)
     else:
-        feedback = plant
+        feedback, reads, length = plant, pick(0, 1), pick(0)
     outer = 1 / z * lead if stale > 1 else lead * control.tf([1], [1], h)
+    if loop.observer_bandwidth > 0:   # the plant once, read by the PID and the observer
+        return control.ss(outer) * (pid * reads + _observer(loop, h, z, length, pick(2))) * full
     return control.ss(outer) * pid * feedback
+
+
+def _observer(loop, h, z, length, force):
+    """The observer's part of the command (controller/c/observer.c) from the plant's
+    outputs (l, dl/dt, F): Q_d [M_o (z - 1)^2 / (z h)^2 l_meas - F_meas], ``length``
+    picking l_meas as the PID reads it, ``force`` the delivered force, F_meas through the
+    load cell (without one, the held force input adds nothing)."""
+    import control
+    w = 2 * np.pi * loop.observer_bandwidth
+    q = control.c2d(control.ss([[0, 1], [-w * w, -np.sqrt(2) * w]], [[0], [w * w]], [[1, 0]], 0), h, "zoh")
+    acc = control.ss(loop.observer_mass * (z - 1) ** 2 / (z * z * h * h)) * length
+    if not loop.load_cell:
+        return q * acc
+    b = 1 - np.exp(-2 * np.pi * loop.load_cell_bandwidth * h) if loop.load_cell_bandwidth > 0 else 1.0
+    # plant -> cell -> controller -> plant, as the leg sensor's path: under Jacobi one step
+    # late (and extrapolated) more than the PID's path when the PID reads the plant directly
+    if loop.gauss_seidel:
+        cell = b * z / (z - (1 - b)) * z ** -loop.load_cell_delay_steps
+    else:
+        cell = b * z / (z - (1 - b)) * z ** -(1 + loop.load_cell_delay_steps)
+        if not loop.leg_sensor and loop.extrapolate:
+            cell = cell * (1.5 * z - 0.5) / z
+    return q * (acc - control.ss(cell) * force)
 
 
 def _stale_connections(loop):
@@ -350,6 +399,35 @@ def stiffest_pid(params, comm_step, loop=REALISTIC, phase_margin_deg=45.0, gain_
     return design_pid(params, best[0], best[1], comm_step, best[2], force_limit, pose, loop)
 
 
+def design_observer(params, gains, comm_step, loop, phase_margin_deg=30.0, gain_margin_db=6.0, resolution_hz=0.05,
+                    high_hz=100.0, pose=HOME_POSE):
+    """The Design of the highest observer bandwidth [Hz] (in ``loop``, its observer mass and
+    load cell as given) with which ``gains`` keep phase margin >= ``phase_margin_deg`` and
+    upper gain margin >= ``gain_margin_db`` on every mode, bisected to ``resolution_hz``
+    below ``high_hz``; its ``loop.observer_bandwidth`` is the answer. The observer makes a
+    mode of mass m look like the observer's mass within its band (the PID then meets that
+    mass) and feeds the force back through Q (m_o / m - 1): margins fall as it widens.
+    Raises ValueError if even the lowest bandwidth misses the bounds."""
+    masses = modal_masses(params, loop, pose)
+
+    def feasible(hz):
+        design = _modal_design(gains, comm_step, masses, replace(loop, observer_bandwidth=hz), points=1000)
+        ok = (design is not None and design.modal_phase_margin_deg >= phase_margin_deg
+              and design.modal_gain_margin_db >= gain_margin_db)
+        return design if ok else None
+
+    low, high = resolution_hz, high_hz
+    found = feasible(low)
+    if found is None:
+        raise ValueError(f"no observer bandwidth keeps phase margin >= {phase_margin_deg} deg and gain margin >= "
+                         f"{gain_margin_db} dB on every mode with {gains} in {loop}")
+    while high - low > resolution_hz:
+        mid = 0.5 * (low + high)
+        design = feasible(mid)
+        low, high, found = (mid, high, design) if design else (low, mid, found)
+    return found
+
+
 def default_gains(params, comm_step=1e-3):
     """The shipped gains: heaviest mode at 8 Hz crossover with 60 deg phase margin for a
     controller at ``comm_step`` (see design_pid; at 1 ms every mode keeps >= 60 deg and
@@ -438,8 +516,17 @@ def closed_loop_polynomial(mass, gains, comm_step, loop=IDEAL):
     return _add(den, num)
 
 
+def _poles(mass, gains, comm_step, loop):
+    """The closed loop's poles in z: from closed_loop_polynomial, or with the observer (no
+    closed-form polynomial) python-control's."""
+    if loop.observer_bandwidth > 0:
+        import control
+        return control.feedback(mode_loop(mass, gains, comm_step, loop)).poles()
+    return 1 + comm_step * np.roots(closed_loop_polynomial(mass, gains, comm_step, loop))
+
+
 def _radius(mass, gains, comm_step, loop):
-    return float(np.abs(1 + comm_step * np.roots(closed_loop_polynomial(mass, gains, comm_step, loop))).max())
+    return float(np.abs(_poles(mass, gains, comm_step, loop)).max())
 
 
 def least_damped_period(masses, gains, comm_step, loop=IDEAL):
@@ -448,7 +535,7 @@ def least_damped_period(masses, gains, comm_step, loop=IDEAL):
     loop that lasts longest, or grows. inf if no pole oscillates."""
     largest, period = -1.0, float("inf")
     for mass in _distinct(np.sort(np.asarray(masses, dtype=float))):
-        z = 1 + comm_step * np.roots(closed_loop_polynomial(mass, gains, comm_step, loop))
+        z = _poles(mass, gains, comm_step, loop)
         turning = z[np.abs(np.angle(z)) > 1e-9]
         if len(turning) and np.abs(turning).max() > largest:
             pole = turning[np.argmax(np.abs(turning))]
@@ -468,6 +555,21 @@ def step_limit(masses, gains, loop=IDEAL, low=1e-5, high=0.2, rtol=1e-3):
     if loop.gravity_rate > 0:
         limit = min(limit, _step_limit(masses, gains, replace(loop, gravity_rate=0.0), low, high, rtol))
     return limit
+
+
+def observer_limit(masses, gains, comm_step, loop, high_hz=1000.0, rtol=1e-2):
+    """The observer bandwidth [Hz] (loop.observer_bandwidth's limit) above which a mode of
+    ``masses`` goes unstable at ``comm_step``: bisected to ``rtol`` between 0 and
+    ``high_hz`` (inf if stable up to it), taken to be stable below and unstable above it."""
+    masses = _distinct(np.sort(np.asarray(masses, dtype=float)))
+    stable = lambda hz: all(_radius(m, gains, comm_step, replace(loop, observer_bandwidth=hz)) < 1 for m in masses)
+    if stable(high_hz):
+        return float("inf")
+    good, bad = 0.0, high_hz
+    while bad - good > rtol * bad:
+        mid = 0.5 * (good + bad)
+        good, bad = (mid, bad) if stable(mid) else (good, mid)
+    return good
 
 
 def _step_limit(masses, gains, loop, low, high, rtol):

@@ -45,12 +45,13 @@ FMUS = (
         "base_rate": "base_pose", "base_acc": "base_rate", "reference_rate": "reference_pose",
         "reference_acc": "reference_rate", "axis_rate": "axis", "axis_acc": "axis_rate",
         "command_base_rate": "command_base_pose", "command_base_acc": "command_base_rate"}),
-    FMU("leg_controller", constants="leg_controller", optional_inputs=("wind_speed",)),
+    FMU("leg_controller", constants="leg_controller", optional_inputs=("leg_force_measured", "wind_speed")),
     FMU("mechanism3t_plant", constants="mechanism3t"),
     FMU("slider_controller", constants="mechanism3t"),
     FMU("leg_sensor"),
     FMU("base_sensor"),
     FMU("wind"),
+    FMU("load_cell"),
 )
 BY_KEY = {f.key: f for f in FMUS}
 BY_IDENTIFIER = {f.identifier: f for f in FMUS}
@@ -65,7 +66,9 @@ SCRIPTS = tuple(f.script for f in FMUS)
 # reference from its own ``motion`` parameters) and the variable of it whose changes excite
 # the loop (``excitation``: the reference it tracks); the plant's force limit parameter (the plant
 # clips its force input there; 0: none), stroke parameter (half stroke about the home value)
-# and the LoopModel fields (controller.design) its parameters give.
+# and the LoopModel fields (controller.design) its parameters give; a disturbance observer's
+# LoopModel fields from the controller's parameters (``observer``) and its force input
+# (``force_measured``), fed by a sensor of LOAD_CELLS.
 CONTROL_LOOPS = {
     "leg_controller": {
         "plant": "hexapod_plant", "force": "leg_force", "plant_force": "leg_force",
@@ -73,7 +76,9 @@ CONTROL_LOOPS = {
         "limit": "force_limit", "reference": "reference_pose", "motion": (), "excitation": "reference_pose",
         "plant_limit": "actuator_force_limit", "stroke": "stroke",
         "loop_model": {"reflected_mass": "reflected_mass", "actuator_bandwidth": "actuator_bandwidth",
-                       "viscous_friction": "viscous_friction"}},
+                       "viscous_friction": "viscous_friction"},
+        "observer": {"observer_bandwidth": "observer_bandwidth", "observer_mass": "observer_mass"},
+        "force_measured": "leg_force_measured"},
     "slider_controller": {
         "plant": "mechanism3t_plant", "force": "slider_force", "plant_force": "slider_force",
         "measured": "slider_position", "plant_measured": "slider_position", "gains": ("kp", "ki", "kd"),
@@ -85,6 +90,9 @@ CONTROL_LOOPS = {
 # fields its parameters give): a sensor between plant and controller in a loop of CONTROL_LOOPS
 LOOP_SENSORS = {"leg_sensor": ("leg_length", "measured_length", {"rate_cutoff": "rate_cutoff",
                                                                   "delay_steps": "delay_steps"})}
+# force sensor FMU -> the LoopModel fields its parameters give (a sensor between the plant's
+# delivered force and a controller's ``force_measured`` input)
+LOAD_CELLS = {"load_cell": {"load_cell_bandwidth": "bandwidth", "load_cell_delay_steps": "delay_steps"}}
 # FMU -> {output: the inputs it follows within one communication step, with no state between
 # them (direct feedthrough; the modelDescriptions declare no dependencies)}: a cycle of
 # connections through these alone is an algebraic loop that the master cannot solve, and an
@@ -96,7 +104,10 @@ ALL = "*"
 FEEDTHROUGH = {
     "leg_sensor": {"measured_length": ("leg_length",), "estimated_rate": ("leg_length",)},
     "base_sensor": {"base_pose": ALL, "base_rate": ALL, "base_acc": ALL},
-    "leg_controller": {"leg_force": ALL, "feedforward_force": ALL},
+    # the observer's load-cell input acts one step later (controller/c/observer.c)
+    "leg_controller": {out: ("reference_pose", "reference_rate", "reference_acc", "leg_length", "leg_rate",
+                             "base_pose", "base_rate", "base_acc")
+                       for out in ("leg_force", "feedforward_force", "disturbance_estimate")},
     "slider_controller": {"slider_force": ("slider_position", "slider_rate")},
     "wind": {"platform_wrench": ("base_pose",)},
     "hexapod_plant": {"leg_force_actual": ("leg_force",)},

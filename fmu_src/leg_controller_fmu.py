@@ -5,6 +5,12 @@ and the base motion at t, and sets the leg forces the plant will hold over the n
 step: one step of delay under a Jacobi master, the delay the gains were designed for.
 Default gains come from controller.design at build time (resources/leg_controller_defaults.json),
 so instantiating the FMU does not rerun the design.
+
+Disturbance observer (controller/observer.py; off at ``observer_bandwidth`` 0, the default,
+which leaves every result bit for bit as it was): from the load cells' ``leg_force_measured``
+it estimates the force the legs get from elsewhere (the wind) and subtracts it from the command.
+Its model force is the feedforward's (with feedforward none: 0, so it estimates the whole
+load); its state is the ``observer_state`` output, saved with the FMU state.
 """
 import json
 import pathlib
@@ -12,9 +18,11 @@ import pathlib
 import numpy as np
 from pythonfmu.enums import Fmi2Status
 
+from controller.design import leg_mass_matrix
 from controller.feedforward import FEEDFORWARD_MODES, Feedforward
+from controller.observer import STATES_PER_LEG, observer_start, observer_update
 from controller.pid import PIDGains, pid_update
-from fmu_src.operating_point import BASE_POSE
+from fmu_src.operating_point import BASE_POSE, STATIC_LEG_FORCES
 from fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
 from fmu_src.wind_fmu import DEFAULTS as WIND
 from plant._kernel import ffi, lib
@@ -57,6 +65,7 @@ class LegController(GuardedSlave):
         self.integral = self.vector("integral", 6, OUTPUT, "integral of the leg-length error", "m.s")
         self.feedforward_force = self.vector("feedforward_force", 6, OUTPUT, "model feedforward part of leg_force", "N")
         self._wind_variables()
+        self._observer_variables()
 
     def _wind_variables(self):
         """Wind feedforward (plant/c/wind.h mb_wind_feedforward): the drag of the measured wind
@@ -77,6 +86,25 @@ class LegController(GuardedSlave):
         self.wind_speed = 0.0
         self.real("wind_speed", INPUT, "measured along-wind speed (an anemometer); read when wind_feedforward > 0",
                   "m/s")
+
+    def _observer_variables(self):
+        """The disturbance observer's parameters, input and outputs (controller/observer.py)."""
+        mass = float(np.trace(leg_mass_matrix(StewartParams.paper()))) / 6
+        self.observer = self.parameters((
+            ("observer_bandwidth", "1/s", 0.0, "disturbance observer: bandwidth of its Q filter (2nd order "
+             "Butterworth) [Hz]; 0: off", (0.0, 1e3)),
+            ("observer_mass", "kg", mass, "disturbance observer: leg-space mass of one leg it assumes, the "
+             "reflected mass included; default the mean diagonal of M_leg at home, none reflected", (0.0, 1e6)),
+        ))
+        self.force_measured = self.vector("leg_force_measured", 6, INPUT, "leg force from the load cells (for "
+                                          "the disturbance observer)", "N", start=STATIC_LEG_FORCES)
+        self.disturbance = self.vector("disturbance_estimate", 6, OUTPUT, "disturbance observer: external force "
+                                       "on the leg (+ extends), subtracted from the command", "N")
+        self.observer_state = self.vector("observer_state", STATES_PER_LEG * 6, OUTPUT,
+                                          ["disturbance observer: Q filter state", "disturbance observer: its rate",
+                                           "disturbance observer: last length error",
+                                           "disturbance observer: length error before it"] * 6,
+                                          ("N", "N/s", "m", "m") * 6)
 
     def initialize(self):
         self.params = StewartParams.paper()
@@ -110,9 +138,11 @@ class LegController(GuardedSlave):
             ff = ff + self._wind_forces(ref, base[0], h)
         if h is None:   # initialization: the feedforward alone, integral untouched
             self.forces[:] = ff
+            self.observer_state[:] = observer_start(lengths - ref_lengths)
         else:
+            command = self._observe(ff, lengths - ref_lengths, h) if self.observer["observer_bandwidth"] else ff
             self.forces[:], self.integral[:] = pid_update(self.pid, self.integral, ref_lengths - lengths,
-                                                          ref_rates - rates, ff, h)
+                                                          ref_rates - rates, command, h)
         self.feedforward_force[:] = ff
 
     def _wind_forces(self, ref, base_pose, h):
@@ -134,3 +164,12 @@ class LegController(GuardedSlave):
 
     def set_extra_state(self, extra):
         self._wind_filtered = extra
+
+    def _observe(self, ff, length_error, h):
+        """The feedforward minus the observer's estimate; advances the observer's state."""
+        if not np.isfinite(self.force_measured).all():
+            raise InvalidInputError("leg_force_measured input contains NaN or inf")
+        o = self.observer
+        self.disturbance[:], self.observer_state[:] = observer_update(
+            o["observer_bandwidth"], o["observer_mass"], self.observer_state, ff - self.force_measured, length_error, h)
+        return ff - self.disturbance

@@ -119,6 +119,8 @@ BAD_INIT = {
                         "rate_cutoff = -1 1/s is outside its valid range [0, 10000] 1/s"),
     "wind_fmu": ("base_pose[4]", "input base_pose[4] = {} at initialization: inputs must be finite",
                  "mean_speed", 80.0, "mean_speed = 80 m/s is outside its valid range [0, 60] m/s"),
+    "load_cell_fmu": ("leg_force[3]", "input leg_force[3] = {} at initialization: inputs must be finite",
+                      "noise", -1.0, "noise = -1 N is outside its valid range [0, 10000] N"),
 }
 
 

@@ -2,13 +2,15 @@
    single-state inverse dynamics of the hexapod kernel (plant/c/hexapod.h) and the PID of
    controller/c/pid.h, with the checks, messages and saturation warning of the Python FMU.
    The eight inputs (reference pose/rate/acc, leg length/rate, base pose/rate/acc) are
-   consecutive value references: one NaN/inf check, rows read in place. */
+   consecutive value references: one NaN/inf check, rows read in place. The disturbance
+   observer (observer_bandwidth > 0) is controller/c/observer.h, as in the Python FMU. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "LegController_vars.h"
 #include "hexapod.h"
+#include "observer.h"
 #include "pid.h"
 #include "wind.h"
 
@@ -37,6 +39,29 @@ static int wind_forces(mb_instance *inst, const double *r, Model *m, const doubl
     return 0;
 }
 
+/* The disturbance observer: command = ff - its estimate; advances its state. error is
+   reference - measured length, the observer takes measured - reference. */
+static int observe(mb_instance *inst, double *r, const double *ff, const double *error, double h, double *command)
+{
+    static const char *const name[1] = {"leg_force_measured"};
+    const double *measured = &r[VR_leg_force_measured];
+    double gap[6], off[6], state[4 * 6];
+    char bad[40];
+    if (mb_nonfinite_rows(1, 6, measured, name, bad, sizeof bad)) {
+        mb_error(inst, "InvalidInputError", "%s input contains NaN or inf", bad);
+        return 1;
+    }
+    for (int k = 0; k < 6; k++) {
+        gap[k] = ff[k] - measured[k];
+        off[k] = -error[k];
+    }
+    memcpy(state, &r[VR_observer_state], sizeof state);
+    mb_observer_update(6, r[VR_observer_bandwidth], r[VR_observer_mass], h, state, gap, off, &r[VR_disturbance_estimate],
+                       &r[VR_observer_state]);
+    for (int k = 0; k < 6; k++) command[k] -= r[VR_disturbance_estimate + k];
+    return 0;
+}
+
 /* Forces from the inputs now; the integral advances only on a real step (h > 0 given). */
 static int update(mb_instance *inst, double *r, Model *m, int stepping, double h)
 {
@@ -61,15 +86,21 @@ static int update(mb_instance *inst, double *r, Model *m, int stepping, double h
     if (r[VR_wind_feedforward] != 0.0 && wind_forces(inst, r, m, ref, base, stepping ? h : -1.0, ff)) return 1;
     double *forces = &r[VR_leg_force], *integral = &r[VR_integral];
     if (!stepping) {
+        double off[6];
+        for (int k = 0; k < 6; k++) off[k] = lengths[k] - ref_lengths[k];
         memcpy(forces, ff, sizeof ff);
+        mb_observer_start(6, off, &r[VR_observer_state]);
     } else {
         double error[6], error_rate[6], new_integral[6];
         for (int k = 0; k < 6; k++) {
             error[k] = ref_lengths[k] - lengths[k];
             error_rate[k] = ref_rates[k] - rates[k];
         }
-        mb_pid_update(r[VR_kp], r[VR_ki], r[VR_kd], r[VR_force_limit], 6, integral, error, error_rate, ff, h, forces,
-                      new_integral);
+        double command[6];
+        memcpy(command, ff, sizeof ff);
+        if (r[VR_observer_bandwidth] > 0.0 && observe(inst, r, ff, error, h, command)) return 1;
+        mb_pid_update(r[VR_kp], r[VR_ki], r[VR_kd], r[VR_force_limit], 6, integral, error, error_rate, command, h,
+                      forces, new_integral);
         memcpy(integral, new_integral, sizeof new_integral);
     }
     memcpy(&r[VR_feedforward_force], ff, sizeof ff);

@@ -184,6 +184,7 @@ def loops(scenario, descriptions, values):
             given = catalogue.LOOP_SENSORS[scenario.fmus[sensor]][2]
             fields.update({field: get(sensor, name) for field, name in given.items()})
             fields["delay_steps"] = int(fields.get("delay_steps", 0))
+        fields.update(_observer_fields(scenario, controller, entry, get))
         if scenario.fmus[plant] in GRAVITY:
             fields["gravity_rate"] = GRAVITY[scenario.fmus[plant]](values, descriptions, controller, plant, entry)
         model = design.LoopModel(
@@ -194,6 +195,21 @@ def loops(scenario, descriptions, values):
             gauss_seidel=scenario.master == "gauss-seidel")
         found.append(Loop(controller, plant, sensor, entry, gains, model))
     return found
+
+
+def _observer_fields(scenario, controller, entry, get):
+    """The LoopModel fields of the controller's disturbance observer (none while it is off)
+    and of the load cell feeding it, if one does."""
+    fields = {field: float(get(controller, name)) for field, name in entry.get("observer", {}).items()}
+    if not fields.get("observer_bandwidth"):
+        return {}
+    feeds = _sources(scenario, f"{controller}.{entry['force_measured']}")
+    cell = next((s for s in feeds if scenario.fmus[s] in catalogue.LOAD_CELLS), None)
+    if cell:
+        fields.update({field: get(cell, name) for field, name in catalogue.LOAD_CELLS[scenario.fmus[cell]].items()},
+                      load_cell=True)
+        fields["load_cell_delay_steps"] = int(fields["load_cell_delay_steps"])
+    return fields
 
 
 def _targets(scenario, target):
@@ -397,6 +413,12 @@ def check(scenario, prediction, allow_unstable=False):
                 f"along the motion): the loop of {prediction.controller!r} would drift or grow at "
                 f"{scenario.step * 1e3:g} ms as at any step")
         hint = "choose gains that stabilise the loop (controller.design)"
+    if prediction.loop.observer_bandwidth > 0:
+        observer = design.observer_limit(prediction.masses, prediction.gains, scenario.step, prediction.loop)
+        text += (f"; its disturbance observer at {prediction.loop.observer_bandwidth:g} Hz is beyond its predicted "
+                 f"limit {observer:.3g} Hz at this step" if observer < prediction.loop.observer_bandwidth else
+                 f"; with its disturbance observer at {prediction.loop.observer_bandwidth:g} Hz")
+        hint += f" or an observer_bandwidth below {observer:.3g} Hz" if observer > 0 else ""
     if not allow_unstable:
         if others:
             hint += " or " + " or ".join(others)

@@ -75,7 +75,9 @@ def _numbers(tree, prefix=""):
     return {prefix[:-1]: tree} if isinstance(tree, (int, float)) else {}
 
 
-@pytest.mark.parametrize("name", sorted(p.stem for p in runner.SHIPPED.glob("*.toml")))
+@pytest.mark.parametrize("name", [   # the observer scenes' FMUs: test_observer_twins.py, in the default run
+    pytest.param(p.stem, marks=[pytest.mark.slow] if p.stem.endswith("_observer") else [])
+    for p in sorted(runner.SHIPPED.glob("*.toml"))])
 def test_shipped_scenario_same_native_and_python(name, tmp_path):
     """Every recorded variable of every sweep value of the [ci] run agrees to 1e-12 of its
     vector's largest magnitude, and so do the metrics (the same C kernels behind both)."""
@@ -215,12 +217,14 @@ CLOSED_LOOP = ("hexapod_plant_fmu", {"leg_force[1]": 5.3e3, "leg_force[4]": 5.1e
 
 @pytest.mark.parametrize("script, inputs, watch", [
     CLOSED_LOOP,
-    ("leg_controller_fmu", {"leg_length[2]": 3.0}, ["leg_force[2]", "integral[2]"]),
+    ("leg_controller_fmu", {"leg_length[2]": 3.0, "leg_force_measured[2]": 5e3},
+     ["leg_force[2]", "integral[2]", "disturbance_estimate[2]"]),
     ("telescope_fmu", {}, ["base_acc[5]", "reference_pose[3]"]),
     ("mechanism3t_plant_fmu", {"slider_force[1]": 20.0}, ["platform_position[3]", "slider_rate[1]"]),
     ("slider_controller_fmu", {"slider_position[3]": 0.1}, ["slider_force[3]", "integral[3]"]),
     ("wind_fmu", {"base_pose[5]": 0.3}, ["platform_wrench[1]", "gust"]),
     ("leg_sensor_fmu", {"leg_length[1]": 3.1}, ["measured_length[1]", "estimated_rate[1]"]),
+    ("load_cell_fmu", {"leg_force[1]": 5e3}, ["measured_force[1]"]),
     ("base_sensor_fmu", {"axis[2]": 0.5, "axis_rate[2]": 0.01}, ["base_pose[4]", "base_rate[5]"]),
 ])
 @pytest.mark.parametrize("implementation", ["native", "python"])
@@ -231,7 +235,9 @@ def test_state_get_set_and_serialisation_replay_bit_for_bit(fmus, native, implem
     paths = native if implementation == "native" else fmus
     assert read_model_description(str(paths[script])).coSimulation.canSerializeFMUstate
     values = {"telescope_fmu": {"profile": 2}, "leg_sensor_fmu": {"noise": 1e-6, "rate_cutoff": 20.0},
-              "base_sensor_fmu": {"source": 1}}.get(script, {})   # random and filter states in play
+              "base_sensor_fmu": {"source": 1}, "leg_controller_fmu": {"observer_bandwidth": 20.0},
+              "load_cell_fmu": {"noise": 5.0, "bandwidth": 500.0, "delay_steps": 1},
+              }.get(script, {})   # random and filter states in play
     inst, status = opened(paths[script], **values)
     assert status == OK
 

@@ -229,10 +229,13 @@ def both(scenario, paths, values, tmp_path):
 
 def _loop_cases():
     """Every shipped scene x master on the native FMUs; on the pythonfmu FMUs (~5 s each)
-    one scene in the default run, all with -m slow (the default run's 10-minute budget)."""
+    one scene in the default run, all with -m slow (the default run's 10-minute budget); the
+    observer scenes (the realistic loop again, with two more FMUs) on their own master only."""
     for name in SHIPPED:
         for master_kind, extrapolation in MASTERS:
-            yield pytest.param(name, master_kind, extrapolation, "native")
+            own = (master_kind, extrapolation) == ("jacobi", "linear")
+            yield pytest.param(name, master_kind, extrapolation, "native",
+                               marks=[pytest.mark.slow] if name.endswith("_observer") and not own else [])
             slow = [] if name == SHIPPED[0] else [pytest.mark.slow]
             yield pytest.param(name, master_kind, extrapolation, "python", marks=slow)
 

@@ -1,0 +1,54 @@
+/* Disturbance observer per leg, on the controller's own model of the leg.
+
+   The controller's model says the leg force f_model(reference) makes the platform follow
+   the reference. A leg that moves off it by e = l_measured - l_reference needs M e'' more
+   (M: the leg-space mass of one leg, reflected mass included, one scalar: ``mass``). What
+   the leg really pushes with is f_measured (the load cell). So the force the leg got from
+   elsewhere (wind, friction the model lacks; leg space, + extends) is
+       d = f_model(ref) + M e'' - f_measured,
+   made proper by a second-order low-pass Q(s) = w^2 / (s^2 + 2 zeta w s + w^2),
+   w = 2 pi bandwidth, zeta = 1/sqrt(2) (Butterworth: no overshoot of |Q|). Sampled every
+   step h, with the second difference for e'' (centred one step back; a held e through
+   Q s^2 would add a false damping M w^2 h / 2 to the leg):
+       u_k = g_k + M (e_k - 2 e_{k-1} + e_{k-2}) / h^2,   g = f_model(ref) - f_measured (``force_gap``)
+       x' = [[0, 1], [-w^2, -2 zeta w]] x + [0, w^2] u,   d_hat = x1,
+   with u held over the step (zero-order hold, exact: the exponential in closed form for the
+   complex poles). The estimate of step k is the state before it: u_k acts from the next
+   step, so the load cell does not feed through to the command. The controller subtracts
+   d_hat from its command (the classical disturbance observer: u = u_c - d_hat). ``state`` holds (x1, x2, e_{k-1}, e_{k-2}) of leg i at [4 i ..]. */
+#include <math.h>
+#include "observer.h"
+
+void mb_observer_start(int n, const double *length_error, double *state)
+{
+    for (int i = 0; i < n; i++) {
+        state[4 * i] = state[4 * i + 1] = 0.0;
+        state[4 * i + 2] = state[4 * i + 3] = length_error[i];
+    }
+}
+
+void mb_observer_update(int n, double bandwidth, double mass, double h, const double *state, const double *force_gap,
+                        const double *length_error, double *estimate, double *new_state)
+{
+    const double zeta = 0.7071067811865476, w = 6.283185307179586 * bandwidth, w2 = w * w;
+    double sigma = -zeta * w, wd = w * sqrt(1.0 - zeta * zeta), decay = exp(sigma * h);
+    double c = cos(wd * h), s = sin(wd * h) / wd;
+    /* Ad = e^{sigma h} (c I + s (A - sigma I)), A = [[0, 1], [-w^2, -2 zeta w]] */
+    double a11 = decay * (c - s * sigma), a12 = decay * s;
+    double a21 = -decay * s * w2, a22 = decay * (c + s * (-2.0 * zeta * w - sigma));
+    /* Bd = A^-1 (Ad - I) (0, w^2), A^-1 = [[-2 zeta / w, -1 / w^2], [1, 0]] */
+    double v1 = a12 * w2, v2 = (a22 - 1.0) * w2;
+    double b1 = -2.0 * zeta * v1 / w - v2 / w2, b2 = v1;
+    double mh = mass / (h * h);
+    for (int i = 0; i < n; i++) {
+        const double *x = state + 4 * i;
+        double *y = new_state + 4 * i;
+        double e = length_error[i];
+        double u = force_gap[i] + mh * (e - 2.0 * x[2] + x[3]);
+        estimate[i] = x[0];
+        y[0] = a11 * x[0] + a12 * x[1] + b1 * u;
+        y[1] = a21 * x[0] + a22 * x[1] + b2 * u;
+        y[3] = x[2];
+        y[2] = e;
+    }
+}

@@ -1,0 +1,299 @@
+"""Wind rejection: what brings the subreflector under 10 µm in gusty wind (issue 29)?
+
+The realistic loop of studies/realistic_loop.py (every effect on, the moving-base
+feedforward on the exact base motion) with each rejection scheme of SCHEMES, on
+``telescope_slew`` (the shipped 60 s) and ``keyhole_tracking`` (30 s, transit at 16 s, as
+realistic_loop.py cuts it) at 0, 5, 10 and 15 m/s mean wind (Kaimal gusts, 15 %
+turbulence; 0: no wind FMU, the realistic loop's calm air). Plus the bound: the peak at
+10 m/s against the observer's bandwidth, and the guard's predicted limit of it.
+
+    python -m studies.wind_rejection [--jobs N] [--dask ADDR] [--out DIR]   # run (resumable)
+    python -m studies.wind_rejection --docs         # the same, then docs/wind-rejection.md + charts
+    python -m studies.wind_rejection --from-store   # rewrite the docs from docs/wind_rejection.json
+
+A scheme is a table of scenario changes (FMUs added, parameters set, connections made)
+applied to realistic_loop.variant's scenario, so another scheme (the anemometer's wind
+feedforward) is one more row. Every scenario file is written to
+<out>/wind_rejection/scenarios/ (``movingbase run FILE`` repeats it).
+"""
+import argparse
+import copy
+import json
+import pathlib
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+
+from scenarios import spec
+from scenarios.output.charts import draw_marks, plain_log_axis, save
+from scenarios.output.report import fmt
+from scenarios.runs import engine, runner
+from studies import realistic_loop as rl
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+DOCS = ROOT / "docs"
+STORE = DOCS / "wind_rejection.json"
+REPORT = DOCS / "wind-rejection.md"
+SCENES = rl.SCENES
+SPEEDS = (0.0, 5.0, 10.0, 15.0)   # m/s
+GOAL = 10.0                        # µm, peak pose position error
+TODAY = {"telescope_slew": {0.0: 5.53, 10.0: 41.9}, "keyhole_tracking": {10.0: 76.0}}   # docs/realistic_loop.md
+OBSERVER_MASS = 2605.6747045735265   # kg: mean diagonal of M_leg at home (1848 kg) + the 758 kg reflected
+# The legs' load cells (LoadCell): none of these is public for this hexapod; ASSUMED from
+# strain-gauge cells of a 25 kN range (the actuator's force limit): 0.02 % of range RMS
+# noise, a 24-bit converter's step far below it (0.5 N), 200 Hz amplifier low-pass
+# (anti-aliasing below the 500 Hz Nyquist of the 1 ms step), no extra delay.
+LOAD_CELL = {"resolution": "0.5 N", "noise": "5 N", "bandwidth": "200 Hz", "delay_steps": 0, "seed": 2}
+OBSERVER_BANDWIDTH = 8.0   # Hz: controller.design.design_observer, PM >= 25 deg and GM >= 5 dB (bandwidth())
+SCHEMES = {
+    "pid": {"name": "PID + moving-base feedforward (today)"},
+    "observer": {
+        "name": f"+ disturbance observer on load cells ({OBSERVER_BANDWIDTH:g} Hz)",
+        "fmus": {"load_cell": {"fmu": "load_cell", "parameters": LOAD_CELL}},
+        "parameters": {"controller": {"observer_bandwidth": f"{OBSERVER_BANDWIDTH:g} Hz",
+                                      "observer_mass": OBSERVER_MASS}},
+        "connections": [{"from": "plant.leg_force_actual", "to": "load_cell.leg_force"},
+                        {"from": "load_cell.measured_force", "to": "controller.leg_force_measured"}]},
+}
+BOUND_BANDWIDTHS = (2.0, 4.0, 8.0, 12.0, 16.0, 24.0)   # Hz, at 10 m/s
+BOUND_SPEED = 10.0
+
+
+def scheme_scenario(scene, scheme, speed, bandwidth=None, window=True):
+    """The scenario dict of ``scene`` in the realistic loop at ``speed`` m/s with ``scheme``
+    (a SCHEMES key); ``bandwidth`` [Hz] overrides the observer's."""
+    effects = rl.EFFECTS if speed > 0 else rl.LOOPS["calm"]
+    data = rl.variant(scene, effects, "exact", ("moving_base",), {"wind": {"mean_speed": f"{speed:g} m/s"}},
+                      window=window)
+    changes = copy.deepcopy(SCHEMES[scheme])
+    if bandwidth is not None:
+        changes["parameters"]["controller"]["observer_bandwidth"] = f"{bandwidth:g} Hz"
+    data["fmus"].update(changes.get("fmus", {}))
+    for inst, values in changes.get("parameters", {}).items():
+        data["fmus"][inst].setdefault("parameters", {}).update(values)
+    data["connections"] += changes.get("connections", [])
+    data["name"] = f"{scene}-wind_{speed:g}-{scheme}" + (f"_{bandwidth:g}Hz" if bandwidth is not None else "")
+    data["description"] = (f"{data['name']}: {scene} in the realistic loop, {speed:g} m/s Kaimal wind, "
+                           f"{changes['name']}.")
+    return data
+
+
+def cases():
+    """(key, scene, scheme, speed, bandwidth) of every run: the schemes over the speeds, and
+    the observer's bandwidth at 10 m/s."""
+    out = [((scene, scheme, f"{u:g}"), scene, scheme, u, None) for scene in SCENES for scheme in SCHEMES
+           for u in SPEEDS]
+    out += [((scene, "bandwidth", f"{b:g}"), scene, "observer", BOUND_SPEED, b) for scene in SCENES
+            for b in BOUND_BANDWIDTHS]
+    return out
+
+
+def run(out="out", jobs=None, address=None, progress=True, selected=None, window=True):
+    """Run every case not on disk yet (the engine's store resumes); returns {key: the
+    pose error's {rms, peak} [µm], or None for a run that failed}."""
+    folder = pathlib.Path(out) / "wind_rejection"
+    texts = folder / "scenarios"
+    texts.mkdir(parents=True, exist_ok=True)
+    store = engine.Store(folder / "runs")
+    everything, files, index = [], {}, []
+    for key, scene, scheme, speed, bandwidth in selected or cases():
+        data = scheme_scenario(scene, scheme, speed, bandwidth, window)
+        path = texts / f"{data['name']}.toml"
+        path.write_text(rl.toml_text(data))
+        scenario, paths, descriptions, values = runner.prepare(path)
+        item = spec.sweep_value(scenario, descriptions, "moving_base")
+        jobs_here, files_here = engine.prepared_jobs(scenario, paths, values, [("moving_base", {item[0]: {
+            item[1]: item[2]}})], keep_record=False)
+        everything += jobs_here
+        files.update(files_here)
+        index += [(key, job) for job in jobs_here]
+    with engine.Engine(jobs, address) as eng:
+        outcome = eng.run(everything, files, store, progress, name="wind_rejection")
+    if outcome.interrupted:
+        raise KeyboardInterrupt
+    results = {}
+    for key, job in index:
+        record = store.read(job.key) if store.status(job.key) else {"status": "not run"}
+        m = record.get("metrics", {}).get(rl.METRIC) if record.get("status") == "ok" else None
+        results["/".join(key)] = {k: m[k] for k in ("rms", "peak")} if m else None
+    return results
+
+
+def bandwidth():
+    """The observer's design on the realistic plant (controller.design): the highest
+    bandwidth with PM >= 25 deg and GM >= 5 dB on every mode, its margins at the shipped
+    bandwidth and the guard's predicted limit of the bandwidth at the 1 ms step."""
+    from dataclasses import replace
+
+    from controller import design
+    from plant.hexapod.model import StewartParams
+    params, gains = StewartParams.paper(), design.default_gains(StewartParams.paper())
+    loop = replace(design.REALISTIC, observer_bandwidth=1.0, observer_mass=OBSERVER_MASS, load_cell=True,
+                   load_cell_bandwidth=200.0)
+    best = design.design_observer(params, gains, 1e-3, loop, 25.0, 5.0)
+    shipped = design.margins(params, gains, 1e-3, replace(loop, observer_bandwidth=OBSERVER_BANDWIDTH))
+    limit = design.observer_limit(design.modal_masses(params, loop), gains, 1e-3, loop)
+    return {"design_hz": best.loop.observer_bandwidth, "pm_deg": shipped.modal_phase_margin_deg,
+            "gm_db": shipped.modal_gain_margin_db, "crossover_hz": shipped.crossover_hz, "limit_hz": limit,
+            "without_pm_deg": design.margins(params, gains, 1e-3, design.REALISTIC).modal_phase_margin_deg,
+            "without_gm_db": design.margins(params, gains, 1e-3, design.REALISTIC).modal_gain_margin_db}
+
+
+# ------------------------------------------------------------------------ what the docs say
+def _peak(s, scene, scheme, speed):
+    entry = s["runs"].get(f"{scene}/{scheme}/{speed:g}")
+    return None if entry is None else entry["peak"]
+
+
+def _cell(entry):
+    return "failed" if entry is None else f"{fmt(entry['rms'])} / {fmt(entry['peak'])}"
+
+
+def table(s):
+    """Per scene and scheme: RMS / peak pose error per wind speed."""
+    lines = ["| scene | scheme | " + " | ".join(f"{u:g} m/s: RMS / peak [µm]" for u in SPEEDS) + " |",
+             "|---|---|" + "---|" * len(SPEEDS)]
+    for scene in SCENES:
+        for scheme, row in SCHEMES.items():
+            cells = [_cell(s["runs"].get(f"{scene}/{scheme}/{u:g}")) for u in SPEEDS]
+            lines.append(f"| `{scene}` | {row['name']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def goals(s):
+    """The issue's goals, each against today's figure."""
+    out = []
+    for scene in SCENES:
+        best = {k: _peak(s, scene, k, BOUND_SPEED) for k in SCHEMES}
+        met = [SCHEMES[k]["name"] for k, v in best.items() if v is not None and v < GOAL]
+        out.append(f"- **{scene}, 10 m/s, peak under {GOAL:g} µm** (today {fmt(TODAY[scene][10.0])} µm): "
+                   + ", ".join(f"{SCHEMES[k]['name']} {fmt(v) if v is not None else 'failed'} µm"
+                               for k, v in best.items())
+                   + (f". Met by: {'; '.join(met)}." if met else ". Not met."))
+    calm, plain = _peak(s, "telescope_slew", "observer", 0.0), _peak(s, "telescope_slew", "pid", 0.0)
+    out.append(f"- **Calm slew keeps what it has** (peak under {TODAY['telescope_slew'][0.0]:g} µm): with the "
+               f"observer {fmt(calm) if calm is not None else 'failed'} µm"
+               + (" (met" if calm is not None and calm < TODAY["telescope_slew"][0.0] else " (not met")
+               + f"; this study's own calm run without it: {fmt(plain) if plain is not None else 'failed'} µm).")
+    return "\n".join(out)
+
+
+def bound_table(s):
+    rows = ["| observer bandwidth [Hz] | " + " | ".join(f"`{scene}` peak [µm]" for scene in SCENES) + " |",
+            "|---|" + "---|" * len(SCENES)]
+    for b in BOUND_BANDWIDTHS:
+        cells = [s["runs"].get(f"{scene}/bandwidth/{b:g}") for scene in SCENES]
+        rows.append(f"| {b:g} | " + " | ".join("failed" if c is None else fmt(c["peak"]) for c in cells) + " |")
+    return "\n".join(rows)
+
+
+def speed_chart(s, path):
+    """Peak pose error against mean wind speed, one panel per scene, one line per scheme,
+    the 10 µm mark drawn."""
+    fig, axes = plt.subplots(1, len(SCENES), figsize=(10, 4.6), layout="constrained", sharey=True)
+    styles = {"pid": {"color": "tab:blue", "ls": "-", "marker": "o"},
+              "observer": {"color": "tab:green", "ls": (0, (6, 3)), "marker": "s", "mfc": "white", "mew": 1.5}}
+    top = max(p for e in s["runs"].values() if e for p in [e["peak"]])
+    for ax, scene in zip(axes, SCENES):
+        for scheme, row in SCHEMES.items():
+            points = [(u, _peak(s, scene, scheme, u)) for u in SPEEDS if _peak(s, scene, scheme, u) is not None]
+            ax.plot(*zip(*points), lw=1.8, ms=7, label=row["name"], **styles.get(scheme, {}))
+        draw_marks(ax, top=top)
+        ax.set_yscale("log")
+        plain_log_axis(ax.yaxis)
+        ax.set_xticks(SPEEDS)
+        ax.set_xlabel("mean wind speed [m/s] (Kaimal gusts, 15 % turbulence)")
+        ax.set_title(f"{scene}", fontsize=10)
+        ax.grid(which="major", alpha=0.3)
+    axes[0].set_ylabel("peak pose error after settling [µm] (log)")
+    fig.suptitle("Realistic loop: peak pose error against wind speed, per rejection scheme", fontsize=11)
+    fig.legend(*axes[0].get_legend_handles_labels(), fontsize=9, loc="outside lower center", ncol=2, frameon=False,
+               handlelength=4)
+    save(fig, path)
+    return axes
+
+
+def report(s, charts=True):
+    """docs/wind-rejection.md (and its chart)."""
+    d = s["design"]
+    name = "wind_rejection_speed.png"
+    if charts:
+        speed_chart(s, DOCS / "figures" / name)
+    lines = [
+        "# Wind rejection: under 10 µm in gusty wind", "",
+        "Generated by `python -m studies.wind_rejection --docs` from `docs/wind_rejection.json`. The realistic "
+        "loop of [realistic_loop.md](realistic_loop.md) (every effect on; moving-base feedforward on the exact base "
+        "motion; shipped PID gains), pose position error after settling (5 s in the slew, 2 s in the keyhole "
+        "track). `telescope_slew` is the shipped 60 s run; `keyhole_tracking` the 30 s cut with the transit at "
+        "16 s. 0 m/s is calm air (no wind FMU). Scenario files: `out/wind_rejection/scenarios/`; shipped: "
+        "`telescope_slew_observer`, `keyhole_tracking_observer`.", "",
+        "## The disturbance observer", "",
+        "The controller's moving-base model already predicts the leg forces the motion needs. Load cells "
+        "(`load_cell` FMU) measure what the legs push with; the gap, plus the leg-space mass times the measured "
+        "acceleration off the reference, is the external (wind) force per leg, which the controller subtracts "
+        "from its command through a 2nd-order Butterworth low-pass Q (`observer_bandwidth`): "
+        "d = Q[f_model(ref) + M_o (l - l_ref)'' - f_measured], u = u_PID + f_model - d "
+        "(controller/c/observer.c). Load cells, ASSUMED: "
+        + ", ".join(f"`{k} = {v}`" for k, v in LOAD_CELL.items())
+        + f"; observer mass M_o = {OBSERVER_MASS:.0f} kg (the mean diagonal of the leg-space mass at home plus "
+        "the 758 kg reflected).", "",
+        f"Design (controller.design.design_observer, on the realistic plant of `REALISTIC` with the load cell, "
+        f"python-control): the highest bandwidth keeping phase margin >= 25 deg and gain margin >= 5 dB on every "
+        f"leg-space mode is {d['design_hz']:.2f} Hz; shipped {OBSERVER_BANDWIDTH:g} Hz, where the worst mode keeps "
+        f"{d['pm_deg']:.1f} deg and {d['gm_db']:.1f} dB (without the observer: {d['without_pm_deg']:.1f} deg, "
+        f"{d['without_gm_db']:.1f} dB), crossing at {d['crossover_hz']:.2f} Hz. The guard predicts the loop "
+        f"unstable above {d['limit_hz']:.3g} Hz at the 1 ms step (the lightest mode: the observer's mass is 1.9x "
+        "its mass, so the force it feeds back over-compensates) and refuses such a scene before it runs. "
+        "Co-simulation confirms it without the screws' Coulomb friction (which the prediction leaves out): at "
+        "1.15x the limit the leg forces oscillate up to kN, at 0.85x they do not "
+        "(tests/scenarios/runs/test_observer_guard.py). With the friction the real loop is better damped than "
+        "predicted: trial runs of the slew at 40 and 80 Hz stayed bounded.", "",
+        "## Peak and RMS pose error per scheme and wind speed", "", table(s), "",
+        f"![peak error against wind speed](figures/{name})", "",
+        "## The goals, against today's figures", "", goals(s), "",
+        f"## The bound: peak error at {BOUND_SPEED:g} m/s against the observer's bandwidth", "", bound_table(s), "",
+        "From the shipped bandwidth up, the slew's peak stays at its calm-air figure: what is left in wind "
+        "is the calm loop's own error (servo, sensors, friction of the realistic loop), not the wind. The "
+        "keyhole track gains little above 8 Hz and loses again at 24 Hz. The bound is the loop's margins, "
+        "not the load cells: the guard "
+        f"refuses a scene above {d['limit_hz']:.3g} Hz (the study's runs go through the engine without the "
+        "guard; the 24 Hz run stays stable only through the Coulomb friction the prediction leaves out). "
+        "Higher would need a wider force loop or less delay (a faster step), or an observer mass per mode "
+        "(the full leg-space mass matrix instead of one scalar, which sets the lightest mode's limit). "
+        "At 15 m/s the observer still cuts the peak 6-7x, but not under 10 µm "
+        f"({fmt(_peak(s, 'telescope_slew', 'observer', 15.0))} and "
+        f"{fmt(_peak(s, 'keyhole_tracking', 'observer', 15.0))} µm). In calm air the keyhole track's peak is "
+        f"{fmt(_peak(s, 'keyhole_tracking', 'observer', 0.0))} µm with the observer against "
+        f"{fmt(_peak(s, 'keyhole_tracking', 'pid', 0.0))} µm without (not investigated further). This "
+        "study's own calm baselines differ from docs/realistic_loop.md's (slew 5.3 against 5.53 µm, keyhole "
+        "10.6 against 5.66 µm, same scenario builder): the goals above are read against the page's figures, "
+        "the table against this study's runs.", ""]
+    REPORT.write_text("\n".join(lines))
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--jobs", type=int, help="worker processes (default: all cores)")
+    parser.add_argument("--dask", metavar="ADDR", help="an existing Dask scheduler")
+    parser.add_argument("--out", default="out")
+    parser.add_argument("--docs", action="store_true", help="write docs/wind-rejection.md and its chart")
+    parser.add_argument("--from-store", action="store_true", help="only rewrite the docs from the json")
+    args = parser.parse_args(argv)
+    if args.from_store:
+        report(json.loads(STORE.read_text()))
+        return
+    s = {"design": bandwidth(), "runs": run(args.out, args.jobs, args.dask)}
+    print(table(s))
+    print(goals(s))
+    print(bound_table(s))
+    if args.docs:
+        STORE.write_text(json.dumps(s, indent=1) + "\n")
+        report(s)
+        print(f"wrote {REPORT.relative_to(ROOT)} and docs/figures/wind_rejection_speed.png")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
