@@ -49,7 +49,8 @@ _DISPLAY = {"m": ("mm", 1e3), "rad": ("deg", 57.29577951308232), "m/s": ("mm/s",
             "rad/s2": ("deg/s2", 57.29577951308232), "1/s": ("Hz", 1.0)}
 
 # units of the leg actuator and sensor parameters (Hz written 1/s, as scenarios/spec/units.py reads it)
-_BASE.update({"kg": {"kg": "1"}, "N.m": {"kg": "1", "m": "2", "s": "-2"}, "1/s": {"s": "-1"}})
+_BASE.update({"kg": {"kg": "1"}, "N.m": {"kg": "1", "m": "2", "s": "-2"}, "1/s": {"s": "-1"},
+              "kg.m2": {"kg": "1", "m": "2"}})
 
 
 def requirements():
