@@ -87,9 +87,10 @@ def _sky_campaign(n, folder):
     return path
 
 
-def _sampled_campaign(n, stop, folder):
-    """The dynamic budget's campaign at ``n`` samples over its scene cut to ``stop`` s
-    (metrics from 0 s), written to ``folder``."""
+def _sampled_campaign(n, stop, folder, seed=30):
+    """The dynamic budget's campaign at ``n`` samples from ``seed`` over its scene cut to
+    ``stop`` s (metrics from 0 s), written to ``folder``."""
+    pathlib.Path(folder).mkdir(parents=True, exist_ok=True)
     scene = (campaign.SHIPPED / "scenes" / "dynamic_budget.toml").read_text()
     scene = scene.replace('from = "1 s"', 'from = "0 s"').replace('start_delay = "1 s"', 'start_delay = "0 s"')
     (pathlib.Path(folder) / "scene.toml").write_text(scene)
@@ -97,7 +98,7 @@ def _sampled_campaign(n, stop, folder):
     text = text.replace('scenario = "scenes/dynamic_budget.toml"',
                         f'scenario = "scene.toml"\nset = {{ stop_time = "{stop} s" }}')
     path = pathlib.Path(folder) / "samples.toml"
-    path.write_text(text.replace("samples = 256", f"samples = {n}"))
+    path.write_text(text.replace("samples = 256", f"samples = {n}").replace("seed = 30", f"seed = {seed}"))
     return path
 
 
@@ -150,7 +151,7 @@ def _scale(n, stop, workers=2):
                 eng = stack.enter_context(engine.Engine(jobs=workers, address=address))
                 eng.client.wait_for_workers(workers, timeout=120)
                 start = eng.start_time
-                warm = campaign.CampaignJobs(campaign.load(_sampled_campaign(2 * workers, stop, f"{tmp}/w-{kind[0]}")))
+                warm = campaign.CampaignJobs(campaign.load(_sampled_campaign(2 * workers, stop, f"{tmp}/w-{kind[0]}", 31)))
                 eng.run(warm, warm.files, engine.Store(f"{tmp}/warm-{kind}"), progress=False)
                 throughput = _throughput(eng)
                 wall, client, worker_cpu, results = _engine_run(eng, jobs, files, engine.Store(f"{tmp}/{kind}"))

@@ -142,17 +142,17 @@ def page(result):
     lines += ["", "Share of each group's variance: SRC² (standardised regression coefficients squared, summed over "
               "the group's inputs) with its 95 % bootstrap interval; what the fit leaves (1 - R²) is the sensor "
               "noise, which each sample draws anew (its own seeds), and whatever is not linear:", "",
-              "| group | " + " | ".join(METRICS[m] for m in METRICS) + " |", "|---|" + "---|" * len(METRICS)]
-    for group in GROUPS:
+              "| group | " + " | ".join(METRICS[m] for m in METRICS) + " | by chance, m / (N - 1) |",
+              "|---|" + "---|" * (len(METRICS) + 1)]
+    for group, prefix in GROUPS.items():
         cells = [result["metrics"][m]["groups"][group] for m in METRICS]
+        chance = sum(c.startswith(prefix) for c in result["inputs"]) / (result["samples"] - 1)
         lines.append(f"| {group} | " + " | ".join(f"{g['src2']:.2f} ({g['low']:.2f}-{g['high']:.2f})" for g in cells)
-                     + " |")
+                     + f" | {chance:.3f} |")
     lines.append("| sensor noise and the rest (1 - R²) | " + " | ".join(
-        f"{1 - result['metrics'][m]['r2']:.2f}" for m in METRICS) + " |")
-    chance = len(result["inputs"]) / (result["samples"] - 1)
-    lines += ["", f"A fit of these {len(result['inputs'])} inputs to pure noise would reach R² ≈ D / (N - 1) = "
-              f"{chance:.2f} by chance: a group's share near {chance / len(GROUPS):.2f} is not told apart from "
-              "nothing at this N."]
+        f"{1 - result['metrics'][m]['r2']:.2f}" for m in METRICS) + " | |")
+    lines += ["", "The last column is what a group of m inputs would reach by chance (each input's SRC² averages "
+              "1 / (N - 1) when it does nothing): a share near it is not told apart from nothing at this N."]
     top = max(result["metrics"]["pose error peak"]["src"].items(), key=lambda kv: abs(kv[1]))
     lines += ["", f"The input that moves the peak error most is {top[0]} (SRC {top[1]:+.2f}: a standard deviation of "
               f"it moves the peak by {abs(top[1]):.2f} of the peak's standard deviation). Why a regression: the "

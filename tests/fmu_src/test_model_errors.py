@@ -4,24 +4,19 @@ in the pythonfmu FMU and its native twin alike."""
 import numpy as np
 import pytest
 
-from fmu_src import native_build
-from fmu_src import python_build as builder
 from plant.hexapod import model
 from plant.rotations import rpy_matrix
 from tests.fmu_helpers import open_fmu, reals, step
 
-SCRIPTS = ("hexapod_plant_fmu", "leg_sensor_fmu", "base_sensor_fmu")
 PAPER = model.StewartParams.paper()
 POSE = [f"pose[{i}]" for i in range(1, 7)]
 RATE = [f"pose_rate[{i}]" for i in range(1, 7)]
 
 
 @pytest.fixture(scope="module")
-def both(tmp_path_factory):
-    """{implementation: {script: FMU path}} of the three FMUs these errors live in."""
-    python = builder.ensure_built(SCRIPTS)
-    out = tmp_path_factory.mktemp("native")
-    return {"python": python, "native": {s: native_build.build_native(p, out) for s, p in python.items()}}
+def both(fmus, native):
+    """{implementation: {script: FMU path}}: the session's FMUs (tests/conftest.py)."""
+    return {"python": fmus, "native": native}
 
 
 def _plant(path, dm, di, forces):
