@@ -151,7 +151,8 @@ def _scale(n, stop, workers=2):
                 eng = stack.enter_context(engine.Engine(jobs=workers, address=address))
                 eng.client.wait_for_workers(workers, timeout=120)
                 start = eng.start_time
-                warm = campaign.CampaignJobs(campaign.load(_sampled_campaign(2 * workers, stop, f"{tmp}/w-{kind[0]}", 31)))
+                warm = campaign.CampaignJobs(campaign.load(_sampled_campaign(2 * workers, stop, f"{tmp}/w{kind[0]}",
+                                                                             seed=31)))
                 eng.run(warm, warm.files, engine.Store(f"{tmp}/warm-{kind}"), progress=False)
                 throughput = _throughput(eng)
                 wall, client, worker_cpu, results = _engine_run(eng, jobs, files, engine.Store(f"{tmp}/{kind}"))
