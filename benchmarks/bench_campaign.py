@@ -156,22 +156,25 @@ def _scale(n, stop, workers=2):
                 eng.run(warm, warm.files, engine.Store(f"{tmp}/warm-{kind}"), progress=False)
                 throughput = _throughput(eng)
                 wall, client, worker_cpu, results = _engine_run(eng, jobs, files, engine.Store(f"{tmp}/{kind}"))
-                runs = sum(r["run_time_s"] for r in results)
+                runs = sum(r["run_time_s"] for r in results) / n       # the stepping loop (single.run's wall_time)
+                setup = sum(r["task_time_s"] for r in results) / n - runs   # instantiate, initialise, metrics, free
+                overhead = workers * wall / n - runs - setup            # scheduling, transfer, files, idle
+                cpu_runs = sum(r["task_cpu_s"] for r in results) / n
                 size = max(1, min(engine.BATCH, n // (4 * workers)))   # as Engine.run batches them
-                overhead = (workers * wall - runs) / n
-                measured[kind] = (wall, runs / n, overhead, throughput, start, client / n)
-                print(f"  {kind}: start {start:.1f} s; {wall:.1f} s for the samples; a run {runs / n * 1e3:.1f} ms "
-                      f"on its worker; engine overhead {overhead * 1e3:.1f} ms a sample ({workers} x wall - the runs' "
-                      f"own time, over {n}); client CPU {client / n * 1e3:.1f} ms a sample; scheduler throughput "
-                      f"{throughput:.0f} empty tasks/s; {-(-n // size)} tasks of {size} runs, overhead "
-                      f"{overhead * size * 1e3:.0f} ms a task")
-        (w_local, *_), (w_apart, t_run, o_run, x, t_start, _) = measured.values()
+                measured[kind] = (wall, runs + setup, overhead, throughput, start)
+                ms = lambda seconds: f"{seconds * 1e3:.1f} ms"
+                print(f"  {kind}: start {start:.1f} s; {wall:.1f} s for the samples ({-(-n // size)} tasks of {size} "
+                      f"runs); per sample: stepping {ms(runs)}, its FMUs' set-up and metrics {ms(setup)}, the "
+                      f"engine's overhead {ms(overhead)} ({workers} x wall / N minus both); by CPU: the run's "
+                      f"{ms(cpu_runs)}, the client's {ms(client / n)}, the workers' beyond the runs "
+                      f"{ms(worker_cpu / n - cpu_runs)}; scheduler throughput {throughput:.0f} empty tasks/s")
+        (w_local, *_), (w_apart, t_run, o_run, x, t_start) = measured.values()
         print(f"  the cluster started apart took {w_apart / w_local:.3f}x the LocalCluster's wall time "
               f"({100 * (w_apart / w_local - 1):+.1f} %)")
         batch = engine.BATCH
         print(f"projection, model T(P) = max(N (t_run + o) / P, (N / {batch}) / X) + t_start: N runs in tasks of "
-              f"{batch}, each run t_run = {t_run * 1e3:.1f} ms plus o = {o_run * 1e3:.1f} ms of engine overhead on "
-              f"its worker, the scheduler passing at most X = {x:.0f} tasks/s (measured here, empty tasks), "
+              f"{batch}, each run t_run = {t_run * 1e3:.1f} ms (stepping and set-up) plus o = {o_run * 1e3:.1f} ms of "
+              f"engine overhead, the scheduler passing at most X = {x:.0f} tasks/s (measured here, empty tasks), "
               f"t_start = {t_start:.1f} s; it saturates at P* = X {batch} (t_run + o) = "
               f"{x * batch * (t_run + o_run):.0f} cores")
         for cores in (workers, 64, 1000):
