@@ -178,7 +178,7 @@ def _scale(n, stop, workers=2):
               f"t_start = {t_start:.1f} s; it saturates at P* = X {batch} (t_run + o) = "
               f"{x * batch * (t_run + o_run):.0f} cores")
         for cores in (workers, 64, 1000):
-            for count in (n, 10_000, 100_000):
+            for count in sorted({n, 10_000, 100_000}):
                 parallel, serial = count * (t_run + o_run) / cores, count / batch / x
                 print(f"  P = {cores:5d}, N = {count:7d}: {max(parallel, serial) + t_start:8.1f} s "
                       f"({'scheduler-bound' if serial > parallel else 'worker-bound'})")
