@@ -12,7 +12,7 @@ FMU compiles. Default values are assumed, from comparable instruments (README).
 import numpy as np
 
 from fmu_src.operating_point import AXIS, BASE_POSE
-from fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
+from fmu_src.slave import INPUT, OUTPUT, PARAMETER, POSE_UNITS, GuardedSlave, acc_units, rate_units
 from plant._kernel import ffi, lib
 from plant.errors import InvalidInputError
 from plant.telescope import model as telescope
@@ -47,6 +47,10 @@ class BaseSensor(GuardedSlave):
             ("lever_arm", "m", telescope.TelescopeParams.tianma().lever_arm,
              "axis intersection to base along boresight (as Telescope's; assumed)", (0.0, None)),
         ))
+        self.alignment = self.vector("imu_alignment", 3, PARAMETER, [
+            f"IMU misalignment: {n} of its axes in the base's (rotation as the pose's angles); the IMU reads R v "
+            "for the base's rate and acceleration v, gravity compensated in its own axes (assumed); 0: aligned"
+            for n in ("roll", "pitch", "yaw")], "rad", np.zeros(3), valid=(-0.01, 0.01))
         self.truth = np.zeros(22)      # the inputs, INPUTS
         self.truth[0:2], self.truth[4:10] = AXIS, BASE_POSE   # start: the operating point, at rest
         units_of = {"axis": "rad", "axis_rate": "rad/s", "true_base_pose": POSE_UNITS,
@@ -71,6 +75,7 @@ class BaseSensor(GuardedSlave):
         self.params.source = self.source
         for name, value in s.items():
             setattr(self.params, name, float(value))
+        self.params.imu_alignment = [float(a) for a in self.alignment]
         if lib.mb_bs_check(self.params):
             raise InvalidInputError("BaseSensor parameters must be finite, the densities, resolution, cut-off "
                                     "and lever arm >= 0, source 0 or 1")

@@ -48,7 +48,7 @@ FMUS = (
     FMU("leg_controller", constants="leg_controller", optional_inputs=("leg_force_measured", "wind_speed")),
     FMU("mechanism3t_plant", constants="mechanism3t"),
     FMU("slider_controller", constants="mechanism3t"),
-    FMU("leg_sensor"),
+    FMU("leg_sensor", constants="leg_sensor"),
     FMU("base_sensor"),
     FMU("wind"),
     FMU("load_cell"),

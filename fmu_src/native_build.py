@@ -85,6 +85,11 @@ def _hexapod_plant():
     return _stewart_constants() + _integrators()
 
 
+def _leg_sensor():
+    from plant.hexapod.model import StewartParams
+    return [_array("HOME_LENGTHS", StewartParams.paper().home_lengths)]
+
+
 def _leg_controller():
     from controller.feedforward import FEEDFORWARD_MODES, model_fidelity
     from plant.hexapod.model import FIDELITIES

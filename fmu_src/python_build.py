@@ -51,7 +51,8 @@ _DISPLAY = {"m": ("mm", 1e3), "rad": ("deg", 57.29577951308232), "m/s": ("mm/s",
 
 # units of the leg actuator and sensor parameters (Hz written 1/s, as scenarios/spec/units.py reads it)
 _BASE.update({"kg": {"kg": "1"}, "N.m": {"kg": "1", "m": "2", "s": "-2"}, "1/s": {"s": "-1"},
-              "N/s": {"kg": "1", "m": "1", "s": "-3"}})
+              "N/s": {"kg": "1", "m": "1", "s": "-3"},
+              "kg.m2": {"kg": "1", "m": "2"}})
 _BASE["rad/m"] = {"rad": "1", "m": "-1"}   # the feed support's mode shapes (Telescope)
 
 

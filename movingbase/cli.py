@@ -258,7 +258,11 @@ def campaign_command(argv=None):
     parser.add_argument("--out", default="out", help="output folder (default: out)")
     parser.add_argument("--retry-failed", action="store_true", help="run again the runs that failed before")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--sample", type=int, metavar="K", help="run sample K of the file's [sample] alone, in this "
+                        "process, and compare it with the campaign's result on disk (writes nothing)")
     args = parser.parse_args(argv)
+    if args.sample is not None:
+        return _rerun_sample(args)
     try:
         warning = resources.check_jobs(args.jobs)
         if warning:
@@ -332,6 +336,25 @@ def summary(result):
             lines.append(f"    {group:18s} x{g['scale']:.3f} -> {g['tolerance'][0] * factor:9.3f} {unit}"
                          f"  (cost {g['cost']:.3g})")
     return "\n".join(lines)
+
+
+def _rerun_sample(args):
+    from scenarios import spec
+    from scenarios.runs.campaign import rerun_sample
+    try:
+        done = rerun_sample(args.campaign, args.sample, args.out, args.ci)
+    except spec.ScenarioError as exc:
+        sys.exit(f"campaign error: {exc}")
+    for job, result, stored in done:
+        print(f"{job.label}: {result['status']} {result.get('error', '')}".rstrip())
+        for name, values in result.get("metrics", {}).items():
+            print(f"  {name}: " + ", ".join(f"{k} {v!r}" for k, v in values.items() if k != "unit")
+                  + f" {values.get('unit', '')}")
+        print("  " + ("not on disk: no campaign result to compare" if stored is None else
+                      "equal to the campaign's result bit for bit" if result["same"] else
+                      "DIFFERS from the campaign's result"))
+    if any(stored is not None and not result["same"] for _, result, stored in done):
+        sys.exit(1)
 
 
 def build_command(argv=None, prog="movingbase build"):

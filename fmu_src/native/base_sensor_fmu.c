@@ -26,6 +26,7 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     p->accel_noise_density = r[VR_accel_noise_density];
     p->accel_bias = r[VR_accel_bias];
     p->lever_arm = r[VR_lever_arm];
+    for (int k = 0; k < 3; k++) p->imu_alignment[k] = r[VR_imu_alignment + k];
     if (mb_bs_check(p)) {
         mb_error(inst, "InvalidInputError", "BaseSensor parameters must be finite, the densities, resolution, "
                  "cut-off and lever arm >= 0, source 0 or 1");

@@ -18,6 +18,7 @@
 typedef struct {
     double x[18];        /* pose (6), twist (6), motor forces (6, with a bandwidth) */
     double act[MB_ACTUATOR_NDATA];
+    double data[MB_HEXAPOD_NDATA];   /* KERNEL_DATA with the payload errors added at init */
     double bounds[12];   /* (2, 6) lowest and highest leg lengths */
     double max_step;
     int base_mode, legs, rk4;
@@ -33,7 +34,7 @@ static int advance(mb_instance *inst, double *r, Model *m, double t0, double h)
     int substeps;
     if (mb_substeps(inst, h, m->max_step, &substeps)) return 1;
     double det = 0.0, *outputs = &r[VR_leg_length];
-    int status = mb_hexapod_advance_actuated(m->rk4, substeps, BASE_JOINTS, PLATFORM_JOINTS, KERNEL_DATA, m->act,
+    int status = mb_hexapod_advance_actuated(m->rk4, substeps, BASE_JOINTS, PLATFORM_JOINTS, m->data, m->act,
                                              m->x, &r[VR_leg_force], t0, h, m->base_mode, m->legs, m->bounds,
                                              outputs, &det);
     if (status == MB_HEXAPOD_OK && det >= SINGULAR_RATIO * HOME_DET) {
@@ -91,6 +92,9 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
                  INTEGRATOR_NAMES[integrator], m->max_step, rate_step, stable / (2 * M_PI * bw));
         return 1;
     }
+    memcpy(m->data, KERNEL_DATA, sizeof m->data);   /* StewartParams.kernel_data: mass, then inertia */
+    m->data[0] += r[VR_payload_mass_error];
+    for (int k = 0; k < 3; k++) m->data[1 + k] += r[VR_payload_inertia_error + k];
     m->legs = FIDELITY_LEGS[fidelity];
     m->base_mode = i[VR_moving_base] ? FIDELITY_BASE_MODE[fidelity] : MB_HEXAPOD_BASE_NONE;
     double stroke = r[VR_stroke];

@@ -19,7 +19,9 @@
    walk N sqrt(t)) plus a constant bias on every axis, in the sensor's (the base's) axes.
    Axis rates from the gyro (E' = -w_x, A' = w_y cos E + w_z sin E), accelerations by the
    filtered difference of those rates, angles from the encoders (an IMU gives no
-   absolute azimuth), translation acceleration from the accelerometer. */
+   absolute azimuth), translation acceleration from the accelerometer. An IMU misaligned
+   by R (imu_alignment) reads R w and R a for the base's w and a (gravity compensated in
+   its own axes), before bias and noise; computed as v + (R - 1) v, so 0 leaves v exact. */
 #include "random.h"
 
 enum mb_bs_source { MB_BS_ENCODERS = 0, MB_BS_IMU = 1 };
@@ -33,6 +35,8 @@ typedef struct {
     double accel_noise_density;   /* m/s2/sqrt(Hz) */
     double accel_bias;            /* m/s2 */
     double lever_arm;             /* m, axis intersection -> base along the boresight */
+    double imu_alignment[3];      /* rad, roll, pitch, yaw (as plant.rotations.rpy_matrix) of the IMU's axes
+                                     in the base's: it reads a vector v of the base as R v */
 } mb_bs_params;
 
 typedef struct {

@@ -16,7 +16,13 @@ A campaign is TOML:
     [[cases]]                          # optional list of cases, crossed with the grid
     label = "east"
     "base.start_azimuth" = "90 deg"
+    [sample]                           # optional: N sampled runs of every case (Monte Carlo)
+    samples = 200
+    seed = 2026
+    seeds = ["sensor.seed"]            # FMU seed parameters each sample sets (its own noise)
+    "plant.payload_mass_error" = { distribution = "normal", sd = "20 kg" }   # a deviation from the run's value
     [ci]                               # replaces name/set/grid/cases for the short CI run
+                                       # (its sample = { samples = 4 } replaces only the keys it gives)
 
 A key is a scenario top-level setting (start_time, stop_time, step, master,
 extrapolation) or "instance.parameter" of the base scenario (dotted keys may be written
@@ -31,10 +37,14 @@ import csv
 import dataclasses
 import difflib
 import itertools
+import json
 import os
 import pathlib
 import sys
+import zlib
 from dataclasses import dataclass
+
+import numpy as np
 
 from fmu_src import atomic
 from scenarios import spec
@@ -42,10 +52,11 @@ from scenarios.cosim.fmi import description
 from scenarios.runs import engine, flags
 from scenarios.runs import estimates as resources
 from scenarios.runs.runner import fmu_paths, output_folder, resolve
-from scenarios.spec import units
+from scenarios.spec import distributions, units
 
-_TOP = ("name", "description", "scenario", "set", "grid", "cases", "ci", "keep_records")
-_CI = ("name", "description", "set", "grid", "cases", "keep_records")     # what [ci] may replace
+_TOP = ("name", "description", "scenario", "set", "grid", "cases", "sample", "ci", "keep_records")
+_CI = ("name", "description", "set", "grid", "cases", "sample", "keep_records")     # what [ci] may replace
+_SAMPLE = ("samples", "seed", "seeds")      # [sample]'s own keys; the others are uncertain inputs
 SCENARIO_KEYS = ("start_time", "stop_time", "step", "master", "extrapolation")
 
 
@@ -60,6 +71,35 @@ MAX_RUNS = 200_000              # a campaign of more runs is refused before its 
 class Case:
     label: str
     values: dict                    # key -> raw value, as written in the file
+    sample: int = None              # its index in [sample], if sampled
+
+
+@dataclass(frozen=True)
+class Sample:
+    """[sample]: ``samples`` draws from ``seed``; ``inputs``: (key, instance, variable, unit,
+    Distribution) per scalar (a vector key is one input per element, drawn apart);
+    ``seeds``: (key, instance, variable) of the FMU seed parameters each sample sets."""
+
+    samples: int
+    seed: int
+    inputs: tuple
+    seeds: tuple
+
+    def stream(self, k, key):
+        """The generator of sample ``k``'s draw for ``key``: SeedSequence(seed, spawn_key=(k,
+        crc32(key))), so a draw depends on (seed, k, the input's name) alone: sample k
+        re-runs alone, and adding or reordering inputs leaves the others' draws as they were."""
+        return np.random.Generator(np.random.PCG64(np.random.SeedSequence(
+            self.seed, spawn_key=(k, zlib.crc32(key.encode())))))
+
+    def draws(self, k):
+        """({key: deviation [SI]}, {key: FMU seed}) of sample ``k``: u in (0, 1) (53-bit,
+        never 0 or 1, so a normal's ppf stays finite) through each Distribution's ppf."""
+        deviations = {}
+        for key, _, _, _, dist in self.inputs:
+            u = (float(self.stream(k, key).integers(1 << 53)) + 0.5) / (1 << 53)
+            deviations[key] = float(dist.ppf(u))
+        return deviations, {key: int(self.stream(k, key).integers(1, 2 ** 31 - 1)) for key, _, _ in self.seeds}
 
 
 @dataclass
@@ -72,6 +112,7 @@ class Campaign:
     varying: list                   # keys that differ between cases (summary columns)
     keep_records: bool = False
     ci: bool = False                # its [ci] version: runs cut short on purpose (no motion_unfinished)
+    sample: Sample = None           # [sample], if any
 
 
 def _flat(value, prefix=""):
@@ -149,7 +190,10 @@ def parse(text, source="<string>", base_dir=".", ci=False):
             problems.errors.append(CampaignError(source, key, f"expected text, got {data[key]!r:.60}"))
     problems.raise_any()
     if ci:
+        sampled = {**data.get("sample", {}), **ci_table.get("sample", {})} if "sample" in ci_table else None
         data.update(ci_table)
+        if sampled is not None:
+            data["sample"] = sampled
     if "scenario" not in data or not isinstance(data["scenario"], str):
         raise CampaignError(source, "scenario", "missing: name a shipped scenario or a scenario file")
     name = spec.check_name(source, "name", data["name"], CampaignError) if "name" in data else \
@@ -183,7 +227,8 @@ def parse(text, source="<string>", base_dir=".", ci=False):
             if key in where_set:
                 raise CampaignError(source, f"{where}.{key}", f"also set in {where_set[key]}, which would replace "
                                     "this case's value in every run")
-    count = len(cases)
+    count = len(cases) * (data["sample"].get("samples", 1) if isinstance(data.get("sample"), dict) and
+                          isinstance(data["sample"].get("samples"), int) else 1)
     for _, _, rows in axes:
         count *= len(rows)
     if count > MAX_RUNS:
@@ -272,6 +317,7 @@ def parse(text, source="<string>", base_dir=".", ci=False):
                     "each runs once"))
     problems.raise_any()
 
+    sample = _sample(source, data["sample"], base, descriptions) if "sample" in data else None
     runs, varying = [], []
     for where, label, case in cases:
         for combo in itertools.product(*[rows for _, _, rows in axes]):
@@ -281,7 +327,10 @@ def parse(text, source="<string>", base_dir=".", ci=False):
             for (_, keys, _), row in zip(axes, combo):
                 values.update(zip(keys, row))
                 parts.append(", ".join(f"{k}={_label(v)}" for k, v in zip(keys, row)))
-            runs.append(Case("; ".join(parts) or "run", values))
+            if sample is None:
+                runs.append(Case("; ".join(parts) or "run", values))
+            for k in range(sample.samples if sample else 0):    # every case with the same draws
+                runs.append(Case("; ".join([*parts, f"sample {k}"]), values, k))
     labels = {}
     for i, run in enumerate(runs):   # a label names one run (the table's rows, CampaignResult.series)
         j = labels.setdefault(run.label, i)
@@ -296,7 +345,72 @@ def parse(text, source="<string>", base_dir=".", ci=False):
     keep = data.get("keep_records", False)
     if not isinstance(keep, bool):
         raise CampaignError(source, "keep_records", "expected true or false")
-    return Campaign(source, name, data.get("description", ""), path, runs, varying, keep, ci)
+    return Campaign(source, name, data.get("description", ""), path, runs, varying, keep, ci, sample)
+
+
+def _inputs(table, prefix=""):
+    """[sample]'s uncertain inputs flattened to 'inst.name' keys, stopping at a table that
+    names a distribution (unquoted dotted keys make nested tables)."""
+    out = {}
+    for key, value in table.items():
+        name = f"{prefix}.{key}" if prefix else key
+        if isinstance(value, dict) and "distribution" not in value and (prefix or key not in _SAMPLE):
+            out.update(_inputs(value, name))
+        else:
+            out[name] = value
+    return out
+
+
+def _sample(source, table, base, descriptions):
+    """The checked [sample] table: every problem of it told at once."""
+    table = _inputs(_table(source, "sample", table))
+    problems = spec.Problems(CampaignError)
+    samples, seed = table.pop("samples", None), table.pop("seed", None)
+    for key, value, low in (("samples", samples, 1), ("seed", seed, 0)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            problems.errors.append(CampaignError(source, f"sample.{key}", f"expected an integer >= {low}, got "
+                                                 f"{value!r}"))
+    seed_keys = table.pop("seeds", [])
+    if not isinstance(seed_keys, list) or not all(isinstance(k, str) for k in seed_keys):
+        problems.errors.append(CampaignError(source, "sample.seeds", "expected a list of 'instance.seed' keys"))
+        seed_keys = []
+    if not table:
+        problems.errors.append(CampaignError(source, "sample", 'names no uncertain input: add e.g. '
+                                             '"plant.payload_mass_error" = { distribution = "normal", sd = "20 kg" }'))
+
+    def variables(where, key):
+        inst, _, name = key.partition(".")
+        if not name or inst not in base.fmus:
+            raise CampaignError(source, where, f"unknown key {key!r}: expected 'instance.parameter' with an "
+                                f"instance of {base.source} ({', '.join(base.fmus)})")
+        found = {v.name: v for v in descriptions[inst].modelVariables}
+        targets = spec.expand(found, key)
+        if not targets:
+            raise CampaignError(source, where, f"{inst} ({base.fmus[inst]}) has no parameter {name!r}")
+        if any(found[t].causality != "parameter" for t in targets):
+            raise CampaignError(source, where, f"{key} is an {found[targets[0]].causality}, not a parameter: a sample "
+                                "draws the deviations of parameters")
+        return inst, [found[t] for t in targets]
+
+    inputs, seeds = [], []
+    for key, value in table.items():
+        with problems.part():
+            inst, found = variables(f"sample.{key}", key)
+            if any(v.type != "Real" for v in found):
+                raise CampaignError(source, f"sample.{key}", "a deviation is drawn for a real parameter; "
+                                    f"{key} is {found[0].type.lower()}: set it in the grid or cases")
+            dist = distributions.parse(source, f"sample.{key}", value, found[0].unit or "1", CampaignError)
+            inputs += [(f"{inst}.{v.name}" if len(found) > 1 else key, inst, v.name,
+                        "" if v.unit in (None, "1") else v.unit, dist)
+                       for v in found]
+    for j, key in enumerate(seed_keys):
+        with problems.part():
+            inst, found = variables(f"sample.seeds[{j}]", key)
+            if len(found) != 1 or found[0].type != "Integer":
+                raise CampaignError(source, f"sample.seeds[{j}]", f"{key} is not an integer seed parameter")
+            seeds.append((key, inst, found[0].name))
+    problems.raise_any()
+    return Sample(samples, seed, tuple(inputs), tuple(seeds))
 
 
 def _descriptions(scenario):
@@ -371,6 +485,20 @@ class CampaignJobs:
             variables = {v.name: v for v in descriptions[inst].modelVariables}
             for target, item in zip(spec.expand(variables, key), raw if isinstance(raw, list) else [raw]):
                 params[inst][target] = spec._value(self.campaign.source, key, variables[target], item)
+        if case.sample is not None:     # the run's value + the draw, checked against the FMU's range
+            sample = self.campaign.sample
+            deviations, seeds = sample.draws(case.sample)
+            for key, inst, name, _, _ in sample.inputs:
+                variable = next(v for v in descriptions[inst].modelVariables if v.name == name)
+                value = float(params[inst].get(name, variable.start)) + deviations[key]   # unset: the FMU's
+                try:
+                    params[inst][name] = spec._value(self.campaign.source, key, variable, value)
+                except spec.ScenarioError as exc:
+                    raise CampaignError(self.campaign.source, f"sample {case.sample}: {key}", f"the draw "
+                                        f"{deviations[key]:.6g} {variable.unit or ''} gives {exc.problems[0][2]}"
+                                        ) from None
+            for key, inst, name in sample.seeds:
+                params[inst][name] = seeds[key]
         return scenario, params, descriptions, digests
 
     def cost(self):
@@ -456,6 +584,12 @@ def write_summary(campaign, store, job_list, path):
         writer = None
         for case, record in results(campaign, store, job_list):
             row = {"label": case.label, **{k: case.values.get(k) for k in campaign.varying}}
+            if campaign.sample:         # its draws: the deviation of each input [SI], its FMU seeds
+                deviations, seeds = campaign.sample.draws(case.sample)
+                row["sample"] = case.sample
+                row.update({f"{key} [{unit}]" if unit else key: repr(deviations[key])
+                            for key, _, _, unit, _ in campaign.sample.inputs})
+                row.update(seeds)
             row["status"] = record["status"] if record else "not run"
             row["error"] = record.get("error", "") if record else ""
             row["flags"] = flags.summary(flags.from_dicts((record or {}).get("flags")))
@@ -467,6 +601,34 @@ def write_summary(campaign, store, job_list, path):
                 writer.writeheader()
             writer.writerow(row)
     return path
+
+
+def rerun_sample(path, k, out="out", ci=False):
+    """Sample ``k`` of a campaign file alone, in this process (scenarios.runs.engine.execute,
+    the workers' own call): [(job, result, stored)] per case, ``stored`` the campaign's
+    result of that run if on disk under ``out`` (else None), and ``same`` in the result:
+    its metrics and metric series equal the stored ones bit for bit. Writes nothing."""
+    campaign = load(path, ci)
+    if campaign.sample is None:
+        raise CampaignError(campaign.source, "sample", "this campaign has no [sample] table: --sample needs one")
+    if not isinstance(k, int) or not 0 <= k < campaign.sample.samples:
+        raise CampaignError(campaign.source, "sample", f"--sample {k}: the campaign has samples 0.."
+                            f"{campaign.sample.samples - 1}")
+    campaign = dataclasses.replace(campaign, cases=[c for c in campaign.cases if c.sample == k])
+    job_list, files = jobs(campaign)
+    blobs = {digest: pathlib.Path(p).read_bytes() for digest, p in files.items()}
+    store = engine.Store(output_folder(out, campaign.source) / "runs")
+    done = []
+    for job in job_list:
+        result = engine.execute(job, blobs)
+        stored = store.read(job.key) if store.status(job.key) else None
+        if stored is not None:
+            series = store.series(job.key)
+            result["same"] = stored["metrics"] == json.loads(json.dumps(result["metrics"], default=float)) and all(
+                np.array_equal(series[n][0], t) and np.array_equal(series[n][1], v)
+                for n, (t, v) in result["series"].items())
+        done.append((job, result, stored))
+    return done
 
 
 def run_campaign(path, out="out", ci=False, jobs_=None, address=None, progress=True, retry_failed=False):

@@ -1,0 +1,37 @@
+"""studies/dynamic_budget.py's analysis against a response whose variance shares are known:
+y = 2 a + b + e with a, b, e independent of unit variance gives a's group 4/6 of the
+variance, b's 1/6, R^2 = 5/6, and nothing to the inputs that do not enter."""
+import csv
+
+import numpy as np
+import pytest
+
+from studies import dynamic_budget
+
+
+def test_shares_of_a_known_linear_response(tmp_path):
+    rng = np.random.default_rng(1)
+    n = 2000
+    inputs = ["plant.payload_mass_error [kg]", "plant.payload_inertia_error[1] [kg.m2]", "encoders.scale_error[1]",
+              "encoders.scale_error[2]", "imu.imu_alignment[1] [rad]"]
+    x = np.c_[rng.normal(0, 40, n), rng.uniform(-550, 550, (n, 1)), rng.uniform(-1e-4, 1e-4, (n, 2)),
+              rng.uniform(-1e-3, 1e-3, n)]
+    z = (x - x.mean(0)) / x.std(0)
+    y = 2 * z[:, 0] + z[:, 4] + rng.normal(0, 1, n)
+    path = tmp_path / "summary.csv"
+    with open(path, "w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow(["label", *inputs, "status", "pose error peak", "pose error rms"])
+        writer.writerows([f"sample {k}", *x[k], "ok", 7 + y[k], 3 + 0.1 * y[k]] for k in range(n))
+    result = dynamic_budget.analyse(path)
+    m = result["metrics"]["pose error peak"]
+    groups = m["groups"]
+    assert m["r2"] == pytest.approx(5 / 6, abs=0.02)
+    assert groups["payload mass"]["src2"] == pytest.approx(4 / 6, abs=0.03)
+    assert groups["IMU alignment"]["src2"] == pytest.approx(1 / 6, abs=0.02)
+    assert groups["encoder scale"]["src2"] < 0.005 and groups["payload inertia"]["src2"] < 0.005
+    mass = groups["payload mass"]
+    assert mass["low"] < mass["src2"] < mass["high"] and mass["high"] - mass["low"] < 0.1
+    assert m["sd"] == pytest.approx(np.sqrt(6), rel=0.05)
+    page = dynamic_budget.page(result)
+    assert "| payload mass | 0.6" in page and f"{n} samples" in page
