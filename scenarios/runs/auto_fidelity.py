@@ -24,11 +24,13 @@ def _vector(name):
     return [f"{name}[{i + 1}]" for i in range(6)]
 
 
-def scene_motion(scenario, fmu_paths, values, telescope):
-    """Reference motion and base motion (6 arrays (n, 6)) of the telescope instance."""
+def scene_motion(scenario, fmu_paths, values, telescope, axes=False):
+    """Reference motion and base motion (6 arrays (n, 6)) of the telescope instance; with
+    ``axes``, also the antenna axes' rates (n, 2): the slew's own motion, without the sway
+    of a flexible feed support that base_rate carries."""
     instance = Instance(fmu_paths[telescope], f"{telescope}-fidelity")
     names = ["reference_pose", "reference_rate", "reference_acc", "base_pose", "base_rate", "base_acc"]
-    port = RealPort(instance, [v for n in names for v in _vector(n)])
+    port = RealPort(instance, [v for n in names for v in _vector(n)] + (["axis_rate[1]", "axis_rate[2]"] * axes))
     try:
         instance.initialize(scenario.start_time, values.get(telescope, {}))
         h = (scenario.stop_time - scenario.start_time) / SAMPLES
@@ -39,7 +41,8 @@ def scene_motion(scenario, fmu_paths, values, telescope):
     finally:
         instance.terminate()
     data = np.array(rows)
-    return [data[:, 6 * i:6 * i + 6] for i in range(6)]
+    motion = [data[:, 6 * i:6 * i + 6] for i in range(6)]
+    return (motion, data[:, 36:]) if axes else motion
 
 
 def fidelity_errors(motion, params=None):

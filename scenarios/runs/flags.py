@@ -309,9 +309,10 @@ def predict(scenario, paths, descriptions, values, ci=False, cache=None):
         telescope = _telescope(scenario, loop)
         key = _key(scenario, values, loop, telescope)
         if key not in cache:
-            motion = auto_fidelity.scene_motion(scenario, paths, values, telescope) if telescope else None
+            motion, axis_rate = (auto_fidelity.scene_motion(scenario, paths, values, telescope, axes=True)
+                                 if telescope else (None, None))
             masses = _merge(masses_of(scenario, paths, descriptions, values, loop, motion))
-            unfinished = tuple(_unfinished(scenario, telescope, motion[4], _delay(values, descriptions, telescope))
+            unfinished = tuple(_unfinished(scenario, telescope, axis_rate, _delay(values, descriptions, telescope))
                                ) if telescope else ()
             cache[key] = (Prediction(design.step_limit(masses, loop.gains, loop.model), scenario.step, loop.model,
                                      loop.gains, masses, unfinished, loop.controller))
@@ -329,7 +330,8 @@ def motion_flags(scenario, paths, descriptions, values):
     for loop in loops(scenario, descriptions, values):
         telescope = _telescope(scenario, loop)
         if telescope:
-            out += _unfinished(scenario, telescope, auto_fidelity.scene_motion(scenario, paths, values, telescope)[4],
+            out += _unfinished(scenario, telescope,
+                               auto_fidelity.scene_motion(scenario, paths, values, telescope, axes=True)[1],
                                _delay(values, descriptions, telescope))
     return out
 
@@ -347,10 +349,11 @@ def _delay(values, descriptions, telescope):
     return float(_value(values, descriptions, telescope, "start_delay"))
 
 
-def _unfinished(scenario, telescope, base_rate, delay=0.0):
+def _unfinished(scenario, telescope, axis_rate, delay=0.0):
     """[motion_unfinished] if the slew (or paper manoeuvre) never starts (its ``delay`` at
     or after the stop time: the run holds the start pointing throughout) or still turns
-    the base at the stop time (``base_rate`` along the run), else []."""
+    the antenna's axes at the stop time (``axis_rate`` along the run: the slew itself, not
+    the sway of a flexible support, which never stops in wind), else []."""
     profile = scenario.parameters.get(telescope, {}).get("profile", "slew")
     if profile not in ("slew", "paper"):
         return []
@@ -358,10 +361,10 @@ def _unfinished(scenario, telescope, base_rate, delay=0.0):
         return [Flag("motion_unfinished", f"the {profile} of {telescope!r} never starts: its start_delay "
                                           f"{delay:g} s is at or after the stop time {scenario.stop_time:g} s, "
                                           "so the base holds its start pointing for the whole run")]
-    turning = float(np.linalg.norm(base_rate[-1][3:]))
+    turning = float(np.linalg.norm(axis_rate[-1]))
     if turning > MOVING:
         return [Flag("motion_unfinished", f"the {profile} of {telescope!r} has not ended at the stop time "
-                                          f"{scenario.stop_time:g} s: the base still turns at "
+                                          f"{scenario.stop_time:g} s: the antenna still turns at "
                                           f"{math.degrees(turning):.3g} deg/s")]
     return []
 

@@ -368,3 +368,16 @@ def test_every_step_a_refusal_advises_runs_under_its_master():
         scenario.stop_time = round(60.0 / step) * step
         prediction = flags.predict(*runner.prepare_loaded(scenario))
         assert not prediction.beyond and flags.check(scenario, prediction) == [], (kind, extrapolation, ms)
+
+
+def test_a_swaying_support_is_no_unfinished_slew(tmp_path):
+    # the flexible feed support's sway rings on after the slew (in wind it never stops): the
+    # motion_unfinished check reads the antenna's axes, so 60 s (slew over, sway ringing) is
+    # unflagged, and 40 s (mid-slew) is flagged; it read base_rate, sway included, before
+    shipped = (runner.SHIPPED / "telescope_slew_support.toml").read_text()
+    for stop, flagged in (("60 s", False), ("40 s", True)):
+        path = tmp_path / f"support_{stop[:2]}.toml"
+        path.write_text(shipped.replace('stop_time = "70 s"', f'stop_time = "{stop}"'))
+        found = runner.pre_run_flags(*runner.prepare(path))
+        kinds = {f.kind for each in found.values() for f in each}
+        assert kinds == ({"motion_unfinished"} if flagged else set()), (stop, kinds)
