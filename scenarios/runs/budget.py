@@ -19,10 +19,8 @@ read and run: the parsing errors are ScenarioErrors naming file, key and problem
 stays in plant.hexapod.tolerance. No co-simulation runs: the dynamic budget (payload and sensor
 calibration inputs, on Dask) is the campaigns'.
 """
-import difflib
 import json
 import math
-import os
 import pathlib
 from dataclasses import dataclass, field
 
@@ -218,16 +216,7 @@ def parse(text, source="<string>"):
 
 def load(path):
     """A budget file, or the name of a shipped one (scenarios/budgets/<name>.toml)."""
-    if not isinstance(path, (str, os.PathLike)):
-        raise TypeError(f"a budget is a file path or a shipped name, got {type(path).__name__} {path!r:.60}")
-    path = pathlib.Path(path).expanduser()
-    if not path.exists() and path.suffix != ".toml" and (SHIPPED / f"{path}.toml").exists():
-        path = SHIPPED / f"{path}.toml"
-    if not path.exists():
-        shipped = sorted(p.stem for p in SHIPPED.glob("*.toml"))
-        near = difflib.get_close_matches(path.stem.lower(), shipped, 1, 0.6)
-        raise BudgetError(str(path), "file", "does not exist; " + (f"did you mean {near[0]!r}? " if near else "")
-                          + f"shipped budgets: {', '.join(shipped)}")
+    path = spec.text.shipped_file(path, SHIPPED, BudgetError, "budget")
     return parse(spec.read_text(path, BudgetError, "budget"), str(path))
 
 

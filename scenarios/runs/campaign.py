@@ -35,10 +35,8 @@ one row per run, read back from the files.
 """
 import csv
 import dataclasses
-import difflib
 import itertools
 import json
-import os
 import pathlib
 import sys
 import zlib
@@ -424,16 +422,7 @@ SHIPPED = pathlib.Path(__file__).resolve().parents[1] / "campaigns"
 
 def load(path, ci=False):
     """A campaign file, or the name of a shipped one (scenarios/campaigns/<name>.toml)."""
-    if not isinstance(path, (str, os.PathLike)):
-        raise TypeError(f"a campaign is a file path or a shipped name, got {type(path).__name__} {path!r:.60}")
-    path = pathlib.Path(path).expanduser()
-    if not path.exists() and path.suffix != ".toml" and (SHIPPED / f"{path}.toml").exists():
-        path = SHIPPED / f"{path}.toml"
-    if not path.exists():
-        shipped = sorted(p.stem for p in SHIPPED.glob("*.toml"))
-        near = difflib.get_close_matches(path.stem.lower(), shipped, 1, 0.6)
-        raise CampaignError(str(path), "file", "does not exist; " + (f"did you mean {near[0]!r}? " if near else "")
-                            + f"shipped campaigns: {', '.join(shipped)}")
+    path = spec.text.shipped_file(path, SHIPPED, CampaignError, "campaign")
     return parse(spec.read_text(path, CampaignError, "campaign"), str(path), path.parent, ci)
 
 

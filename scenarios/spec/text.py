@@ -3,6 +3,7 @@ parsed as TOML with its nesting bounded, and the error that names the file, the 
 the problem (ScenarioError)."""
 import contextlib
 import difflib
+import os
 import pathlib
 import re
 import tomllib
@@ -161,3 +162,20 @@ def merged(data, overrides):
     for key, value in (overrides or {}).items():
         out[key] = merged(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
     return out
+
+
+def shipped_file(path, folder, error, what):
+    """The file ``path``, or the name of one shipped in ``folder`` (<folder>/<name>.toml);
+    ``error`` (an error class of this module's form) names the nearest shipped one if neither
+    exists. ``what``: "campaign", "budget"."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"a {what} is a file path or a shipped name, got {type(path).__name__} {path!r:.60}")
+    path = pathlib.Path(path).expanduser()
+    if not path.exists() and path.suffix != ".toml" and (folder / f"{path}.toml").exists():
+        path = folder / f"{path}.toml"
+    if not path.exists():
+        shipped = sorted(p.stem for p in folder.glob("*.toml"))
+        near = difflib.get_close_matches(path.stem.lower(), shipped, 1, 0.6)
+        raise error(str(path), "file", "does not exist; " + (f"did you mean {near[0]!r}? " if near else "")
+                    + f"shipped {what}s: {', '.join(shipped)}")
+    return path
