@@ -17,7 +17,7 @@ def test_the_table_gives_each_effect_and_feedforward_in_the_telescope_s_units():
     ok = {"status": "ok", "metrics": {realistic_loop.METRIC: POSE, "pointing": POINTING}}
     results = {"ideal": {"exact": {"none": ok, "fixed_base": ok, "moving_base": ok}},
                "wind": {"exact": {"fixed_base": {"status": "failed"}, "moving_base": ok}}}
-    lines = study.table(results).splitlines()
+    lines = study.table((results, {"observer": {**POSE, "pointing": POINTING}})).splitlines()
     assert "efficiency lost at K 22 GHz [%] | efficiency lost at Q 43 GHz [%] |" in lines[0]
     assert lines[2] == ("| ideal loop | none (PID only) | 27.2 / 106 | 0.125 / 0.5 | 1.5 / 5.5 | 4.5e-05 | "
                         "0.000175 |")
@@ -26,7 +26,10 @@ def test_the_table_gives_each_effect_and_feedforward_in_the_telescope_s_units():
                     "| failed | failed | failed |"]
     not_run = [line for line in lines if line.startswith("| leg encoders")]
     assert not_run and "failed" in not_run[0]          # a case not in the results is no number either
-    assert len(lines) == 2 + 3 + 2 * (len(realistic_loop.EFFECTS) + 1)
+    assert len(lines) == 2 + 3 + 2 * (len(realistic_loop.EFFECTS) + 1) + len(study.SCHEME_ROWS)
+    observer, anemometer = lines[-2:]          # the schemes: one given, one not run
+    assert observer.endswith("| moving-base model | 27.2 / 106 | 0.125 / 0.5 | 1.5 / 5.5 | 4.5e-05 | 0.000175 |")
+    assert "disturbance observer" in observer and anemometer.count("failed") == 6
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +38,9 @@ def ran(tmp_path_factory):
 
 
 def test_every_budget_run_finishes_and_the_docs_page_is_current(ran):
-    assert all(record["status"] == "ok" for modes in ran.values() for record in modes["exact"].values())
+    effects, schemes = ran
+    assert all(record["status"] == "ok" for modes in effects.values() for record in modes["exact"].values())
+    assert all(entry is not None for entry in schemes.values())
     page = study.REPORT.read_text()
     assert study.table(ran) in page, "docs/error-budget.md is stale: python -m studies.error_budget"
 
@@ -44,10 +49,22 @@ def test_the_moving_base_model_points_better_and_wind_costs_pointing(ran):
     """The budget's physics: with the moving-base feedforward the beam points better than
     with the base motion ignored; wind alone adds pointing error to the moving-base loop;
     the efficiency loss grows with frequency as (f)^2 for errors this small."""
-    point = {(loop, mode): ran[loop]["exact"][mode]["metrics"]["pointing"] for loop in ran
-             for mode in ran[loop]["exact"]}
+    effects, schemes = ran
+    point = {(loop, mode): effects[loop]["exact"][mode]["metrics"]["pointing"] for loop in effects
+             for mode in effects[loop]["exact"]}
     assert point["ideal", "moving_base"]["rms"] < 0.1 * point["ideal", "fixed_base"]["rms"]
     assert point["wind", "moving_base"]["rms"] > 10 * point["ideal", "moving_base"]["rms"]
     worst = point["wind", "fixed_base"]
     assert worst["efficiency_loss_43GHz"] / worst["efficiency_loss_22GHz"] == pytest.approx((43 / 22) ** 2, rel=1e-3)
     assert all(math.isfinite(v) for v in worst.values() if not isinstance(v, str))
+
+
+def test_the_observer_takes_the_wind_out_of_the_budget(ran):
+    """The last rows: the disturbance observer on load cells brings the all-effects, 10 m/s
+    wind row's peak pose and pointing error down; the chart is drawn from the same rows."""
+    effects, schemes = ran
+    everything = effects["realistic"]["exact"]["moving_base"]["metrics"]
+    assert schemes["observer"]["peak"] < 0.6 * everything[realistic_loop.METRIC]["peak"]
+    assert schemes["observer"]["pointing"]["peak"] < everything["pointing"]["peak"]
+    rows = study.chart_rows(ran)
+    assert rows[-2][1]["moving_base"] == (schemes["observer"]["peak"], schemes["observer"]["pointing"]["peak"])
