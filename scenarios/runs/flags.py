@@ -287,13 +287,14 @@ def _merge(masses, rtol=1e-3):
 def _key(scenario, values, loop, telescope):
     """What decides a loop's limit (and its motion's flags): the time grid, master and
     extrapolation, the gains, the controller's motion parameters, every parameter of the
-    plant, sensor and telescope."""
+    plant, sensor and telescope, and the loop model they and the controller's observer (with
+    its load cell) give: a field the loop model learns is in the key with it."""
     def of(inst):
         return repr(sorted(values.get(inst, {}).items())) if inst else ""
     own = {n: v for n, v in values.get(loop.controller, {}).items() if n.split("[", 1)[0] in loop.entry["motion"]}
     return repr((scenario.start_time, scenario.stop_time, scenario.step, scenario.master, scenario.extrapolation,
                  loop.controller, loop.gains, repr(sorted(own.items())), of(loop.plant), of(loop.sensor),
-                 of(telescope)))
+                 of(telescope), loop.model))
 
 
 def predict(scenario, paths, descriptions, values, ci=False, cache=None):
