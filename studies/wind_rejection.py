@@ -49,7 +49,7 @@ OBSERVER_MASS = 2605.6747045735265   # kg: mean diagonal of M_leg at home (1848 
 # (anti-aliasing below the 500 Hz Nyquist of the 1 ms step), no extra delay.
 LOAD_CELL = {"resolution": "0.5 N", "noise": "5 N", "bandwidth": "200 Hz", "delay_steps": 0, "seed": 2}
 OBSERVER_BANDWIDTH = 8.0   # Hz: controller.design.design_observer, PM >= 25 deg and GM >= 5 dB (bandwidth())
-SCHEMES = {
+SCHEMES: dict[str, dict] = {
     "pid": {"name": "PID + moving-base feedforward (today)"},
     "observer": {
         "name": f"+ disturbance observer on load cells ({OBSERVER_BANDWIDTH:g} Hz)",

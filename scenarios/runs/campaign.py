@@ -69,7 +69,7 @@ MAX_RUNS = 200_000              # a campaign of more runs is refused before its 
 class Case:
     label: str
     values: dict                    # key -> raw value, as written in the file
-    sample: int = None              # its index in [sample], if sampled
+    sample: int | None = None       # its index in [sample], if sampled
 
 
 @dataclass(frozen=True)
@@ -110,7 +110,7 @@ class Campaign:
     varying: list                   # keys that differ between cases (summary columns)
     keep_records: bool = False
     ci: bool = False                # its [ci] version: runs cut short on purpose (no motion_unfinished)
-    sample: Sample = None           # [sample], if any
+    sample: Sample | None = None    # [sample], if any
 
 
 def _flat(value, prefix=""):
