@@ -72,7 +72,7 @@ class HexapodPlant(GuardedSlave):
         ))
         self.payload = self.parameters((
             ("payload_mass_error", "kg", 0.0, f"the payload's mass minus the {_PAPER.platform_mass} kg the "
-             "controller's model knows; 0: as modelled", PAYLOAD_MASS_RANGE),))
+             "controller's model knows (assumed: rigid with the platform); 0: as modelled", PAYLOAD_MASS_RANGE),))
         self.payload_inertia = self.vector(
             "payload_inertia_error", 3, PARAMETER,
             [f"the payload's principal moment about {a} at its centre of mass minus the {i} kg.m2 the controller's "
