@@ -95,7 +95,7 @@ static int controller(const double *hex, const double *gains, int base_mode, int
 /* Initialise as scenarios/cosim/master.py start does (telescope, plant, controller), then run
    `steps` macro steps of h from t = 0. Returns the macro steps completed (steps, or the
    one a check stopped at; -1 when initialization failed).
-   hex (47)        base_joints (18), platform_joints (18), kernel data (MB_HEXAPOD_NDATA)
+   hex (50)        base_joints (18), platform_joints (18), kernel data (MB_HEXAPOD_NDATA)
    plant (37)      actuator (MB_ACTUATOR_NDATA), bounds (12), max_step, the leg_force and
                    platform_wrench start values (6 + 6), initial_pose (6)
    plant_modes (3) rk4, base_mode, legs

@@ -34,11 +34,13 @@ STROKE_RANGE = (1e-3, float(StewartParams.paper().home_lengths.min()))
 POSE_RANGE = [(h - STROKE_RANGE[1], h + STROKE_RANGE[1]) for h in HOME_POSE[:3]] + [(-np.pi / 2, np.pi / 2)] * 3
 # A model that is wrong: the payload (platform + subreflector) as built, against the
 # paper's values the controller's feedforward knows; +-50 % of them (a wider error is a
-# different payload, not a tolerance). Its centre of mass stays at o_P: the kernel has no
-# offset term for it.
+# different payload, not a tolerance). Its centre of mass may sit off o_P, where the model
+# puts it, by up to 0.5 m along each axis (a third of the joint circle's radius; more is a
+# different payload).
 _PAPER = StewartParams.paper()
 PAYLOAD_MASS_RANGE = (-0.5 * _PAPER.platform_mass, 0.5 * _PAPER.platform_mass)
 PAYLOAD_INERTIA_RANGE = [(-0.5 * i, 0.5 * i) for i in _PAPER.platform_inertia]
+PAYLOAD_COM_RANGE = [(-0.5, 0.5)] * 3
 
 
 class HexapodPlant(GuardedSlave):
@@ -70,12 +72,17 @@ class HexapodPlant(GuardedSlave):
         ))
         self.payload = self.parameters((
             ("payload_mass_error", "kg", 0.0, f"the payload's mass minus the {_PAPER.platform_mass} kg the "
-             "controller's model knows (assumed: centre of mass at o_P); 0: as modelled", PAYLOAD_MASS_RANGE),))
+             "controller's model knows (assumed: rigid with the platform); 0: as modelled", PAYLOAD_MASS_RANGE),))
         self.payload_inertia = self.vector(
             "payload_inertia_error", 3, PARAMETER,
-            [f"the payload's principal moment about {a} at o_P minus the {i} kg.m2 the controller's model knows "
-             "(assumed: axes of {P}); 0: as modelled" for a, i in zip("xyz", _PAPER.platform_inertia)],
+            [f"the payload's principal moment about {a} at its centre of mass minus the {i} kg.m2 the controller's "
+             "model knows (assumed: axes of {P}); 0: as modelled" for a, i in zip("xyz", _PAPER.platform_inertia)],
             "kg.m2", np.zeros(3), valid=PAYLOAD_INERTIA_RANGE)
+        self.payload_com = self.vector(
+            "payload_com_error", 3, PARAMETER,
+            [f"the payload's centre of mass along {a} of {{P}} from o_P, where the controller's model puts it "
+             "(assumed: the platform rigid, the offset fixed in {P}); 0: as modelled" for a in "xyz"],
+            "m", np.zeros(3), valid=PAYLOAD_COM_RANGE)
         self.initial_pose = self.vector("initial_pose", 6, PARAMETER,
                                         [f"initial platform {n} in {{B}}" for n in POSE_NAMES], POSE_UNITS,
                                         HOME_POSE, valid=POSE_RANGE)
@@ -107,7 +114,8 @@ class HexapodPlant(GuardedSlave):
     def initialize(self):
         params = StewartParams.paper(stroke=(-self.stroke, self.stroke),
                                      platform_mass=_PAPER.platform_mass + self.payload["payload_mass_error"],
-                                     platform_inertia=_PAPER.platform_inertia + self.payload_inertia)
+                                     platform_inertia=_PAPER.platform_inertia + self.payload_inertia,
+                                     platform_com=_PAPER.platform_com + self.payload_com)
         a = self.actuator
         actuator = Actuator(a["actuator_bandwidth"], a["reflected_mass"], a["coulomb_friction"], a["viscous_friction"],
                             a["friction_velocity"], a["actuator_force_limit"])

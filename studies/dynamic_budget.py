@@ -1,6 +1,6 @@
 """The dynamic tolerance budget (issue 30): how much tracking error a model that is wrong
 costs in a slew's acceleration phase, and which error drives it. The sampled campaign
-scenarios/campaigns/dynamic_budget.toml draws the payload (mass, principal moments)
+scenarios/campaigns/dynamic_budget.toml draws the payload (mass, principal moments, centre of mass)
 against the paper's values the feedforward keeps, the leg encoders' scale errors, the
 base IMU's alignment and each sample's own sensor noise.
 
@@ -15,7 +15,7 @@ standardised metric on the standardised inputs; SRC^2 is an input's share of the
 variance for a linear response of independent inputs, as drawn; R^2 says how much of the
 spread that covers, the rest being the sensor noise each sample draws and what is not
 linear), with bootstrap intervals. Sobol indices would need N (D + 2) runs of a Saltelli
-design for D = 13 inputs; this reads the N runs already made.
+design for D = 16 inputs; this reads the N runs already made.
 """
 import argparse
 import csv
@@ -41,6 +41,7 @@ FIGURE = DOCS / "figures" / "dynamic_budget.png"
 CAMPAIGN = "dynamic_budget"
 METRICS = {"pose error peak": "peak pose error (µm)", "pose error rms": "RMS pose error (µm)"}
 GROUPS = {"payload mass": "plant.payload_mass_error", "payload inertia": "plant.payload_inertia_error",
+          "payload centre of mass": "plant.payload_com_error",
           "encoder scale": "encoders.scale_error", "IMU alignment": "imu.imu_alignment"}
 
 
@@ -128,8 +129,8 @@ def page(result):
              "", f"The campaign `scenarios/campaigns/dynamic_budget.toml` ({result['samples']} samples; "
              "[campaigns](campaigns.md#sampled-campaigns)) runs 2 s of a slew's acceleration phase (az 0 -> 20 deg, "
              "el 30 -> 45 deg, the moving-base feedforward fed by an IMU on the base, leg encoders) with a model that "
-             "is wrong: the payload's mass (sd 43 kg, 2 %) and principal moments (uniform ±550 kg.m², 15 % of the "
-             "smallest) against the "
+             "is wrong: the payload's mass (sd 43 kg, 2 %), principal moments (uniform ±550 kg.m², 15 % of the "
+             "smallest) and centre of mass (uniform ±20 mm along each axis of {P}) against the "
              "paper's values the feedforward keeps, the six encoders' scale errors (uniform ±1e-4 of the travel from "
              "home) and the IMU's alignment (uniform ±1 mrad about each axis), and each sample's own sensor noise. "
              "The tolerances are assumed (the campaign file says why).", "",
@@ -157,10 +158,10 @@ def page(result):
     lines += ["", f"The input that moves the peak error most is {top[0]} (SRC {top[1]:+.2f}: a standard deviation of "
               f"it moves the peak by {abs(top[1]):.2f} of the peak's standard deviation). Why a regression: the "
               "samples are plain Monte Carlo, and SRC reads the runs already made; Sobol indices "
-              "(plant.hexapod.tolerance, SALib) would need a Saltelli design of N (D + 2) runs for these D = 13 "
-              "inputs, and with R² this low a first-order index would mostly measure the noise. SRC² is exact for "
-              "a linear response of independent inputs (these are drawn independently) and R² says how much of "
-              "the spread that covers.", ""]
+              "(plant.hexapod.tolerance, SALib) would need a Saltelli design of N (D + 2) runs for these "
+              f"D = {len(result['inputs'])} inputs, and with R² this low a first-order index would mostly measure "
+              "the noise. SRC² is exact for a linear response of independent inputs (these are drawn "
+              "independently) and R² says how much of the spread that covers.", ""]
     return "\n".join(lines)
 
 

@@ -92,9 +92,12 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
                  INTEGRATOR_NAMES[integrator], m->max_step, rate_step, stable / (2 * M_PI * bw));
         return 1;
     }
-    memcpy(m->data, KERNEL_DATA, sizeof m->data);   /* StewartParams.kernel_data: mass, then inertia */
+    memcpy(m->data, KERNEL_DATA, sizeof m->data);   /* StewartParams.kernel_data: mass, inertia, ..., com */
     m->data[0] += r[VR_payload_mass_error];
-    for (int k = 0; k < 3; k++) m->data[1 + k] += r[VR_payload_inertia_error + k];
+    for (int k = 0; k < 3; k++) {
+        m->data[1 + k] += r[VR_payload_inertia_error + k];
+        m->data[11 + k] += r[VR_payload_com_error + k];
+    }
     m->legs = FIDELITY_LEGS[fidelity];
     m->base_mode = i[VR_moving_base] ? FIDELITY_BASE_MODE[fidelity] : MB_HEXAPOD_BASE_NONE;
     double stroke = r[VR_stroke];

@@ -262,6 +262,29 @@ static void leg_mass(double *M, const double *J, double m_r, int legs, double mm
     else if (m_r != 0.0) leg_mass_of(M, J, 1, m_r, 0, mm, kt, rr, rho);
 }
 
+/* The payload's centre of mass at c (in {B}, not 0) from o_P, the origin Kane's speeds
+   follow: its acceleration is dv - c x dw + e with e = tr + alpha0 x c + w_abs x (w_abs x c)
+   (alpha0 = eB + wB x w, the angular acceleration's part without dw), so its mass adds
+   m e to the force rows, c x m e to the moment rows, and the couplings -m [c]x, m [c]x and
+   m (c.c 1 - c c^T) to M; Ip is then about the centre of mass. Called only when c != 0, so
+   that the c = 0 arithmetic is that of a centred payload, bit for bit. */
+static void com_offset(double *M, double *h, double m, v3 c, v3 tr, v3 w_abs, v3 alpha0)
+{
+    v3 e = add(tr, add(cross(alpha0, c), cross(w_abs, cross(w_abs, c))));
+    v3 ce = cross(c, e);
+    const double C[9] = {0.0, -c.e[2], c.e[1], c.e[2], 0.0, -c.e[0], -c.e[1], c.e[0], 0.0};
+    const double cc = dot(c, c);
+    for (int i = 0; i < 3; i++) {
+        h[i] = m * e.e[i];
+        h[3 + i] += m * ce.e[i];
+        for (int k = 0; k < 3; k++) {
+            M[6 * i + 3 + k] -= m * C[3 * i + k];
+            M[6 * (3 + i) + k] += m * C[3 * i + k];
+            M[6 * (3 + i) + 3 + k] += m * ((i == k ? cc : 0.0) - c.e[i] * c.e[k]);
+        }
+    }
+}
+
 /* mb_hexapod_kane_ext, and for mb_hexapod_rhs_actuated: (pose_trig not NULL) the cos and
    sin of the last state's angles, so that it does not take them again; (frame not NULL)
    the base terms of every state, already computed; M_all, h_all and J_all may be NULL
@@ -311,6 +334,9 @@ static void kane(const double *base_joints, const double *platform_joints, const
             h[i] = m_p * tr.e[i];
             h[3 + i] = torque.e[i];
         }
+        const v3 c_p = load(data + 11);   /* the payload's centre of mass in {P} */
+        if (c_p.e[0] != 0.0 || c_p.e[1] != 0.0 || c_p.e[2] != 0.0)
+            com_offset(M, h, m_p, mul(R, c_p), tr, w_abs, add(eB, cross(wB, w)));
 
         /* legs, two at a time (the lanes of d2); each leg's terms then enter M and h in
            leg order, as one leg at a time would add them */

@@ -11,17 +11,18 @@
      base_joints      (6, 3)  base joint positions B_j in {B} [m]
      platform_joints  (6, 3)  platform joint positions P_j in {P} [m]
      data             (MB_HEXAPOD_NDATA) = StewartParams.kernel_data:
-                      [m_p, I_p(3), m_f, l_f, m_m, l_m, I_axial, I_transverse, g]
+                      [m_p, I_p(3), m_f, l_f, m_m, l_m, I_axial, I_transverse, g, c_p(3)]
                       platform mass [kg], platform principal inertias about its centre in
                       {P} [kg m^2], cylinder mass [kg], cylinder COM distance from the base
                       joint [m], rod mass [kg], rod COM distance from the platform joint [m],
                       leg axial and transverse inertia (cylinder + rod) [kg m^2], gravity
-                      [m/s^2] (acts along -z of the world frame {W}).
+                      [m/s^2] (acts along -z of the world frame {W}), the platform's
+                      centre of mass in {P} [m] (0: at o_P).
    A pose is [x, y, z, roll, pitch, yaw] of {P} in {B} [m, rad] (R = Rz(yaw) Ry(pitch)
    Rx(roll)); a base pose/rate/acc the same of {B} in {W}, its time derivatives.
    Leg j runs from B_j to the platform joint p + R P_j; a leg force > 0 extends it [N]. */
 
-enum { MB_HEXAPOD_NDATA = 11 };
+enum { MB_HEXAPOD_NDATA = 14 };
 
 /* What mb_hexapod_kane solves for. */
 enum mb_hexapod_solve {

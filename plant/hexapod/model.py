@@ -53,7 +53,7 @@ class StewartParams:
     base_joints: np.ndarray          # (6, 3) B_i in {B}
     platform_joints: np.ndarray      # (6, 3) a_i in {P}, relative to o_P
     platform_mass: float
-    platform_inertia: np.ndarray     # (3,) principal moments at o_P, axes of {P}
+    platform_inertia: np.ndarray     # (3,) principal moments at the centre of mass, axes of {P}
     cylinder_mass: float             # base-side leg part
     cylinder_com: float              # l_f, from B_i along the leg
     cylinder_inertia: np.ndarray     # (3,) axial, transverse, transverse
@@ -64,6 +64,7 @@ class StewartParams:
     d: float = 0.0
     stroke: tuple = field(default=(-0.15, 0.15))  # leg length range about home [m]
     home_pose: np.ndarray = field(default_factory=lambda: HOME_POSE.copy())
+    platform_com: np.ndarray = field(default_factory=lambda: np.zeros(3))   # (3,) centre of mass in {P} [m]
 
     @classmethod
     def paper(cls, d=0.0, **overrides):
@@ -100,7 +101,7 @@ class StewartParams:
         return np.array([self.platform_mass, *self.platform_inertia, self.cylinder_mass,
                          self.cylinder_com, self.rod_mass, self.rod_com,
                          self.cylinder_inertia[0] + self.rod_inertia[0],
-                         self.cylinder_inertia[1] + self.rod_inertia[1], self.gravity])
+                         self.cylinder_inertia[1] + self.rod_inertia[1], self.gravity, *self.platform_com])
 
 
 class DynamicsTerms(NamedTuple):

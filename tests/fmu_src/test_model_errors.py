@@ -19,9 +19,10 @@ def both(fmus, native):
     return {"python": fmus, "native": native}
 
 
-def _plant(path, dm, di, forces):
+def _plant(path, dm, di, forces, dc=np.zeros(3)):
     values = {"moving_base": 0, "max_step": 1e-5, "payload_mass_error": dm,
               **{f"payload_inertia_error[{k + 1}]": di[k] for k in range(3)},
+              **{f"payload_com_error[{k + 1}]": dc[k] for k in range(3)},
               **{f"leg_force[{k + 1}]": forces[k] for k in range(6)}}
     return open_fmu(path, **values)
 
@@ -46,13 +47,34 @@ def test_payload_error_changes_the_forces_by_the_statics_of_the_wrong_mass(both,
     assert np.abs(got["nominal"] - acc).max() > 0.05 * np.abs(acc).max()    # the check can fail
 
 
+@pytest.mark.parametrize("implementation", ["python", "native"])
+def test_payload_com_error_needs_the_moment_of_its_weight(both, implementation):
+    """At rest at home with the payload's centre of mass at c off o_P, the paper's holding
+    forces plus J^-T of the offset weight's moment, (0, m g x R c) (numpy statics, no kernel),
+    hold the platform still; the paper's forces alone tip it."""
+    dc = np.array([0.03, -0.02, 0.1])
+    nominal = model.inverse_dynamics(PAPER, model.HOME_POSE, np.zeros(6), np.zeros(6))
+    moment = np.cross(PAPER.platform_mass * np.array([0.0, 0.0, -PAPER.gravity]),
+                      rpy_matrix(model.HOME_POSE[3:]) @ dc)
+    corrected = nominal + np.linalg.solve(model.jacobian(PAPER, model.HOME_POSE).T, np.r_[np.zeros(3), moment])
+    h = 1e-4
+    got = {}
+    for name, forces in (("corrected", corrected), ("nominal", nominal)):
+        inst = _plant(both[implementation]["hexapod_plant_fmu"], 0.0, np.zeros(3), forces, dc)
+        assert step(inst, 0.0, h) == 0
+        got[name] = reals(inst, RATE) / h
+    assert np.abs(got["nominal"]).max() > 1e-2     # the offset's moment tips the platform
+    assert np.abs(got["corrected"]).max() < 1e-6 * np.abs(got["nominal"]).max()
+
+
 def test_payload_error_twins_agree(both):
     """The native plant perturbs its copy of the kernel's constants as the Python one its
     StewartParams: the same motion to the bit's neighbourhood."""
     forces = model.inverse_dynamics(PAPER, model.HOME_POSE, np.zeros(6), np.zeros(6)) * 1.001
     runs = []
     for implementation in ("python", "native"):
-        inst = _plant(both[implementation]["hexapod_plant_fmu"], -120.0, np.array([50.0, 60.0, -70.0]), forces)
+        inst = _plant(both[implementation]["hexapod_plant_fmu"], -120.0, np.array([50.0, 60.0, -70.0]), forces,
+                      np.array([0.02, -0.04, 0.15]))
         for k in range(20):
             assert step(inst, k * 1e-3, 1e-3) == 0
         runs.append(reals(inst, POSE + RATE))

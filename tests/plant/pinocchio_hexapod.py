@@ -86,7 +86,7 @@ class PinocchioHexapod:
         if moving_base:
             base = model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "base")
         self.platform = model.addJoint(base, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "platform")
-        model.appendBodyToJoint(self.platform, pin.Inertia(params.platform_mass, np.zeros(3),
+        model.appendBodyToJoint(self.platform, pin.Inertia(params.platform_mass, params.platform_com,
                                                             np.diag(params.platform_inertia)), pin.SE3.Identity())
         self.u_joints, self.prismatic = [], []
         for i, joint in enumerate(params.base_joints):

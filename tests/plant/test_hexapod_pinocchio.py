@@ -68,3 +68,58 @@ def test_comparison_sees_the_legs_axial_inertia(params):
     other = PinocchioHexapod(flat, moving_base=True).forward_dynamics(pose[0], rate[0], forces[0],
                                                                        *(b[0] for b in base))
     assert relative(other, kit) > 1e3 * RTOL
+
+
+COM = np.array([0.05, -0.03, 0.4])   # [m] in {P}: off o_P on every axis, the subreflector's height above it
+
+
+@pytest.fixture(scope="module")
+def offset(params):
+    return dataclasses.replace(params, platform_com=COM)
+
+
+@pytest.mark.parametrize("solve", ["forward", "inverse"])
+@pytest.mark.parametrize("moving", [False, True], ids=["fixed_base", "moving_base"])
+def test_dynamics_agree_with_the_payload_off_centre(offset, solve, moving):
+    """The centre-of-mass offset c: Pinocchio's platform body carries it as its inertia's lever."""
+    test_dynamics_agree(offset, solve, moving)
+
+
+def test_comparison_sees_the_offset(params, offset):
+    """The offset changes the dynamics by far more than RTOL: a kernel that ignored it would fail."""
+    pose, rate, _, forces, base = _states(5, True)
+    kit = forward_dynamics(params, pose[0], rate[0], forces[0], *(b[0] for b in base))
+    other = PinocchioHexapod(offset, moving_base=True).forward_dynamics(pose[0], rate[0], forces[0],
+                                                                         *(b[0] for b in base))
+    assert relative(other, kit) > 1e3 * RTOL
+
+
+def test_static_moment_of_the_offset(params, offset):
+    """At rest the leg forces' moment about o_P, less that of a centred payload, is m g x R c: the
+    offset weight's moment, balanced (numpy statics, no dynamics of the kit's)."""
+    rng = np.random.default_rng(6)
+    pose, _, _ = platform_states(rng, 5)
+    zero = np.zeros((5, 6))
+    for k in range(5):
+        moments, pushes = [], []
+        for p in (offset, params):
+            forces = inverse_dynamics(p, pose[k], zero[k], zero[k])
+            R = _rotation(pose[k, 3:])
+            rho = (R @ p.platform_joints.T).T
+            legs = pose[k, :3] + rho - p.base_joints
+            s = legs / np.linalg.norm(legs, axis=1)[:, None]
+            moments.append(np.sum(np.cross(rho, forces[:, None] * s), axis=0))
+            pushes.append(forces @ s)
+        g = np.array([0.0, 0.0, -params.gravity])
+        expected = np.cross(params.platform_mass * g, _rotation(pose[k, 3:]) @ COM)
+        assert np.allclose(moments[0] - moments[1], expected, rtol=1e-9, atol=1e-9 * np.abs(expected).max())
+        assert np.allclose(pushes[0], pushes[1], rtol=1e-9, atol=1e-6)   # the same weight: the same push
+
+
+def _rotation(rpy):
+    """Rz(yaw) Ry(pitch) Rx(roll), as the kit's poses."""
+    (cr, cp, cy), (sr, sp, sy) = np.cos(rpy), np.sin(rpy)
+    Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    Rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return Rz @ Ry @ Rx
