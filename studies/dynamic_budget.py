@@ -1,5 +1,5 @@
 """The dynamic tolerance budget (issue 30): how much tracking error a model that is wrong
-costs in a slew's acceleration phase, and which error drives it. The sampled campaign
+costs in a short slew at the axes' full acceleration, and which error drives it. The sampled campaign
 scenarios/campaigns/dynamic_budget.toml draws the payload (mass, principal moments, centre of mass)
 against the paper's values the feedforward keeps, the leg encoders' scale errors, the
 base IMU's alignment and each sample's own sensor noise.
@@ -103,7 +103,7 @@ def chart(result, path):
     left.hist(m["values"], bins=min(40, max(8, result["samples"] // 8)), color=OTHER_COLOURS[0], alpha=0.8)
     for q, style in (("p50", "-"), ("p95", "--")):
         left.axvline(m[q], color="k", ls=style, lw=1, label=f"{q}: {fmt(m[q])} µm")
-    left.set(xlabel="peak pose error over the acceleration phase (µm)", ylabel="samples",
+    left.set(xlabel="peak pose error over the short slew (µm)", ylabel="samples",
              title=f"{result['samples']} samples: a model that is wrong")
     left.legend(frameon=False)
     names, groups = list(GROUPS), m["groups"]
@@ -127,9 +127,10 @@ def page(result):
     lines = ["# Dynamic tolerance budget", "",
              "*Written by `python -m studies.dynamic_budget --docs` from `docs/dynamic_budget.json`; do not edit.*",
              "", f"The campaign `scenarios/campaigns/dynamic_budget.toml` ({result['samples']} samples; "
-             "[campaigns](campaigns.md#sampled-campaigns)) runs 2 s of a slew's acceleration phase (az 0 -> 20 deg, "
-             "el 30 -> 45 deg, the moving-base feedforward fed by an IMU on the base, leg encoders) with a model that "
-             "is wrong: the payload's mass (sd 43 kg, 2 %), principal moments (uniform ±550 kg.m², 15 % of the "
+             "[campaigns](campaigns.md#sampled-campaigns)) runs a short slew at the axes' full acceleration, "
+             "complete within the run (az 0 -> 0.2 deg, el 30 -> 30.2 deg, 1.8 s of motion; the moving-base "
+             "feedforward fed by an IMU on the base, leg encoders) with a model that is wrong: the payload's mass "
+             "(sd 43 kg, 2 %), principal moments (uniform ±550 kg.m², 15 % of the "
              "smallest) and centre of mass (uniform ±20 mm along each axis of {P}) against the "
              "paper's values the feedforward keeps, the six encoders' scale errors (uniform ±1e-4 of the travel from "
              "home) and the IMU's alignment (uniform ±1 mrad about each axis), and each sample's own sensor noise. "
