@@ -53,6 +53,15 @@ def run(out="out", ci=False, jobs=None, address=None, progress=True):
     return summary
 
 
+def redrawn(ci=False):
+    """The samples whose first draws gave a payload no rigid body has (its principal moments
+    against the triangle inequalities), drawn again (scenarios.runs.campaign.MAX_REDRAWS)."""
+    made = campaigns.CampaignJobs(campaigns.load(CAMPAIGN, ci))
+    for case in made.campaign.cases:
+        made._case(case)
+    return sorted(k for k, attempt in made.redrawn.items() if attempt)
+
+
 def _group(column):
     return next(g for g, prefix in GROUPS.items() if column.startswith(prefix))
 
@@ -108,8 +117,10 @@ def chart(result, path):
     left.legend(frameon=False)
     names, groups = list(GROUPS), m["groups"]
     shares = [groups[g]["src2"] for g in names] + [1 - m["r2"]]
-    low = [groups[g]["src2"] - groups[g]["low"] for g in names] + [0]
-    high = [groups[g]["high"] - groups[g]["src2"] for g in names] + [0]
+    # a percentile interval need not hold the estimate (SRC^2 of a weak input is biased upwards
+    # by the fit's noise, the resamples' spread around it is not symmetric): clipped at it
+    low = [max(groups[g]["src2"] - groups[g]["low"], 0.0) for g in names] + [0]
+    high = [max(groups[g]["high"] - groups[g]["src2"], 0.0) for g in names] + [0]
     at = np.arange(len(shares))
     right.barh(at, shares, 0.6, xerr=[low, high], color=[OTHER_COLOURS[1]] * len(names) + ["#7f7f7f"])
     for y, value, above in zip(at, shares, high):
@@ -131,10 +142,18 @@ def page(result):
              "complete within the run (az 0 -> 0.2 deg, el 30 -> 30.2 deg, 1.8 s of motion; the moving-base "
              "feedforward fed by an IMU on the base, leg encoders) with a model that is wrong: the payload's mass "
              "(sd 43 kg, 2 %), principal moments (uniform ±550 kg.m², 15 % of the "
-             "smallest) and centre of mass (uniform ±20 mm along each axis of {P}) against the "
+             "smallest, each sample a rigid body: see below) and centre of mass (uniform ±20 mm along each axis "
+             "of {P}) against the "
              "paper's values the feedforward keeps, the six encoders' scale errors (uniform ±1e-4 of the travel from "
              "home) and the IMU's alignment (uniform ±1 mrad about each axis), and each sample's own sensor noise. "
              "The tolerances are assumed (the campaign file says why).", "",
+             f"Every sample is a body that can exist: {len(result['redrawn'])} of the {result['samples']} samples "
+             "first drew principal moments that break a triangle inequality (Ixx + Iyy < Izz, which no rigid body "
+             "has) and were drawn again, every input of the sample anew (rejection: the draws follow the "
+             "distributions as written, conditioned on an admissible body; a run is refused before it starts when "
+             "its payload is none). The earlier version of this page ran those 12 as drawn, short by 13-410 kg.m²; "
+             "with them redrawn the peak error's 95 % point went from 13 to 12.9 µm and the payload mass's share of "
+             "its variance from 0.35 to 0.29 (R² 0.41 to 0.36): the other 244 samples are the same runs.", "",
              "![Peak pose error over the samples, and what drives it](figures/dynamic_budget.png)", "",
              "| metric | mean | sd | median | 95 % | max | R² of a linear fit |", "|---|---|---|---|---|---|---|"]
     for metric, label in METRICS.items():
@@ -185,6 +204,7 @@ def main(argv=None):
         result = json.loads(STORE.read_text(encoding="utf-8"))
     else:
         result = analyse(run(args.out, args.ci, args.jobs, args.dask))
+        result["redrawn"] = redrawn(args.ci)
     if args.docs or args.from_store:
         write(result)
     for metric, label in METRICS.items():
