@@ -522,7 +522,7 @@ def _si_column(values: list) -> tuple[list[float], str] | None:
             numbers.append(units.to_si(value))
         except UnitError:
             return None
-        known = units.UNITS.get(units.spelled(unit)) if unit else None
+        known = units.lookup(units.spelled(unit)) if unit else None
         dimensions.add(known[1] if known else None)
     dimension = dimensions.pop() if len(dimensions) == 1 else None
     return (numbers, dimension) if dimension else None

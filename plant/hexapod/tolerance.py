@@ -37,8 +37,8 @@ and geometry), in chunks of ``CHUNK`` samples whose static leg forces the batche
 nominal geometry; ``linear_indices`` the first-order variance and Sobol indices it gives for
 independent inputs. ``sobol_indices`` estimates Sobol indices of any function with SALib
 (Saltelli sampling, bootstrap confidence intervals, inputs singly or in groups);
-``pose_error_sobol`` runs it on the pose errors. SALib comes with the ``tolerance`` extra and
-is imported only there.
+``pose_error_sobol`` runs it on the pose errors. SALib is a dependency of the kit (``movingbase
+budget`` is a main command) and is imported only there.
 """
 from typing import NamedTuple
 
@@ -205,8 +205,9 @@ def sobol_indices(function, names, bounds, n=1024, seed=0, resamples=500, confid
     try:
         from SALib.analyze import sobol as analyze
         from SALib.sample import sobol as sample
-    except ImportError:
-        raise ModuleNotFoundError("Sobol indices need SALib: pip install 'movingbase[tolerance]'") from None
+    except ImportError:   # a dependency: only an environment built apart from pyproject.toml lacks it
+        raise ModuleNotFoundError("Sobol indices need SALib, a dependency of the kit: pip install -c constraints.txt "
+                                  "-e . in a clone, or pip install 'SALib>=1.6,<2'") from None
     if n < 2 or n & (n - 1):
         raise InvalidInputError(f"n must be a power of 2 (Saltelli's sampling), got {n}")
     bounds = [[float(lo), float(hi)] for lo, hi in bounds]
