@@ -611,9 +611,10 @@ def campaign(path: str | os.PathLike[str], *, out: str | os.PathLike[str] = "out
     if engine.started_by_a_worker():     # the worker exits with the rule, not a traceback
         raise SystemExit(f"movingbase.campaign in a worker process: {engine.MAIN_GUARD}")
     _flags_given(ci=ci, progress=progress)
-    warning = resources.check_jobs(jobs)     # 0 once meant "all cores", silently
+    warning = resources.check_jobs(jobs, "jobs")     # 0 once meant "all cores", silently
     if warning:
         print(warning, file=sys.stderr, flush=True)
+    jobs = None if jobs is None else int(jobs)       # numpy's integers too
     ran, job_list, store, outcome, summary = campaigns.run_campaign(path, out, ci=ci, jobs_=jobs, progress=progress)
     if outcome.interrupted:   # Ctrl-C: an exception, as Python's own, not a result with runs "not run"
         raise KeyboardInterrupt(f"campaign {ran.name} interrupted: {len(outcome.computed)} runs done now and "

@@ -297,6 +297,7 @@ def campaign_command(argv=None):
 
 def budget_command(argv=None):
     from scenarios.runs.budget import BudgetError, run_budget
+    from scenarios.runs.estimates import ResourceError
     parser = argparse.ArgumentParser(prog="movingbase budget",
                                      description="Run a geometric tolerance budget file: the pose error over the "
                                                  "workspace at the file's probability, Sobol indices by input group, "
@@ -308,7 +309,7 @@ def budget_command(argv=None):
     args = parser.parse_args(argv)
     try:
         result = run_budget(args.budget, args.samples, args.out, not args.quiet)
-    except BudgetError as exc:
+    except (BudgetError, ResourceError) as exc:
         sys.exit(f"budget error: {exc}")
     except OSError as exc:
         sys.exit(f"budget error: output: {exc.filename or args.out}: {exc.strerror or exc}")
@@ -318,10 +319,13 @@ def budget_command(argv=None):
 def summary(result):
     """The lines ``movingbase budget`` prints of a budget's result."""
     si = {"m": (1e6, "um"), "rad": (1e6, "urad"), "1": (1e6, "ppm")}
-    lines = [f"{result['name']}: {result['samples']:,d} samples, pose error at {result['probability']:.1%}:"]
+    from scenarios.runs.budget import percent
+    lines = [f"{result['name']}: {result['samples']:,d} samples, pose error at {percent(result['probability'])}:"]
+    confidence = result.get("confidence", 0.95)
     for metric, q in result["quantiles"].items():
-        lines.append(f"  {metric:9s} {q['value'] * 1e6:9.2f} um  (95 % CI {q['low'] * 1e6:.2f}..{q['high'] * 1e6:.2f})"
-                     f"  target {q['target'] * 1e6:g} um: {'met' if q['met'] else 'NOT met'}")
+        verdict = "met" if q["met"] else "NOT met (its interval reaches it)" if q["value"] < q["target"] else "NOT met"
+        lines.append(f"  {metric:9s} {q['value'] * 1e6:9.2f} um  ({confidence:.0%} interval {q['low'] * 1e6:.2f}.."
+                     f"{q['high'] * 1e6:.2f})  target {q['target'] * 1e6:g} um: {verdict}")
     if "sobol" in result:
         s = result["sobol"]
         for i, component in enumerate(s["components"]):

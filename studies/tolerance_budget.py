@@ -19,6 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from fmu_src import atomic
 from plant.hexapod import tolerance as tl
 from plant.hexapod.model import StewartParams
 from scenarios.output.charts import MARK_COLOUR, OTHER_COLOURS, plain_log_axis, save
@@ -375,6 +376,24 @@ inputs.leg_ofset: unknown key; did you mean 'leg_offset'?`).
 """
 
 
+def read_store(path=STORE):
+    """The stored results; SystemExit saying what is wrong (missing, truncated, not the
+    budgets') and how to compute them again, rather than a JSONDecodeError."""
+    again = "run python -m studies.tolerance_budget (without --from-store) to compute it again"
+    try:
+        store = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise SystemExit(f"{path}: cannot read it ({exc.strerror or exc}); {again}") from None
+    except json.JSONDecodeError as exc:
+        raise SystemExit(f"{path}: not whole JSON ({exc.msg} at line {exc.lineno}, column {exc.colno}: truncated "
+                         f"or damaged); {again}") from None
+    missing = [name for name in BUDGETS if not isinstance(store, dict) or not isinstance(store.get(name), dict)
+               or "quantiles" not in store[name]]
+    if missing:
+        raise SystemExit(f"{path}: holds no results of {', '.join(missing)}; {again}")
+    return store
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--from-store", action="store_true", help=f"no runs: read {STORE.relative_to(ROOT)}")
@@ -382,18 +401,18 @@ def main(argv=None):
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     args = parser.parse_args(argv)
     if args.sweeps_only:   # the sweeps again into the stored results (the cheap part)
-        store = json.loads(STORE.read_text())
+        store = read_store()
         store["linear_sweep"] = linear_sweep(StewartParams.paper(), bg.load("default"))
         store["clearance_sweep"] = clearance_sweep(StewartParams.paper(), bg.load("default"))
-        STORE.write_text(json.dumps(store, indent=1) + "\n")
+        atomic.write_text(STORE, json.dumps(store, indent=1) + "\n")
     elif args.from_store:
-        store = json.loads(STORE.read_text())
+        store = read_store()
     else:
         store = compute(not args.quiet)
-        STORE.write_text(json.dumps(store, indent=1) + "\n")
+        atomic.write_text(STORE, json.dumps(store, indent=1) + "\n")
     for file, chart in CHARTS.items():
         chart(store, FIGURES / file)
-    REPORT.write_text(report(store))
+    atomic.write_text(REPORT, report(store))
     print(f"wrote {REPORT.relative_to(ROOT)} and {', '.join(CHARTS)} in {FIGURES.relative_to(ROOT)}")
 
 

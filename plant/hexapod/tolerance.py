@@ -121,7 +121,7 @@ def pose_errors(params, pose, samples, elevation=ZENITH, chunk=CHUNK, tol=1e-13,
     sample (n, 66) of the inputs (deviations, INPUT_NAMES' order and units). ``pose``: one
     commanded pose (6,) or one per sample (n, 6); ``elevation`` [rad]: one, or one per sample,
     in [0, pi/2] (it sets the joints' loads, so matters only with clearance). Raises
-    UnreachablePoseError naming the first sample whose legs cannot meet."""
+    UnreachablePoseError naming the first sample whose legs cannot meet (its ``sample``: the row)."""
     samples = np.ascontiguousarray(_state(samples, "samples", N_INPUTS).reshape(-1, N_INPUTS))
     n = len(samples)
     poses, elevation = _batch(pose, elevation, n)
@@ -142,9 +142,11 @@ def pose_errors(params, pose, samples, elevation=ZENITH, chunk=CHUNK, tol=1e-13,
             ffi.from_buffer("double[]", samples[rows]), play, ffi.from_buffer("double[]", poses[rows]),
             tol, max_iter, ffi.from_buffer("double[]", out[rows]), residual)
         if bad >= 0:
-            raise UnreachablePoseError(f"forward kinematics of sample {start + bad} found no pose: Newton's "
-                                       f"iterations diverged or stalled within {max_iter} steps (its leg-length "
-                                       f"residual {residual[0]:.3e} m): its legs cannot meet")
+            error = UnreachablePoseError(f"forward kinematics of sample {start + bad} found no pose: Newton's "
+                                         f"iterations diverged or stalled within {max_iter} steps (its leg-length "
+                                         f"residual {residual[0]:.3e} m): its legs cannot meet")
+            error.sample = start + bad   # the row of ``samples``, for a caller that names its inputs
+            raise error
     return out
 
 
