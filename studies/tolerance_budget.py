@@ -22,7 +22,8 @@ import numpy as np
 from fmu_src import atomic
 from plant.hexapod import tolerance as tl
 from plant.hexapod.model import StewartParams
-from scenarios.output.charts import MARK_COLOUR, OTHER_COLOURS, plain_log_axis, save
+from scenarios.output import budget_report
+from scenarios.output.charts import MARK_COLOUR, OTHER_COLOURS, save
 from scenarios.runs import budget as bg
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
@@ -110,24 +111,9 @@ def compute(progress=True):
 def sobol_chart(store, path):
     fig, axes = plt.subplots(1, len(BUDGETS), figsize=(11, 4), sharey=True)
     for ax, name in zip(axes, BUDGETS):
-        s = store[name]["sobol"]
-        groups, components = s["groups"], s["components"]
-        width = 0.8 / len(components)
-        for i, component in enumerate(components):
-            x = np.arange(len(groups)) + (i - (len(components) - 1) / 2) * width
-            ax.bar(x, s["total"][i], width, yerr=s["total_conf"][i], capsize=2, color=OTHER_COLOURS[i],
-                   label=f"{component}: total", alpha=0.85)
-            ax.errorbar(x, s["first"][i], yerr=s["first_conf"][i], fmt="k_", ms=8, capsize=0, lw=1,
-                        label="first order" if i == 0 else None)
-            shares = store[name]["linear_shares"][component]
-            ax.plot(x, [shares.get(g, 0.0) for g in groups], "r.", ms=5,
-                    label="first-order model (analytic)" if i == 0 else None)
-        ax.set_xticks(np.arange(len(groups)), groups, fontsize=7, rotation=30, ha="right")
-        ax.set_title(f"{name}: Sobol indices of the pose error by input group\n"
-                     f"({s['evaluations']:,d} evaluations, 95 % bootstrap intervals)", fontsize=9)
-        ax.set_ylim(0, 1)
-        ax.grid(axis="y", alpha=0.3)
-    axes[0].set_ylabel("share of the variance")
+        budget_report.sobol_axes(ax, name, store[name]["sobol"], store[name]["linear_shares"])
+    for ax in axes[1:]:
+        ax.set_ylabel("")
     axes[0].legend(fontsize=7, loc="upper left")
     fig.tight_layout()
     save(fig, path)
@@ -159,27 +145,11 @@ def distribution_chart(store, path):
 
 def allocation_chart(store, path):
     fig, axes = plt.subplots(1, len(BUDGETS), figsize=(11, 4))
-    units = {"m": (1e6, "µm"), "1": (1e6, "ppm")}
     for ax, name in zip(axes, BUDGETS):
         budget = bg.load(name)
-        groups = store[name]["allocation"]["groups"]
-        names = list(groups)
-        given = [bg._scale_of(budget, g) * units[tl.UNITS[g]][0] for g in names]
-        allocated = [groups[g]["tolerance"][0] * units[tl.UNITS[g]][0] for g in names]
-        x = np.arange(len(names))
-        ax.bar(x - 0.2, given, 0.4, color="0.7", label="as given")
-        ax.bar(x + 0.2, allocated, 0.4, color=OTHER_COLOURS[0], label="allocated")
-        for xi, g in zip(x, names):
-            ax.text(xi + 0.2, allocated[names.index(g)] * 1.1,
-                    f"x{groups[g]['scale']:.2g}\ncost {groups[g]['cost']:.3g}", ha="center", fontsize=6)
-        ax.set_yscale("log")
-        plain_log_axis(ax.yaxis)
-        ax.set_xticks(x, [f"{g.replace('_', chr(10))}\n[{units[tl.UNITS[g]][1]}]" for g in names], fontsize=7)
-        a = store[name]["allocation"]
-        ax.set_title(f"{name}: tolerances (half-width) meeting the targets at 99.7 %\n"
-                     f"cost {a['cost']:.3g} against {a['cost_as_given']:.3g} as given (cost = weight / scale)",
-                     fontsize=9)
-        ax.grid(axis="y", alpha=0.3)
+        allocation = store[name]["allocation"]
+        budget_report.allocation_axes(ax, name, store[name]["probability"], allocation,
+                                      {g: bg._scale_of(budget, g) for g in allocation["groups"]})
     axes[0].legend(fontsize=7)
     fig.tight_layout()
     save(fig, path)

@@ -29,7 +29,6 @@ stays in plant.hexapod.tolerance. No co-simulation runs: the dynamic budget (pay
 calibration inputs, on Dask) is the campaigns'.
 """
 import itertools
-import json
 import math
 import numbers
 import pathlib
@@ -42,11 +41,12 @@ import numpy as np
 from scipy.stats import binom
 from tqdm import tqdm
 
-from fmu_src import atomic
 from plant.errors import UnreachablePoseError
 from plant.hexapod import tolerance as tl
 from plant.hexapod.model import StewartParams
 from scenarios import spec
+from scenarios.output import budget_report
+from scenarios.output.budget_report import percent
 from scenarios.runs import estimates as resources
 from scenarios.spec import distributions
 from scenarios.spec.units import UnitError, to_si
@@ -447,11 +447,6 @@ def _dimensions(budget):
     return sum(d is not None for d in budget.inputs) + len(_workspace_dims(budget))
 
 
-def percent(probability):
-    """A probability as a percentage with every digit it has: 0.9999 -> "99.99 %", not 100.0."""
-    return f"{round(probability * 100, 10):.10g} %"
-
-
 def needed_samples(probability, confidence=CONFIDENCE):
     """The fewest samples whose interval (``ranks``) has an upper end: the largest of n values
     lies above the ``probability`` quantile with probability 1 - p^n, which must reach the
@@ -631,7 +626,7 @@ def allocate(params, budget, seed, bar=None, samples=None, verify=None):
         if all(c["met"] for c in check.values()):
             break
     groups = {g: dict(scale=s, weight=float(w), cost=float(w / s), extra_cost=float(w / s - w),
-                      tolerance=[_scale_of(budget, g) * s, tl.UNITS[g]])
+                      tolerance=[_scale_of(budget, g) * s, tl.UNITS[g]], given=[_scale_of(budget, g), tl.UNITS[g]])
               for g, s, w in zip(budget.groups, scales.tolist(), weights)}
     return dict(groups=groups, cost=float(np.sum(weights / scales)), cost_as_given=float(weights.sum()),
                 check=check, verified=all(c["met"] for c in check.values()), samples=samples)
@@ -645,8 +640,9 @@ def _scale_of(budget, group):
 # --------------------------------------------------------------------------------- run
 def run_budget(path, samples=None, out=None, progress=True, sobol_samples=None, allocation=True):
     """Run a budget file (or a parsed Budget): Monte Carlo quantiles, Sobol indices, the
-    leading inputs and the allocation; written to ``out``/<name>.json when ``out`` is given
-    (whole or not at all). ``samples``/``sobol_samples`` override the file's. Everything is
+    leading inputs and the allocation; written to ``out``/<name>.json, with its charts and a
+    report (<name>.md, scenarios.output.budget_report) when ``out`` is given (each file whole
+    or not at all). ``samples``/``sobol_samples`` override the file's. Everything is
     checked and the cost estimated (told on stderr with ``progress``) before anything runs.
     Returns the results as a dict."""
     budget = path if isinstance(path, Budget) else load(path)
@@ -669,8 +665,6 @@ def run_budget(path, samples=None, out=None, progress=True, sobol_samples=None, 
             result["sobol"] = sobol(params, budget, n_sobol, budget.seed, bar)
         if allocation:
             result["allocation"] = allocate(params, budget, budget.seed + 1, bar, verify=samples)
-    if out is not None:
-        folder = pathlib.Path(out)
-        folder.mkdir(parents=True, exist_ok=True)
-        atomic.write_text(folder / f"{budget.name}.json", json.dumps(result, indent=1) + "\n")
+    if out is not None:   # <name>.json, its charts and <name>.md
+        budget_report.write(result, out)
     return result

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy.stats import binom
 
+from fmu_src import atomic
 from plant.hexapod import tolerance as tl
 from plant.hexapod.model import StewartParams
 from scenarios.runs import budget as bg
@@ -272,14 +273,15 @@ def test_a_bare_tolerance_beyond_a_hexapod_s_class_warns():
 def test_the_result_file_is_written_whole_or_not_at_all(tmp_path, monkeypatch):
     budget = bg.parse(SMALL)
     bg.run_budget(budget, samples=2000, out=tmp_path, progress=False, sobol_samples=0, allocation=False)
-    before = (tmp_path / "small.json").read_text()
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert sorted(before) == ["small.json", "small.md", "small_quantiles.png"]
     def full(fd):
         raise OSError(28, "No space left on device")
-    monkeypatch.setattr(bg.atomic.os, "fsync", full)
+    monkeypatch.setattr(atomic.os, "fsync", full)
     with pytest.raises(OSError, match="No space left"):
         bg.run_budget(budget, samples=3000, out=tmp_path, progress=False, sobol_samples=0, allocation=False)
-    assert (tmp_path / "small.json").read_text() == before and json.loads(before)["samples"] == 2000
-    assert [p.name for p in tmp_path.iterdir()] == ["small.json"]
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before   # no torn file, no temporary
+    assert json.loads(before["small.json"])["samples"] == 2000
 
 
 def test_one_input_s_linear_share_is_its_own_variance():
