@@ -258,9 +258,12 @@ def report(store):
 
 NOTES = """## Budget files
 
-`movingbase budget FILE [--samples N] [--out DIR]` (or `movingbase.budget(FILE)` in Python) runs a
-budget file, or a shipped one by name: `scenarios/budgets/default.toml` (this hexapod's default
-tolerances) and `scenarios/budgets/nanshan.toml` (NanShan's allocation). A file holds:
+`movingbase budget FILE [--samples N] [--out DIR]` (or `movingbase.budget(FILE)` in Python, which
+returns a `BudgetResult`: [Python API](python-api.md)) runs a budget file, or a shipped one by
+name: `scenarios/budgets/default.toml` (this hexapod's default tolerances) and
+`scenarios/budgets/nanshan.toml` (NanShan's allocation). `--out DIR` (`out=`) writes
+`DIR/<name>.json`, its charts (`<name>_quantiles.png`, `_sobol.png`, `_allocation.png`) and a
+report `<name>.md`, each file whole or not at all. A file holds:
 
 - `[inputs]`: each uncertain input as a deviation from nominal, written as every uncertain input
   of the kit is (`scenarios/spec/distributions.py`): `{ distribution = "uniform", half_width =
@@ -275,12 +278,27 @@ tolerances) and `scenarios/budgets/nanshan.toml` (NanShan's allocation). A file 
   the telescope's `elevation = [low, high]` (uniform, within 0..90 deg).
 - `[targets]`: limits on metrics of the pose error: `focus` (|dz| along the optical axis),
   `lateral` (|(dx, dy)|), `position` (|(dx, dy, dz)|, what a metrology system measures), `tilt`
-  (|(droll, dpitch)|); `probability` (default 0.997) they must hold with.
-- `samples` (Monte Carlo, default 10^6), `sobol_samples` (Saltelli's n, a power of 2, default
+  (|(droll, dpitch)|).
+- At the top level, before the tables: `probability` (default 0.997) the targets must hold with,
+  `samples` (Monte Carlo, default 10^6), `sobol_samples` (Saltelli's n, a power of 2, default
   8192; 0: none), `allocation_samples` (default 10^5), `seed`, and `[cost]` (a weight per group).
 
 Errors name the file, the key and the problem, all found at once (`budget error: x.toml:
-inputs.leg_ofset: unknown key; did you mean 'leg_offset'?`).
+inputs.leg_ofset: unknown key; did you mean 'leg_offset'?`). Before anything runs:
+
+- The quantile's interval is exact and distribution-free: the order statistics X(r), X(s) whose
+  ranks the binomial distribution of the count below the quantile gives (each tail at most
+  2.5 %), with its exact coverage in the JSON. A target is met when the interval's upper end is
+  under it. That end exists only when the largest of n samples lies above the quantile with
+  probability at least 97.5 %, 1 - p^n >= 0.975: 1,228 samples for 99.7 %, 36,887 for 99.99 %; a
+  smaller `samples` (in the file or as `--samples`) is refused, saying how many it needs.
+- `samples` is an integer (any integer type from Python; `"2000"`, `2e3` or `True` are refused
+  naming it) of at most 10^8; the cost (pose errors to compute, time on one core at the rate of a
+  timed 2,000 draws, memory) is told, and a run beyond the memory available is refused.
+- Each input alone at its extreme (a half-width, or 7.03 sd: the largest draw) at the workspace's
+  corners and both ends of the elevation range must leave the legs a pose; otherwise the input
+  (its file key) and the pose are named. A tolerance beyond a hexapod's class (over 2 mm, or 1 %
+  for the encoder scale) warns: a bare `half_width = 0.05` is 50 mm, not 0.05 mm.
 
 ## The model (ASSUMED where said)
 
@@ -304,9 +322,9 @@ inputs.leg_ofset: unknown key; did you mean 'leg_offset'?`).
   `[cost]` says). Least cost under a variance limit gives s_g proportional to (w_g / V_g)^(1/3)
   (Lagrange), V_g the group's variance of what a target reads; the scale factor comes from the
   99.7 % quantiles of the sum of the groups' own errors (first order: they add), the cheapest of
-  the per-target candidates wins, and a fresh nonlinear Monte Carlo checks it (the upper 95 %
-  bound of each quantile must be under its target; otherwise every scale shrinks by 2 % and it is
-  checked again).
+  the per-target candidates wins, and a fresh nonlinear Monte Carlo checks it (the upper end of
+  each quantile's 95 % interval must be under its target; otherwise every scale shrinks by 2 % and
+  it is checked again).
 - NanShan's allocation (ASSUMED mapping): 0.08 mm per leg is the whole leg-length error
   (`leg_offset`, uniform), 0.04 mm per universal joint its centre's error on each axis, uniform;
   no clearance. Their telescope (26 m) and hexapod differ from this one: the number says what

@@ -2,6 +2,7 @@
 numbers; a bad file refused with its file, key and problem; the BudgetResult's tables, charts,
 report and reprs against the numbers it holds."""
 import json
+import pathlib
 
 import numpy as np
 import pytest
@@ -126,3 +127,13 @@ def test_jobs_takes_any_integer_and_is_refused_in_python_s_words():
         movingbase.campaign("sky_slews", jobs="1", progress=False)
     with pytest.raises(estimates.ResourceError, match=r"^jobs=0: the number"):
         estimates.check_jobs(0, "jobs")
+
+
+def test_the_budget_needs_nothing_beyond_the_readme_s_first_install():
+    """`pip install -e .` (no extras) gives SALib, which the Sobol indices import: it is a
+    dependency, pinned in constraints.txt."""
+    import tomllib
+    root = pathlib.Path(__file__).resolve().parents[2]
+    project = tomllib.loads((root / "pyproject.toml").read_text())["project"]
+    assert any(d.replace(" ", "").startswith("SALib>=") for d in project["dependencies"])
+    assert "SALib==" in (root / "constraints.txt").read_text()
