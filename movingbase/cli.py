@@ -324,7 +324,7 @@ def summary(result):
     confidence = result.get("confidence", 0.95)
     for metric, q in result["quantiles"].items():
         verdict = "met" if q["met"] else "NOT met (its interval reaches it)" if q["value"] < q["target"] else "NOT met"
-        lines.append(f"  {metric:9s} {q['value'] * 1e6:9.2f} um  ({confidence:.0%} interval {q['low'] * 1e6:.2f}.."
+        lines.append(f"  {metric:9s} {q['value'] * 1e6:9.2f} um  ({percent(confidence)} interval {q['low'] * 1e6:.2f}.."
                      f"{q['high'] * 1e6:.2f})  target {q['target'] * 1e6:g} um: {verdict}")
     if "sobol" in result:
         s = result["sobol"]

@@ -114,7 +114,7 @@ def _quantiles_chart(result):
     ax.set_xlim(0, 1.3 * reach)
     ax.set_xlabel("pose error (each row in its unit)")
     ax.set_title(f"{result['name']}: pose error at {percent(result['probability'])} "
-                 f"({result['samples']:,d} samples; bars: the {result.get('confidence', 0.95):.0%} interval)",
+                 f"({result['samples']:,d} samples; bars: the {percent(result.get('confidence', 0.95))} interval)",
                  fontsize=9)
     ax.grid(axis="x", alpha=0.3)
     fig.tight_layout()
@@ -152,7 +152,7 @@ def markdown(result, images=()):
              f"elevation range (scenarios.runs.budget).*", "",
              f"**Status: {state}**" + (": " + "; ".join(flags) if flags else ": every target is met at "
                                        f"{percent(result['probability'])}, its interval's upper end below it"), "",
-             f"| metric | at {percent(result['probability'])} | {result.get('confidence', 0.95):.0%} interval "
+             f"| metric | at {percent(result['probability'])} | {percent(result.get('confidence', 0.95))} interval "
              "| target | met |", "|---|---|---|---|---|"]
     for metric, q in result["quantiles"].items():
         unit = METRIC_UNITS[metric]

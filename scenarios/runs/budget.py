@@ -495,7 +495,7 @@ def check_samples(samples, probability, source="<argument>", key="samples"):
     samples, needed = int(samples), needed_samples(probability)
     if samples < needed:
         raise BudgetError(source, key, f"{samples:,d} samples cannot bound the {percent(probability)} quantile from "
-                          f"above: its {CONFIDENCE:.0%} interval needs at least {needed:,d} (the largest of n "
+                          f"above: its {percent(CONFIDENCE)} interval needs at least {needed:,d} (the largest of n "
                           f"draws lies above it with probability 1 - p^n); give more samples or a lower probability")
     if samples > MAX_SAMPLES:
         raise BudgetError(source, key, f"{samples:,d} samples is more than the {MAX_SAMPLES:,d} a budget takes "

@@ -202,7 +202,7 @@ def test_met_is_judged_on_the_interval_s_upper_end():
 
 
 @pytest.mark.parametrize("samples, error, text", [
-    (0, bg.BudgetError, "samples: 0 samples cannot bound the 99.7 % quantile from above: its 95% interval needs "
+    (0, bg.BudgetError, "samples: 0 samples cannot bound the 99.7 % quantile from above: its 95 % interval needs "
                         "at least 1,228"),
     (-5, bg.BudgetError, "samples: -5 samples cannot bound"),
     (True, TypeError, "samples must be an integer (the number of Monte Carlo draws), not bool True"),
