@@ -29,6 +29,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from fmu_src import atomic
 from scenarios.output.charts import OTHER_COLOURS, save
 from scenarios.output.report import fmt
 from scenarios.runs import campaign as campaigns
@@ -189,9 +190,9 @@ def page(result):
 
 
 def write(result, store=STORE, page_path=PAGE, figure=FIGURE):
-    store.write_text(json.dumps(result, indent=1, default=float) + "\n", encoding="utf-8")
+    atomic.write_text(store, json.dumps(result, indent=1, default=float) + "\n")
     chart(result, figure)
-    page_path.write_text(page(result), encoding="utf-8")
+    atomic.write_text(page_path, page(result))
 
 
 def main(argv=None):
