@@ -747,7 +747,7 @@ class BudgetResult(Mapping[str, Any]):
         probability = budget_report.percent(self.data["probability"])
         rows = [[m, "met" if q["met"] else "NOT met", *self._said(m, q), f"{q.get('coverage', 0.95):.3f}"]
                 for m, q in self.data["quantiles"].items()]
-        head = ["target", "verdict", f"at {probability} (interval)", "target", "coverage"]
+        head = ["metric", "verdict", f"at {probability} (interval)", "target", "coverage"]
         said = "every target met" if self.ok else "; ".join(self.flags)
         parts = [f"<p><b>Budget {html.escape(self.name)}</b>: {self.data['samples']:,d} samples, "
                  f'<span style="{_STATUS_STYLE["ok" if self.ok else "flagged"]}">{self.status}: '

@@ -319,7 +319,8 @@ def budget_command(argv=None):
 def summary(result):
     """The lines ``movingbase budget`` prints of a budget's result."""
     si = {"m": (1e6, "um"), "rad": (1e6, "urad"), "1": (1e6, "ppm")}
-    from scenarios.runs.budget import percent
+    from scenarios.output import budget_report
+    from scenarios.output.budget_report import percent
     lines = [f"{result['name']}: {result['samples']:,d} samples, pose error at {percent(result['probability'])}:"]
     confidence = result.get("confidence", 0.95)
     for metric, q in result["quantiles"].items():
@@ -339,6 +340,9 @@ def summary(result):
             factor, unit = si[g["tolerance"][1]]
             lines.append(f"    {group:18s} x{g['scale']:.3f} -> {g['tolerance'][0] * factor:9.3f} {unit}"
                          f"  (cost {g['cost']:.3g})")
+    state, flags = budget_report.status(result)
+    lines.append(f"status: {state}" + (f" ({len(flags)} flag{'s' * (len(flags) != 1)}: the targets not met are "
+                                       "above, as NOT met)" if flags else ": every target met"))
     return "\n".join(lines)
 
 

@@ -35,6 +35,7 @@ def test_command_and_api_give_the_same_budget(tmp_path, capsys):
     written = json.loads((tmp_path / "out" / "tiny.json").read_text())
     assert said.startswith("tiny: 4,000 samples, pose error at 99.7 %:") and "allocation" in said
     assert "Sobol total, z: " in said and written["samples"] == 4000
+    assert said.rstrip().endswith("\nstatus: ok: every target met")
     result = movingbase.budget(path, samples=np.int64(4000), progress=False)
     assert result["quantiles"] == written["quantiles"]   # the same seeds: the same numbers
     focus = result["quantiles"]["focus"]
