@@ -11,6 +11,7 @@
 import argparse
 import atexit
 import json
+import math
 import os
 import pathlib
 import shutil
@@ -303,7 +304,7 @@ def budget_command(argv=None):
                                                  "workspace at the file's probability, Sobol indices by input group, "
                                                  "and the tolerances that meet the targets.")
     parser.add_argument("budget", help="budget file (TOML) or a shipped name (default, nanshan)")
-    parser.add_argument("--samples", type=int, help="Monte Carlo samples (default: the file's)")
+    parser.add_argument("--samples", type=_count, help="Monte Carlo samples (default: the file's; 1e6 is 1000000)")
     parser.add_argument("--out", help="write the results to DIR/<name>.json")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
@@ -314,6 +315,17 @@ def budget_command(argv=None):
     except OSError as exc:
         sys.exit(f"budget error: output: {exc.filename or args.out}: {exc.strerror or exc}")
     print(summary(result))
+
+
+def _count(text):
+    """A whole number as written on a command line: "2000", "2e3", "1_000_000"."""
+    try:
+        number = float(text.replace("_", ""))
+    except ValueError:
+        number = math.nan
+    if not (math.isfinite(number) and number == int(number)):
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}")
+    return int(number)
 
 
 def summary(result):

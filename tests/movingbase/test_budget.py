@@ -138,3 +138,18 @@ def test_the_budget_needs_nothing_beyond_the_readme_s_first_install():
     project = tomllib.loads((root / "pyproject.toml").read_text())["project"]
     assert any(d.replace(" ", "").startswith("SALib>=") for d in project["dependencies"])
     assert "SALib==" in (root / "constraints.txt").read_text()
+
+
+@pytest.mark.parametrize("given, problem", [
+    ("0", "samples: 0 samples cannot bound the 99.7 % quantile from above: its 95 % interval needs at least 1,228"),
+    ("-5", "samples: -5 samples cannot bound"),
+    ("1e9", "samples: 1,000,000,000 samples is more than the 100,000,000 a budget takes"),
+])
+def test_the_command_refuses_bad_sample_counts_by_name(tmp_path, given, problem):
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    with pytest.raises(SystemExit, match="budget error: .*tiny.toml: " + problem.replace("(", r"\(").replace(
+            ")", r"\)")):
+        cli.main(["budget", str(path), "--samples", given, "--quiet"])
+    with pytest.raises(SystemExit):
+        cli.main(["budget", str(path), "--samples", "2.5", "--quiet"])   # argparse: --samples, a whole number
