@@ -403,8 +403,8 @@ class Cost:
     memory: float                  # bytes at the peak (the Monte Carlo's draws)
 
     def text(self):
-        return (f"{self.evaluations:,d} pose errors, ~{resources._duration(self.seconds)} on one core, "
-                f"~{resources._size(self.memory)} of memory")
+        return (f"{self.evaluations:,d} pose errors, ~{resources._duration(self.seconds)} of them on one core (the "
+                f"Sobol bootstrap and the allocation's search add to it), ~{resources._size(self.memory)} of memory")
 
 
 def estimate(params, budget, samples, n_sobol, allocation=True):

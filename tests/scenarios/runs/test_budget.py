@@ -239,7 +239,7 @@ def test_a_budget_beyond_memory_is_refused_with_its_estimate(monkeypatch):
 def test_the_cost_is_told_before_the_run(capsys):
     bg.run_budget(bg.parse(SMALL), samples=2000, progress=True, sobol_samples=0, allocation=False)
     told = capsys.readouterr().err
-    assert "budget small: 2,000 pose errors, ~" in told and " on one core, ~" in told
+    assert "budget small: 2,000 pose errors, ~" in told and " of them on one core (the Sobol bootstrap" in told
 
 
 @pytest.mark.parametrize("line, key, named", [
