@@ -236,6 +236,15 @@ def test_a_budget_beyond_memory_is_refused_with_its_estimate(monkeypatch):
         bg.run_budget(bg.parse(SMALL), samples=10 ** 6, progress=False)
 
 
+def test_the_cost_counts_every_pose_error():
+    """SMALL: 2 groups, no varying workspace: Saltelli n (2 + 2) = 4,096 Sobol evaluations, the
+    allocation 10^5 draws of each group's own error plus a check of the Monte Carlo's size."""
+    cost = bg.estimate(StewartParams.paper(), bg.parse(SMALL), 20_000, 1024)
+    assert cost.evaluations == 20_000 + 1024 * 4 + 2 * 100_000 + 20_000
+    assert cost.memory == 2 * 100_000 * 96 and cost.seconds > 0
+    assert bg.estimate(StewartParams.paper(), bg.parse(SMALL), 10 ** 6, 0, False).memory == 160e6
+
+
 def test_the_cost_is_told_before_the_run(capsys):
     bg.run_budget(bg.parse(SMALL), samples=2000, progress=True, sobol_samples=0, allocation=False)
     told = capsys.readouterr().err
