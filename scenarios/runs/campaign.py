@@ -505,6 +505,13 @@ class CampaignJobs:
                 params[inst][name] = seeds[key]
         return scenario, params, descriptions, digests
 
+    def draws(self, case):
+        """(deviations, seeds) of a sampled case as it runs: its admissible attempt's draws."""
+        if case.sample not in self.redrawn:
+            self._case(case)
+        deviations, _ = self.campaign.sample.draws(case.sample, self.redrawn[case.sample])
+        return deviations, self.campaign.sample.draws(case.sample)[1]
+
     def _drawn(self, k, attempt, nominal, descriptions):
         """The parameters of sample ``k`` (its ``attempt``-th draw): each input's value in the
         run (``nominal``, the scene's or the campaign's; unset: the FMU's start) plus the draw,
@@ -606,8 +613,8 @@ def write_summary(campaign, store, job_list, path):
         writer = None
         for case, record in results(campaign, store, job_list):
             row = {"label": case.label, **{k: case.values.get(k) for k in campaign.varying}}
-            if campaign.sample:         # its draws: the deviation of each input [SI], its FMU seeds
-                deviations, seeds = campaign.sample.draws(case.sample)
+            if campaign.sample:         # its draws (redrawn if need be): each input's deviation [SI], its seeds
+                deviations, seeds = job_list.draws(case)
                 row["sample"] = case.sample
                 row.update({f"{key} [{unit}]" if unit else key: repr(deviations[key])
                             for key, _, _, unit, _ in campaign.sample.inputs})

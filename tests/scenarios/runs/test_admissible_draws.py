@@ -82,3 +82,22 @@ def test_a_draw_is_added_to_the_scene_s_value_not_the_fmu_start(tmp_path):
         draw = made.campaign.sample.draws(case.sample)[0]["encoders.rate_cutoff"]
         assert 0 < abs(draw) <= 5
         assert job.parameters["encoders"]["rate_cutoff"] == pytest.approx(100.0 + draw, abs=1e-12)
+
+
+def test_the_summary_tells_the_draws_that_ran_not_the_first_ones(tmp_path):
+    """summary.csv's input columns (what studies.dynamic_budget regresses on) hold a redrawn
+    sample's second draws: each equals the run's parameter minus the scene's value (0)."""
+    import csv
+
+    from scenarios.runs import engine
+    made = campaigns.CampaignJobs(campaigns.load("dynamic_budget"))
+    path = campaigns.write_summary(made.campaign, engine.Store(tmp_path / "runs"), made, tmp_path / "summary.csv")
+    with open(path, newline="", encoding="utf-8") as file:
+        rows = {int(r["sample"]): r for r in csv.DictReader(file)}
+    jobs = {case.sample: job for case, job in zip(made.campaign.cases, made)}
+    for k in (23, 31, 0):       # two of the redrawn samples, one drawn once
+        for j in (1, 2, 3):
+            ran = jobs[k].parameters["plant"][f"payload_inertia_error[{j}]"]
+            assert float(rows[k][f"plant.payload_inertia_error[{j}] [kg.m2]"]) == ran
+        assert float(rows[k]["plant.payload_mass_error [kg]"]) == jobs[k].parameters["plant"]["payload_mass_error"]
+    assert made.redrawn[23] > 0 and made.redrawn[0] == 0
