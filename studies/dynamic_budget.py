@@ -60,7 +60,7 @@ def redrawn(ci=False):
     made = campaigns.CampaignJobs(campaigns.load(CAMPAIGN, ci))
     for case in made.campaign.cases:
         made._case(case)
-    return sorted(k for k, attempt in made.redrawn.items() if attempt)
+    return sorted(case.sample for case in made.campaign.cases if made.redrawn[case.label])
 
 
 def _group(column):

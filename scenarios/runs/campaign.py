@@ -444,7 +444,7 @@ class CampaignJobs:
         self._bound = {}            # top-level overrides -> (scenario, values, descriptions, digests)
         self.files = {}             # sha256 -> FMU path
         self.flags = {}             # run label -> the flags of its motion (check), each run gets its own
-        self.redrawn = {}           # sample -> its draws' attempt (0: as first drawn; > 0: drawn again)
+        self.redrawn = {}           # run label -> its draws' attempt (0: as first drawn; > 0: drawn again)
         self.base = self._bind({})[0]   # the FMUs, built and hashed before anything runs
 
     def __len__(self):
@@ -493,7 +493,7 @@ class CampaignJobs:
                                                                      descriptions[inst].modelVariables},
                                                                     params[inst])] if found}
                 if not inadmissible:
-                    self.redrawn[case.sample] = attempt
+                    self.redrawn[case.label] = attempt   # per run: a grid's cases differ in value
                     break
             else:
                 told = "; ".join(p for found in inadmissible.values() for p in found)
@@ -507,9 +507,9 @@ class CampaignJobs:
 
     def draws(self, case):
         """(deviations, seeds) of a sampled case as it runs: its admissible attempt's draws."""
-        if case.sample not in self.redrawn:
+        if case.label not in self.redrawn:
             self._case(case)
-        deviations, _ = self.campaign.sample.draws(case.sample, self.redrawn[case.sample])
+        deviations, _ = self.campaign.sample.draws(case.sample, self.redrawn[case.label])
         return deviations, self.campaign.sample.draws(case.sample)[1]
 
     def _drawn(self, k, attempt, nominal, descriptions):
