@@ -72,7 +72,9 @@ def scenario_reference():
         lines.append(f"| `{fmu}` | [{names[fmu]}](fmus.md#{names[fmu].lower()}) | {optional} |")
     lines += ["", "## Units", "",
               'A quantity is a number (taken as SI) or a string `"<number> <unit>"`; it is converted to SI and '
-              "must have the dimension of the unit the FMU variable declares.", "",
+              "must have the dimension of the unit the FMU variable declares. An SI prefix (`p`, `n`, `u` or `µ`, "
+              "`m`, `k`, `M`, `G`) may precede a unit of factor 1 (`2 kHz`, `5 nm`, `3 kN.m`); the unit a variable "
+              "declares is always accepted for it.", "",
               "| SI unit | written as |", "|---|---|"]
     for dimension in dict.fromkeys(d for _, d in units.UNITS.values()):
         lines.append(f"| {dimension} | {', '.join(f'`{u}`' for u, (_, d) in units.UNITS.items() if d == dimension)} |")

@@ -21,7 +21,7 @@ import numpy as np
 
 from fmu_src.operating_point import BASE_POSE, STATIC_LEG_FORCES
 from fmu_src.slave import INPUT, OUTPUT, PARAMETER, POSE_UNITS, POSITIVE_TIME, GuardedSlave, acc_units, rate_units
-from plant.hexapod.model import FIDELITIES, HOME_POSE, StewartParams
+from plant.hexapod.model import FIDELITIES, HOME_POSE, StewartParams, check_body
 from plant.hexapod.ode import Actuator, HexapodODE
 from plant.integrators import INTEGRATORS
 
@@ -112,6 +112,8 @@ class HexapodPlant(GuardedSlave):
         self.ode = None
 
     def initialize(self):
+        check_body(_PAPER.platform_mass + self.payload["payload_mass_error"], _PAPER.platform_inertia
+                   + self.payload_inertia, "the payload")
         params = StewartParams.paper(stroke=(-self.stroke, self.stroke),
                                      platform_mass=_PAPER.platform_mass + self.payload["payload_mass_error"],
                                      platform_inertia=_PAPER.platform_inertia + self.payload_inertia,

@@ -16,11 +16,12 @@ the same for campaign files; ``movingbase.budget`` a geometric tolerance budget;
 import typing as _typing
 
 __version__ = "0.2.0"
-__all__ = ["run", "campaign", "budget", "load_scenario", "fmus", "Result", "RunResult", "CampaignResult", "Charts",
-           "RunWarning", "ScenarioError", "__version__"]
+__all__ = ["run", "campaign", "budget", "load_scenario", "fmus", "Result", "RunResult", "CampaignResult",
+           "BudgetResult", "Charts", "RunWarning", "ScenarioError", "__version__"]
 
 if _typing.TYPE_CHECKING:
     from movingbase.api import (
+        BudgetResult,
         CampaignResult,
         Charts,
         Result,

@@ -37,7 +37,7 @@ from fmu_src import catalogue
 from scenarios import spec
 from scenarios.cosim import master
 from scenarios.cosim.records import Records, read_records, run_records
-from scenarios.output import report
+from scenarios.output import budget_report, report
 from scenarios.runs import campaign as campaigns
 from scenarios.runs import engine, runner
 from scenarios.runs import estimates as resources
@@ -522,7 +522,7 @@ def _si_column(values: list) -> tuple[list[float], str] | None:
             numbers.append(units.to_si(value))
         except UnitError:
             return None
-        known = units.UNITS.get(units.spelled(unit)) if unit else None
+        known = units.lookup(units.spelled(unit)) if unit else None
         dimensions.add(known[1] if known else None)
     dimension = dimensions.pop() if len(dimensions) == 1 else None
     return (numbers, dimension) if dimension else None
@@ -611,9 +611,10 @@ def campaign(path: str | os.PathLike[str], *, out: str | os.PathLike[str] = "out
     if engine.started_by_a_worker():     # the worker exits with the rule, not a traceback
         raise SystemExit(f"movingbase.campaign in a worker process: {engine.MAIN_GUARD}")
     _flags_given(ci=ci, progress=progress)
-    warning = resources.check_jobs(jobs)     # 0 once meant "all cores", silently
+    warning = resources.check_jobs(jobs, "jobs")     # 0 once meant "all cores", silently
     if warning:
         print(warning, file=sys.stderr, flush=True)
+    jobs = None if jobs is None else int(jobs)       # numpy's integers too
     ran, job_list, store, outcome, summary = campaigns.run_campaign(path, out, ci=ci, jobs_=jobs, progress=progress)
     if outcome.interrupted:   # Ctrl-C: an exception, as Python's own, not a result with runs "not run"
         raise KeyboardInterrupt(f"campaign {ran.name} interrupted: {len(outcome.computed)} runs done now and "
@@ -621,14 +622,156 @@ def campaign(path: str | os.PathLike[str], *, out: str | os.PathLike[str] = "out
     return CampaignResult(ran, job_list, store, summary)
 
 
+class BudgetResult(Mapping[str, Any]):
+    """What ``movingbase.budget`` returns: a geometric tolerance budget's results as a reader
+    sees them. ``status`` ("ok": every target met at the probability, its interval's upper
+    end below it; "flagged": not, ``flags`` say which), ``met`` per target, tables with their
+    units in ``.attrs["units"]`` (``quantiles()``, ``sobol()``, ``allocation()``,
+    ``leading()``), charts a notebook draws (``plot()``) and the report on disk
+    (``report(out)``: <name>.json, its charts and <name>.md). It reads as the JSON's dict
+    too: ``result["quantiles"]["focus"]["high"]`` (SI), as earlier versions returned it."""
+
+    def __init__(self, data: dict[str, Any], report_path: pathlib.Path | None = None):
+        self.data = data
+        self.report_path = report_path
+        self.status, self.flags = budget_report.status(data)
+
+    def __getitem__(self, key: str) -> Any:
+        return self.data[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.data)
+
+    def __len__(self) -> int:
+        return len(self.data)
+
+    @property
+    def name(self) -> str:
+        return str(self.data["name"])
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    @property
+    def met(self) -> dict[str, bool]:
+        """{metric: met} per target, judged on the upper end of the quantile's interval."""
+        return {m: bool(q["met"]) for m, q in self.data["quantiles"].items()}
+
+    def quantiles(self) -> pandas.DataFrame:
+        """One row per target: the pose error at the probability, its interval (exact order
+        statistics), the target, met, the interval's coverage; in µm (µrad for tilt), the unit
+        of each row in ``.attrs["units"]`` ({"focus": "µm"}) and its "unit" column."""
+        rows, units_ = {}, {}
+        for metric, q in self.data["quantiles"].items():
+            unit = budget_report.METRIC_UNITS[metric]
+            shown = {k: budget_report.shown(q[k], unit)[0] for k in ("value", "low", "high", "target")}
+            units_[metric] = budget_report.SHOWN[unit][1]
+            rows[metric] = {**shown, "unit": units_[metric], "met": bool(q["met"]), "coverage": q.get("coverage")}
+        table = _pandas().DataFrame.from_dict(rows, orient="index")
+        table.index.name = "metric"
+        table.attrs["units"] = units_
+        table.attrs["probability"] = self.data["probability"]
+        return table
+
+    def sobol(self) -> pandas.DataFrame:
+        """One row per (component, group): first-order and total Sobol indices with their 95 %
+        bootstrap half-widths, and the first-order model's share; all shares of the variance
+        (unit "1")."""
+        s = self.data.get("sobol")
+        if s is None:
+            raise KeyError(f"budget {self.name} ran without Sobol indices (sobol_samples = 0)")
+        shares = self.data.get("linear_shares", {})
+        rows = {(c, g): {"first": s["first"][i][j], "first_conf": s["first_conf"][i][j], "total": s["total"][i][j],
+                         "total_conf": s["total_conf"][i][j], "linear_share": shares.get(c, {}).get(g)}
+                for i, c in enumerate(s["components"]) for j, g in enumerate(s["groups"])}
+        table = _pandas().DataFrame.from_dict(rows, orient="index")
+        table.index.names = ["component", "group"]
+        table.attrs["units"] = dict.fromkeys(table.columns, "1")
+        return table
+
+    def allocation(self) -> pandas.DataFrame:
+        """One row per input group: the scale factor on the file's tolerances, the tolerance as
+        given and allocated (µm, or ppm for the encoder scale: each row's "unit", and
+        ``.attrs["units"]``), its weight and cost (the ASSUMED model cost = weight / scale)."""
+        a = self.data.get("allocation")
+        if a is None:
+            raise KeyError(f"budget {self.name} ran without an allocation")
+        rows, units_ = {}, {}
+        for group, g in a["groups"].items():
+            value, unit = budget_report.shown(*g["tolerance"])
+            given = budget_report.shown(*g["given"])[0] if "given" in g else value / g["scale"]
+            rows[group] = {"scale": g["scale"], "given": given, "allocated": value, "unit": unit,
+                           "weight": g["weight"], "cost": g["cost"]}
+            units_[group] = unit
+        table = _pandas().DataFrame.from_dict(rows, orient="index")
+        table.index.name = "group"
+        table.attrs["units"] = units_
+        table.attrs["verified"] = a["verified"]
+        return table
+
+    def leading(self) -> pandas.DataFrame:
+        """The inputs with the largest first-order variance shares per target (unit "1")."""
+        rows = [{"metric": m, "input": name, "share": share}
+                for m, leading in self.data.get("leading_inputs", {}).items() for name, share in leading]
+        table = _pandas().DataFrame(rows, columns=["metric", "input", "share"])
+        table.attrs["units"] = {"share": "1"}
+        return table
+
+    def plot(self) -> Charts:
+        """The report's charts: each target's quantile and interval against it, the Sobol
+        indices by group, the allocation (those the budget computed)."""
+        return Charts(budget_report.charts(self.data).values())
+
+    def report(self, out: str | os.PathLike[str]) -> pathlib.Path:
+        """Write <out>/<name>.json, its charts (<name>_<chart>.png) and <name>.md, each whole
+        or not at all; the report's path."""
+        self.report_path = budget_report.write(self.data, out)
+        return self.report_path
+
+    def _said(self, metric: str, q: dict) -> tuple[str, str]:
+        unit = budget_report.METRIC_UNITS[metric]
+        value, low, high, target = (budget_report.shown(q[k], unit)[0] for k in ("value", "low", "high", "target"))
+        u = budget_report.SHOWN[unit][1]
+        return (f"{value:.3g} {u} ({low:.3g}..{high:.3g})", f"{target:g} {u}")
+
+    def __repr__(self) -> str:
+        targets = "; ".join(f"{m} {'met' if q['met'] else 'NOT met'}: {self._said(m, q)[0]} against "
+                            f"{self._said(m, q)[1]}" for m, q in self.data["quantiles"].items())
+        return (f"<BudgetResult {self.name!r}: {self.status}, at {budget_report.percent(self.data['probability'])} "
+                f"({self.data['samples']:,d} samples): {targets}>")
+
+    def _repr_html_(self) -> str:
+        """The status and each target met or not first, then the leading inputs and the
+        allocation's factors."""
+        probability = budget_report.percent(self.data["probability"])
+        rows = [[m, "met" if q["met"] else "NOT met", *self._said(m, q), f"{q.get('coverage', 0.95):.3f}"]
+                for m, q in self.data["quantiles"].items()]
+        head = ["metric", "verdict", f"at {probability} (interval)", "target", "coverage"]
+        said = "every target met" if self.ok else "; ".join(self.flags)
+        parts = [f"<p><b>Budget {html.escape(self.name)}</b>: {self.data['samples']:,d} samples, "
+                 f'<span style="{_STATUS_STYLE["ok" if self.ok else "flagged"]}">{self.status}: '
+                 f"{html.escape(said)}</span></p>", _html_table(head, rows)]
+        if "allocation" in self.data:
+            a = self.data["allocation"]
+            parts.append(f"<p>allocation: cost {a['cost']:.3g} against {a['cost_as_given']:.3g} as given, checked: "
+                         f"{'met' if a['verified'] else 'NOT met'}</p>" + _html_table(
+                             ["group", "scale", "tolerance"], [[g, f"x{v['scale']:.3f}", "{:.4g} {}".format(
+                                 *budget_report.shown(*v["tolerance"]))] for g, v in a["groups"].items()]))
+        return "".join(parts)
+
+
 @_public
 def budget(path: str | os.PathLike[str], *, samples: int | None = None, out: str | os.PathLike[str] | None = None,
-           progress: bool = True) -> dict[str, Any]:
+           progress: bool = True) -> BudgetResult:
     """Run a geometric tolerance budget file (or a shipped name: ``"default"``, ``"nanshan"``) as
-    ``movingbase budget`` does: the pose error's quantile per target with its 95 % interval,
-    Sobol indices by input group with their intervals, the leading inputs and the allocation
-    (scenarios/runs/budget.py says what each holds). ``samples`` overrides the file's Monte
-    Carlo draws; ``out`` writes <out>/<name>.json. No FMU runs: the kinematics alone."""
+    ``movingbase budget`` does: the pose error's quantile per target with its exact 95 %
+    interval, Sobol indices by input group with their intervals, the leading inputs and the
+    allocation (scenarios/runs/budget.py says what each holds), as a BudgetResult. ``samples``
+    (any integer) overrides the file's Monte Carlo draws; ``out`` writes <out>/<name>.json, its
+    charts and <name>.md. The cost is told before it runs (with ``progress``). No FMU runs:
+    the kinematics alone."""
     from scenarios.runs.budget import run_budget
     _flags_given(progress=progress)
-    return run_budget(path, samples=samples, out=out, progress=progress)
+    data = run_budget(path, samples=samples, out=out, progress=progress)
+    return BudgetResult(data, pathlib.Path(out) / f"{data['name']}.md" if out is not None else None)

@@ -11,6 +11,7 @@
 import argparse
 import atexit
 import json
+import math
 import os
 import pathlib
 import shutil
@@ -297,31 +298,47 @@ def campaign_command(argv=None):
 
 def budget_command(argv=None):
     from scenarios.runs.budget import BudgetError, run_budget
+    from scenarios.runs.estimates import ResourceError
     parser = argparse.ArgumentParser(prog="movingbase budget",
                                      description="Run a geometric tolerance budget file: the pose error over the "
                                                  "workspace at the file's probability, Sobol indices by input group, "
                                                  "and the tolerances that meet the targets.")
     parser.add_argument("budget", help="budget file (TOML) or a shipped name (default, nanshan)")
-    parser.add_argument("--samples", type=int, help="Monte Carlo samples (default: the file's)")
+    parser.add_argument("--samples", type=_count, help="Monte Carlo samples (default: the file's; 1e6 is 1000000)")
     parser.add_argument("--out", help="write the results to DIR/<name>.json")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     try:
         result = run_budget(args.budget, args.samples, args.out, not args.quiet)
-    except BudgetError as exc:
+    except (BudgetError, ResourceError) as exc:
         sys.exit(f"budget error: {exc}")
     except OSError as exc:
         sys.exit(f"budget error: output: {exc.filename or args.out}: {exc.strerror or exc}")
     print(summary(result))
 
 
+def _count(text):
+    """A whole number as written on a command line: "2000", "2e3", "1_000_000"."""
+    try:
+        number = float(text.replace("_", ""))
+    except ValueError:
+        number = math.nan
+    if not (math.isfinite(number) and number == int(number)):
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}")
+    return int(number)
+
+
 def summary(result):
     """The lines ``movingbase budget`` prints of a budget's result."""
     si = {"m": (1e6, "um"), "rad": (1e6, "urad"), "1": (1e6, "ppm")}
-    lines = [f"{result['name']}: {result['samples']:,d} samples, pose error at {result['probability']:.1%}:"]
+    from scenarios.output import budget_report
+    from scenarios.output.budget_report import percent
+    lines = [f"{result['name']}: {result['samples']:,d} samples, pose error at {percent(result['probability'])}:"]
+    confidence = result.get("confidence", 0.95)
     for metric, q in result["quantiles"].items():
-        lines.append(f"  {metric:9s} {q['value'] * 1e6:9.2f} um  (95 % CI {q['low'] * 1e6:.2f}..{q['high'] * 1e6:.2f})"
-                     f"  target {q['target'] * 1e6:g} um: {'met' if q['met'] else 'NOT met'}")
+        verdict = "met" if q["met"] else "NOT met (its interval reaches it)" if q["value"] < q["target"] else "NOT met"
+        lines.append(f"  {metric:9s} {q['value'] * 1e6:9.2f} um  ({percent(confidence)} interval {q['low'] * 1e6:.2f}.."
+                     f"{q['high'] * 1e6:.2f})  target {q['target'] * 1e6:g} um: {verdict}")
     if "sobol" in result:
         s = result["sobol"]
         for i, component in enumerate(s["components"]):
@@ -335,6 +352,9 @@ def summary(result):
             factor, unit = si[g["tolerance"][1]]
             lines.append(f"    {group:18s} x{g['scale']:.3f} -> {g['tolerance'][0] * factor:9.3f} {unit}"
                          f"  (cost {g['cost']:.3g})")
+    state, flags = budget_report.status(result)
+    lines.append(f"status: {state}" + (f" ({len(flags)} flag{'s' * (len(flags) != 1)}: the targets not met are "
+                                       "above, as NOT met)" if flags else ": every target met"))
     return "\n".join(lines)
 
 

@@ -29,6 +29,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from fmu_src import atomic
 from scenarios.output.charts import OTHER_COLOURS, save
 from scenarios.output.report import fmt
 from scenarios.runs import campaign as campaigns
@@ -51,6 +52,15 @@ def run(out="out", ci=False, jobs=None, address=None, progress=True):
     if outcome.interrupted:
         raise KeyboardInterrupt
     return summary
+
+
+def redrawn(ci=False):
+    """The samples whose first draws gave a payload no rigid body has (its principal moments
+    against the triangle inequalities), drawn again (scenarios.runs.campaign.MAX_REDRAWS)."""
+    made = campaigns.CampaignJobs(campaigns.load(CAMPAIGN, ci))
+    for case in made.campaign.cases:
+        made._case(case)
+    return sorted(case.sample for case in made.campaign.cases if made.redrawn[case.label])
 
 
 def _group(column):
@@ -108,8 +118,10 @@ def chart(result, path):
     left.legend(frameon=False)
     names, groups = list(GROUPS), m["groups"]
     shares = [groups[g]["src2"] for g in names] + [1 - m["r2"]]
-    low = [groups[g]["src2"] - groups[g]["low"] for g in names] + [0]
-    high = [groups[g]["high"] - groups[g]["src2"] for g in names] + [0]
+    # a percentile interval need not hold the estimate (SRC^2 of a weak input is biased upwards
+    # by the fit's noise, the resamples' spread around it is not symmetric): clipped at it
+    low = [max(groups[g]["src2"] - groups[g]["low"], 0.0) for g in names] + [0]
+    high = [max(groups[g]["high"] - groups[g]["src2"], 0.0) for g in names] + [0]
     at = np.arange(len(shares))
     right.barh(at, shares, 0.6, xerr=[low, high], color=[OTHER_COLOURS[1]] * len(names) + ["#7f7f7f"])
     for y, value, above in zip(at, shares, high):
@@ -131,12 +143,23 @@ def page(result):
              "complete within the run (az 0 -> 0.2 deg, el 30 -> 30.2 deg, 1.8 s of motion; the moving-base "
              "feedforward fed by an IMU on the base, leg encoders) with a model that is wrong: the payload's mass "
              "(sd 43 kg, 2 %), principal moments (uniform ±550 kg.m², 15 % of the "
-             "smallest) and centre of mass (uniform ±20 mm along each axis of {P}) against the "
+             "smallest, each sample a rigid body: see below) and centre of mass (uniform ±20 mm along each axis "
+             "of {P}) against the "
              "paper's values the feedforward keeps, the six encoders' scale errors (uniform ±1e-4 of the travel from "
              "home) and the IMU's alignment (uniform ±1 mrad about each axis), and each sample's own sensor noise. "
              "The tolerances are assumed (the campaign file says why).", "",
              "![Peak pose error over the samples, and what drives it](figures/dynamic_budget.png)", "",
              "| metric | mean | sd | median | 95 % | max | R² of a linear fit |", "|---|---|---|---|---|---|---|"]
+    if "redrawn" in result:     # the campaign's own runs (analyse() alone does not know them)
+        at = lines.index("![Peak pose error over the samples, and what drives it](figures/dynamic_budget.png)")
+        lines[at:at] = [
+            f"Every sample is a body that can exist: {len(result['redrawn'])} of the {result['samples']} samples "
+            "first drew principal moments that break a triangle inequality (Ixx + Iyy < Izz, which no rigid body "
+            "has) and were drawn again, every input of the sample anew (rejection: the draws follow the "
+            "distributions as written, conditioned on an admissible body; a run is refused before it starts when "
+            "its payload is none). The earlier version of this page ran those 12 as drawn, short by 13-410 kg.m²; "
+            "with them redrawn the peak error's 95 % point went from 13 to 12.9 µm and the payload mass's share of "
+            "its variance from 0.35 to 0.30 (R² 0.41 to 0.37): the other 244 samples are the same runs.", ""]
     for metric, label in METRICS.items():
         m = result["metrics"][metric]
         lines.append(f"| {label} | {fmt(m['mean'])} | {fmt(m['sd'])} | {fmt(m['p50'])} | {fmt(m['p95'])} | "
@@ -167,9 +190,9 @@ def page(result):
 
 
 def write(result, store=STORE, page_path=PAGE, figure=FIGURE):
-    store.write_text(json.dumps(result, indent=1, default=float) + "\n", encoding="utf-8")
+    atomic.write_text(store, json.dumps(result, indent=1, default=float) + "\n")
     chart(result, figure)
-    page_path.write_text(page(result), encoding="utf-8")
+    atomic.write_text(page_path, page(result))
 
 
 def main(argv=None):
@@ -185,6 +208,7 @@ def main(argv=None):
         result = json.loads(STORE.read_text(encoding="utf-8"))
     else:
         result = analyse(run(args.out, args.ci, args.jobs, args.dask))
+        result["redrawn"] = redrawn(args.ci)
     if args.docs or args.from_store:
         write(result)
     for metric, label in METRICS.items():

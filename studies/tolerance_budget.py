@@ -19,9 +19,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from fmu_src import atomic
 from plant.hexapod import tolerance as tl
 from plant.hexapod.model import StewartParams
-from scenarios.output.charts import MARK_COLOUR, OTHER_COLOURS, plain_log_axis, save
+from scenarios.output import budget_report
+from scenarios.output.charts import MARK_COLOUR, OTHER_COLOURS, save
 from scenarios.runs import budget as bg
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
@@ -109,24 +111,9 @@ def compute(progress=True):
 def sobol_chart(store, path):
     fig, axes = plt.subplots(1, len(BUDGETS), figsize=(11, 4), sharey=True)
     for ax, name in zip(axes, BUDGETS):
-        s = store[name]["sobol"]
-        groups, components = s["groups"], s["components"]
-        width = 0.8 / len(components)
-        for i, component in enumerate(components):
-            x = np.arange(len(groups)) + (i - (len(components) - 1) / 2) * width
-            ax.bar(x, s["total"][i], width, yerr=s["total_conf"][i], capsize=2, color=OTHER_COLOURS[i],
-                   label=f"{component}: total", alpha=0.85)
-            ax.errorbar(x, s["first"][i], yerr=s["first_conf"][i], fmt="k_", ms=8, capsize=0, lw=1,
-                        label="first order" if i == 0 else None)
-            shares = store[name]["linear_shares"][component]
-            ax.plot(x, [shares.get(g, 0.0) for g in groups], "r.", ms=5,
-                    label="first-order model (analytic)" if i == 0 else None)
-        ax.set_xticks(np.arange(len(groups)), groups, fontsize=7, rotation=30, ha="right")
-        ax.set_title(f"{name}: Sobol indices of the pose error by input group\n"
-                     f"({s['evaluations']:,d} evaluations, 95 % bootstrap intervals)", fontsize=9)
-        ax.set_ylim(0, 1)
-        ax.grid(axis="y", alpha=0.3)
-    axes[0].set_ylabel("share of the variance")
+        budget_report.sobol_axes(ax, name, store[name]["sobol"], store[name]["linear_shares"])
+    for ax in axes[1:]:
+        ax.set_ylabel("")
     axes[0].legend(fontsize=7, loc="upper left")
     fig.tight_layout()
     save(fig, path)
@@ -158,27 +145,11 @@ def distribution_chart(store, path):
 
 def allocation_chart(store, path):
     fig, axes = plt.subplots(1, len(BUDGETS), figsize=(11, 4))
-    units = {"m": (1e6, "µm"), "1": (1e6, "ppm")}
     for ax, name in zip(axes, BUDGETS):
         budget = bg.load(name)
-        groups = store[name]["allocation"]["groups"]
-        names = list(groups)
-        given = [bg._scale_of(budget, g) * units[tl.UNITS[g]][0] for g in names]
-        allocated = [groups[g]["tolerance"][0] * units[tl.UNITS[g]][0] for g in names]
-        x = np.arange(len(names))
-        ax.bar(x - 0.2, given, 0.4, color="0.7", label="as given")
-        ax.bar(x + 0.2, allocated, 0.4, color=OTHER_COLOURS[0], label="allocated")
-        for xi, g in zip(x, names):
-            ax.text(xi + 0.2, allocated[names.index(g)] * 1.1,
-                    f"x{groups[g]['scale']:.2g}\ncost {groups[g]['cost']:.3g}", ha="center", fontsize=6)
-        ax.set_yscale("log")
-        plain_log_axis(ax.yaxis)
-        ax.set_xticks(x, [f"{g.replace('_', chr(10))}\n[{units[tl.UNITS[g]][1]}]" for g in names], fontsize=7)
-        a = store[name]["allocation"]
-        ax.set_title(f"{name}: tolerances (half-width) meeting the targets at 99.7 %\n"
-                     f"cost {a['cost']:.3g} against {a['cost_as_given']:.3g} as given (cost = weight / scale)",
-                     fontsize=9)
-        ax.grid(axis="y", alpha=0.3)
+        allocation = store[name]["allocation"]
+        budget_report.allocation_axes(ax, name, store[name]["probability"], allocation,
+                                      {g: bg._scale_of(budget, g) for g in allocation["groups"]})
     axes[0].legend(fontsize=7)
     fig.tight_layout()
     save(fig, path)
@@ -287,9 +258,12 @@ def report(store):
 
 NOTES = """## Budget files
 
-`movingbase budget FILE [--samples N] [--out DIR]` (or `movingbase.budget(FILE)` in Python) runs a
-budget file, or a shipped one by name: `scenarios/budgets/default.toml` (this hexapod's default
-tolerances) and `scenarios/budgets/nanshan.toml` (NanShan's allocation). A file holds:
+`movingbase budget FILE [--samples N] [--out DIR]` (or `movingbase.budget(FILE)` in Python, which
+returns a `BudgetResult`: [Python API](python-api.md)) runs a budget file, or a shipped one by
+name: `scenarios/budgets/default.toml` (this hexapod's default tolerances) and
+`scenarios/budgets/nanshan.toml` (NanShan's allocation). `--out DIR` (`out=`) writes
+`DIR/<name>.json`, its charts (`<name>_quantiles.png`, `_sobol.png`, `_allocation.png`) and a
+report `<name>.md`, each file whole or not at all. A file holds:
 
 - `[inputs]`: each uncertain input as a deviation from nominal, written as every uncertain input
   of the kit is (`scenarios/spec/distributions.py`): `{ distribution = "uniform", half_width =
@@ -304,12 +278,27 @@ tolerances) and `scenarios/budgets/nanshan.toml` (NanShan's allocation). A file 
   the telescope's `elevation = [low, high]` (uniform, within 0..90 deg).
 - `[targets]`: limits on metrics of the pose error: `focus` (|dz| along the optical axis),
   `lateral` (|(dx, dy)|), `position` (|(dx, dy, dz)|, what a metrology system measures), `tilt`
-  (|(droll, dpitch)|); `probability` (default 0.997) they must hold with.
-- `samples` (Monte Carlo, default 10^6), `sobol_samples` (Saltelli's n, a power of 2, default
+  (|(droll, dpitch)|).
+- At the top level, before the tables: `probability` (default 0.997) the targets must hold with,
+  `samples` (Monte Carlo, default 10^6), `sobol_samples` (Saltelli's n, a power of 2, default
   8192; 0: none), `allocation_samples` (default 10^5), `seed`, and `[cost]` (a weight per group).
 
 Errors name the file, the key and the problem, all found at once (`budget error: x.toml:
-inputs.leg_ofset: unknown key; did you mean 'leg_offset'?`).
+inputs.leg_ofset: unknown key; did you mean 'leg_offset'?`). Before anything runs:
+
+- The quantile's interval is exact and distribution-free: the order statistics X(r), X(s) whose
+  ranks the binomial distribution of the count below the quantile gives (each tail at most
+  2.5 %), with its exact coverage in the JSON. A target is met when the interval's upper end is
+  under it. That end exists only when the largest of n samples lies above the quantile with
+  probability at least 97.5 %, 1 - p^n >= 0.975: 1,228 samples for 99.7 %, 36,887 for 99.99 %; a
+  smaller `samples` (in the file or as `--samples`) is refused, saying how many it needs.
+- `samples` is an integer (any integer type from Python; `"2000"`, `2e3` or `True` are refused
+  naming it) of at most 10^8; the cost (pose errors to compute, time on one core at the rate of a
+  timed 2,000 draws, memory) is told, and a run beyond the memory available is refused.
+- Each input alone at its extreme (a half-width, or 7.03 sd: the largest draw) at the workspace's
+  corners and both ends of the elevation range must leave the legs a pose; otherwise the input
+  (its file key) and the pose are named. A tolerance beyond a hexapod's class (over 2 mm, or 1 %
+  for the encoder scale) warns: a bare `half_width = 0.05` is 50 mm, not 0.05 mm.
 
 ## The model (ASSUMED where said)
 
@@ -333,9 +322,9 @@ inputs.leg_ofset: unknown key; did you mean 'leg_offset'?`).
   `[cost]` says). Least cost under a variance limit gives s_g proportional to (w_g / V_g)^(1/3)
   (Lagrange), V_g the group's variance of what a target reads; the scale factor comes from the
   99.7 % quantiles of the sum of the groups' own errors (first order: they add), the cheapest of
-  the per-target candidates wins, and a fresh nonlinear Monte Carlo checks it (the upper 95 %
-  bound of each quantile must be under its target; otherwise every scale shrinks by 2 % and it is
-  checked again).
+  the per-target candidates wins, and a fresh nonlinear Monte Carlo checks it (the upper end of
+  each quantile's 95 % interval must be under its target; otherwise every scale shrinks by 2 % and
+  it is checked again).
 - NanShan's allocation (ASSUMED mapping): 0.08 mm per leg is the whole leg-length error
   (`leg_offset`, uniform), 0.04 mm per universal joint its centre's error on each axis, uniform;
   no clearance. Their telescope (26 m) and hexapod differ from this one: the number says what
@@ -375,6 +364,24 @@ inputs.leg_ofset: unknown key; did you mean 'leg_offset'?`).
 """
 
 
+def read_store(path=STORE):
+    """The stored results; SystemExit saying what is wrong (missing, truncated, not the
+    budgets') and how to compute them again, rather than a JSONDecodeError."""
+    again = "run python -m studies.tolerance_budget (without --from-store) to compute it again"
+    try:
+        store = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise SystemExit(f"{path}: cannot read it ({exc.strerror or exc}); {again}") from None
+    except json.JSONDecodeError as exc:
+        raise SystemExit(f"{path}: not whole JSON ({exc.msg} at line {exc.lineno}, column {exc.colno}: truncated "
+                         f"or damaged); {again}") from None
+    missing = [name for name in BUDGETS if not isinstance(store, dict) or not isinstance(store.get(name), dict)
+               or "quantiles" not in store[name]]
+    if missing:
+        raise SystemExit(f"{path}: holds no results of {', '.join(missing)}; {again}")
+    return store
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--from-store", action="store_true", help=f"no runs: read {STORE.relative_to(ROOT)}")
@@ -382,18 +389,18 @@ def main(argv=None):
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     args = parser.parse_args(argv)
     if args.sweeps_only:   # the sweeps again into the stored results (the cheap part)
-        store = json.loads(STORE.read_text())
+        store = read_store()
         store["linear_sweep"] = linear_sweep(StewartParams.paper(), bg.load("default"))
         store["clearance_sweep"] = clearance_sweep(StewartParams.paper(), bg.load("default"))
-        STORE.write_text(json.dumps(store, indent=1) + "\n")
+        atomic.write_text(STORE, json.dumps(store, indent=1) + "\n")
     elif args.from_store:
-        store = json.loads(STORE.read_text())
+        store = read_store()
     else:
         store = compute(not args.quiet)
-        STORE.write_text(json.dumps(store, indent=1) + "\n")
+        atomic.write_text(STORE, json.dumps(store, indent=1) + "\n")
     for file, chart in CHARTS.items():
         chart(store, FIGURES / file)
-    REPORT.write_text(report(store))
+    atomic.write_text(REPORT, report(store))
     print(f"wrote {REPORT.relative_to(ROOT)} and {', '.join(CHARTS)} in {FIGURES.relative_to(ROOT)}")
 
 

@@ -98,6 +98,15 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
         m->data[1 + k] += r[VR_payload_inertia_error + k];
         m->data[11 + k] += r[VR_payload_com_error + k];
     }
+    /* plant.hexapod.model.body_problems: a mass > 0, moments > 0 and the triangle inequalities */
+    const double *I = &m->data[1];
+    if (!(m->data[0] > 0) || !(I[0] > 0 && I[1] > 0 && I[2] > 0)
+        || !(I[2] <= I[0] + I[1] && I[0] <= I[1] + I[2] && I[1] <= I[0] + I[2])) {
+        mb_error(inst, "InvalidInputError", "the payload is no rigid body: mass %g kg, principal moments "
+                 "[%g, %g, %g] kg.m2 (a mass and moments > 0, each moment at most the sum of the other two)",
+                 m->data[0], I[0], I[1], I[2]);
+        return 1;
+    }
     m->legs = FIDELITY_LEGS[fidelity];
     m->base_mode = i[VR_moving_base] ? FIDELITY_BASE_MODE[fidelity] : MB_HEXAPOD_BASE_NONE;
     double stroke = r[VR_stroke];

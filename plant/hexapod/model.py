@@ -104,6 +104,35 @@ class StewartParams:
                          self.cylinder_inertia[1] + self.rod_inertia[1], self.gravity, *self.platform_com])
 
 
+def body_problems(mass, inertia):
+    """What no rigid body can have in ``mass`` [kg] and principal moments ``inertia`` (3,)
+    [kg.m2] at its centre of mass: a mass not > 0, a moment not > 0 (the tensor, diagonal in
+    its principal axes, not positive definite), or a moment larger than the other two
+    together (I_a + I_b >= I_c for every axis c: the triangle inequalities, which hold since
+    I_a + I_b - I_c = 2 sum m z^2 >= 0). Empty when it is admissible; each problem one line."""
+    found = []
+    if not (np.isfinite(mass) and mass > 0):
+        found.append(f"mass {mass:.6g} kg is not > 0")
+    inertia = np.asarray(inertia, dtype=float)
+    for c, name in enumerate("xyz"):
+        a, b = (inertia[j] for j in range(3) if j != c)
+        if not (np.isfinite(inertia[c]) and inertia[c] > 0):
+            found.append(f"I{name}{name} = {inertia[c]:.6g} kg.m2 is not > 0 (the inertia tensor must be positive "
+                         "definite)")
+        elif not inertia[c] <= a + b:
+            others = "+".join(f"I{n}{n}" for n in "xyz" if n != name)
+            found.append(f"I{name}{name} = {inertia[c]:.6g} kg.m2 exceeds {others} = {a + b:.6g} kg.m2 by "
+                         f"{inertia[c] - a - b:.4g} kg.m2 (triangle inequality: no rigid body has it)")
+    return found
+
+
+def check_body(mass, inertia, what="the platform"):
+    """InvalidInputError naming every law ``body_problems`` finds broken."""
+    found = body_problems(mass, inertia)
+    if found:
+        raise InvalidInputError(f"{what} is no rigid body: " + "; ".join(found))
+
+
 class DynamicsTerms(NamedTuple):
     """M du/dt + h = J^T F at one state (batched): mass matrix, bias, leg Jacobian."""
 

@@ -37,8 +37,8 @@ and geometry), in chunks of ``CHUNK`` samples whose static leg forces the batche
 nominal geometry; ``linear_indices`` the first-order variance and Sobol indices it gives for
 independent inputs. ``sobol_indices`` estimates Sobol indices of any function with SALib
 (Saltelli sampling, bootstrap confidence intervals, inputs singly or in groups);
-``pose_error_sobol`` runs it on the pose errors. SALib comes with the ``tolerance`` extra and
-is imported only there.
+``pose_error_sobol`` runs it on the pose errors. SALib is a dependency of the kit (``movingbase
+budget`` is a main command) and is imported only there.
 """
 from typing import NamedTuple
 
@@ -121,7 +121,7 @@ def pose_errors(params, pose, samples, elevation=ZENITH, chunk=CHUNK, tol=1e-13,
     sample (n, 66) of the inputs (deviations, INPUT_NAMES' order and units). ``pose``: one
     commanded pose (6,) or one per sample (n, 6); ``elevation`` [rad]: one, or one per sample,
     in [0, pi/2] (it sets the joints' loads, so matters only with clearance). Raises
-    UnreachablePoseError naming the first sample whose legs cannot meet."""
+    UnreachablePoseError naming the first sample whose legs cannot meet (its ``sample``: the row)."""
     samples = np.ascontiguousarray(_state(samples, "samples", N_INPUTS).reshape(-1, N_INPUTS))
     n = len(samples)
     poses, elevation = _batch(pose, elevation, n)
@@ -142,9 +142,11 @@ def pose_errors(params, pose, samples, elevation=ZENITH, chunk=CHUNK, tol=1e-13,
             ffi.from_buffer("double[]", samples[rows]), play, ffi.from_buffer("double[]", poses[rows]),
             tol, max_iter, ffi.from_buffer("double[]", out[rows]), residual)
         if bad >= 0:
-            raise UnreachablePoseError(f"forward kinematics of sample {start + bad} found no pose: Newton's "
-                                       f"iterations diverged or stalled within {max_iter} steps (its leg-length "
-                                       f"residual {residual[0]:.3e} m): its legs cannot meet")
+            error = UnreachablePoseError(f"forward kinematics of sample {start + bad} found no pose: Newton's "
+                                         f"iterations diverged or stalled within {max_iter} steps (its leg-length "
+                                         f"residual {residual[0]:.3e} m): its legs cannot meet")
+            error.sample = start + bad   # the row of ``samples``, for a caller that names its inputs
+            raise error
     return out
 
 
@@ -205,8 +207,9 @@ def sobol_indices(function, names, bounds, n=1024, seed=0, resamples=500, confid
     try:
         from SALib.analyze import sobol as analyze
         from SALib.sample import sobol as sample
-    except ImportError:
-        raise ModuleNotFoundError("Sobol indices need SALib: pip install 'movingbase[tolerance]'") from None
+    except ImportError:   # a dependency: only an environment built apart from pyproject.toml lacks it
+        raise ModuleNotFoundError("Sobol indices need SALib, a dependency of the kit: pip install -c constraints.txt "
+                                  "-e . in a clone, or pip install 'SALib>=1.6,<2'") from None
     if n < 2 or n & (n - 1):
         raise InvalidInputError(f"n must be a power of 2 (Saltelli's sampling), got {n}")
     bounds = [[float(lo), float(hi)] for lo, hi in bounds]

@@ -5,8 +5,11 @@ and members, each a distribution of scenarios.spec.distributions), the workspace
 poses as travel about home, and the telescope's elevation range), the targets on the pose error
 and the probability they must hold with. ``run_budget`` answers with:
 
-* Monte Carlo: each target's metric at the probability's quantile, with a 95 % interval
-  (order statistics), over samples spread on the workspace and the elevation range;
+* Monte Carlo: each target's metric at the probability's quantile, with its exact 95 %
+  distribution-free interval (order statistics whose ranks the binomial distribution gives;
+  ``quantile``), over samples spread on the workspace and the elevation range; a target is
+  met when the interval's upper end is under it, so a sample count too small to bound the
+  quantile from above (``needed_samples``) is refused, with the count it needs;
 * Sobol indices (SALib, Saltelli) of each metric by input group, the workspace a group of its
   own, with bootstrap intervals; and the inputs with the largest first-order (linear) variance;
 * an allocation: per-group scale factors of the tolerances that meet every target at the
@@ -14,23 +17,37 @@ and the probability they must hold with. ``run_budget`` answers with:
   (tightening a group's tolerances by a factor s costs 1/s times as much), checked by a fresh
   Monte Carlo run whose quantile's upper 95 % bound must be under each target.
 
+Before anything runs: the samples asked for are checked (an integer, enough for the
+probability, within what memory holds) and the cost is estimated (``estimate``); each input at
+its extreme, alone, at the workspace's corners, must leave the legs a pose (``check_reach``),
+else the input and the pose are named; a tolerance far beyond a hexapod's class warns
+(``BudgetWarning``: a bare 0.05 is 50 mm). The result file is written whole or not at all.
+
 It lives with the runs (not in scenarios.spec) because, like a campaign, it is a file that is
 read and run: the parsing errors are ScenarioErrors naming file, key and problem, the math
 stays in plant.hexapod.tolerance. No co-simulation runs: the dynamic budget (payload and sensor
 calibration inputs, on Dask) is the campaigns'.
 """
-import json
+import itertools
 import math
+import numbers
 import pathlib
+import sys
+import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.stats import binom
 from tqdm import tqdm
 
+from plant.errors import UnreachablePoseError
 from plant.hexapod import tolerance as tl
 from plant.hexapod.model import StewartParams
 from scenarios import spec
+from scenarios.output import budget_report
+from scenarios.output.budget_report import percent
+from scenarios.runs import estimates as resources
 from scenarios.spec import distributions
 from scenarios.spec.units import UnitError, to_si
 
@@ -52,10 +69,21 @@ READS = {"focus": [2], "lateral": [0, 1], "position": [0, 1, 2], "tilt": [3, 4]}
 WORKSPACE_GROUP = "workspace"
 CONFIDENCE = 0.95
 ALLOCATION_SAMPLES = 100_000   # samples of each group's own error the allocation scales
+MAX_SAMPLES = 10 ** 8          # Monte Carlo draws: the file's limit and the argument's
+BYTES_PER_SAMPLE = 160         # peak memory per Monte Carlo draw: its pose error (48 B), the chunks it is
+                               # joined from (48 B), a metric's values and their sorted copy (16 B each)
+# ASSUMED: the class of a hexapod's geometric tolerances (joints 0.2 mm, the kit's defaults): ten
+# times that is no tolerance but a misread unit (a bare 0.05 is 50 mm); SI per unit of the inputs
+PLAUSIBLE = {"m": 2e-3, "1": 1e-2}
+NORMAL_EXTREME = 7.03          # a normal draw's extreme: _map clips u to [1e-12, 1 - 1e-12], ndtri(1e-12) = -7.03
 
 
 class BudgetError(spec.ScenarioError):
     """Problems in a budget file; the message says file, key and problem, one line each."""
+
+
+class BudgetWarning(UserWarning):
+    """A budget that runs but is likely not what was meant (a tolerance beyond a hexapod's class)."""
 
 
 @dataclass(frozen=True)
@@ -76,6 +104,7 @@ class Budget:
     seed: int
     allocation_samples: int = ALLOCATION_SAMPLES
     cost: dict = field(default_factory=dict)   # group -> weight (ASSUMED cost model), 1 when not given
+    keys: tuple = ()               # (66,) the file's key that set each input ("inputs.<group or member>")
 
     @property
     def groups(self):
@@ -108,7 +137,7 @@ def _range(source, key, value, dimension):
 
 
 def _inputs(source, table):
-    found = [None] * tl.N_INPUTS
+    found, keys = [None] * tl.N_INPUTS, [""] * tl.N_INPUTS
     problems = spec.Problems(BudgetError)
     for key, problem in spec.unknown_keys(set(table) - set(tl.GROUPS) - set(_MEMBERS),
                                           list(tl.GROUPS) + ["<group>_<leg>[_<x|y|z>]"]):
@@ -119,15 +148,33 @@ def _inputs(source, table):
             if key in tl.GROUPS:
                 dist = distributions.parse(source, f"inputs.{key}", table[key], tl.UNITS[key], BudgetError)
                 for k in tl.GROUPS[key]:
-                    found[k] = dist
+                    found[k], keys[k] = dist, f"inputs.{key}"
+                _plausible(source, key, table[key], dist)
             elif key in _MEMBERS:
                 group, k = _MEMBERS[key]
                 found[k] = distributions.parse(source, f"inputs.{key}", table[key], tl.UNITS[group], BudgetError)
+                keys[k] = f"inputs.{key}"
+                _plausible(source, key, table[key], found[k])
     problems.raise_any()
     found = [None if d is None or d.scale == 0 else d for d in found]
     if all(d is None for d in found):
         raise BudgetError(source, "inputs", "no uncertain input: give at least one group or member a scale > 0")
-    return tuple(found)
+    return tuple(found), tuple(keys)
+
+
+def _plausible(source, key, table, dist):
+    """A BudgetWarning when ``dist``'s scale is beyond a hexapod's tolerances (PLAUSIBLE)."""
+    unit = tl.UNITS[key if key in tl.GROUPS else _MEMBERS[key][0]]
+    if dist.scale <= PLAUSIBLE[unit]:
+        return
+    written = table.get(distributions.SCALES[dist.kind]) if isinstance(table, dict) else None
+    bare = isinstance(written, (int, float)) or (isinstance(written, str) and not written.strip(" .0123456789eE+-"))
+    read = (f"{dist.scale:g} m = {dist.scale * 1e3:g} mm" if unit == "m"
+            else f"{dist.scale:g} ({dist.scale * 1e6:g} ppm)")
+    said = f"{distributions.SCALES[dist.kind]} = {written!r} is read as {read}"
+    hint = (f"; a bare number is SI: if you meant {written} mm, write \"{written} mm\"" if bare and unit == "m" else "")
+    warnings.warn(BudgetWarning(f"{spec.text.shown(source)}: inputs.{key}: {said}, beyond a hexapod's geometric "
+                                f"tolerances (at most {PLAUSIBLE[unit]:g} {unit} is plausible){hint}"), stacklevel=2)
 
 
 def _workspace(source, table):
@@ -184,7 +231,7 @@ def parse(text, source="<string>"):
     problems.raise_any()
     values = {}
     with problems.part():
-        values["inputs"] = _inputs(source, data["inputs"])
+        values["inputs"], values["keys"] = _inputs(source, data["inputs"])
     with problems.part():
         values["workspace"] = _workspace(source, data["workspace"])
     with problems.part():
@@ -192,7 +239,7 @@ def parse(text, source="<string>"):
     with problems.part():
         values["name"] = spec.check_name(source, "name", data.get("name", pathlib.Path(source).stem), BudgetError)
         values["probability"] = _number(source, "probability", data.get("probability", 0.997), float, 0.5, 0.99999)
-        values["samples"] = _number(source, "samples", data.get("samples", 1_000_000), int, 1000, 10 ** 8)
+        values["samples"] = _number(source, "samples", data.get("samples", 1_000_000), int, 1000, MAX_SAMPLES)
         values["seed"] = _number(source, "seed", data.get("seed", 0), int, 0, 2 ** 32 - 1)
         n = _number(source, "sobol_samples", data.get("sobol_samples", 8192), int, 0, 2 ** 20)
         if n and n & (n - 1):
@@ -207,11 +254,14 @@ def parse(text, source="<string>"):
         for key, problem in spec.unknown_keys(set(cost) - set(tl.GROUPS), tl.GROUPS):
             raise BudgetError(source, f"cost.{key}", problem)
         values["cost"] = {g: _number(source, f"cost.{g}", w, float, 1e-9, 1e9) for g, w in cost.items()}
+    with problems.part():
+        if "samples" in values:
+            check_samples(values["samples"], values["probability"], source, "samples")
     problems.raise_any()
     low, high, poses, elevation = values["workspace"]
     return Budget(values["name"], source, values["inputs"], low, high, poses, elevation, values["targets"],
                   values["probability"], values["samples"], values["sobol_samples"], values["seed"],
-                  values["allocation_samples"], values["cost"])
+                  values["allocation_samples"], values["cost"], values["keys"])
 
 
 def load(path):
@@ -272,10 +322,116 @@ def _errors(params, budget, u, bar=None, scales=None):
     out = []
     for points in chunks:
         samples, poses, elevation = _map(budget, points, scales)
-        out.append(tl.pose_errors(params, poses, samples, elevation))
+        try:
+            out.append(tl.pose_errors(params, poses, samples, elevation))
+        except UnreachablePoseError as exc:   # inputs together beyond what check_reach tried alone
+            raise _unreachable(budget, samples[exc.sample], poses[exc.sample], elevation[exc.sample],
+                               "a draw of the inputs together") from None
         if bar is not None:
             bar.update(len(samples))
     return np.concatenate(out)
+
+
+def _pose_text(pose, elevation):
+    """A commanded pose as travel about home in mm and deg, and the elevation."""
+    travel = pose - StewartParams.paper().home_pose
+    mm, deg = (", ".join(f"{v:.4g}" for v in part) for part in (travel[:3] * 1e3, np.degrees(travel[3:])))
+    return (f"travel [{mm}] mm, [{deg}] deg (x, y, z, roll, pitch, yaw) about home at elevation "
+            f"{np.degrees(elevation):.4g} deg")
+
+
+def _unreachable(budget, sample, pose, elevation, what):
+    """The BudgetError of a sample (66,) whose legs cannot meet at ``pose``: its inputs with the
+    largest deviations named, by the file's key."""
+    largest = [k for k in np.argsort(-np.abs(sample))[:3] if sample[k] != 0]
+    named = ", ".join(f"{tl.INPUT_NAMES[k]} = {sample[k]:.4g} {tl.UNITS[_MEMBERS[tl.INPUT_NAMES[k]][0]]}"
+                      for k in largest)
+    keys = list(dict.fromkeys(budget.keys[k] for k in largest if budget.keys)) or ["inputs"]
+    return BudgetError(budget.source, ", ".join(keys), f"{what} ({named}) leaves the hexapod no pose at the commanded "
+                       f"{_pose_text(pose, elevation)}: its legs cannot meet; a hexapod's geometric tolerances are "
+                       "micrometres to tenths of a millimetre: check the value and its unit")
+
+
+def _corners(budget):
+    """Commanded poses (m, 6) and elevations (m,) at the workspace's corners (a list of poses:
+    each, at most 64) and both ends of the elevation range."""
+    if len(budget.poses):
+        travel = budget.poses[:64]
+    else:
+        travel = np.array(list(itertools.product(*zip(budget.low, budget.high))))
+        travel = np.unique(travel, axis=0)
+    lo, hi = budget.elevation
+    poses = np.concatenate([travel, travel]) + StewartParams.paper().home_pose
+    return poses, np.repeat([lo, hi], len(travel))
+
+
+def check_reach(params, budget):
+    """Each uncertain input at its extreme (uniform: +-half_width; normal: +-7.03 sd, the
+    largest a draw takes), the others nominal, at the workspace's corners: a BudgetError
+    naming every input that leaves the legs no pose, and the pose, before anything runs."""
+    poses, elevation = _corners(budget)
+    problems = spec.Problems(BudgetError)
+    for k, dist in enumerate(budget.inputs):
+        if dist is None:
+            continue
+        extreme = dist.scale * (1.0 if dist.kind == "uniform" else NORMAL_EXTREME)
+        for sign in (1.0, -1.0):
+            samples = np.zeros((len(poses), tl.N_INPUTS))
+            samples[:, k] = sign * extreme
+            try:
+                tl.pose_errors(params, poses, samples, elevation)
+            except UnreachablePoseError as exc:
+                bound = f"its {'half_width' if dist.kind == 'uniform' else '7.03 sd extreme'}"
+                problems.errors.append(_unreachable(budget, samples[exc.sample], poses[exc.sample],
+                                                    elevation[exc.sample], f"{tl.INPUT_NAMES[k]} alone at {bound}"))
+                break
+    if problems.errors:   # one line per group (its members break alike)
+        seen, kept = set(), []
+        for error in problems.errors:
+            if error.problems[0][1] not in seen:
+                seen.add(error.problems[0][1])
+                kept.append(error)
+        raise BudgetError.joined(kept)
+
+
+@dataclass
+class Cost:
+    """What a budget run will take, counted before it starts."""
+
+    evaluations: int               # pose errors computed (Monte Carlo, Sobol, allocation)
+    seconds: float                 # on one core, at the rate measured on this budget
+    memory: float                  # bytes at the peak (the Monte Carlo's draws)
+
+    def text(self):
+        return (f"{self.evaluations:,d} pose errors, ~{resources._duration(self.seconds)} of them on one core (the "
+                f"Sobol bootstrap and the allocation's search add to it), ~{resources._size(self.memory)} of memory")
+
+
+def estimate(params, budget, samples, n_sobol, allocation=True):
+    """The Cost of a run: the evaluations counted, each at the rate a timed 2,000 draws of this
+    budget give (the clearance's leg forces make a draw ~4x dearer)."""
+    dims = _dimensions(budget)
+    start = time.perf_counter()
+    _errors(params, budget, (budget.seed + 99, 2000, dims))
+    rate = (time.perf_counter() - start) / 2000
+    sobol_evaluations = n_sobol * (len(budget.groups) + (1 if _workspace_dims(budget) else 0) + 2)
+    alloc = (budget.allocation_samples * len(budget.groups) + samples) if allocation else 0
+    evaluations = samples + sobol_evaluations + alloc
+    memory = max(samples * BYTES_PER_SAMPLE, sobol_evaluations * 8 * (dims + 12),
+                 budget.allocation_samples * len(budget.groups) * 96 if allocation else 0)
+    return Cost(evaluations, evaluations * rate, memory)
+
+
+def check_cost(cost, budget):
+    """ResourceError for a run that cannot finish here (more memory than is available, or
+    longer than estimates.REFUSE_SECONDS), saying what to lower."""
+    memory = resources.available_memory()
+    if memory is not None and cost.memory > memory:
+        raise resources.ResourceError(f"budget {budget.name}: {cost.text()}; {resources._size(memory)} is available: "
+                                      f"lower samples (at most ~{int(memory / BYTES_PER_SAMPLE):,d} here)")
+    if cost.seconds > resources.REFUSE_SECONDS:
+        raise resources.ResourceError(f"budget {budget.name}: {cost.text()}: it would not finish; lower samples, "
+                                      "sobol_samples or allocation_samples")
 
 
 def _draws(seed, n, dimensions):
@@ -291,15 +447,69 @@ def _dimensions(budget):
     return sum(d is not None for d in budget.inputs) + len(_workspace_dims(budget))
 
 
+def needed_samples(probability, confidence=CONFIDENCE):
+    """The fewest samples whose interval (``ranks``) has an upper end: the largest of n values
+    lies above the ``probability`` quantile with probability 1 - p^n, which must reach the
+    upper tail's 1 - (1 - confidence) / 2."""
+    n = math.ceil(math.log((1 - confidence) / 2) / math.log(probability))
+    return n + (binom.sf(n - 1, n, probability) > (1 - confidence) / 2)   # rounding at the edge
+
+
+def ranks(n, probability, confidence=CONFIDENCE):
+    """(r, s, coverage): the 1-based ranks of the order statistics X(r) <= x_p <= X(s) that
+    hold the ``probability`` quantile x_p with at least ``confidence``, distribution-free:
+    the count K of values below x_p is Binomial(n, p), X(r) <= x_p when K >= r and X(s) >= x_p
+    when K <= s - 1, so the coverage is P(r <= K <= s - 1); each tail outside it at most
+    (1 - confidence) / 2: r the largest with P(K <= r - 1) <= tail, s the smallest with
+    P(K >= s) <= tail. r = 0: no lower end (too few values); s = n + 1: no upper end."""
+    tail = (1 - confidence) / 2
+    k = np.arange(n + 1)
+    r = int(np.searchsorted(binom.cdf(k, n, probability), tail, side="right"))
+    s = int(np.searchsorted(-binom.sf(k, n, probability), -tail, side="left")) + 1
+    coverage = binom.cdf(s - 1, n, probability) - (binom.cdf(r - 1, n, probability) if r else 0.0)
+    return r, s, float(coverage)
+
+
 def quantile(values, probability, confidence=CONFIDENCE):
-    """(the ``probability`` quantile of ``values``, its interval at ``confidence``): order
-    statistics, whose ranks a binomial count of the values below the quantile gives."""
+    """(the ``probability`` quantile of ``values`` (linear interpolation), the lower and upper
+    end of its interval at ``confidence`` (``ranks``; -inf or inf where the values cannot bound
+    it), the interval's exact coverage)."""
     ordered = np.sort(values)
     n = len(ordered)
-    tail = (1 - confidence) / 2
-    low, high = binom.ppf([tail, 1 - tail], n, probability).astype(int)
-    return (float(np.quantile(ordered, probability)), float(ordered[max(low - 1, 0)]),
-            float(ordered[min(high, n - 1)]))
+    r, s, coverage = ranks(n, probability, confidence)
+    return (float(np.quantile(ordered, probability)), float(ordered[r - 1]) if r else -math.inf,
+            float(ordered[s - 1]) if s <= n else math.inf, coverage)
+
+
+def check_samples(samples, probability, source="<argument>", key="samples"):
+    """``samples`` as an int: any integer type (numpy's too); a bool, float or text is refused
+    (TypeError), and so is a count below what the probability needs or above MAX_SAMPLES
+    (BudgetError naming ``key``)."""
+    if isinstance(samples, bool) or not isinstance(samples, numbers.Integral):
+        hint = ""
+        if isinstance(samples, (float, str)):
+            with_number = _whole(samples)
+            hint = f": write {with_number}" if with_number is not None else ""
+        raise TypeError(f"{key} must be an integer (the number of Monte Carlo draws), not "
+                        f"{type(samples).__name__} {samples!r}{hint}")
+    samples, needed = int(samples), needed_samples(probability)
+    if samples < needed:
+        raise BudgetError(source, key, f"{samples:,d} samples cannot bound the {percent(probability)} quantile from "
+                          f"above: its {percent(CONFIDENCE)} interval needs at least {needed:,d} (the largest of n "
+                          f"draws lies above it with probability 1 - p^n); give more samples or a lower probability")
+    if samples > MAX_SAMPLES:
+        raise BudgetError(source, key, f"{samples:,d} samples is more than the {MAX_SAMPLES:,d} a budget takes "
+                          f"(~{resources._size(samples * BYTES_PER_SAMPLE)} of memory)")
+    return samples
+
+
+def _whole(value):
+    """The int a float or text names when it is a whole number (2e3, "2000"), else None."""
+    try:
+        number = float(value)
+    except ValueError:
+        return None
+    return int(number) if math.isfinite(number) and number == int(number) else None
 
 
 def monte_carlo(params, budget, samples, seed, bar=None, scales=None):
@@ -308,8 +518,9 @@ def monte_carlo(params, budget, samples, seed, bar=None, scales=None):
     errors = _errors(params, budget, (seed, samples, _dimensions(budget)), bar, scales)
     found = {}
     for metric, limit in budget.targets.items():
-        value, low, high = quantile(METRICS[metric][2](errors), budget.probability)
-        found[metric] = dict(value=value, low=low, high=high, target=limit, met=bool(high < limit))
+        value, low, high, coverage = quantile(METRICS[metric][2](errors), budget.probability)
+        found[metric] = dict(value=value, low=low, high=high, target=limit, met=bool(high < limit),
+                             coverage=coverage)
     return found, errors
 
 
@@ -415,7 +626,7 @@ def allocate(params, budget, seed, bar=None, samples=None, verify=None):
         if all(c["met"] for c in check.values()):
             break
     groups = {g: dict(scale=s, weight=float(w), cost=float(w / s), extra_cost=float(w / s - w),
-                      tolerance=[_scale_of(budget, g) * s, tl.UNITS[g]])
+                      tolerance=[_scale_of(budget, g) * s, tl.UNITS[g]], given=[_scale_of(budget, g), tl.UNITS[g]])
               for g, s, w in zip(budget.groups, scales.tolist(), weights)}
     return dict(groups=groups, cost=float(np.sum(weights / scales)), cost_as_given=float(weights.sum()),
                 check=check, verified=all(c["met"] for c in check.values()), samples=samples)
@@ -429,27 +640,31 @@ def _scale_of(budget, group):
 # --------------------------------------------------------------------------------- run
 def run_budget(path, samples=None, out=None, progress=True, sobol_samples=None, allocation=True):
     """Run a budget file (or a parsed Budget): Monte Carlo quantiles, Sobol indices, the
-    leading inputs and the allocation; written to ``out``/<name>.json when ``out`` is given.
-    ``samples``/``sobol_samples`` override the file's. Returns the results as a dict."""
+    leading inputs and the allocation; written to ``out``/<name>.json, with its charts and a
+    report (<name>.md, scenarios.output.budget_report) when ``out`` is given (each file whole
+    or not at all). ``samples``/``sobol_samples`` override the file's. Everything is
+    checked and the cost estimated (told on stderr with ``progress``) before anything runs.
+    Returns the results as a dict."""
     budget = path if isinstance(path, Budget) else load(path)
-    samples = budget.samples if samples is None else samples
+    samples = budget.samples if samples is None else check_samples(samples, budget.probability, budget.source)
     n_sobol = budget.sobol_samples if sobol_samples is None else sobol_samples
     params = StewartParams.paper()
-    sobol_evaluations = n_sobol * (len(budget.groups) + (1 if _workspace_dims(budget) else 0) + 2)
-    alloc_evaluations = (budget.allocation_samples * len(budget.groups) + samples) if allocation else 0
-    with tqdm(total=samples + sobol_evaluations + alloc_evaluations, desc=f"budget {budget.name}", unit="sample",
+    check_reach(params, budget)
+    cost = estimate(params, budget, samples, n_sobol, allocation)
+    check_cost(cost, budget)
+    if progress:
+        print(f"budget {budget.name}: {cost.text()}", file=sys.stderr, flush=True)
+    with tqdm(total=cost.evaluations, desc=f"budget {budget.name}", unit="sample",
               unit_scale=True, disable=not progress) as bar:
         found, errors = monte_carlo(params, budget, samples, budget.seed, bar)
         result = dict(name=budget.name, source=budget.source, probability=budget.probability, samples=samples,
-                      metrics={m: METRICS[m][0] for m in budget.targets}, quantiles=found,
+                      confidence=CONFIDENCE, metrics={m: METRICS[m][0] for m in budget.targets}, quantiles=found,
                       mean_error=errors.mean(axis=0).tolist(), std_error=errors.std(axis=0).tolist())
         result["leading_inputs"], result["linear_shares"] = linear_shares(params, budget)
         if n_sobol:
             result["sobol"] = sobol(params, budget, n_sobol, budget.seed, bar)
         if allocation:
             result["allocation"] = allocate(params, budget, budget.seed + 1, bar, verify=samples)
-    if out is not None:
-        folder = pathlib.Path(out)
-        folder.mkdir(parents=True, exist_ok=True)
-        (folder / f"{budget.name}.json").write_text(json.dumps(result, indent=1) + "\n")
+    if out is not None:   # <name>.json, its charts and <name>.md
+        budget_report.write(result, out)
     return result

@@ -63,6 +63,10 @@ class CampaignError(spec.ScenarioError):
 
 
 MAX_RUNS = 200_000              # a campaign of more runs is refused before its cases are made
+# A sample whose draws give a body no model may have (plant.hexapod.model.body_problems: a
+# payload's moments against the triangle inequalities) is drawn again, up to this many times:
+# rejection keeps each input's distribution as written, conditioned on an admissible body.
+MAX_REDRAWS = 100
 
 
 @dataclass
@@ -83,19 +87,23 @@ class Sample:
     inputs: tuple
     seeds: tuple
 
-    def stream(self, k, key):
+    def stream(self, k, key, attempt=0):
         """The generator of sample ``k``'s draw for ``key``: SeedSequence(seed, spawn_key=(k,
         crc32(key))), so a draw depends on (seed, k, the input's name) alone: sample k
-        re-runs alone, and adding or reordering inputs leaves the others' draws as they were."""
+        re-runs alone, and adding or reordering inputs leaves the others' draws as they were.
+        A redraw (``attempt`` > 0, see ``draws``) appends the attempt to the spawn key."""
         return np.random.Generator(np.random.PCG64(np.random.SeedSequence(
-            self.seed, spawn_key=(k, zlib.crc32(key.encode())))))
+            self.seed, spawn_key=(k, zlib.crc32(key.encode())) + ((attempt,) if attempt else ()))))
 
-    def draws(self, k):
+    def draws(self, k, attempt=0):
         """({key: deviation [SI]}, {key: FMU seed}) of sample ``k``: u in (0, 1) (53-bit,
-        never 0 or 1, so a normal's ppf stays finite) through each Distribution's ppf."""
+        never 0 or 1, so a normal's ppf stays finite) through each Distribution's ppf.
+        ``attempt``: the redraw of a sample whose draws gave a body no model may have (every
+        input drawn anew, so the samples follow the distributions as written, conditioned on
+        an admissible body; the seeds stay those of attempt 0)."""
         deviations = {}
         for key, _, _, _, dist in self.inputs:
-            u = (float(self.stream(k, key).integers(1 << 53)) + 0.5) / (1 << 53)
+            u = (float(self.stream(k, key, attempt).integers(1 << 53)) + 0.5) / (1 << 53)
             deviations[key] = float(dist.ppf(u))
         return deviations, {key: int(self.stream(k, key).integers(1, 2 ** 31 - 1)) for key, _, _ in self.seeds}
 
@@ -436,6 +444,7 @@ class CampaignJobs:
         self._bound = {}            # top-level overrides -> (scenario, values, descriptions, digests)
         self.files = {}             # sha256 -> FMU path
         self.flags = {}             # run label -> the flags of its motion (check), each run gets its own
+        self.redrawn = {}           # run label -> its draws' attempt (0: as first drawn; > 0: drawn again)
         self.base = self._bind({})[0]   # the FMUs, built and hashed before anything runs
 
     def __len__(self):
@@ -474,21 +483,52 @@ class CampaignJobs:
             variables = {v.name: v for v in descriptions[inst].modelVariables}
             for target, item in zip(spec.expand(variables, key), raw if isinstance(raw, list) else [raw]):
                 params[inst][target] = spec._value(self.campaign.source, key, variables[target], item)
-        if case.sample is not None:     # the run's value + the draw, checked against the FMU's range
+        if case.sample is not None:
             sample = self.campaign.sample
-            deviations, seeds = sample.draws(case.sample)
-            for key, inst, name, _, _ in sample.inputs:
-                variable = next(v for v in descriptions[inst].modelVariables if v.name == name)
-                value = float(params[inst].get(name, variable.start)) + deviations[key]   # unset: the FMU's
-                try:
-                    params[inst][name] = spec._value(self.campaign.source, key, variable, value)
-                except spec.ScenarioError as exc:
-                    raise CampaignError(self.campaign.source, f"sample {case.sample}: {key}", f"the draw "
-                                        f"{deviations[key]:.6g} {variable.unit or ''} gives {exc.problems[0][2]}"
-                                        ) from None
+            nominal = {inst: dict(p) for inst, p in params.items()}
+            for attempt in range(MAX_REDRAWS + 1):
+                params = self._drawn(case.sample, attempt, nominal, descriptions)
+                inadmissible = {inst: found for inst, fmu in scenario.fmus.items() if fmu == "hexapod_plant"
+                                for found in [spec.payload_problems({v.name: v for v in
+                                                                     descriptions[inst].modelVariables},
+                                                                    params[inst])] if found}
+                if not inadmissible:
+                    self.redrawn[case.label] = attempt   # per run: a grid's cases differ in value
+                    break
+            else:
+                told = "; ".join(p for found in inadmissible.values() for p in found)
+                raise CampaignError(self.campaign.source, "sample", f"sample {case.sample}: {MAX_REDRAWS + 1} draws "
+                                    f"in a row gave a body no model may have ({told}): the distributions allow "
+                                    "mostly impossible bodies; narrow them")
+            _, seeds = sample.draws(case.sample)
             for key, inst, name in sample.seeds:
                 params[inst][name] = seeds[key]
         return scenario, params, descriptions, digests
+
+    def draws(self, case):
+        """(deviations, seeds) of a sampled case as it runs: its admissible attempt's draws."""
+        if case.label not in self.redrawn:
+            self._case(case)
+        deviations, _ = self.campaign.sample.draws(case.sample, self.redrawn[case.label])
+        return deviations, self.campaign.sample.draws(case.sample)[1]
+
+    def _drawn(self, k, attempt, nominal, descriptions):
+        """The parameters of sample ``k`` (its ``attempt``-th draw): each input's value in the
+        run (``nominal``, the scene's or the campaign's; unset: the FMU's start) plus the draw,
+        checked against the FMU's range."""
+        sample = self.campaign.sample
+        params = {inst: dict(p) for inst, p in nominal.items()}
+        deviations, _ = sample.draws(k, attempt)
+        for key, inst, name, _, _ in sample.inputs:
+            variable = next(v for v in descriptions[inst].modelVariables if v.name == name)
+            value = float(nominal[inst].get(name, variable.start)) + deviations[key]
+            try:
+                params[inst][name] = spec._value(self.campaign.source, key, variable, value)
+            except spec.ScenarioError as exc:
+                raise CampaignError(self.campaign.source, f"sample {k}: {key}", f"the draw "
+                                    f"{deviations[key]:.6g} {variable.unit or ''} gives {exc.problems[0][2]}"
+                                    ) from None
+        return params
 
     def cost(self):
         """What the runs will cost (resources.estimate), each at its own top-level settings
@@ -573,8 +613,8 @@ def write_summary(campaign, store, job_list, path):
         writer = None
         for case, record in results(campaign, store, job_list):
             row = {"label": case.label, **{k: case.values.get(k) for k in campaign.varying}}
-            if campaign.sample:         # its draws: the deviation of each input [SI], its FMU seeds
-                deviations, seeds = campaign.sample.draws(case.sample)
+            if campaign.sample:         # its draws (redrawn if need be): each input's deviation [SI], its seeds
+                deviations, seeds = job_list.draws(case)
                 row["sample"] = case.sample
                 row.update({f"{key} [{unit}]" if unit else key: repr(deviations[key])
                             for key, _, _, unit, _ in campaign.sample.inputs})

@@ -4,6 +4,7 @@ more workers than memory, months of stepping) is refused with the estimate; one 
 merely large runs, after a warning that gives the estimate. Costs are counted from the
 scenario's numbers alone (no FMU is loaded), so the check is free next to the run."""
 import dataclasses
+import numbers
 import os
 import pathlib
 import shutil
@@ -127,17 +128,26 @@ def available_memory():
     return None
 
 
-def check_jobs(jobs):
+def check_jobs(jobs, name="--jobs"):
     """ResourceError for a worker count below 1 or beyond what memory holds; the warning
-    text (or "") where it exceeds the cores (the workers then share them)."""
+    text (or "") where it exceeds the cores (the workers then share them). Any integer type
+    (numpy's too) is a count; ``name`` is the argument as the caller wrote it ("--jobs" on
+    the command line, "jobs" from Python), and a value that is no integer is a TypeError there."""
     if jobs is None:
         return ""
-    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
-        raise ResourceError(f"--jobs {jobs}: the number of worker processes must be a whole number of at least 1")
+    said = f"--jobs {jobs}" if name == "--jobs" else f"{name}={jobs!r}"
+    if isinstance(jobs, bool) or not isinstance(jobs, numbers.Integral):
+        if name == "--jobs":
+            raise ResourceError(f"{said}: the number of worker processes must be a whole number of at least 1")
+        raise TypeError(f"{name} must be an integer (the number of worker processes) or None, not "
+                        f"{type(jobs).__name__} {jobs!r:.60}")
+    jobs = int(jobs)
+    if jobs < 1:
+        raise ResourceError(f"{said}: the number of worker processes must be a whole number of at least 1")
     memory = available_memory()
     if memory is not None and jobs * WORKER_BYTES > memory:
-        raise ResourceError(f"--jobs {jobs}: {jobs} worker processes need ~{_size(jobs * WORKER_BYTES)} of memory; "
+        raise ResourceError(f"{said}: {jobs} worker processes need ~{_size(jobs * WORKER_BYTES)} of memory; "
                             f"{_size(memory)} is available (at most {max(1, memory // WORKER_BYTES)} workers here)")
     if jobs > cores():
-        return f"--jobs {jobs}: more workers than the {cores()} cores here; they share them (no faster than {cores()})"
+        return f"{said}: more workers than the {cores()} cores here; they share them (no faster than {cores()})"
     return ""

@@ -22,7 +22,7 @@ The stages, in the order they run: ``keys`` (the table of keys and defaults, the
 of the kit uses are here.
 """
 from scenarios.spec.binding import _value, as_data, bind, plain, sweep_value
-from scenarios.spec.checks import check_links, check_models, check_rates, check_wiring
+from scenarios.spec.checks import check_links, check_models, check_rates, check_wiring, payload_problems
 from scenarios.spec.keys import (
     _REQUIRED,
     FMI_VERSIONS,
@@ -52,5 +52,5 @@ from scenarios.spec.text import (
 __all__ = ['FMI_VERSIONS', 'IMPLEMENTATIONS', 'KEYS', 'Link', 'MAX_FILE_BYTES', 'METRIC_KINDS', 'Metric', 'Problems',
            'Scenario', 'ScenarioError', 'TOP_KEYS', '_REQUIRED', '_value', 'as_data', 'bind', 'check_links',
            'check_models', 'check_name', 'check_rates', 'check_wiring', 'enumeration', 'expand', 'file_label', 'load',
-           'parse', 'parse_data', 'plain', 'read_text', 'read_toml', 'with_sources', 'shown', 'sources_of',
-           'sweep_value', 'unknown_keys']
+           'parse', 'parse_data', 'payload_problems', 'plain', 'read_text', 'read_toml', 'with_sources', 'shown',
+           'sources_of', 'sweep_value', 'unknown_keys']

@@ -1,7 +1,7 @@
 """The checks of a bound scenario that no single value shows: the wiring (every input fed
 once, no algebraic loop, every control loop closed through what it measures), the
 metrics' variables, and what the models refuse that min/max cannot say (the telescope
-profile over the run)."""
+profile over the run, a payload no rigid body can have)."""
 import dataclasses
 from datetime import datetime, timezone
 
@@ -9,6 +9,7 @@ import numpy as np
 
 from fmu_src.catalogue import ALL, CONTROL_LOOPS, FEEDTHROUGH, LOOP_SENSORS
 from plant.errors import InvalidInputError
+from plant.hexapod.model import StewartParams, body_problems
 from plant.telescope import model as telescope
 from scenarios.spec.keys import (
     CHECK_POINTS,
@@ -245,15 +246,43 @@ def _units_text(units):
 # -------------------------------------------------- ranges that min/max cannot declare
 def check_models(src, key, scenario, variables, values, written=None):
     """Checks that need several parameters at once, as the models themselves make them
-    (today: the telescope's profile over the run), so the FMU does not refuse them at
-    t = 0. ``written`` maps (instance, name) to the value as the file wrote it. Every
-    instance is checked; their problems are told together."""
+    (the telescope's profile over the run; the hexapod's payload a rigid body), so the FMU
+    does not refuse them at t = 0. ``written`` maps (instance, name) to the value as the
+    file wrote it. Every instance is checked; their problems are told together."""
     problems = Problems()
     for inst, fmu in scenario.fmus.items():
         if fmu == "telescope":
             with problems.part():
                 _check_telescope(src, key, scenario, inst, variables[inst], values[inst], written or {})
+        elif fmu == "hexapod_plant":
+            with problems.part():
+                found = payload_problems(variables[inst], values[inst])
+                if found:
+                    where = f"fmus.{inst}.parameters" if key == "fmus" else key
+                    raise ScenarioError(src, where, "; ".join(found))
     problems.raise_any()
+
+
+def payload_problems(md_variables, values):
+    """What no rigid body can have in the hexapod plant's payload as ``values`` set it (the
+    paper's platform plus payload_mass_error, payload_inertia_error[1..3]; unset: the FMU's
+    start), each naming the parameters: plant.hexapod.model.body_problems. Empty: admissible."""
+    def setting(name):
+        value = values.get(name, md_variables[name].start if name in md_variables else 0.0)
+        return None if isinstance(value, Link) else float(value)
+
+    inertia_names = [f"payload_inertia_error[{k}]" for k in (1, 2, 3)]
+    mass_error, inertia_error = setting("payload_mass_error"), [setting(n) for n in inertia_names]
+    if mass_error is None or None in inertia_error:
+        return []   # values known only at the start time
+    paper = StewartParams.paper()
+    found = body_problems(paper.platform_mass + mass_error, paper.platform_inertia + np.array(inertia_error))
+    if not found:
+        return []
+    return [f"payload_mass_error = {mass_error:.6g} kg, payload_inertia_error = "
+            f"[{', '.join(f'{v:.6g}' for v in inertia_error)}] kg.m2 on the paper's platform "
+            f"({paper.platform_mass:.6g} kg, [{', '.join(f'{v:.6g}' for v in paper.platform_inertia)}] kg.m2) "
+            "give a payload no rigid body has: " + "; ".join(found)]
 
 
 def _check_telescope(src, key, scenario, inst, md_variables, values, written):

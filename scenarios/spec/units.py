@@ -3,9 +3,11 @@ converted to SI at the edge. The rule: a bare number is SI (seconds, metres, rad
 newtons), as it is to the FMUs and in Python (numbers from numpy), and a value refused
 for its range says so with the unit to write ("60" for an angle: "write '60 deg'",
 scenarios.spec); the unit a variable declares is always accepted for it ("1.225 kg/m3"
-for a density in kg/m3). Units are written as in UNITS, in SI case ("mm" is not "Mm"); the micro prefix
-may be written u, µ (micro sign) or μ (Greek mu), and the unit words of WORDS in any
-case, singular or plural ("60°", "60 Deg", "60 degrees")."""
+for a density in kg/m3). Units are written as in UNITS, in SI case ("mm" is not "Mm"), or as
+an SI prefix of PREFIXES before a unit of UNITS whose factor is 1 ("2 kHz", "5 nm", "3 kN.m");
+the micro prefix may be written u, µ (micro sign) or μ (Greek mu), and the unit words of WORDS
+in any case, singular or plural ("60°", "60 Deg", "60 degrees"). Every unit the kit prints
+reads back ("78.2 ppm", "12 arcsec", "95.1 %")."""
 import math
 import re
 
@@ -21,7 +23,11 @@ UNITS = {
     "m/s2": (1.0, "m/s2"), "mm/s2": (1e-3, "m/s2"),
     "N/m": (1.0, "N/m"), "N/(m.s)": (1.0, "N/(m.s)"), "N.s/m": (1.0, "N.s/m"),
     "Hz": (1.0, "1/s"),
+    "kg": (1.0, "kg"), "g": (1e-3, "kg"), "kg.m2": (1.0, "kg.m2"), "N.m": (1.0, "N.m"),
+    "ppm": (1e-6, "1"), "%": (1e-2, "1"),
+    "arcsec": (math.pi / 648000, "rad"), "arcmin": (math.pi / 10800, "rad"),
 }
+PREFIXES = {"p": 1e-12, "n": 1e-9, "u": 1e-6, "m": 1e-3, "k": 1e3, "M": 1e6, "G": 1e9}
 # unit words, in any case and singular or plural, and the units they stand for
 WORDS = {"°": "deg", "degree": "deg", "degrees": "deg", "deg": "deg", "rad": "rad", "radian": "rad", "radians": "rad",
          "°/s": "deg/s", "degree/s": "deg/s", "degrees/s": "deg/s", "°/s2": "deg/s2",
@@ -41,6 +47,17 @@ class UnitError(ValueError):
     """A quantity with an unknown unit or a unit of the wrong dimension."""
 
 
+def lookup(unit):
+    """(SI factor, dimension) of a unit as UNITS spells it, or an SI prefix before a unit of
+    factor 1 (or the gram); None if it is neither."""
+    if unit in UNITS:
+        return UNITS[unit]
+    base = UNITS.get(unit[1:])
+    if unit[:1] in PREFIXES and base is not None and (base[0] == 1.0 or unit[1:] == "g"):
+        return PREFIXES[unit[0]] * base[0], base[1]
+    return None
+
+
 def units_of(dimension):
     """The units written for an SI dimension, e.g. 'rad, deg, mrad, urad' for "rad"."""
     return ", ".join(u for u, (_, d) in UNITS.items() if d == dimension) or dimension
@@ -50,7 +67,7 @@ def spelled(unit):
     """The UNITS name of a unit as written: micro as u ("µm", "μm"), a unit word in any case
     or number ("Deg", "degrees", "°"); anything else as it is (refused if not in UNITS)."""
     unit = _MICRO.sub("u", unit)
-    return WORDS.get(unit.lower(), unit) if unit not in UNITS else unit
+    return WORDS.get(unit.lower(), unit) if lookup(unit) is None else unit
 
 
 def split(value):
@@ -78,9 +95,10 @@ def to_si(value, dimension=None):
         elif unit is not None:
             unit = spelled(unit)
             expected = f"; expected a quantity in {dimension} ({units_of(dimension)})" if dimension else ""
-            if unit not in UNITS:
-                raise UnitError(f"unknown unit {unit!r} in {value!r}{expected or '; known: ' + ', '.join(UNITS)}")
-            factor, unit_dimension = UNITS[unit]
+            if lookup(unit) is None:
+                raise UnitError(f"unknown unit {unit!r} in {value!r}{expected or '; known: ' + ', '.join(UNITS)}"
+                                " (and SI prefixes of those of factor 1)")
+            factor, unit_dimension = lookup(unit)
             if dimension is not None and unit_dimension != dimension:
                 raise UnitError(f"{value!r} is in {unit_dimension}{expected}")
             number *= factor

@@ -111,3 +111,16 @@ def test_imu_misalignment_rotates_the_measured_acceleration(both, implementation
     expected = world @ rpy_matrix(angles) @ world.T @ acc
     np.testing.assert_allclose(measured, expected, rtol=0, atol=1e-14)
     assert np.abs(measured - acc).max() > 1e-4     # the misalignment shows
+
+
+@pytest.mark.parametrize("implementation", ["python", "native"])
+@pytest.mark.parametrize("di", [[-1841.0, -1841.0, 3237.0], [0.0, 0.0, 893.0]])
+def test_a_payload_no_rigid_body_has_is_refused_at_initialization(both, implementation, di):
+    """The issue's body (Izz 9711 > Ixx + Iyy 3684) and Izz 1 kg.m2 over Ixx + Iyy = 7366 (6474 +
+    893): each refused through FMI status, the message saying why; +892 (Izz = Ixx + Iyy exactly,
+    a thin plate) is a body, and initialises (the moments' +-50 % ranges keep them > 0)."""
+    from scenarios.cosim.fmi import FmuError
+    path = both[implementation]["hexapod_plant_fmu"]
+    with pytest.raises(FmuError, match="no rigid body"):
+        _plant(path, 0.0, di, np.zeros(6))
+    _plant(path, 0.0, [0.0, 0.0, 892.0], np.zeros(6))   # Izz = 7366 = Ixx + Iyy: a thin plate, admissible

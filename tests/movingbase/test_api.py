@@ -320,11 +320,16 @@ def test_report_into_a_file_or_an_empty_path_is_refused(result, tmp_path, capsys
             result.report(path)
 
 
-@pytest.mark.parametrize("jobs", [0, -1, 1.5, True])
-def test_a_campaign_s_bad_worker_count_is_refused_before_anything_runs(jobs, tmp_path):
-    """jobs=0 once ran on every core ("0 or all"), silently; the command line refused it."""
+@pytest.mark.parametrize("jobs, error, problem", [
+    (0, "ResourceError", "^jobs=0: the number of worker processes must be a whole number of at least 1"),
+    (-1, "ResourceError", "^jobs=-1: the number"),
+    (1.5, TypeError, r"^jobs must be an integer \(the number of worker processes\) or None, not float 1.5$"),
+    (True, TypeError, "not bool True"), ("1", TypeError, "not str '1'")])
+def test_a_campaign_s_bad_worker_count_is_refused_before_anything_runs(jobs, error, problem, tmp_path):
+    """jobs=0 once ran on every core ("0 or all"), silently; the command line refused it. From
+    Python the refusal names ``jobs=``, not the command line's --jobs."""
     from scenarios.runs.estimates import ResourceError
-    with pytest.raises(ResourceError, match="at least 1"):
+    with pytest.raises(ResourceError if error == "ResourceError" else error, match=problem):
         movingbase.campaign("slew_sizes", ci=True, jobs=jobs, out=tmp_path, progress=False)
     assert list(tmp_path.iterdir()) == []
 
@@ -545,3 +550,9 @@ def test_a_refusal_is_raised_from_the_public_call():
     frames = traceback.extract_tb(raised.value.__traceback__)
     assert [f.name for f in frames][-1] == "public" and len(frames) <= 3, frames
     assert "did you mean 'start_elevation'" in str(raised.value)
+
+
+def test_a_campaign_takes_numpy_s_integers_as_a_worker_count(tmp_path):
+    """campaign(jobs=np.int64(1)) was refused: any integer type is a count."""
+    result = movingbase.campaign("slew_sizes", ci=True, jobs=np.int64(1), out=tmp_path, progress=False)
+    assert len(result) > 0 and set(result.table()["status"]) <= {"ok", "flagged"}

@@ -35,3 +35,17 @@ def test_shares_of_a_known_linear_response(tmp_path):
     assert m["sd"] == pytest.approx(np.sqrt(6), rel=0.05)
     page = dynamic_budget.page(result)
     assert "| payload mass | 0.6" in page and f"{n} samples" in page
+
+
+def test_percentiles_are_read_on_the_percent_scale(tmp_path):
+    """y = 1..200 exactly: the median is 100.5 and p95 (linear interpolation at rank 1 + 199 x
+    0.95 = 190.05) is 190.05; np.percentile(y, 0.95) would give 2.8905."""
+    path = tmp_path / "summary.csv"
+    rng = np.random.default_rng(2)
+    with open(path, "w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow(["label", "plant.payload_mass_error [kg]", "status", "pose error peak", "pose error rms"])
+        writer.writerows([f"sample {k}", rng.normal(), "ok", k + 1, 1 + (k % 7)] for k in range(200))
+    m = dynamic_budget.analyse(path)["metrics"]["pose error peak"]
+    assert m["p50"] == pytest.approx(100.5, abs=1e-12) and m["p95"] == pytest.approx(190.05, abs=1e-12)
+    assert m["max"] == 200 and m["mean"] == pytest.approx(100.5)

@@ -2,6 +2,8 @@
 cannot drift from docs/tolerance_budget.json), and the stored numbers keep the issue's goals."""
 import json
 
+import pytest
+
 from studies import tolerance_budget as study
 
 
@@ -19,3 +21,16 @@ def test_the_stored_budget_meets_the_goals():
         allocation = store[name]["allocation"]
         assert allocation["verified"] and all(c["high"] < c["target"] for c in allocation["check"].values())
         assert store[name]["samples"] == 1_000_000
+
+
+def test_a_damaged_store_is_told_not_a_json_traceback(tmp_path):
+    truncated = tmp_path / "tolerance_budget.json"
+    truncated.write_text(study.STORE.read_text()[:5000])
+    with pytest.raises(SystemExit, match=r"tolerance_budget.json: not whole JSON \(.* at line \d+, column \d+: "
+                                         r"truncated or damaged\); run python -m studies.tolerance_budget"):
+        study.read_store(truncated)
+    truncated.write_text('{"default": {}}')
+    with pytest.raises(SystemExit, match="holds no results of default, nanshan"):
+        study.read_store(truncated)
+    with pytest.raises(SystemExit, match="cannot read it"):
+        study.read_store(tmp_path / "missing.json")

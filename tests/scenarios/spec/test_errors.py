@@ -304,10 +304,12 @@ def test_a_path_without_toml_resolves_to_the_file(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("change, key, parts", [
-    (('target_azimuth = "20 deg"', 'target_azimuth = "3 kg"'), "fmus.base.parameters.target_azimuth",
-     ["unknown unit 'kg' in '3 kg'; expected a quantity in rad (rad, deg, mrad, urad)"]),
+    (('target_azimuth = "20 deg"', 'target_azimuth = "3 lb"'), "fmus.base.parameters.target_azimuth",
+     ["unknown unit 'lb' in '3 lb'; expected a quantity in rad (rad, deg, mrad, urad, arcsec, arcmin)"]),
     (('target_azimuth = "20 deg"', 'target_azimuth = "3 mm"'), "fmus.base.parameters.target_azimuth",
-     ["'3 mm' is in m; expected a quantity in rad (rad, deg, mrad, urad)"]),
+     ["'3 mm' is in m; expected a quantity in rad (rad, deg, mrad, urad, arcsec, arcmin)"]),
+    (('target_azimuth = "20 deg"', 'target_azimuth = "3 kg"'), "fmus.base.parameters.target_azimuth",
+     ["'3 kg' is in kg; expected a quantity in rad"]),
     (('measured = "plant.leg_length"', 'measured = "plant.leg_lenght"'), "metrics[0].measured",
      ["FMU instance 'plant' (hexapod_plant) has no variable 'leg_lenght'"]),
     (('reference = "base"', 'reference = "base"\n[[metrics]]\nkind = "tracking"\nmeasured = "plant.pose"\n'

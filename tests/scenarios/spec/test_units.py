@@ -25,6 +25,9 @@ DEFINITIONS = {
     "m/s2": (1.0, "m/s2"), "mm/s2": (constants.milli, "m/s2"),
     "N/m": (1.0, "N/m"), "N/(m.s)": (1.0, "N/(m.s)"), "N.s/m": (1.0, "N.s/m"),
     "Hz": (1.0, "1/s"),
+    "kg": (1.0, "kg"), "g": (constants.gram, "kg"), "kg.m2": (1.0, "kg.m2"), "N.m": (1.0, "N.m"),
+    "ppm": (constants.micro, "1"), "%": (constants.centi, "1"),
+    "arcsec": (constants.arcsec, "rad"), "arcmin": (constants.arcmin, "rad"),
 }
 
 
@@ -64,9 +67,21 @@ def test_the_obvious_spellings_are_the_units_they_spell(written, unit):
 
 
 def test_si_case_is_kept_where_it_tells_units_apart():
-    for written in ("1 Mm", "1 MS", "1 Ms", "1 n"):       # megametre, not millimetre; and so on
+    assert to_si("1 Mm", "m") == constants.mega and to_si("1 Ms", "s") == constants.mega   # not milli
+    for written in ("1 MS", "1 n", "1 kdeg", "1 kmin", "1 Kg"):    # no unit S; prefixes of factor-1 units only
         with pytest.raises(UnitError, match="unknown unit"):
             to_si(written)
+
+
+@pytest.mark.parametrize("written, dimension, si", [
+    ("78.2 ppm", "1", 78.2 * constants.micro), ("2 kHz", "1/s", 2 * constants.kilo), ("5 nm", "m", 5 * constants.nano),
+    ("3 kN.m", "N.m", 3 * constants.kilo), ("2 mg", "kg", 2 * constants.milli * constants.gram),
+    ("12 arcsec", "rad", 12 * constants.arcsec), ("95.1 %", "1", 0.951), ("7 µN/m", "N/m", 7 * constants.micro),
+    ("1.5 km/s", "m/s", 1.5 * constants.kilo), ("4 GHz", "1/s", 4 * constants.giga),
+    ("250 ps", "s", 250 * constants.pico)])
+def test_what_the_kit_prints_and_si_prefixes_read_back(written, dimension, si):
+    # "78.2 ppm" (the budget's own output) and "2 kHz" for a bandwidth were refused (issue 38)
+    assert to_si(written, dimension) == pytest.approx(si, rel=1e-15)
 
 
 @pytest.mark.parametrize("value, taken", [(60, 60.0), ("60", 60.0), (" 100 ", 100.0), (-2, -2.0)])
@@ -97,8 +112,11 @@ WRITTEN_IN = {
     "N.s/m": ("telescope_slew", "controller", "kd"),
     "m/s": ("paper_fixed_base", "controller", "base_rate"),      # inputs set as values there
     "m/s2": ("paper_fixed_base", "controller", "base_acc"),
+    "kg": ("telescope_slew", "plant", "payload_mass_error"),
+    "kg.m2": ("telescope_slew", "plant", "payload_inertia_error"),
+    "1": ("telescope_slew", "controller", "wind_feedforward"),
 }
-NO_VARIABLE = {"1/s"}   # no FMU variable is in 1/s: refused with the unit expected
+NO_VARIABLE = {"1/s", "N.m"}   # no FMU parameter is in 1/s or N.m: refused with the unit expected
 
 
 @pytest.fixture(scope="module")
@@ -116,8 +134,9 @@ def test_a_parameter_written_in_each_unit_reaches_the_fmu_in_si(unit, fmu_descri
     name, inst, variable = WRITTEN_IN[dimension]
     scenario = spec.load(runner.resolve(name))
     written = f"0.75 {unit}"
-    vector = variable in ("base_rate", "base_acc")
-    scenario.parameters[inst][variable] = [written, 0, 0, 0, 0, 0] if vector else written
+    vector = variable in ("base_rate", "base_acc", "payload_inertia_error")
+    scenario.parameters[inst][variable] = [written] + [0] * (2 if variable == "payload_inertia_error" else 5) \
+        if vector else written
     values = spec.bind(scenario, fmu_descriptions(scenario))
     assert values[inst][f"{variable}[1]" if vector else variable] == pytest.approx(0.75 * factor, rel=1e-15)
 
