@@ -1,7 +1,7 @@
 """Campaign files: many runs of one base scenario over a grid or a list of cases, run
 through scenarios.runs.engine (local worker processes or a Dask cluster), resumable.
 
-    movingbase campaign FILE [--ci] [--jobs N] [--dask tcp://HOST:PORT] [--out DIR]
+    movingbase campaign FILE [--ci] [--jobs N] [--dask tls://HOST:PORT] [--out DIR]
 
 A campaign is TOML:
 

@@ -90,7 +90,7 @@ def check_address(address, timeout=5.0):
     where nothing answers within ``timeout`` s: told before anything runs."""
     match = re.fullmatch(r"(?:(?:tcp|tls)://)?(\[[^\]]+\]|[^:/\s]+):(\d{1,5})", str(address))
     if not match or not 0 < int(match.group(2)) < 65536:
-        raise EngineError(f"--dask {address!r}: expected a scheduler address tcp://HOST:PORT")
+        raise EngineError(f"--dask {address!r}: expected a scheduler address tls://HOST:PORT (or tcp://)")
     host, port = match.group(1).strip("[]"), int(match.group(2))
     try:
         socket.create_connection((host, port), timeout=timeout).close()
@@ -365,13 +365,20 @@ def started_by_a_worker():
 
 class Engine:
     """A Dask client: on a new LocalCluster of ``jobs`` worker processes (default: all
-    cores), or on the existing cluster at ``address`` (``tcp://host:port``)."""
+    cores), or on the existing cluster at ``address`` (``tls://host:port``, or ``tcp://``).
+    A Dask scheduler runs whatever it is sent, so the LocalCluster speaks TLS with
+    credentials made for it alone (Security.temporary(): a CA and certificate in this
+    process's memory, handed to its workers), and admits only clients that hold them:
+    another user of the machine who reaches its port on 127.0.0.1 is refused. At
+    ``address``, ``security`` (a distributed.security.Security) or, if None, Dask's
+    configuration (DASK_DISTRIBUTED__COMM__TLS__... variables: scenarios.runs.deploy)
+    gives the client's credentials."""
 
-    def __init__(self, jobs=None, address=None):
+    def __init__(self, jobs=None, address=None, security=None):
         jobs = jobs or default_jobs()
         if jobs < 1:
             raise ValueError(f"--jobs must be at least 1, got {jobs}")
-        self.jobs, self.address = jobs, address
+        self.jobs, self.address, self.security = jobs, address, security
         self.cluster = self._client = None
         self.start_time = None      # seconds to start the cluster / connect, once done
         self._blobs = {}            # FMU digests -> scattered future of the FMU bytes
@@ -385,13 +392,16 @@ class Engine:
             from distributed import Client, LocalCluster
             began = time.perf_counter()
             if self.address:
-                self._client = Client(self.address, timeout=30)
+                self._client = Client(self.address, timeout=30, security=self.security)
             else:
+                from distributed.security import Security
+                self.security = Security.temporary()
                 with dask.config.set(WORKER_CONFIG), _workers_ignore_ctrl_c():
                     try:
                         with _workers_scratch(self):
                             self.cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
-                                                        dashboard_address=None, silence_logs=logging.CRITICAL)
+                                                        dashboard_address=None, silence_logs=logging.CRITICAL,
+                                                        host="127.0.0.1", security=self.security)
                     except RuntimeError as exc:     # "Nanny failed to start", after each worker's traceback
                         raise RuntimeError(f"the {self.jobs} worker processes did not start ({exc}). {MAIN_GUARD}"
                                            ) from None
