@@ -90,7 +90,7 @@ def check_address(address, timeout=5.0):
     where nothing answers within ``timeout`` s: told before anything runs."""
     match = re.fullmatch(r"(?:(?:tcp|tls)://)?(\[[^\]]+\]|[^:/\s]+):(\d{1,5})", str(address))
     if not match or not 0 < int(match.group(2)) < 65536:
-        raise EngineError(f"--dask {address!r}: expected a scheduler address tls://HOST:PORT (or tcp://)")
+        raise EngineError(f"--dask {address!r}: expected a scheduler address tls://HOST:PORT or tcp://HOST:PORT")
     host, port = match.group(1).strip("[]"), int(match.group(2))
     try:
         socket.create_connection((host, port), timeout=timeout).close()
