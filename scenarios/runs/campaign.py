@@ -185,6 +185,11 @@ def parse(text, source="<string>", base_dir=".", ci=False):
     else:
         for key, problem in spec.unknown_keys(set(ci_table) - set(_CI), _CI):
             problems.errors.append(CampaignError(source, f"ci.{key}", problem))
+        for key, kinds, shape in (("set", dict, "a table"), ("grid", (dict, list), "a table or [[ci.grid]] tables"),
+                                  ("cases", list, "an array of tables ([[ci.cases]])")):
+            if key in ci_table and not isinstance(ci_table[key], kinds):
+                problems.errors.append(CampaignError(source, f"ci.{key}", f"expected {shape}, got "
+                                                     f"{ci_table[key]!r:.60}"))
         if "sample" in ci_table:    # a count alone is the samples it replaces: sample = 4
             ci_sample = ci_table["sample"]
             if isinstance(ci_sample, int) and not isinstance(ci_sample, bool):

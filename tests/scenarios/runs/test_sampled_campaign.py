@@ -213,6 +213,9 @@ def test_ci_sample_may_be_a_count_and_other_shapes_are_refused(tmp_path):
     path.write_text(f'scenario = "{SCENE}"\nsample = 4\n[ci]\nsample = {{ samples = 2 }}\n')
     with pytest.raises(campaigns.CampaignError, match=r"sampled.toml: sample: expected a table \(\[sample\]\), got 4"):
         campaigns.load(path, ci=True)
+    path.write_text(f'scenario = "{SCENE}"\n[ci]\nset = 4\n')     # told as the [ci] key it is
+    with pytest.raises(campaigns.CampaignError, match=r"sampled.toml: ci.set: expected a table, got 4"):
+        campaigns.load(path, ci=True)
 
 
 def test_sample_rerun_refuses_a_file_as_out_and_tells_a_damaged_result(tmp_path, capsys):
