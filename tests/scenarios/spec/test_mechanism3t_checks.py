@@ -90,7 +90,8 @@ def test_modes_and_positions_that_do_not_assemble_are_refused_naming_key_and_ran
 
 
 @pytest.mark.parametrize("given", [
-    {"controller.amplitude": "0.3 m"}, {"plant.mode": -1, "controller.mode": -1}, {"plant.mode": -1},
+    {"controller.amplitude": "0.3 m"}, {"controller.amplitude": "1e300 m"},   # (a grid of 1e304 points once)
+    {"plant.mode": -1, "controller.mode": -1}, {"plant.mode": -1},
     {"plant.mode": 0}, {"controller.mode": 0}, {"controller.initial_position": [0.5, 0.1, 0.1]},
 ])
 def test_movingbase_run_refuses_before_anything_runs(given, monkeypatch):
