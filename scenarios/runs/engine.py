@@ -363,6 +363,26 @@ def started_by_a_worker():
     return False
 
 
+CREDENTIALS = ("DASK_DISTRIBUTED__COMM__TLS__CA_FILE, DASK_DISTRIBUTED__COMM__TLS__CLIENT__CERT and "
+               "DASK_DISTRIBUTED__COMM__TLS__CLIENT__KEY (python -m scenarios.runs.deploy credentials DIR prints them)")
+
+
+def _connect(client, address, security):
+    """A Client of the scheduler at ``address``; EngineError naming the credentials if a TLS
+    scheduler is asked for without them or refuses the ones given (a handshake it ends)."""
+    from distributed.security import Security
+    security = security or Security()       # None: Dask's configuration, the DASK_... variables
+    if str(address).startswith("tls://") and not (security.tls_client_cert and security.tls_ca_file):
+        raise EngineError(f"--dask {address}: a TLS scheduler admits only clients with its credentials; this client "
+                          f"has none: set {CREDENTIALS}")
+    try:
+        return client(address, timeout=30, security=security)
+    except (OSError, TimeoutError) as exc:
+        raise EngineError(f"--dask {address}: the scheduler did not take this client ({type(exc).__name__}: {exc}); "
+                          f"a TLS scheduler refuses credentials of another CA and a tcp:// client: check {CREDENTIALS}"
+                          ) from None
+
+
 class Engine:
     """A Dask client: on a new LocalCluster of ``jobs`` worker processes (default: all
     cores), or on the existing cluster at ``address`` (``tls://host:port``, or ``tcp://``).
@@ -392,7 +412,7 @@ class Engine:
             from distributed import Client, LocalCluster
             began = time.perf_counter()
             if self.address:
-                self._client = Client(self.address, timeout=30, security=self.security)
+                self._client = _connect(Client, self.address, self.security)
             else:
                 from distributed.security import Security
                 self.security = Security.temporary()

@@ -175,6 +175,11 @@ def test_a_tls_scheduler_refuses_clients_without_its_credentials(tmp_path):
             assert eng.client.submit(pow, 3, 4, pure=False).result(timeout=60) == 81
         with pytest.raises((OSError, TimeoutError)):         # another CA: the handshake fails both ways
             Client(address, security=_security(tmp_path / "other"), timeout=5)
+        with pytest.raises(engine.EngineError, match="did not take this client"):   # the engine says so
+            engine.Engine(address=address, security=_security(tmp_path / "other")).client
+        with pytest.raises(engine.EngineError, match="admits only clients with its credentials; this client has "
+                                                     "none: set DASK_DISTRIBUTED__COMM__TLS__CA_FILE"):
+            engine.Engine(address=address).client
         with pytest.raises((OSError, TimeoutError)):         # plain tcp to the TLS port: no answer it reads
             Client(f"tcp://127.0.0.1:{port}", timeout=5)
         context = ssl.create_default_context(cafile=str(mine["ca_file"]))
