@@ -44,7 +44,7 @@ RUN apt-get update && apt-get install -y --no-install-recommends gcc libc6-dev &
 RUN useradd --create-home --uid {UID} movingbase
 COPY --chown={UID}:{UID} . /src
 WORKDIR /src
-RUN {INSTALL}
+RUN {INSTALL} && chown -R {UID}:{UID} /src
 USER {UID}
 """
 

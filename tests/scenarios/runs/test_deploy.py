@@ -53,7 +53,7 @@ def test_kubernetes_manifest_is_documented_and_runs_the_dask_commands():
     assert policy["spec"]["ingress"] == [{"from": [{"podSelector": policy["spec"]["podSelector"]}]}]
     assert _block("dockerfile") == deploy.DOCKERFILE
     lines = deploy.DOCKERFILE.splitlines()
-    assert "RUN pip install -c constraints.txt ." in lines and "gcc" in deploy.DOCKERFILE
+    assert "RUN pip install -c constraints.txt . && chown -R 10001:10001 /src" in lines and "gcc" in deploy.DOCKERFILE
     assert lines[-1] == "USER 10001" and "RUN useradd --create-home --uid 10001 movingbase" in lines
 
 
