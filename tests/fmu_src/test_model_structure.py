@@ -7,6 +7,7 @@ FMI 2 and native FMI 3 FMUs, element by element, and by fmpy's validation."""
 import xml.etree.ElementTree as ET
 import zipfile
 
+import numpy as np
 import pytest
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
@@ -93,3 +94,64 @@ def test_fmpy_validates_every_fmu_and_reads_the_dependencies(built):
         assert validate_fmu(str(path)) == [], path
         md = read_model_description(str(path), validate=True)
         assert md.outputs and all(output.dependencies is not None for output in md.outputs), path
+
+
+# Found by the test below, left as it is: the load cell's measured_force is its leg_force sampled
+# at t and read out at t + h, as the leg sensor's measured_length is, which the table counts as
+# feedthrough ("a sensor's delay line counts as no state"); the load cell has no row, so its
+# modelDescription declares dependencies="" (true at one instant, FMI's reading). A row would
+# also move the load cell from first to after the plant in master.step_order's initialization
+# order of the observer scenes (telescope_slew_observer, keyhole_tracking_observer): a change
+# of their numbers, for the lead to decide. Pinned here so that adding the row drops this entry.
+SAMPLED_LATE = {("load_cell", "leg_force")}
+
+
+def test_an_output_declared_independent_of_an_input_does_not_follow_it_within_a_step(built):
+    """The table against the FMUs themselves (native FMI 2.0): instances alike but for one
+    input (all its elements moved by 0.1 % + 1e-3 of a unit), one step of h: an output that
+    declares no dependency on that input moves by at most what its state can carry in h = 1 us
+    (1e-6 of its scale); where the input has declared dependents, one of them moves by as much
+    at h = 0.1 us as at 1 us (at least half: direct feedthrough acts at once, a state's effect
+    shrinks with the step) and by more than rounding (rows that name every input, "*", say
+    "any it may use": the base sensor reads some inputs in one source mode only)."""
+    from tests.fmu_helpers import open_fmu
+    checked = 0
+    for (kind, script), path in built.items():
+        if kind != "native":
+            continue
+        md = read_model_description(str(path))
+        key = catalogue.BY_IDENTIFIER[md.coSimulation.modelIdentifier].key
+        inputs = [v for v in md.modelVariables if v.causality == "input" and v.type == "Real"]
+        outputs = [v.name for v in md.modelVariables if v.causality == "output" and v.type == "Real"]
+        names = [v.name for v in md.modelVariables if v.causality == "input"]
+        for group in dict.fromkeys(v.name.split("[")[0] for v in inputs):
+            moved, deltas = {}, {}
+            for v in inputs:
+                if v.name.split("[")[0] == group:
+                    start, delta = float(v.start), 1e-3 * (abs(float(v.start)) + 1)
+                    high = float(v.max) if v.max is not None else np.inf
+                    moved[v.name] = start + delta if start + delta <= high else start - delta
+                    deltas[v.name] = delta
+
+            def change(h):
+                a, b = open_fmu(path, "a"), open_fmu(path, "b")
+                for name, value in moved.items():
+                    b.set(name, value)
+                a.do_step(0.0, h)
+                b.do_step(0.0, h)
+                return ({o: abs(b.get_real(o) - a.get_real(o)) for o in outputs},
+                        {o: 1.0 + abs(a.get_real(o)) for o in outputs})
+
+            (long, scale), (short, _) = change(1e-6), change(1e-7)
+            declared = {o for o in outputs if set(moved) & set(catalogue.output_dependencies(key, o, names))}
+            for name in set(outputs) - declared:
+                if (key, group) in SAMPLED_LATE:     # the input's move itself, at any step
+                    element = f"{group}[{name.split('[')[1]}"
+                    assert long[name] == short[name] == pytest.approx(deltas[element], rel=1e-9), (script, name)
+                    continue
+                assert long[name] <= 1e-6 * scale[name], (script, group, name, long[name])
+            if declared and catalogue.ALL not in catalogue.FEEDTHROUGH[key].values():   # ALL: "any it may use"
+                assert any(short[n] >= 0.5 * long[n] and short[n] > 1e-12 * scale[n] for n in declared), \
+                    (script, group, {n: (long[n], short[n]) for n in declared})
+            checked += 1
+    assert checked >= 15
