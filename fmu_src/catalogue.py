@@ -94,7 +94,7 @@ LOOP_SENSORS = {"leg_sensor": ("leg_length", "measured_length", {"rate_cutoff": 
 # delivered force and a controller's ``force_measured`` input)
 LOAD_CELLS = {"load_cell": {"load_cell_bandwidth": "bandwidth", "load_cell_delay_steps": "delay_steps"}}
 # FMU -> {output: the inputs it follows within one communication step, with no state between
-# them (direct feedthrough; the modelDescriptions declare no dependencies)}: a cycle of
+# them (direct feedthrough; the modelDescriptions declare them: output_dependencies)}: a cycle of
 # connections through these alone is an algebraic loop that the master cannot solve, and an
 # output wired back into such an input of its own FMU measures nothing (_check_wiring). A
 # sensor's delay line counts as no state: it holds no dynamics of what it measures.
@@ -113,3 +113,13 @@ FEEDTHROUGH = {
     "hexapod_plant": {"leg_force_actual": ("leg_force",)},
 }
 OPTIONAL_INPUTS = {f.key: f.optional_inputs for f in FMUS if f.optional_inputs}
+
+
+def output_dependencies(key, output, inputs):
+    """The names of ``inputs`` (an FMU's inputs, in its order: FMI 2 scalars ``name[k]`` or
+    FMI 3 arrays) that its output ``output`` follows within a step (FEEDTHROUGH): each
+    element of an output follows every element of the inputs its row names; [] for an output
+    with no direct feedthrough (declared ``dependencies=""``: FMI reads a missing attribute as
+    every input, and an importer such as OMSimulator then finds algebraic loops that are not)."""
+    follows = FEEDTHROUGH.get(key, {}).get(output.split("[")[0], ())
+    return [name for name in inputs if follows == ALL or name.split("[")[0] in follows]

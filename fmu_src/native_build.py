@@ -466,7 +466,7 @@ def model_description3(root2):
     ET.SubElement(variables, "Float64", name="time", valueReference=str(len(list(root2.iter("ScalarVariable")))),
                   causality="independent", variability="continuous",
                   description="simulation time (value reference: one past the FMI 2 variables)")
-    structure_outputs, initial_unknowns = [], []
+    structure_outputs, initial_unknowns, inputs = [], [], {}
     derivative, max_order = _derivatives(root2)
     integrand = {d: vr for vr, d in derivative.items()}
     if max_order:
@@ -475,15 +475,19 @@ def model_description3(root2):
         var = _fmi3_variable(variables, name, elements)
         if int(var.get("valueReference")) in integrand:
             var.set("derivative", str(integrand[int(var.get("valueReference"))]))
+        if var.get("causality") == "input":
+            inputs[name] = var.get("valueReference")
         if var.get("causality") == "output":
-            structure_outputs.append(var.get("valueReference"))
+            structure_outputs.append((name, var.get("valueReference")))
             if var.get("initial", "calculated") != "exact":
                 initial_unknowns.append(var.get("valueReference"))
         elif var.get("causality") == "calculatedParameter":
             initial_unknowns.append(var.get("valueReference"))
     structure = ET.SubElement(root, "ModelStructure")
-    for vr in structure_outputs:
-        ET.SubElement(structure, "Output", valueReference=vr)
+    key = catalogue.BY_IDENTIFIER[cs2.get("modelIdentifier")].key
+    for name, vr in structure_outputs:     # the inputs each follows within a step ("": none)
+        ET.SubElement(structure, "Output", valueReference=vr, dependencies=" ".join(
+            inputs[n] for n in catalogue.output_dependencies(key, name, list(inputs))))
     for vr in initial_unknowns:
         ET.SubElement(structure, "InitialUnknown", valueReference=vr)
     ET.indent(root)

@@ -128,6 +128,21 @@ def add_enumerations(xml_text, enumerations):
     return ET.tostring(root, encoding="unicode", xml_declaration=True)
 
 
+def add_dependencies(xml_text):
+    """modelDescription.xml with each output's ``dependencies`` in ModelStructure/Outputs:
+    the indices of the inputs it follows within a step (catalogue.output_dependencies; ""
+    for none)."""
+    root = ET.fromstring(xml_text)
+    key = catalogue.BY_IDENTIFIER[root.find("CoSimulation").get("modelIdentifier")].key
+    variables = list(root.iter("ScalarVariable"))
+    inputs = {v.get("name"): i for i, v in enumerate(variables, 1) if v.get("causality") == "input"}
+    for unknown in root.find("ModelStructure/Outputs"):
+        output = variables[int(unknown.get("index")) - 1].get("name")
+        unknown.set("dependencies", " ".join(str(inputs[n]) for n in catalogue.output_dependencies(key, output,
+                                                                                                   list(inputs))))
+    return ET.tostring(root, encoding="unicode", xml_declaration=True)
+
+
 def slave_instance(fmu):
     """An instance of the FMU's slave class, made on the FMU's own resources (the units it
     recorded; the exact start values fmu_src/native_build.py compiles in)."""
@@ -169,8 +184,8 @@ def _rewrite(fmu, units, ranges, enumerations, shim):
     which is kept beside it as <id>.pythonfmu.so."""
     with zipfile.ZipFile(fmu) as z:
         files = {name: z.read(name) for name in z.namelist()}
-    xml_text = add_enumerations(add_ranges(add_units(files["modelDescription.xml"].decode(), units), ranges),
-                                enumerations)
+    xml_text = add_dependencies(add_enumerations(add_ranges(add_units(files["modelDescription.xml"].decode(), units),
+                                                            ranges), enumerations))
     files["modelDescription.xml"] = xml_text.encode()
     identifier = ET.fromstring(xml_text).find("CoSimulation").get("modelIdentifier")
     wrapper = f"binaries/linux64/{identifier}.so"

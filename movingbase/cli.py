@@ -360,20 +360,24 @@ def summary(result):
 
 def _rerun_sample(args):
     from scenarios import spec
+    from scenarios.cosim.fmi import FmuFileError
     from scenarios.runs.campaign import rerun_sample
+    from scenarios.runs.runner import OutputError
     try:
         done = rerun_sample(args.campaign, args.sample, args.out, args.ci)
-    except spec.ScenarioError as exc:
+    except (spec.ScenarioError, OutputError, FmuFileError) as exc:
         sys.exit(f"campaign error: {exc}")
     for job, result, stored in done:
         print(f"{job.label}: {result['status']} {result.get('error', '')}".rstrip())
         for name, values in result.get("metrics", {}).items():
             print(f"  {name}: " + ", ".join(f"{k} {v!r}" for k, v in values.items() if k != "unit")
                   + f" {values.get('unit', '')}")
-        print("  " + ("not on disk: no campaign result to compare" if stored is None else
+        print("  " + (f"DAMAGED on disk, not compared: {result['damaged']} (the campaign's run of it "
+                      "runs it again)" if "damaged" in result else
+                      "not on disk: no campaign result to compare" if stored is None else
                       "equal to the campaign's result bit for bit" if result["same"] else
                       "DIFFERS from the campaign's result"))
-    if any(stored is not None and not result["same"] for _, result, stored in done):
+    if any("damaged" in result or stored is not None and not result["same"] for _, result, stored in done):
         sys.exit(1)
 
 

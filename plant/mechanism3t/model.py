@@ -256,6 +256,30 @@ def forward_position(P, rho):
     return np.array(found)
 
 
+def assembled(P, rho, mode):
+    """(mask (...), reason): which rho (..., 3) have an O' in assembly mode ``mode``, and the
+    first condition that fails ('' if none); no raise: the checks of a scenario tell the
+    reason with the setting that caused it."""
+    _, _, violations = _forward(P, _finite("rho", rho), mode)
+    bad = np.any([b for b, _ in violations], axis=0)
+    return ~bad, next((message for b, message in violations if np.any(b)), "")
+
+
+def reach(P, centre, mode, direction=(1.0, 1.0, 1.0), limit=1.0, step=1e-4):
+    """(low, high) [m]: the offsets d along ``direction`` (the paper 4.3 motion moves every
+    slider alike) for which centre + d' direction assembles in mode ``mode`` for every d'
+    between 0 and d, found on a grid of ``step`` out to ``limit``; None if centre does not."""
+    d = np.arange(0.0, limit + step / 2, step)
+    ends = []
+    for sign in (-1.0, 1.0):
+        ok = assembled(P, _finite("centre", centre, True) + sign * d[:, None] * np.asarray(direction), mode)[0]
+        first = int(np.argmin(ok)) if not ok.all() else len(d)
+        if first == 0:
+            return None
+        ends.append(sign * d[first - 1])
+    return ends[0], ends[1]
+
+
 def assembly_mode(P, rho, p_near):
     """The mode (+1/-1) whose O' is nearest p_near."""
     rho = _finite("rho", rho, True)

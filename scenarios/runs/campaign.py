@@ -1,7 +1,7 @@
 """Campaign files: many runs of one base scenario over a grid or a list of cases, run
 through scenarios.runs.engine (local worker processes or a Dask cluster), resumable.
 
-    movingbase campaign FILE [--ci] [--jobs N] [--dask tcp://HOST:PORT] [--out DIR]
+    movingbase campaign FILE [--ci] [--jobs N] [--dask tls://HOST:PORT] [--out DIR]
 
 A campaign is TOML:
 
@@ -22,7 +22,8 @@ A campaign is TOML:
     seeds = ["sensor.seed"]            # FMU seed parameters each sample sets (its own noise)
     "plant.payload_mass_error" = { distribution = "normal", sd = "20 kg" }   # a deviation from the run's value
     [ci]                               # replaces name/set/grid/cases for the short CI run
-                                       # (its sample = { samples = 4 } replaces only the keys it gives)
+                                       # (its sample = { samples = 4 } replaces only the keys it gives;
+                                       # sample = 4 is the same)
 
 A key is a scenario top-level setting (start_time, stop_time, step, master,
 extrapolation) or "instance.parameter" of the base scenario (dotted keys may be written
@@ -38,6 +39,7 @@ import dataclasses
 import itertools
 import json
 import pathlib
+import re
 import sys
 import zlib
 from dataclasses import dataclass
@@ -49,7 +51,7 @@ from scenarios import spec
 from scenarios.cosim.fmi import description
 from scenarios.runs import engine, flags
 from scenarios.runs import estimates as resources
-from scenarios.runs.runner import fmu_paths, output_folder, resolve
+from scenarios.runs.runner import OutputError, _named, fmu_paths, output_folder, resolve
 from scenarios.spec import distributions, units
 
 _TOP = ("name", "description", "scenario", "set", "grid", "cases", "sample", "ci", "keep_records")
@@ -191,6 +193,22 @@ def parse(text, source="<string>", base_dir=".", ci=False):
     else:
         for key, problem in spec.unknown_keys(set(ci_table) - set(_CI), _CI):
             problems.errors.append(CampaignError(source, f"ci.{key}", problem))
+        for key, kinds, shape in (("set", dict, "a table"), ("grid", (dict, list), "a table or [[ci.grid]] tables"),
+                                  ("cases", list, "an array of tables ([[ci.cases]])")):
+            if key in ci_table and not isinstance(ci_table[key], kinds):
+                problems.errors.append(CampaignError(source, f"ci.{key}", f"expected {shape}, got "
+                                                     f"{ci_table[key]!r:.60}"))
+        if "sample" in ci_table:    # a count alone is the samples it replaces: sample = 4
+            ci_sample = ci_table["sample"]
+            if isinstance(ci_sample, int) and not isinstance(ci_sample, bool):
+                ci_table = {**ci_table, "sample": {"samples": ci_sample}}
+            elif not isinstance(ci_sample, dict):
+                problems.errors.append(CampaignError(source, "ci.sample", "expected a table of the [sample] keys "
+                                                     "it replaces, or a count: sample = { samples = 4 } or "
+                                                     f"sample = 4; got {ci_sample!r:.60}"))
+    if "sample" in data and not isinstance(data["sample"], dict):
+        problems.errors.append(CampaignError(source, "sample", f"expected a table ([sample]), got "
+                                             f"{data['sample']!r:.60}"))
     for key in ("description", "name"):
         if key in data and not isinstance(data[key], str):
             problems.errors.append(CampaignError(source, key, f"expected text, got {data[key]!r:.60}"))
@@ -324,6 +342,8 @@ def parse(text, source="<string>", base_dir=".", ci=False):
     problems.raise_any()
 
     sample = _sample(source, data["sample"], base, descriptions) if "sample" in data else None
+    if sample:
+        _check_seeds(source, sample, every, descriptions)
     runs, varying = [], []
     for where, label, case in cases:
         for combo in itertools.product(*[rows for _, _, rows in axes]):
@@ -406,6 +426,10 @@ def _sample(source, table, base, descriptions):
                 raise CampaignError(source, f"sample.{key}", "a deviation is drawn for a real parameter; "
                                     f"{key} is {found[0].type.lower()}: set it in the grid or cases")
             dist = distributions.parse(source, f"sample.{key}", value, found[0].unit or "1", CampaignError)
+            twice = [v.name for v in found if any((i, n) == (inst, v.name) for _, i, n, _, _ in inputs)]
+            if twice:       # "imu.imu_alignment" and "imu.imu_alignment[1]": two draws added to one value
+                raise CampaignError(source, f"sample.{key}", f"{inst}.{twice[0]} is drawn by an earlier key of "
+                                    "[sample] too: each parameter gets one distribution")
             inputs += [(f"{inst}.{v.name}" if len(found) > 1 else key, inst, v.name,
                         "" if v.unit in (None, "1") else v.unit, dist)
                        for v in found]
@@ -414,9 +438,32 @@ def _sample(source, table, base, descriptions):
             inst, found = variables(f"sample.seeds[{j}]", key)
             if len(found) != 1 or found[0].type != "Integer":
                 raise CampaignError(source, f"sample.seeds[{j}]", f"{key} is not an integer seed parameter")
+            if any((i, n) == (inst, found[0].name) for _, i, n in seeds):
+                raise CampaignError(source, f"sample.seeds[{j}]", f"{key} is listed twice")
             seeds.append((key, inst, found[0].name))
     problems.raise_any()
     return Sample(samples, seed, tuple(inputs), tuple(seeds))
+
+
+def _check_seeds(source, sample, every, descriptions):
+    """A seed a sample sets must be set nowhere else: each sample's own seed would replace
+    the value of the set, grid, cases or sweep in every run (six labelled runs that are three)."""
+    written = {}                    # (instance, scalar) -> where the campaign (or its scenario's sweep) sets it
+    for where, key, _ in every:
+        inst, _, name = key.partition(".")
+        if name and inst in descriptions:
+            variables = {v.name: v for v in descriptions[inst].modelVariables}
+            for target in spec.expand(variables, key):
+                written.setdefault((inst, target), re.sub(r"\[\d+\]$", "", where) if where.startswith("grid")
+                                  or "sweep" in where else where)   # an axis, not one of its values
+    problems = spec.Problems(CampaignError)
+    for j, (key, inst, name) in enumerate(sample.seeds):
+        if (inst, name) in written:
+            problems.errors.append(CampaignError(source, f"sample.seeds[{j}]", f"{key} is also set in "
+                                   f"{written[inst, name]}: each sample sets its own seed, which would replace "
+                                   "that value in every run (runs labelled apart would run alike); sample it "
+                                   "or set it, not both"))
+    problems.raise_any()
 
 
 def _descriptions(scenario):
@@ -487,7 +534,7 @@ class CampaignJobs:
             sample = self.campaign.sample
             nominal = {inst: dict(p) for inst, p in params.items()}
             for attempt in range(MAX_REDRAWS + 1):
-                params = self._drawn(case.sample, attempt, nominal, descriptions)
+                params = self._drawn(case.sample, attempt, nominal, descriptions, scenario)
                 inadmissible = {inst: found for inst, fmu in scenario.fmus.items() if fmu == "hexapod_plant"
                                 for found in [spec.payload_problems({v.name: v for v in
                                                                      descriptions[inst].modelVariables},
@@ -512,7 +559,7 @@ class CampaignJobs:
         deviations, _ = self.campaign.sample.draws(case.sample, self.redrawn[case.label])
         return deviations, self.campaign.sample.draws(case.sample)[1]
 
-    def _drawn(self, k, attempt, nominal, descriptions):
+    def _drawn(self, k, attempt, nominal, descriptions, scenario):
         """The parameters of sample ``k`` (its ``attempt``-th draw): each input's value in the
         run (``nominal``, the scene's or the campaign's; unset: the FMU's start) plus the draw,
         checked against the FMU's range."""
@@ -521,6 +568,13 @@ class CampaignJobs:
         deviations, _ = sample.draws(k, attempt)
         for key, inst, name, _, _ in sample.inputs:
             variable = next(v for v in descriptions[inst].modelVariables if v.name == name)
+            if isinstance(nominal[inst].get(name), spec.Link):   # known only as the run starts
+                link = nominal[inst][name]
+                raise CampaignError(self.campaign.source, f"sample.{key}", f"{inst}.{name} is linked in "
+                                    f"{pathlib.Path(scenario.source).name} to '@{link.instance}."
+                                    f"{link.variable}' (that output at the start time): a deviation is "
+                                    "drawn around a value, so set one for it in the campaign's set (or "
+                                    "grid) to sample around it")
             value = float(nominal[inst].get(name, variable.start)) + deviations[key]
             try:
                 params[inst][name] = spec._value(self.campaign.source, key, variable, value)
@@ -636,8 +690,14 @@ def rerun_sample(path, k, out="out", ci=False):
     """Sample ``k`` of a campaign file alone, in this process (scenarios.runs.engine.execute,
     the workers' own call): [(job, result, stored)] per case, ``stored`` the campaign's
     result of that run if on disk under ``out`` (else None), and ``same`` in the result:
-    its metrics and metric series equal the stored ones bit for bit. Writes nothing."""
+    its metrics and metric series equal the stored ones bit for bit, or ``damaged``: what is
+    wrong with the stored files (engine.Store.status). Writes nothing; OutputError if ``out``
+    is no folder (before anything runs)."""
     campaign = load(path, ci)
+    out = pathlib.Path(_named(out))
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"output folder {spec.shown(out)}: a file, not a folder; --sample compares with the "
+                          "results the campaign wrote under its --out folder")
     if campaign.sample is None:
         raise CampaignError(campaign.source, "sample", "this campaign has no [sample] table: --sample needs one")
     if not isinstance(k, int) or not 0 <= k < campaign.sample.samples:
@@ -646,11 +706,14 @@ def rerun_sample(path, k, out="out", ci=False):
     campaign = dataclasses.replace(campaign, cases=[c for c in campaign.cases if c.sample == k])
     job_list, files = jobs(campaign)
     blobs = {digest: pathlib.Path(p).read_bytes() for digest, p in files.items()}
-    store = engine.Store(output_folder(out, campaign.source) / "runs")
+    folder = out / pathlib.Path(campaign.source).stem / "runs"
+    store = engine.Store(folder) if folder.is_dir() else None
     done = []
     for job in job_list:
         result = engine.execute(job, blobs)
-        stored = store.read(job.key) if store.status(job.key) else None
+        stored = store.read(job.key) if store and store.status(job.key) else None
+        if store and job.key in store.damaged:
+            result["damaged"] = store.damaged[job.key]
         if stored is not None:
             series = store.series(job.key)
             result["same"] = stored["metrics"] == json.loads(json.dumps(result["metrics"], default=float)) and all(

@@ -90,7 +90,7 @@ def check_address(address, timeout=5.0):
     where nothing answers within ``timeout`` s: told before anything runs."""
     match = re.fullmatch(r"(?:(?:tcp|tls)://)?(\[[^\]]+\]|[^:/\s]+):(\d{1,5})", str(address))
     if not match or not 0 < int(match.group(2)) < 65536:
-        raise EngineError(f"--dask {address!r}: expected a scheduler address tcp://HOST:PORT")
+        raise EngineError(f"--dask {address!r}: expected a scheduler address tls://HOST:PORT or tcp://HOST:PORT")
     host, port = match.group(1).strip("[]"), int(match.group(2))
     try:
         socket.create_connection((host, port), timeout=timeout).close()
@@ -363,15 +363,42 @@ def started_by_a_worker():
     return False
 
 
+CREDENTIALS = ("DASK_DISTRIBUTED__COMM__TLS__CA_FILE, DASK_DISTRIBUTED__COMM__TLS__CLIENT__CERT and "
+               "DASK_DISTRIBUTED__COMM__TLS__CLIENT__KEY (python -m scenarios.runs.deploy credentials DIR prints them)")
+
+
+def _connect(client, address, security):
+    """A Client of the scheduler at ``address``; EngineError naming the credentials if a TLS
+    scheduler is asked for without them or refuses the ones given (a handshake it ends)."""
+    from distributed.security import Security
+    security = security or Security()       # None: Dask's configuration, the DASK_... variables
+    if str(address).startswith("tls://") and not (security.tls_client_cert and security.tls_ca_file):
+        raise EngineError(f"--dask {address}: a TLS scheduler admits only clients with its credentials; this client "
+                          f"has none: set {CREDENTIALS}")
+    try:
+        return client(address, timeout=30, security=security)
+    except (OSError, TimeoutError) as exc:
+        raise EngineError(f"--dask {address}: the scheduler did not take this client ({type(exc).__name__}: {exc}); "
+                          f"a TLS scheduler refuses credentials of another CA and a tcp:// client: check {CREDENTIALS}"
+                          ) from None
+
+
 class Engine:
     """A Dask client: on a new LocalCluster of ``jobs`` worker processes (default: all
-    cores), or on the existing cluster at ``address`` (``tcp://host:port``)."""
+    cores), or on the existing cluster at ``address`` (``tls://host:port``, or ``tcp://``).
+    A Dask scheduler runs whatever it is sent, so the LocalCluster speaks TLS with
+    credentials made for it alone (Security.temporary(): a CA and certificate in this
+    process's memory, handed to its workers), and admits only clients that hold them:
+    another user of the machine who reaches its port on 127.0.0.1 is refused. At
+    ``address``, ``security`` (a distributed.security.Security) or, if None, Dask's
+    configuration (DASK_DISTRIBUTED__COMM__TLS__... variables: scenarios.runs.deploy)
+    gives the client's credentials."""
 
-    def __init__(self, jobs=None, address=None):
+    def __init__(self, jobs=None, address=None, security=None):
         jobs = jobs or default_jobs()
         if jobs < 1:
             raise ValueError(f"--jobs must be at least 1, got {jobs}")
-        self.jobs, self.address = jobs, address
+        self.jobs, self.address, self.security = jobs, address, security
         self.cluster = self._client = None
         self.start_time = None      # seconds to start the cluster / connect, once done
         self._blobs = {}            # FMU digests -> scattered future of the FMU bytes
@@ -385,13 +412,16 @@ class Engine:
             from distributed import Client, LocalCluster
             began = time.perf_counter()
             if self.address:
-                self._client = Client(self.address, timeout=30)
+                self._client = _connect(Client, self.address, self.security)
             else:
+                from distributed.security import Security
+                self.security = Security.temporary()
                 with dask.config.set(WORKER_CONFIG), _workers_ignore_ctrl_c():
                     try:
                         with _workers_scratch(self):
                             self.cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
-                                                        dashboard_address=None, silence_logs=logging.CRITICAL)
+                                                        dashboard_address=None, silence_logs=logging.CRITICAL,
+                                                        host="127.0.0.1", security=self.security)
                     except RuntimeError as exc:     # "Nanny failed to start", after each worker's traceback
                         raise RuntimeError(f"the {self.jobs} worker processes did not start ({exc}). {MAIN_GUARD}"
                                            ) from None

@@ -43,11 +43,12 @@ import numpy as np
 
 from controller import design
 from fmu_src import catalogue
+from plant.errors import PlantError
 from plant.hexapod.model import FIDELITIES, HOME_POSE, StewartParams, dynamics_terms
 from plant.mechanism3t import model as mechanism3t
 from scenarios.cosim.records import Block
 from scenarios.runs import auto_fidelity
-from scenarios.spec import ScenarioError
+from scenarios.spec import Scenario, ScenarioError
 
 POSES = 9             # poses along the reference motion at which the leg-space masses are taken
 WINDOW = 1.0          # s: the detectors' longest envelope window
@@ -241,6 +242,20 @@ def _hexapod_masses(scenario, paths, descriptions, values, loop, motion):
     return leg_masses(plant_params(values, descriptions, loop.plant), poses, loop.model, fidelity)
 
 
+def _refused_by_3t(function):
+    """A 3T model's refusal along the reference (a singular configuration the scenario's checks,
+    scenarios.spec.checks, do not test point by point) as a ScenarioError, never the model's own."""
+    def told(*args):
+        try:
+            return function(*args)
+        except PlantError as exc:
+            source = args[0].source if isinstance(args[0], Scenario) else "scenario"
+            raise ScenarioError(source, "fmus", f"the 3T mechanism's model refuses the slider reference of "
+                                f"this run: {type(exc).__name__}: {exc}") from None
+    return told
+
+
+@_refused_by_3t
 def _mechanism3t_masses(scenario, paths, descriptions, values, loop, motion):
     """The 3T mechanism's slider-space masses (eigenvalues of its mass matrix: the same PID
     on every slider decouples in its eigenvectors, as the hexapod's legs do) at POSES
@@ -253,6 +268,7 @@ def _mechanism3t_masses(scenario, paths, descriptions, values, loop, motion):
         params, mechanism3t.paper_motion(t, centre, float(amplitude), float(omega))[0], mode)) for t in times])
 
 
+@_refused_by_3t
 def _mechanism3t_gravity(values, descriptions, controller, plant, entry):
     """The 3T sliders' largest destabilising gravity rate [1/s^2] (design.LoopModel) at the
     centre of the controller's reference, held at rest by the static forces: from central

@@ -1,7 +1,8 @@
 """The checks of a bound scenario that no single value shows: the wiring (every input fed
 once, no algebraic loop, every control loop closed through what it measures), the
 metrics' variables, and what the models refuse that min/max cannot say (the telescope
-profile over the run, a payload no rigid body can have)."""
+profile over the run, a payload no rigid body can have, the 3T mechanism's assembly along
+its reference)."""
 import dataclasses
 from datetime import datetime, timezone
 
@@ -10,6 +11,7 @@ import numpy as np
 from fmu_src.catalogue import ALL, CONTROL_LOOPS, FEEDTHROUGH, LOOP_SENSORS
 from plant.errors import InvalidInputError
 from plant.hexapod.model import StewartParams, body_problems
+from plant.mechanism3t import model as mechanism3t
 from plant.telescope import model as telescope
 from scenarios.spec.keys import (
     CHECK_POINTS,
@@ -246,9 +248,11 @@ def _units_text(units):
 # -------------------------------------------------- ranges that min/max cannot declare
 def check_models(src, key, scenario, variables, values, written=None):
     """Checks that need several parameters at once, as the models themselves make them
-    (the telescope's profile over the run; the hexapod's payload a rigid body), so the FMU
-    does not refuse them at t = 0. ``written`` maps (instance, name) to the value as the
-    file wrote it. Every instance is checked; their problems are told together."""
+    (the telescope's profile over the run; the hexapod's payload a rigid body; the 3T
+    mechanism's assembly modes, initial positions and the slider reference over the run), so
+    the FMU does not refuse them at t = 0 nor the model mid-run. ``written`` maps (instance,
+    name) to the value as the file wrote it. Every instance is checked; their problems are
+    told together."""
     problems = Problems()
     for inst, fmu in scenario.fmus.items():
         if fmu == "telescope":
@@ -260,6 +264,8 @@ def check_models(src, key, scenario, variables, values, written=None):
                 if found:
                     where = f"fmus.{inst}.parameters" if key == "fmus" else key
                     raise ScenarioError(src, where, "; ".join(found))
+    if any(fmu in MECHANISM3T for fmu in scenario.fmus.values()):
+        _check_mechanism3t(src, key, scenario, variables, values, written or {}, problems)
     problems.raise_any()
 
 
@@ -283,6 +289,107 @@ def payload_problems(md_variables, values):
             f"[{', '.join(f'{v:.6g}' for v in inertia_error)}] kg.m2 on the paper's platform "
             f"({paper.platform_mass:.6g} kg, [{', '.join(f'{v:.6g}' for v in paper.platform_inertia)}] kg.m2) "
             "give a payload no rigid body has: " + "; ".join(found)]
+
+
+def _setting(md_variables, values, name):
+    """A parameter's value as bound, else its start (the FMU's default); a vector as an array."""
+    names = expand(md_variables, f"x.{name}")
+    got = [values[n] if n in values else md_variables[n].start for n in names]
+    if md_variables[names[0]].type in ("Integer", "Enumeration"):
+        return int(got[0])
+    return np.array(got, dtype=float) if len(names) > 1 or names[0] != name else float(got[0])
+
+
+def _shown(scenario, inst, name, value, unit, written):
+    """'inst.name = <as written>' (or the value in SI, '(default)' if nothing set it)."""
+    raw = written.get((inst, name), scenario.parameters.get(inst, {}).get(name))
+    if raw is not None:
+        return f"{inst}.{name} = {raw!r}"
+    value = np.round(np.atleast_1d(value) * 1e3, 6).tolist() if unit == "m" else [value]
+    return f"{inst}.{name} = {value if len(value) > 1 else value[0]}{' mm' if unit == 'm' else unit} (default)"
+
+
+MECHANISM3T = ("mechanism3t_plant", "slider_controller")
+PLANTS3T = ("mechanism3t_plant",)
+
+
+def _check_mechanism3t(src, key, scenario, variables, values, written, problems):
+    """The 3T mechanism's settings as its model takes them (plant.mechanism3t.model): each
+    assembly mode +1 or -1; the plant's initial_position assembled in its mode; and the slider
+    controller's reference initial_position + amplitude sin(omega t) over the run assembled in
+    its own mode (the feedforward model's) and in each plant's (the plant tracks it). Each
+    problem names the key and the range that does assemble."""
+    read = ("mode", "initial_position", "amplitude", "omega")
+    if key != "fmus" and not any(scenario.fmus[i] in MECHANISM3T and n.split("[")[0] in read for i, n in written):
+        return                      # a sweep value the mechanism does not read: checked once, with "fmus"
+
+    def where(inst, name):
+        return f"fmus.{inst}.parameters.{name}" if key == "fmus" else key
+
+    P, modes, given = mechanism3t.Mechanism3TParams.paper(), {}, {}
+    for inst, fmu in scenario.fmus.items():
+        if fmu not in MECHANISM3T or any(isinstance(v, Link) for v in values[inst].values()):
+            continue                # values known only at the start time
+        given[inst] = {n: _setting(variables[inst], values[inst], n) for n in read[:2 if fmu in PLANTS3T else 4]}
+        mode = given[inst]["mode"]
+        with problems.part():
+            if mode not in (1, -1):
+                raise ScenarioError(src, where(inst, "mode"), f"{_shown(scenario, inst, 'mode', mode, '', written)}: "
+                                    "the assembly mode is +1 or -1 (the sign before the square root of eq. 11)")
+            modes[inst] = mode
+    plants = [i for i in modes if scenario.fmus[i] in PLANTS3T]
+    for inst in modes:
+        centre = given[inst]["initial_position"]
+        shown = lambda n, v, u="", inst=inst: _shown(scenario, inst, n, v, u, written)
+        owners = {modes[inst]: f"{inst}.mode"}
+        if scenario.fmus[inst] not in PLANTS3T:      # the plant tracks the controller's reference
+            owners.update({modes[p]: f"{p}.mode" for p in plants if modes[p] not in owners})
+        for mode, owner in owners.items():
+            with problems.part():
+                ok, reason = mechanism3t.assembled(P, centre, mode)
+                if ok:
+                    continue
+                xs = np.arange(P.rho_min[0], P.rho_max[0], 1e-4)
+                found = [xs[mechanism3t.assembled(P, np.c_[xs, np.tile(centre[1:], (len(xs), 1))], m)[0]]
+                         for m in (mode, -mode)]
+                span = (f"at its y_A1, y_A3 mode {mode:+d} assembles x_A2 from {found[0].min() * 1e3:.6g} to "
+                        f"{found[0].max() * 1e3:.6g} mm" if found[0].size else
+                        f"at its y_A1, y_A3 no x_A2 of the slider's range assembles in mode {mode:+d}")
+                other = mechanism3t.assembled(P, centre, -mode)[0]
+                name = "mode" if other and owner == f"{inst}.mode" else "initial_position"
+                at = shown('initial_position', centre, 'm')
+                raise ScenarioError(src, where(inst, name), (
+                    f"{owner} = {mode:+d}: the 3T mechanism does not assemble at {at}"
+                    if name == "mode" else f"{shown('initial_position', centre, 'm')}: the 3T mechanism does not "
+                    f"assemble there in assembly mode {mode:+d} ({owner})") + f" ({reason}); {span}; "
+                    + (f"mode {-mode:+d} assembles it" if other else f"mode {-mode:+d} does not either"))
+        if scenario.fmus[inst] in PLANTS3T or not mechanism3t.assembled(P, centre, modes[inst])[0]:
+            continue
+        amplitude, omega = given[inst]["amplitude"], given[inst]["omega"]
+        low, high = _sine_range(omega * scenario.start_time, omega * scenario.stop_time)
+        for mode, owner in owners.items():    # the reference sweeps the offsets [amplitude low, amplitude high]
+            span = mechanism3t.reach(P, centre, mode)
+            if span is None or span[0] <= amplitude * low and amplitude * high <= span[1]:
+                continue            # the centre told above, or the reference assembles (to the reach's 0.1 mm)
+            beyond = span[1] + 1e-4 if amplitude * high > span[1] else span[0] - 1e-4
+            reason = mechanism3t.assembled(P, centre + beyond, mode)[1] or "beyond the reach's 1 m"
+            largest = min(span[1] / high if high > 0 else np.inf, span[0] / low if low < 0 else np.inf)
+            problems.errors.append(ScenarioError(
+                src, where(inst, "amplitude"),
+                f"{shown('amplitude', amplitude, 'm')}: the reference initial_position + amplitude sin(omega t) "
+                f"(sin from {low:.4g} to {high:.4g} over {scenario.start_time:g}..{scenario.stop_time:g} s, "
+                f"{shown('omega', omega, ' rad/s')}) leaves the 3T mechanism's workspace in assembly mode "
+                f"{mode:+d} ({owner}; {reason}): along it the sliders assemble from {span[0] * 1e3:+.4g} to "
+                f"{span[1] * 1e3:+.4g} mm "
+                f"about initial_position, so this run's amplitude is at most {largest * 1e3:.4g} mm"))
+
+
+def _sine_range(start, stop):
+    """(min, max) of sin over the phases [start, stop]."""
+    ends = np.sin([start, stop])
+    low, high = float(ends.min()), float(ends.max())
+    turns = lambda phase: np.floor((stop - phase) / (2 * np.pi)) >= np.ceil((start - phase) / (2 * np.pi))
+    return (-1.0 if turns(-np.pi / 2) else low), (1.0 if turns(np.pi / 2) else high)
 
 
 def _check_telescope(src, key, scenario, inst, md_variables, values, written):

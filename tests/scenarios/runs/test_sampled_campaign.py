@@ -154,3 +154,86 @@ def test_multi_process_cluster_equals_local_and_sequential_and_a_sample_alone(tm
     draws, seeds = campaigns.load(path).sample.draws(3)
     assert rows[4].split(",")[1:4] == ["3", repr(draws["plant.payload_mass_error"]),
                                        repr(draws["encoders.scale_error[2]"])]
+
+
+@pytest.mark.parametrize("extra, where", [
+    ('[[grid]]\n"encoders.seed" = [1, 2]\n', "grid[0].encoders.seed"),
+    ('[grid]\n"imu.seed" = [1, 2]\n', "grid[0].imu.seed"),
+    ('[[cases]]\nlabel = "a"\n"imu.seed" = 3\n', "cases[0].imu.seed"),
+])
+def test_a_seed_the_campaign_also_sets_is_refused_not_overridden(tmp_path, extra, where):
+    path = _file(tmp_path, extra=extra.replace("imu.seed", "encoders.seed") if "cases" in extra else extra)
+    path.write_text(path.read_text().replace('seeds = ["imu.seed"]', 'seeds = ["imu.seed", "encoders.seed"]'))
+    where = where.replace("imu.seed", "encoders.seed") if "cases" in extra else where
+    j = 1 if "encoders" in where else 0
+    with pytest.raises(campaigns.CampaignError, match=rf"sampled.toml: sample.seeds\[{j}\]: .* also set in "
+                                                      rf"{where.replace('[', '.').replace(']', '.')}: each sample"):
+        campaigns.load(path)
+    path.write_text(path.read_text().replace('seeds = ["imu.seed", "encoders.seed"]', "seeds = []"))
+    assert len(campaigns.load(path).cases) == 2 * 4 if "grid" in extra else 4    # without seeds: it runs
+
+
+def test_one_parameter_drawn_twice_or_a_seed_listed_twice_is_refused(tmp_path):
+    path = _file(tmp_path, extra='"imu.imu_alignment[2]" = { distribution = "normal", sd = "1 mrad" }\n')
+    with pytest.raises(campaigns.CampaignError, match=r"sample.imu.imu_alignment\[2\]: imu.imu_alignment\[2\] is "
+                                                      "drawn by an earlier key"):
+        campaigns.load(path)
+    path = _file(tmp_path)
+    path.write_text(path.read_text().replace('seeds = ["imu.seed"]', 'seeds = ["imu.seed", "imu.seed"]'))
+    with pytest.raises(campaigns.CampaignError, match=r"sample.seeds\[1\]: imu.seed is listed twice"):
+        campaigns.load(path)
+
+
+def test_a_linked_parameter_is_sampled_around_a_set_value_or_refused(tmp_path):
+    path = tmp_path / "linked.toml"
+    table = '[sample]\nsamples = 2\nseed = 3\n"plant.initial_pose" = { distribution = "normal", sd = "1 mm" }\n'
+    path.write_text(f'scenario = "{SCENE}"\n' + table)     # the scene links it: "@base.reference_pose"
+    with pytest.raises(campaigns.CampaignError, match=r"linked.toml: sample.plant.initial_pose\[1\]: "
+                                                      r"plant.initial_pose\[1\] is linked in dynamic_budget.toml to "
+                                                      r"'@base.reference_pose\[1\]'.*set one for it"):
+        campaigns.jobs(campaigns.load(path))
+    pose = [0.001, 0, 0.002, 0, 0, 0.01]
+    path.write_text(f'scenario = "{SCENE}"\nset = {{ "plant.initial_pose" = {pose} }}\n' + table)
+    made = campaigns.CampaignJobs(campaigns.load(path))
+    for job, case in zip(made, made.campaign.cases):
+        draws = made.campaign.sample.draws(case.sample)[0]
+        assert [job.parameters["plant"][f"initial_pose[{i}]"] for i in range(1, 7)] == \
+            [p + draws[f"plant.initial_pose[{i}]"] for i, p in enumerate(pose, 1)]
+
+
+def test_ci_sample_may_be_a_count_and_other_shapes_are_refused(tmp_path):
+    path = _file(tmp_path, samples=30, extra="[ci]\nsample = 4\n")
+    assert len(campaigns.load(path).cases) == 30
+    ci = campaigns.load(path, ci=True)
+    assert len(ci.cases) == 4 and ci.sample.samples == 4 and ci.sample.seed == 7     # the rest of [sample] kept
+    path.write_text(path.read_text().replace("sample = 4", 'sample = "4"'))
+    for ci in (False, True):        # checked without --ci too
+        with pytest.raises(campaigns.CampaignError, match=r"sampled.toml: ci.sample: expected a table .* got '4'"):
+            campaigns.load(path, ci=ci)
+    path.write_text(f'scenario = "{SCENE}"\nsample = 4\n[ci]\nsample = {{ samples = 2 }}\n')
+    with pytest.raises(campaigns.CampaignError, match=r"sampled.toml: sample: expected a table \(\[sample\]\), got 4"):
+        campaigns.load(path, ci=True)
+    path.write_text(f'scenario = "{SCENE}"\n[ci]\nset = 4\n')     # told as the [ci] key it is
+    with pytest.raises(campaigns.CampaignError, match=r"sampled.toml: ci.set: expected a table, got 4"):
+        campaigns.load(path, ci=True)
+
+
+def test_sample_rerun_refuses_a_file_as_out_and_tells_a_damaged_result(tmp_path, capsys):
+    from movingbase import cli
+    path = _file(tmp_path, samples=2, stop="1.05 s")
+    (tmp_path / "file").write_text("")
+    with pytest.raises(SystemExit, match=r"campaign error: output folder .*file: a file, not a folder"):
+        cli.main(["campaign", str(path), "--sample", "0", "--out", str(tmp_path / "file")])
+    [(job, result, stored)] = campaigns.rerun_sample(path, 1, out=tmp_path / "out")
+    assert stored is None and "damaged" not in result and not (tmp_path / "out").exists()   # writes nothing
+    engine.Store(tmp_path / "out" / "sampled" / "runs").write(job, dict(result))
+    [(_, again, stored)] = campaigns.rerun_sample(path, 1, out=tmp_path / "out")
+    assert stored is not None and again["same"]
+    with open(tmp_path / "out" / "sampled" / "runs" / f"{job.key}.npz", "r+b") as npz:
+        npz.truncate(100)
+    with pytest.raises(SystemExit) as info:
+        cli.main(["campaign", str(path), "--sample", "1", "--out", str(tmp_path / "out")])
+    assert info.value.code == 1
+    said = capsys.readouterr().out
+    assert f"DAMAGED on disk, not compared: {tmp_path / 'out' / 'sampled' / 'runs' / job.key}.npz: truncated" in said
+    assert "not on disk" not in said

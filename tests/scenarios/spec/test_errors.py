@@ -455,8 +455,10 @@ def test_an_integer_parameter_s_description_gives_no_names():
     # "-1 is not one of or (or their numbers: 1 or)", the description's words read as names;
     # names come from an Enumeration's declared items only
     import movingbase
+    here = ["20 mm", "-144.36 mm", "-47.68 mm"]         # x_A2 = 20 mm: both modes assemble (eq. 11)
     for value in (-1, 1):
-        scenario = movingbase.load_scenario("mechanism3t_paper", set={"plant.mode": value})
+        scenario = movingbase.load_scenario("mechanism3t_paper", set={
+            "plant.mode": value, "plant.initial_position": here, "controller.initial_position": here})
         assert runner.prepare_loaded(scenario)[3]["plant"]["mode"] == value
     with pytest.raises(spec.ScenarioError, match=r"'two' is not one of the allowed values: .*an integer|\[-1, 1\]") \
             as refusal:
