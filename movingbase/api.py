@@ -42,6 +42,7 @@ from scenarios.runs import campaign as campaigns
 from scenarios.runs import engine, runner
 from scenarios.runs import estimates as resources
 from scenarios.runs import flags as run_flags
+from scenarios.runs import status as run_status
 from scenarios.runs.flags import Flag
 from scenarios.runs.metrics import key_unit
 from scenarios.spec import units
@@ -207,7 +208,9 @@ def _html_table(head: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     return f"<table><tr>{cells}</tr>{body}</table>"
 
 
-_STATUS_STYLE = {"ok": "", "flagged": "color:#b00020", "failed": "color:#b00020;font-weight:bold"}
+_STATUS_STYLE = {run_status.OK: "", run_status.FLAGGED: "color:#b00020",
+                 run_status.FAILED: "color:#b00020;font-weight:bold", run_status.REFUSED: "color:#b00020",
+                 run_status.NOT_RUN: "color:#777777"}
 
 
 class RunResult:
@@ -224,7 +227,7 @@ class RunResult:
         self.label: str = run.label
         self.metrics: dict = run.metrics
         self.flags: list[Flag] = run_flags.by_severity(run.flags)
-        self.failure: str | None = run.failure   # why an FMU stopped the run before its stop time
+        self.failure: str | None = run.failure or None   # why an FMU stopped the run before its stop time
         self.steps: int = run.steps
         self.wall_time: float = run.wall_time
         self.sim_time: float = run.sim_time
@@ -239,8 +242,8 @@ class RunResult:
     @property
     def status(self) -> str:
         """"failed" (cut short: an FMU stopped it), "flagged" (ran to its stop time, but its
-        numbers are not results) or "ok"."""
-        return "failed" if self.failure else "flagged" if self.flags else "ok"
+        numbers are not results) or "ok": the vocabulary of scenarios/runs/status.py."""
+        return run_status.of_run(self.failure, self.flags)
 
     @property
     def message(self) -> str:
@@ -328,7 +331,7 @@ class RunResult:
         return Charts([report.variables_chart(self.label, self.time, columns, status)])
 
     def _repr_html_(self) -> str:
-        state = html.escape(self.status.upper() if self.status != "ok" else "ok")
+        state = html.escape(self.status)
         said = f": {html.escape(self.message)}" if self.message else ""
         rows = [(m, k, f"{v:.4g}" if isinstance(v, float) else v, key_unit(values, k))
                 for m, values in self.metrics.items() for k, v in values.items() if k != "unit"]
@@ -392,7 +395,7 @@ class Result:
         ('' if nothing): a flagged run's numbers are not results, and the table says so
         where they stand."""
         pd = _pandas()
-        rows = {label: {("status", ""): r.status.upper() if r.status == "failed" else r.status,
+        rows = {label: {("status", ""): r.status,
                         **{(m, k): (float("nan") if v is None else v)
                            for m, values in r.metrics.items() for k, v in values.items() if k != "unit"},
                         ("flags", ""): run_flags.summary(r.flags)}
@@ -435,6 +438,7 @@ class Result:
         written = runner.write_results(self.scenario, runs, folder)
         if earlier and runner.left_over(folder, started):
             print(runner.left_over(folder, started), file=sys.stderr, flush=True)
+        runner.unlock_folder(folder)
         return written
 
     @property
@@ -443,23 +447,22 @@ class Result:
         return all(r.ok for r in self)
 
     def __repr__(self) -> str:
-        failed = [label for label, r in self.runs.items() if r.status == "failed"]
-        flagged = [label for label, r in self.runs.items() if r.status == "flagged"]
-        state = (f"{', FAILED: ' + ', '.join(failed) if failed else ''}"
-                 f"{', flagged: ' + ', '.join(flagged) if flagged else ''}")
-        return f"<Result {self.scenario.name!r}: runs {', '.join(self.runs)}{state or ', all ok'}>"
+        bad = "".join(f"; {s}: {', '.join(label for label, r in self.runs.items() if r.status == s)}"
+                      for s in run_status.counts(r.status for r in self) if s != run_status.OK)
+        return f"<Result {self.scenario.name!r}: {run_status.told(r.status for r in self)}{bad}>"
 
     def _repr_html_(self) -> str:
         """Each run's status first (FAILED and flagged in red, with why), then its metrics."""
         tracked = [(m, k) for m, values in next(iter(self.runs.values())).metrics.items()
                    for k in ("rms", "peak") if k in values] if self.runs else []
         head = ["run", "status"] + [f"{m} {k} [{key_unit(self[0].metrics[m], k)}]" for m, k in tracked] + ["flags"]
-        rows = [[label, r.status.upper() if r.status != "ok" else "ok"]
+        rows = [[label, r.status]
                 + [f"{r.metrics[m][k]:.4g}" if isinstance(r.metrics.get(m, {}).get(k), float) else ""
                    for m, k in tracked] + [r.message] for label, r in self.runs.items()]
-        state = "all ok" if self.ok else "NOT ALL OK: a flagged or failed run's numbers are not results"
-        return (f"<p><b>Result {html.escape(self.scenario.name)}</b>: {len(self)} runs, "
-                f'<span style="{"" if self.ok else _STATUS_STYLE["failed"]}">{state}</span></p>'
+        state = run_status.told(r.status for r in self) + ("" if self.ok else ": a flagged or failed run's "
+                                                              "numbers are not results")
+        return (f"<p><b>Result {html.escape(self.scenario.name)}</b>: "
+                f'<span style="{_STATUS_STYLE[run_status.worst(r.status for r in self)]}">{state}</span></p>'
                 + _html_table(head, rows))
 
 
@@ -486,14 +489,22 @@ def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: boo
     earlier, started = outdir is not None and runner.replaced(outdir), time.time()
     if earlier:
         print(earlier, file=sys.stderr, flush=True)
-    runs = runner.run_prepared(prepared, paths, descriptions, values, outdir, progress, before=before)
+    try:
+        runs = runner.run_prepared(prepared, paths, descriptions, values, outdir, progress, before=before)
+    except runner.Interrupted as stopped:   # Ctrl-C: what finished is kept (on disk with out=), as campaign's
+        runner.keep_interrupted(prepared, stopped, outdir)
+        raise stopped.with_traceback(None) from None
     result = Result(prepared, runs, runner.write_results(prepared, runs, outdir) if outdir else None)
     if earlier and runner.left_over(outdir, started):
         print(runner.left_over(outdir, started), file=sys.stderr, flush=True)
+    if outdir is not None:
+        runner.unlock_folder(outdir)
+    values_set = f" (set={dict(set)!r:.200})" if set else ""
     for r in result:     # shown in a notebook as a warning: a failed run is no result
         if not r.ok:
             said = r.message if r.status == "failed" else f"flagged: {r.message}"
-            warnings.warn(f"run {r.label!r} {said}", RunWarning, stacklevel=3)   # the caller's line
+            warnings.warn(f"{prepared.name}{values_set}, run {r.label!r} {said}", RunWarning,
+                          stacklevel=3)   # the caller's line
     return result
 
 
@@ -588,17 +599,26 @@ class CampaignResult:
     def __len__(self) -> int:
         return len(self._keys)
 
+    @property
+    def statuses(self) -> dict[str, str]:
+        """{run label: its status} (scenarios/runs/status.py: ok, flagged, failed, not run)."""
+        return campaigns.summary_statuses(self.summary_path)
+
+    @property
+    def ok(self) -> bool:
+        """True if every run ran and nothing flagged it."""
+        return all(s == run_status.OK for s in self.statuses.values())
+
     def __repr__(self) -> str:
-        return f"<CampaignResult {self.campaign.name!r}: {len(self)} runs, table in {self.summary_path}>"
+        return (f"<CampaignResult {self.campaign.name!r}: {run_status.told(self.statuses.values())}, "
+                f"table in {self.summary_path}>")
 
     def _repr_html_(self) -> str:
         """How many runs are results, then the table (its first 20 rows)."""
         table = self.table()
-        counts = table["status"].value_counts().to_dict()
-        bad = len(table) - counts.get("ok", 0)
-        said = ", ".join(f"{n} {status.upper() if status != 'ok' else status}" for status, n in counts.items())
-        return (f"<p><b>Campaign {html.escape(self.campaign.name)}</b>: {len(self)} runs: "
-                f'<span style="{_STATUS_STYLE["failed"] if bad else ""}">{html.escape(said)}</span></p>'
+        said = run_status.told(table["status"])
+        return (f"<p><b>Campaign {html.escape(self.campaign.name)}</b>: "
+                f'<span style="{_STATUS_STYLE[run_status.worst(table["status"])]}">{html.escape(said)}</span></p>'
                 + table.head(20).to_html(index=False, float_format=lambda v: f"{v:.4g}"))
 
 
@@ -615,6 +635,7 @@ def campaign(path: str | os.PathLike[str], *, out: str | os.PathLike[str] = "out
     if warning:
         print(warning, file=sys.stderr, flush=True)
     ran, job_list, store, outcome, summary = campaigns.run_campaign(path, out, ci=ci, jobs_=jobs, progress=progress)
+    runner.unlock_folder(summary.parent)
     if outcome.interrupted:   # Ctrl-C: an exception, as Python's own, not a result with runs "not run"
         raise KeyboardInterrupt(f"campaign {ran.name} interrupted: {len(outcome.computed)} runs done now and "
                                 f"{len(outcome.skipped)} before are on disk in {store.folder}; call it again to resume")

@@ -124,9 +124,10 @@ def run_command(argv=None, prog="movingbase run"):
     parser.add_argument("--ssp", metavar="FILE", help="export the (one) scenario as an SSP file, first sweep value")
     args = parser.parse_args(argv)
     try:
-        _run(args, shipped)
-    except KeyboardInterrupt:
-        sys.exit(f"interrupted: the runs that finished are in {args.out}; a sweep run with --jobs or --dask "
+        return _run(args, shipped)
+    except KeyboardInterrupt as exc:     # runner.Interrupted says what it kept
+        sys.exit(f"interrupted: {exc}" if str(exc) else
+                 f"interrupted: the runs that finished are in {args.out}; a sweep run with --jobs or --dask "
                  "resumes where it stopped when the same command runs again")
 
 
@@ -134,6 +135,7 @@ def _run(args, shipped):
     """The checks of the command line (all before anything runs), then each scenario."""
     from scenarios.cosim.fmi import FmuFileError
     from scenarios.cosim.records import run_records
+    from scenarios.runs import status
     from scenarios.runs.engine import EngineError, check_address
     from scenarios.runs.estimates import ResourceError, check_jobs
     from scenarios.runs.runner import OutputError, not_found, resolve, run_scenario
@@ -171,7 +173,7 @@ def _run(args, shipped):
                      f"({', '.join(names)}); run one --ssp per scenario")
         _export(args, names[0])
         return
-    errors = []   # one line each; every scenario and every run is still tried
+    errors, statuses = [], []   # one line each; every scenario and every run is still tried
     for name in names:
         try:
             scenario, runs, report = run_scenario(name, args.out, ci=args.ci, progress=not args.quiet,
@@ -187,7 +189,8 @@ def _run(args, shipped):
         except OSError as exc:     # the disk filled or the folder went away while writing
             errors.append(f"{name}: output error: {exc.filename or args.out}: {exc.strerror or exc}")
             continue
-        print(f"{scenario.name}: report {report}")
+        statuses += [status.of_run(run.failure, run.flags) for run in runs]
+        print(f"{scenario.name}: {status.told(statuses[-len(runs):])}; report {report}")
         if args.csv:
             for run in runs:
                 if run.record_path:
@@ -202,7 +205,7 @@ def _run(args, shipped):
             for flag in run.flags:
                 if flag.kind != "cut_short":   # a failed run says so above
                     print(f"    FLAGGED {flag.kind}: {flag.message}")
-        flagged = [run.label for run in runs if run.flags]
+        flagged = [run.label for run in runs if run.flags and not run.failure]
         if flagged:
             print(f"  {len(flagged)} of {len(runs)} runs FLAGGED ({', '.join(flagged)}): their numbers are not "
                   f"results; see {report}")
@@ -211,6 +214,7 @@ def _run(args, shipped):
     if not args.scenarios:
         from studies.paper_forces import main as paper_charts  # pyplot: imported by what draws
         paper_charts(f"{args.out}/paper")
+    return status.exit_status(statuses) or None     # 3: a run flagged (docs/flagged-runs.md)
 
 
 def _export(args, name):
@@ -244,10 +248,10 @@ def _export(args, name):
 def campaign_command(argv=None):
     from scenarios import spec
     from scenarios.cosim.fmi import FmuFileError
-    from scenarios.runs import engine
+    from scenarios.runs import engine, status
     from scenarios.runs import estimates as resources
-    from scenarios.runs.campaign import run_campaign
-    from scenarios.runs.runner import OutputError
+    from scenarios.runs.campaign import run_campaign, summary_statuses
+    from scenarios.runs.runner import OutputError, unlock_folder
     parser = argparse.ArgumentParser(prog="movingbase campaign",
                                      description='Run a campaign file: many scenario runs, on worker processes or a '
                                                  'Dask cluster, results in a store.')
@@ -279,8 +283,10 @@ def campaign_command(argv=None):
         sys.exit(f"campaign error: output: {exc.filename or args.out}: {exc.strerror or exc}")
     except KeyboardInterrupt:
         sys.exit("interrupted: the runs finished so far are on disk; run the same command again to resume")
-    print(f"{campaign.name}: {len(outcome.computed)} runs done now, {len(outcome.skipped)} found on disk, "
-          f"{len(outcome.failed)} failed, of {outcome.total}, in {outcome.wall_time:.1f} s; summary {summary}")
+    unlock_folder(summary.parent)
+    statuses = summary_statuses(summary)
+    print(f"{campaign.name}: {status.told(statuses.values())}; {len(outcome.computed)} done now, "
+          f"{len(outcome.skipped)} found on disk, in {outcome.wall_time:.1f} s; summary {summary}")
     if outcome.damaged:
         print(f"  {len(outcome.damaged)} damaged results were found and run again (named above)")
     if outcome.orphans:
@@ -289,10 +295,13 @@ def campaign_command(argv=None):
     labels = {job.key: job.label for job in job_list}
     for key, message in list(outcome.failed.items())[:10]:
         print(f"  failed: {labels[key]}: {message.splitlines()[0]}")
+    flagged = [label for label, s in statuses.items() if s == status.FLAGGED]
+    if flagged:
+        print(f"  flagged: {', '.join(flagged[:10])}{' ...' if len(flagged) > 10 else ''}: their numbers are not "
+              "results; the flags column of the summary says why")
     if outcome.interrupted:
         sys.exit("interrupted: the runs finished so far are on disk; run the same command again to resume")
-    if outcome.failed:
-        sys.exit(1)
+    return status.exit_status(statuses.values()) or None
 
 
 def budget_command(argv=None):

@@ -47,7 +47,7 @@ import numpy as np
 from fmu_src import atomic
 from scenarios import spec
 from scenarios.cosim.fmi import description
-from scenarios.runs import engine, flags
+from scenarios.runs import engine, flags, status
 from scenarios.runs import estimates as resources
 from scenarios.runs.runner import fmu_paths, output_folder, resolve
 from scenarios.spec import distributions, units
@@ -579,7 +579,7 @@ def write_summary(campaign, store, job_list, path):
                 row.update({f"{key} [{unit}]" if unit else key: repr(deviations[key])
                             for key, _, _, unit, _ in campaign.sample.inputs})
                 row.update(seeds)
-            row["status"] = record["status"] if record else "not run"
+            row["status"] = status.of_record(record)    # the vocabulary's: flagged, not the store's "ok"
             row["error"] = record.get("error", "") if record else ""
             row["flags"] = flags.summary(flags.from_dicts((record or {}).get("flags")))
             for name, values in ((record or {}).get("metrics") or {}).items():
@@ -590,6 +590,12 @@ def write_summary(campaign, store, job_list, path):
                 writer.writeheader()
             writer.writerow(row)
     return path
+
+
+def summary_statuses(path):
+    """{run label: status} from a summary.csv (write_summary)."""
+    with open(path, newline="", encoding="utf-8") as file:
+        return {row["label"]: row["status"] for row in csv.DictReader(file)}
 
 
 def rerun_sample(path, k, out="out", ci=False):

@@ -53,7 +53,7 @@ from tqdm import tqdm
 from fmu_src.atomic import replacing, write_bytes
 from scenarios.cosim import fmi, master
 from scenarios.cosim.fmi import content_digest
-from scenarios.runs import flags, metrics, single
+from scenarios.runs import flags, metrics, single, status
 from scenarios.runs.estimates import cores
 from scenarios.spec import Link, file_label
 
@@ -309,6 +309,7 @@ class Outcome:
     interrupted: bool = False
     damaged: dict = dataclasses.field(default_factory=dict)    # key -> the fault found (recomputed)
     orphans: int = 0                # results in the store that belong to none of these jobs
+    statuses: dict = dataclasses.field(default_factory=dict)   # key -> status (scenarios.runs.status) of those run now
 
 
 @contextlib.contextmanager
@@ -489,17 +490,19 @@ class Engine:
                     results = future.result()
                 except Exception as exc:        # the engine lost the task (e.g. a worker died too often)
                     outcome.failed.update({job.key: f"not run: {type(exc).__name__}: {exc}" for job in batch})
+                    outcome.statuses.update(dict.fromkeys((job.key for job in batch), status.NOT_RUN))
                 else:
                     for job, result in zip(batch, results):
                         store.write(job, dict(result))
                         outcome.computed.append(job.key)
                         if result["status"] != "ok":
                             outcome.failed[job.key] = result["error"]
+                        outcome.statuses[job.key] = status.of_record(result)
                         if on_result:
                             on_result(job, result)
                 future.release()
                 bar.update(len(batch))
-                bar.set_postfix(failed=len(outcome.failed), refresh=False)
+                bar.set_postfix(status.counts(outcome.statuses.values()), refresh=False)   # ok=7, flagged=3
                 nxt = next(batches, None)
                 if nxt is not None:
                     submit(nxt)

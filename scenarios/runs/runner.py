@@ -97,6 +97,40 @@ def lock_folder(folder):
     return folder
 
 
+def unlock_folder(folder):
+    """Release ``folder``'s lock (lock_folder) and remove its lock file: a notebook's
+    process lives on after its runs, and the file was left beside the results."""
+    key = os.path.realpath(folder)
+    fd = _LOCKS.pop(key, None)
+    if fd is None:
+        return
+    with contextlib.suppress(OSError):
+        os.unlink(os.path.join(key, LOCK))    # while still locked: no other process holds it meanwhile
+    os.close(fd)
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C during a sweep: ``runs`` those that finished (master.Run), ``stopped`` the
+    label of the run it stopped, ``left`` the labels not run to their end (it among them)."""
+
+    def __init__(self, runs, stopped, left):
+        super().__init__(f"interrupted during run {stopped!r}")
+        self.runs, self.stopped, self.left = runs, stopped, left
+
+
+def interrupted_message(scenario, interrupted, outdir):
+    """What an interrupted sweep kept and how to run the rest (the exception's message)."""
+    kept = ", ".join(repr(r.label) for r in interrupted.runs) or "none"
+    where = f": records, metrics.json and a report marked interrupted in {outdir}" if outdir and interrupted.runs \
+        else " (in memory only: nothing is kept without out=)" if interrupted.runs else ""
+    values = [v for v in (scenario.sweep[1] if scenario.sweep else [])
+              if spec.file_label(v) in interrupted.left]
+    rest = (f"set={{'sweep': {{'parameter': {scenario.sweep[0]!r}, 'values': {values!r}}}}}"
+            if scenario.sweep else "the same call")
+    return (f"{scenario.name} interrupted during run {interrupted.stopped!r}: runs finished: {kept}{where}; "
+            f"not run to their end: {', '.join(map(repr, interrupted.left))}; to run the rest: {rest}")
+
+
 def _named(folder):
     """``folder`` unless it is empty ("" is the current folder to pathlib: never meant)."""
     if not isinstance(folder, (str, os.PathLike)):
@@ -292,11 +326,26 @@ def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None,
     earlier, started = replaced(outdir), time.time()
     if earlier:
         print(earlier, file=sys.stderr)
-    runs = run_prepared(scenario, paths, descriptions, values, outdir, progress, jobs, dask, before)
+    try:
+        runs = run_prepared(scenario, paths, descriptions, values, outdir, progress, jobs, dask, before)
+    except Interrupted as stopped:
+        keep_interrupted(scenario, stopped, outdir, charts)
+        raise
     written = write_results(scenario, runs, outdir, charts)
     if earlier and left_over(outdir, started):
         print(left_over(outdir, started), file=sys.stderr)
+    unlock_folder(outdir)
     return scenario, runs, written
+
+
+def keep_interrupted(scenario, interrupted, outdir, charts="all"):
+    """Write what an interrupted sweep finished (its records are on disk already) with a
+    report marked interrupted, release the folder, and say it all in the exception."""
+    if outdir is not None:
+        if interrupted.runs:
+            write_results(scenario, interrupted.runs, outdir, charts, interrupted.left)
+        unlock_folder(outdir)
+    interrupted.args = (interrupted_message(scenario, interrupted, outdir),)
 
 
 def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=True, jobs=None, dask=None,
@@ -327,13 +376,20 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
         try:
             runs.append(single.run(scenario, paths, params, outdir, label,
                                    [metrics.make(m) for m in scenario.metrics], update, before.get(label, ())))
+            if runs[-1].flags:
+                bar.set_description_str(f"{desc} flagged", refresh=False)
         except master.RunFailed as failed:   # keep what it did; the other runs still run
             failed.run.failure = f"{scenario.source}: scene {scenario.name}, run {label}: {failed.run.failure}"
             runs.append(failed.run)
             bar.set_description_str(f"{desc} FAILED at t = {failed.run.sim_time:g} s", refresh=False)
             bar.close()                      # where it stopped, not 100 %
             continue
-        except BaseException:                # Ctrl-C, or an error that ends the command
+        except KeyboardInterrupt:            # Ctrl-C: the finished runs are kept (Interrupted)
+            bar.close()
+            done = {r.label for r in runs}
+            raise Interrupted(runs, label, [lb for lb, _ in sweep_runs(scenario, descriptions, values)
+                                            if lb not in done]) from None
+        except BaseException:                # an error that ends the command
             bar.close()                      # where it stopped, not 100 %
             raise
         bar.update(100 - bar.n)
@@ -341,9 +397,9 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
     return runs
 
 
-def write_results(scenario, runs, outdir, charts="all"):
+def write_results(scenario, runs, outdir, charts="all", interrupted=()):
     """metrics.json, the ``charts`` (report.CHARTS) and report.md of the runs into outdir;
-    the report's path."""
+    the report's path. ``interrupted``: the labels Ctrl-C left unrun (the report says so)."""
     summary = {r.label: {"metrics": r.metrics, "wall_time_s": r.wall_time, "steps": r.steps,
                          "real_time_factor": r.real_time_factor, **({"failed": r.failure} if r.failure else {}),
                          **({"ci": True} if scenario.short else {}),     # a short run: no full run's numbers
@@ -351,7 +407,7 @@ def write_results(scenario, runs, outdir, charts="all"):
                for r in runs}
     outdir.mkdir(parents=True, exist_ok=True)
     atomic.write_text(outdir / "metrics.json", json.dumps(_no_nan(summary), indent=2, default=float))
-    return report.write(scenario, runs, outdir, charts)
+    return report.write(scenario, runs, outdir, charts, interrupted)
 
 
 def sweep_runs(scenario, descriptions, values):

@@ -211,11 +211,14 @@ def test_a_campaign_s_table_holds_the_numbers_of_its_runs_run_one_by_one(tmp_pat
                     '[[grid]]\n"base.lever_arm" = ["5 m", "2000 mm"]\n')
     ran = movingbase.campaign(path, out=tmp_path / "out", jobs=1, progress=False)
     table = ran.table()
-    assert len(ran) == len(table) == 6 and list(table["status"]) == ["ok"] * 6
+    # every run is a 2.5 s cut of a slew that goes on (motion_unfinished): flagged, as run() says it, not "ok"
+    assert len(ran) == len(table) == 6 and list(table["status"]) == ["flagged"] * 6
+    assert repr(ran).startswith("<CampaignResult 'lever': 6 runs: 6 flagged, table in ") and not ran.ok
+    assert set(ran.statuses.values()) == {"flagged"} and not (tmp_path / "out" / "lever" / ".movingbase.lock").exists()
     # the swept quantity as an SI number (a plot against it gets a number axis), its unit in attrs
     assert sorted(table["base.lever_arm"]) == [2.0] * 3 + [5.0] * 3 and table.attrs["units"]["base.lever_arm"] == "m"
     assert table.attrs["units"]["leg error rms"] == "µm" and table["leg error rms"].dtype == float
-    assert "6 runs: <span style=\"\">6 ok</span>" in ran._repr_html_()
+    assert '<span style="color:#b00020">6 runs: 6 flagged</span>' in ran._repr_html_()
     assert list(table["error"]) == [""] * 6 and all(f.startswith("motion_unfinished") for f in table["flags"])
     alone = movingbase.run(NAME, progress=False, set={"stop_time": "2.5 s", "base.lever_arm": "5 m"})
     for row in table[table["base.lever_arm"] == 5.0].to_dict("records"):
@@ -227,6 +230,12 @@ def test_a_campaign_s_table_holds_the_numbers_of_its_runs_run_one_by_one(tmp_pat
         ran.records(ran.labels[0])
     t, _ = ran.series(ran.labels[0])["leg error"]
     assert t[0] >= 2.0
+    # the command says it too: the summary file's status column and the exit status (3: flagged)
+    from movingbase import cli
+    assert cli.main(["campaign", str(path), "--out", str(tmp_path / "out"), "--jobs", "1", "--quiet"]) == 3
+    summary = (tmp_path / "out" / "lever" / "summary.csv").read_text().splitlines()
+    status = summary[0].split(",").index("status")
+    assert [row.split(",")[status] for row in summary[1:]] == ["flagged"] * 6
 
 
 @pytest.mark.parametrize("content, problem", [
@@ -369,11 +378,13 @@ def test_a_cut_short_run_says_failed_first_everywhere(cut_short):
         assert run.status == "failed" and run.failure and run.sim_time < 8.0
         assert run.flags[0].kind == "cut_short"            # the cause before the symptoms
         assert [f.kind for f in run.flags] == sorted((f.kind for f in run.flags), key=flags.SEVERITY.index)
-        assert message.startswith(f"run {run.label!r} FAILED (cut_short")
+        # which scenario and which values warned: a loop of runs tells its iterations apart
+        assert message.startswith(f"telescope_slew (set={{'base.lever_arm': '1e6 m'}}), run {run.label!r} FAILED "
+                                  "(cut_short")
         assert repr(run).startswith(f"<RunResult {run.label!r}: FAILED at t = {run.sim_time:g} s: cut_short")
-    assert "FAILED: none, fixed_base, moving_base" in repr(result)
+    assert repr(result) == "<Result 'telescope_slew': 3 runs: 3 failed; failed: none, fixed_base, moving_base>"
     table = result.metrics_table()
-    assert list(table[("status", "")]) == ["FAILED"] * 3 and table.columns[0] == ("status", "")
+    assert list(table[("status", "")]) == ["failed"] * 3 and table.columns[0] == ("status", "")
     assert all(cell.startswith("FAILED (cut_short: stopped at t = 5.01 s") for cell in table[("flags", "")])
 
 
@@ -519,7 +530,7 @@ def test_tables_hold_numbers_with_their_units(result):
 
 def test_html_reprs_say_status_first(result, cut_short):
     shown = cut_short[0]._repr_html_()
-    assert "NOT ALL OK" in shown and shown.count("<td>FAILED</td>") == 3
+    assert "3 runs: 3 failed: a flagged or failed run" in shown and shown.count("<td>failed</td>") == 3
     assert "leg error rms [µm]" in shown
     run = result["moving_base"]._repr_html_()
     assert "<b>run moving_base</b>" in run and "<td>µrad</td>" in run
@@ -545,3 +556,37 @@ def test_a_refusal_is_raised_from_the_public_call():
     frames = traceback.extract_tb(raised.value.__traceback__)
     assert [f.name for f in frames][-1] == "public" and len(frames) <= 3, frames
     assert "did you mean 'start_elevation'" in str(raised.value)
+
+
+def test_an_interrupted_sweep_keeps_the_runs_that_finished(tmp_path, monkeypatch):
+    """Ctrl-C during the second run of a three-run sweep: the first run's records, metrics
+    and a report marked interrupted are on disk, the lock file is gone, and the message
+    says what was kept and how to run the rest (it was an empty KeyboardInterrupt)."""
+    from scenarios.runs import single
+    real, calls = single.run, []
+
+    def interrupted_at_the_second(*args, **kwargs):
+        calls.append(args[4])
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+    monkeypatch.setattr(single, "run", interrupted_at_the_second)
+    with pytest.raises(KeyboardInterrupt) as stopped:
+        movingbase.run(NAME, ci=True, progress=False, out=tmp_path)
+    folder = tmp_path / NAME
+    said = str(stopped.value)
+    assert said.startswith(f"{NAME} interrupted during run 'fixed_base': runs finished: 'none': records, metrics.json "
+                           f"and a report marked interrupted in {folder}")
+    assert said.endswith("not run to their end: 'fixed_base', 'moving_base'; to run the rest: set={'sweep': "
+                         "{'parameter': 'controller.feedforward', 'values': ['fixed_base', 'moving_base']}}")
+    assert sorted(p.name for p in folder.iterdir() if p.suffix != ".png") == ["metrics.json", "none.npz", "report.md"]
+    metrics = json.loads((folder / "metrics.json").read_text())
+    assert list(metrics) == ["none"]
+    report = (folder / "report.md").read_text()
+    assert "**Interrupted** (Ctrl-C): runs `fixed_base`, `moving_base` were not run to their end" in report
+    # the kept run is the one an uninterrupted sweep gives (its first run), bit for bit
+    monkeypatch.setattr(single, "run", real)
+    whole = movingbase.run(NAME, ci=True, progress=False, set={"sweep": {"parameter": "controller.feedforward",
+                                                                          "values": ["none"]}})
+    assert metrics["none"]["metrics"] == json.loads(json.dumps(whole["none"].metrics, default=float))
+    assert read_records(folder / "none.npz").values.tobytes() == whole["none"].values.tobytes()
