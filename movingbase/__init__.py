@@ -11,12 +11,14 @@ Command line: ``movingbase run telescope_slew`` (or ``python -m movingbase run .
 In Python (notebooks): ``movingbase.run("telescope_slew", ci=True)`` returns a Result
 (time series as numpy arrays or pandas, metrics, flags, charts); ``movingbase.campaign``
 the same for campaign files; ``movingbase.budget`` a geometric tolerance budget;
-``movingbase.fmus()`` the FMU files for other FMI tools (movingbase/api.py).
+``movingbase.fmus()`` the FMU files for other FMI tools, ``movingbase.export_ssp`` a scenario
+as an SSP file and ``movingbase.simulate_ssp`` its run in fmpy (movingbase/api.py).
 """
 import typing as _typing
 
 __version__ = "0.2.0"
-__all__ = ["run", "campaign", "budget", "load_scenario", "fmus", "Result", "RunResult", "CampaignResult", "Charts",
+__all__ = ["run", "campaign", "budget", "load_scenario", "fmus", "export_ssp", "simulate_ssp", "Result", "RunResult",
+           "CampaignResult", "Charts",
            "RunWarning", "ScenarioError", "__version__"]
 
 if _typing.TYPE_CHECKING:
@@ -28,9 +30,11 @@ if _typing.TYPE_CHECKING:
         RunWarning,
         budget,
         campaign,
+        export_ssp,
         fmus,
         load_scenario,
         run,
+        simulate_ssp,
     )
     from scenarios.spec import ScenarioError
 

@@ -27,6 +27,7 @@ import os
 import pathlib
 import sys
 import time
+import types
 import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, Union
@@ -446,6 +447,18 @@ class Result:
         """True if no run was flagged or failed."""
         return all(r.ok for r in self)
 
+    def to_ssp(self, path: str | os.PathLike[str], run: str | None = None) -> pathlib.Path:
+        """Write the scenario as an SSP file with the sweep value of run ``run`` (a label;
+        default the first): ``export_ssp``, the values as this result ran them."""
+        value = None
+        if self.scenario.sweep:
+            label = run if run is not None else self[0].label
+            self[label]     # a KeyError naming the runs
+            value = next(item for item in self.scenario.sweep[1] if spec.file_label(item) == label)
+        elif run is not None and run not in self.runs:
+            raise KeyError(f"no run {run!r}; runs: {', '.join(self.runs)}")
+        return export_ssp(self.scenario, path, value=value)
+
     def __repr__(self) -> str:
         bad = "".join(f"; {s}: {', '.join(label for label, r in self.runs.items() if r.status == s)}"
                       for s in run_status.counts(r.status for r in self) if s != run_status.OK)
@@ -514,6 +527,57 @@ def fmus(*names: str, implementation: str = "native", fmi_version: int = 2) -> d
     ``fmpy.simulate_fmu`` or any FMI tool. ``implementation`` "native" (C, no Python in
     the host; FMI 2.0 or 3.0) or "python" (pythonfmu, FMI 2.0)."""
     return runner.fmu_files(names or catalogue.KEYS, implementation, fmi_version)
+
+
+@_public
+def export_ssp(scenario: ScenarioLike, path: str | os.PathLike[str], *, set: Mapping[str, Any] | None = None,
+               ci: bool = False, implementation: str | None = None, fmi_version: int | None = None,
+               value: Any = None) -> pathlib.Path:
+    """Write a scenario as an SSP file (``movingbase run NAME --ssp FILE``): SystemStructure.ssd
+    (its FMU instances, connections and parameter values as SSD bindings) with the FMUs it
+    chose; SSP 1.0, or 2.0 where an FMU is FMI 3.0 (``fmi_version=3``). A sweep's run is
+    one system: ``value`` picks the sweep value (default: the first). ``set``, ``ci`` and
+    ``implementation`` as in ``run``. Run it in fmpy with ``simulate_ssp``, in libcosim or
+    ecos as docs/hosts.md shows. Returns the file's path."""
+    from scenarios.ssp import export_ssp as export
+    _flags_given(ci=ci)
+    target = pathlib.Path(path)
+    if target.is_dir() or not target.parent.is_dir():
+        raise runner.OutputError(f"SSP file {spec.shown(target)}: " + (
+            "is a folder" if target.is_dir() else f"its folder {spec.shown(target.parent)} does not exist")
+            + "; give the path of the .ssp file to write")
+    loaded = load_scenario(scenario, set=set, ci=ci)
+    try:
+        prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation, None, fmi_version)
+        if prepared.sweep:
+            items = prepared.sweep[1]
+            if value is not None and value not in items:
+                raise spec.ScenarioError(prepared.source, "value", f"{value!r} is not one of the sweep's values "
+                                         f"({prepared.sweep[0]}: {', '.join(map(repr, items))})")
+            inst, var, converted = spec.sweep_value(prepared, descriptions, items[0] if value is None else value)
+            values[inst][var] = converted
+        elif value is not None:
+            raise spec.ScenarioError(prepared.source, "value", "the scenario has no sweep: give no value")
+    except spec.ScenarioError as exc:
+        raise _as_set(exc, set) from None
+    return export(prepared, paths, values, target)
+
+
+def simulate_ssp(path: str | os.PathLike[str], *, initial_exchange: bool = True) -> np.ndarray:
+    """Run an SSP of ``export_ssp`` in fmpy (``fmpy.ssp.simulate_ssp``, fmpy's own master,
+    plain Jacobi) with what fmpy needs given: the SSD's parameter values as its
+    ``parameter_set`` (fmpy reads the bindings but applies none) and the file's start,
+    step and stop; with ``initial_exchange`` (default) each FMU gets the connected inputs
+    at the start time before its first step, as this kit's master and libcosim do (fmpy as
+    it is steps first with every connected input 0.0: the controller's reference is then
+    the singular zero pose and the run stops at t = 0 with SingularConfigurationError).
+    fmpy's structured array: one row per step, "time" the end of the step, columns
+    "instance.connector"."""
+    from scenarios.ssp import experiment, simulate_exported
+    _flags_given(initial_exchange=initial_exchange)
+    start, step, stop = experiment(path)
+    timing = types.SimpleNamespace(start_time=start, step=step, stop_time=stop)
+    return simulate_exported(path, timing, initial_exchange)
 
 
 class RunWarning(UserWarning):

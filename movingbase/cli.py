@@ -220,11 +220,10 @@ def _run(args, shipped):
 def _export(args, name):
     """--ssp: the scenario (its first sweep value) as an SSP file; the target must be a
     file path whose folder exists."""
+    from movingbase.api import export_ssp
     from scenarios.cosim.fmi import FmuFileError
     from scenarios.runs.estimates import ResourceError
-    from scenarios.runs.runner import prepare, resolve
-    from scenarios.spec import ScenarioError, sweep_value
-    from scenarios.ssp import export_ssp
+    from scenarios.spec import ScenarioError
     target = pathlib.Path(args.ssp)
     if target.is_dir() or not target.parent.is_dir():
         blocker = next((p for p in target.parents if p.exists() and not p.is_dir()), None)
@@ -232,11 +231,7 @@ def _export(args, name):
             f"its folder {target.parent} does not exist"
         sys.exit(f"command error: --ssp {target}: {why}; give the path of the .ssp file to write")
     try:
-        scenario, paths, descriptions, values = prepare(resolve(name), ci=args.ci, implementation=args.implementation)
-        if scenario.sweep:
-            inst, var, value = sweep_value(scenario, descriptions, scenario.sweep[1][0])
-            values[inst][var] = value
-        print(f"SSP written to {export_ssp(scenario, paths, values, target)}")
+        print(f"SSP written to {export_ssp(name, target, ci=args.ci, implementation=args.implementation)}")
     except ScenarioError as exc:
         sys.exit(f"scenario error: {exc}")
     except (ResourceError, FmuFileError) as exc:
