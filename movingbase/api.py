@@ -26,6 +26,7 @@ import io
 import os
 import pathlib
 import sys
+import textwrap
 import time
 import types
 import warnings
@@ -498,6 +499,9 @@ def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: boo
     except spec.ScenarioError as exc:
         raise _as_set(exc, set) from None
     before = runner.pre_run_flags(prepared, paths, descriptions, values, loaded.short, allow_unstable)
+    values_set = f" (set={textwrap.shorten(repr(dict(set)), 200, placeholder=' ...}')})" if set else ""
+    for line in runner.foretold(prepared, before):    # before running: the user may stop and fix it
+        warnings.warn(line.replace(": ", f"{values_set}: ", 1), RunWarning, stacklevel=3)
     outdir = None if out is None else runner.output_folder(out, prepared.source)
     earlier, started = outdir is not None and runner.replaced(outdir), time.time()
     if earlier:
@@ -512,7 +516,6 @@ def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: boo
         print(runner.left_over(outdir, started), file=sys.stderr, flush=True)
     if outdir is not None:
         runner.unlock_folder(outdir)
-    values_set = f" (set={dict(set)!r:.200})" if set else ""
     for r in result:     # shown in a notebook as a warning: a failed run is no result
         if not r.ok:
             said = r.message if r.status == "failed" else f"flagged: {r.message}"

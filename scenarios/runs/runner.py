@@ -322,6 +322,8 @@ def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None,
     with announcing_builds(progress):
         scenario, paths, descriptions, values = prepare(resolve(path), ci, implementation, out, fmi_version)
     before = pre_run_flags(scenario, paths, descriptions, values, ci, allow_unstable)
+    for line in foretold(scenario, before):
+        print(line, file=sys.stderr, flush=True)
     outdir = output_folder(out, scenario.source)
     earlier, started = replaced(outdir), time.time()
     if earlier:
@@ -447,6 +449,19 @@ def pre_run_flags(scenario, paths, descriptions, values, ci=False, allow_unstabl
                                      f"(sweep of {scenario.sweep[0]}): {problem}")
             for problem, labels in by_problem.items()])
     return found
+
+
+def foretold(scenario, before):
+    """What the flags known before the runs (pre_run_flags) say of the motion, as lines to
+    say BEFORE running: a slew cut by the stop time is known from its analytic profile, and
+    a user who waited for a 60 s run to learn it needs 107 s tried twice more."""
+    by_message = {}
+    for label, found in before.items():
+        for flag in found:
+            if flag.kind == "motion_unfinished":
+                by_message.setdefault(flag.message, []).append(label)
+    return [f"{scenario.name}: run{'s' * (len(labels) > 1)} {', '.join(map(repr, labels))} will be flagged "
+            f"motion_unfinished: {message}" for message, labels in by_message.items()]
 
 
 def _no_nan(value):

@@ -590,3 +590,20 @@ def test_an_interrupted_sweep_keeps_the_runs_that_finished(tmp_path, monkeypatch
                                                                           "values": ["none"]}})
     assert metrics["none"]["metrics"] == json.loads(json.dumps(whole["none"].metrics, default=float))
     assert read_records(folder / "none.npz").values.tobytes() == whole["none"].values.tobytes()
+
+
+def test_a_slew_cut_by_its_stop_time_is_told_before_anything_runs(monkeypatch):
+    """The profile is analytic: a 20 s cut of the shipped slew (it ends at 56.2 s, worked by
+    hand in tests/scenarios/runs/test_flags.py) is warned of, naming the values set, before
+    the first run starts (here it is stopped there)."""
+    from scenarios.runs import single
+
+    def stopped(*args, **kwargs):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(single, "run", stopped)
+    with pytest.warns(movingbase.RunWarning) as said, pytest.raises(KeyboardInterrupt):
+        movingbase.run("telescope_slew", set={"stop_time": "20 s"}, progress=False)
+    assert [str(w.message) for w in said] == [
+        "telescope_slew (set={'stop_time': '20 s'}): runs 'none', 'fixed_base', 'moving_base' will be flagged "
+        "motion_unfinished: the slew of 'base' has not ended at the stop time 20 s: the antenna still turns at "
+        "0.583 deg/s; it ends at t = 56.2 s: stop_time >= 57 s"]
