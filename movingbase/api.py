@@ -433,7 +433,7 @@ class Result:
         runs = []
         for run in self._runs:
             kept = self.runs[run.label].records
-            target = folder / f"{run.label}.npz"
+            target = folder / f"{spec.file_label(run.label)}.npz"
             if run.record_path is None or pathlib.Path(str(run.record_path)).resolve() != target.resolve():
                 run = dataclasses.replace(run, record_path=kept.save(target))
             runs.append(run)
@@ -455,7 +455,7 @@ class Result:
         if self.scenario.sweep:
             label = run if run is not None else self[0].label
             self[label]     # a KeyError naming the runs
-            value = next(item for item in self.scenario.sweep[1] if spec.file_label(item) == label)
+            value = next(item for item in self.scenario.sweep[1] if spec.run_label(item) == label)
         elif run is not None and run not in self.runs:
             raise KeyError(f"no run {run!r}; runs: {', '.join(self.runs)}")
         return export_ssp(self.scenario, path, value=value)

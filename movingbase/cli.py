@@ -68,6 +68,10 @@ def _command(argv):
         print(__doc__)
         return
     command, rest = (argv[0], argv[1:]) if argv and argv[0] in COMMANDS else ("run", argv)
+    if command == "run" and argv and not argv[0].startswith("-"):
+        unknown = _unknown_command(argv[0])
+        if unknown:
+            sys.exit(unknown)
     if command == "run":
         return run_command(rest, prog="movingbase run")
     if command == "campaign":
@@ -86,6 +90,19 @@ def _command(argv):
         return f"headline error: {_os_problem(exc)} (--from names the --out of the full runs: movingbase run)"
     except (ValueError, KeyError) as exc:     # a metrics.json that is not the kit's
         return f"headline error: --from {rest[-1] if rest else ''}: results that are not the full runs' ({exc!r:.200})"
+
+
+def _unknown_command(word):
+    """The error for a first word that is neither a command nor a scenario (a file or a
+    shipped name), or None: `movingbase campain x` was read as scenarios 'campain', 'x'."""
+    import difflib
+
+    from scenarios.runs.runner import not_found, resolve
+    if resolve(word).exists():
+        return None
+    near = difflib.get_close_matches(word.lower(), COMMANDS, 1, 0.6)
+    return (f"movingbase: unknown command {word!r}" + (f"; did you mean {near[0]!r}?" if near else "")
+            + f"\n  commands: {', '.join(COMMANDS)} (movingbase --help)\n  or a scenario: {not_found([word])}")
 
 
 def _os_problem(exc):
@@ -190,7 +207,7 @@ def _run(args, shipped):
             errors.append(f"{name}: output error: {exc.filename or args.out}: {exc.strerror or exc}")
             continue
         statuses += [status.of_run(run.failure, run.flags) for run in runs]
-        print(f"{scenario.name}: {status.told(statuses[-len(runs):])}; report {report}")
+        print(f"{scenario.name}: report {report} ({status.told(statuses[-len(runs):])})")
         if args.csv:
             for run in runs:
                 if run.record_path:

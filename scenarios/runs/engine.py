@@ -55,7 +55,7 @@ from scenarios.cosim import fmi, master
 from scenarios.cosim.fmi import content_digest
 from scenarios.runs import flags, metrics, single, status
 from scenarios.runs.estimates import cores
-from scenarios.spec import Link, file_label
+from scenarios.spec import Link, file_label, run_label
 
 RECORDS = ".records.npz"     # a kept run's recorded variables (scenarios.cosim.records), next to <key>.json
 # Runs per Dask task, at most: each task costs the client ~10 ms of CPU (scheduler and
@@ -539,7 +539,7 @@ def run_sweep(scenario, paths, descriptions, values, items, outdir, jobs=None, a
     cases = []
     for item in items:
         inst, name, value = sweep_value(scenario, descriptions, item) if item is not None else (None, None, None)
-        cases.append(("run" if item is None else file_label(item), {inst: {name: value}} if inst else {}))
+        cases.append(("run" if item is None else run_label(item), {inst: {name: value}} if inst else {}))
     job_list, files = prepared_jobs(scenario, paths, values, cases)
     store = Store(pathlib.Path(outdir) / "runs")
     with Engine(jobs, address) as eng:
@@ -555,7 +555,7 @@ def run_sweep(scenario, paths, descriptions, values, items, outdir, jobs=None, a
             raise RuntimeError(f"run {job.label} of {scenario.name} was not run: {outcome.failed.get(job.key)}")
         record, record_path = store.read(job.key), None    # no records: refused before the first row
         if store.path(job.key, RECORDS).exists():
-            record_path = pathlib.Path(outdir) / f"{job.label}.npz"
+            record_path = pathlib.Path(outdir) / f"{file_label(job.label)}.npz"
             write_bytes(record_path, store.path(job.key, RECORDS).read_bytes())
         run = master.Run(job.label, record_path, record.get("steps", 0), record.get("run_time_s", 0.0),
                          record.get("sim_time_s", 0.0), record.get("metrics", {}),

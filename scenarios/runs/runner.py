@@ -124,7 +124,7 @@ def interrupted_message(scenario, interrupted, outdir):
     where = f": records, metrics.json and a report marked interrupted in {outdir}" if outdir and interrupted.runs \
         else " (in memory only: nothing is kept without out=)" if interrupted.runs else ""
     values = [v for v in (scenario.sweep[1] if scenario.sweep else [])
-              if spec.file_label(v) in interrupted.left]
+              if spec.run_label(v) in interrupted.left]
     rest = (f"set={{'sweep': {{'parameter': {scenario.sweep[0]!r}, 'values': {values!r}}}}}"
             if scenario.sweep else "the same call")
     return (f"{scenario.name} interrupted during run {interrupted.stopped!r}: runs finished: {kept}{where}; "
@@ -421,7 +421,7 @@ def sweep_runs(scenario, descriptions, values):
             continue
         inst, name, value = spec.sweep_value(scenario, descriptions, item)
         params[inst][name] = value
-        yield spec.file_label(item), params
+        yield spec.run_label(item), params
 
 
 def pre_run_flags(scenario, paths, descriptions, values, ci=False, allow_unstable=False):

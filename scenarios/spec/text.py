@@ -79,11 +79,16 @@ def check_name(source, key, value, error=ScenarioError):
     return value
 
 
+def run_label(value):
+    """The label of a run made from a value as written (a sweep value): the user's text
+    ("1.8e6 N/m"), as results, tables and legends name the run."""
+    return value if isinstance(value, str) else repr(value)
+
+
 def file_label(value):
-    """The label of a run made from a value as written (a sweep value): also a file name,
-    so every character but letters, digits and ' _.,+=-' becomes '_' ("10 N/m" -> "10 N_m")."""
-    text = value if isinstance(value, str) else repr(value)
-    return re.sub(r"[^A-Za-z0-9 _.,+=-]", "_", text)[:100] or "_"
+    """The file name of a run's label (run_label): every character but letters, digits and
+    ' _.,+=-' becomes '_' ("10 N/m" -> "10 N_m"); file names only, never shown as its label."""
+    return re.sub(r"[^A-Za-z0-9 _.,+=-]", "_", run_label(value))[:100] or "_"
 
 
 def read_toml(text, source, error=ScenarioError):

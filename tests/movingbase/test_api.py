@@ -607,3 +607,21 @@ def test_a_slew_cut_by_its_stop_time_is_told_before_anything_runs(monkeypatch):
         "telescope_slew (set={'stop_time': '20 s'}): runs 'none', 'fixed_base', 'moving_base' will be flagged "
         "motion_unfinished: the slew of 'base' has not ended at the stop time 20 s: the antenna still turns at "
         "0.583 deg/s; it ends at t = 56.2 s: stop_time >= 57 s"]
+
+
+def test_labels_are_the_values_as_typed_but_in_file_names(tmp_path):
+    """A kp sweep of "1.8e6 N/m": the runs are labelled as typed (result["1.8e6 N/m"], the
+    tables, metrics.json, the legends); only the records' file name makes the '/' a '_'."""
+    values = ["1.8e6 N/m", "2.2e6 N/m"]
+    result = movingbase.run(NAME, ci=True, progress=False, out=tmp_path,
+                            set={"sweep": {"parameter": "controller.kp", "values": values}})
+    assert list(result.runs) == values and result["1.8e6 N/m"] is result[0]
+    assert result["1.8e6 N/m"].run.record_path.name == "1.8e6 N_m.npz"
+    folder = tmp_path / NAME
+    assert list(json.loads((folder / "metrics.json").read_text())) == values
+    assert sorted(p.name for p in folder.glob("*.npz")) == ["1.8e6 N_m.npz", "2.2e6 N_m.npz"]
+    assert "| 1.8e6 N/m |" in (folder / "report.md").read_text()
+    legend = [t.get_text() for t in result.plot()[0].legends[0].get_texts()]
+    assert legend == values, legend
+    if importlib.util.find_spec("pandas"):
+        assert list(result.metrics_table().index) == values
