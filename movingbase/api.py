@@ -181,7 +181,12 @@ def _overrides(source: str, values: Any) -> dict[str, Any]:
 class Charts(list["Figure"]):
     """Figures that show themselves: a notebook cell ending in ``result.plot()`` draws
     them (as python-control's ControlPlot does), a script saves them (``save``). A list of
-    matplotlib Figures (not pyplot's: drawing them leaves the caller's figures alone)."""
+    matplotlib Figures (not pyplot's: drawing them leaves the caller's figures alone);
+    ``names`` the file name of each (the report's: "leg_error_vs_time")."""
+
+    def __init__(self, figures: Any = (), names: Sequence[str] = ()):
+        super().__init__(figures)
+        self.names = list(names)
 
     def _repr_html_(self) -> str:
         images = []
@@ -192,9 +197,11 @@ class Charts(list["Figure"]):
         return "<br/>".join(images)
 
     def save(self, folder: str | os.PathLike[str], stem: str = "chart") -> list[pathlib.Path]:
-        """Write each figure as ``folder/<stem>_<k>.png``; their paths."""
+        """Write each figure as ``folder/<its name>.png`` (the names report.md gives them;
+        ``<stem>_<k>.png`` for a figure without one); their paths."""
         made: pathlib.Path = runner.make_folder(folder)
-        paths = [made / f"{stem}_{k}.png" for k in range(1, len(self) + 1)]
+        names = self.names + [f"{stem}_{k}" for k in range(len(self.names) + 1, len(self) + 1)]
+        paths = [made / f"{spec.file_label(name)}.png" for name in names[:len(self)]]
         for figure, path in zip(self, paths):
             figure.savefig(path, dpi=120)
         return paths
@@ -202,6 +209,22 @@ class Charts(list["Figure"]):
     def __repr__(self) -> str:
         titles = "; ".join(t.split("\n")[0] for t in (f.get_suptitle() for f in self) if t)
         return f"<Charts: {len(self)} figure{'s' * (len(self) != 1)}{': ' + titles if titles else ''}>"
+
+
+_SMALL = {"m": ("nm", "µm", "mm", "m"), "rad": ("nrad", "µrad", "mrad", "rad")}   # their units by 1e-9 .. 1
+_POSE = ("x", "y", "z", "roll", "pitch", "yaw")      # a 6-vector of m, m, m, rad, rad, rad
+
+
+def _from_start(name: str, unit: str, values: np.ndarray, labels: list[str]) -> tuple[str, str, np.ndarray, list[str]]:
+    """Positions or angles (rows x n, one unit) as their change from their first row, in
+    the unit the largest change reads best in (µm, µrad, ...): a platform 2.68 m below the
+    base moving by microns is drawn as those microns, not as a flat line at -2.68 m."""
+    change = values - values[:1]
+    largest = float(np.nanmax(np.abs(change))) if change.size and np.isfinite(change).any() else 0.0
+    power = min(3, max(0, int(np.floor(np.log10(largest) / 3)) + 3)) if largest > 0 else 1
+    shown = _SMALL[unit][power]
+    start = f"from {values[0, 0]:.6g} {unit}" if values.shape[1] == 1 and len(values) else "from the start"
+    return name, f"{shown}, {start}", change / 10.0 ** (3 * power - 9), labels
 
 
 def _html_table(head: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
@@ -321,16 +344,23 @@ class RunResult:
         if not chosen:
             raise ValueError(f"run {self.label}: name the variables to plot; recorded: "
                              f"{', '.join(self._variables()) or 'nothing'}")
-        columns = []     # (label, unit, rows x n): a vector's components apart by unit (a pose: m and rad)
+        columns = []     # (label, unit, rows x n, the lines' labels)
         for name in chosen:
             values = self[name].reshape(len(self.time), -1)
             parts = [name] if name in self.records.names else [n for n in self.names if n.startswith(name + "[")]
+            if [self.units[p] for p in parts] == ["m"] * 3 + ["rad"] * 3:   # a pose: each component apart, named
+                columns += [_from_start(f"{part} {_POSE[k]}", self.units[part], values[:, [k]], [""])
+                            for k, part in enumerate(parts)]
+                continue
             for unit in dict.fromkeys(self.units[p] for p in parts):
                 mine = [k for k, p in enumerate(parts) if self.units[p] == unit]
                 shown = name if len(mine) == len(parts) else f"{name}[{mine[0] + 1}:{mine[-1] + 1}]"
-                columns.append((shown, unit, values[:, mine], [parts[k][len(name):] for k in mine]))
+                labels = [parts[k][len(name):] for k in mine]
+                columns.append(_from_start(shown, unit, values[:, mine], labels) if unit in _SMALL else
+                               (shown, unit, values[:, mine], labels))
         status = "" if self.ok else self.message if self.status == "failed" else f"FLAGGED: {self.message}"
-        return Charts([report.variables_chart(self.label, self.time, columns, status)])
+        return Charts([report.variables_chart(self.label, self.time, columns, status)],
+                      [f"{self.label}_{'_'.join(chosen)}"])
 
     def _repr_html_(self) -> str:
         state = html.escape(self.status)
@@ -420,7 +450,8 @@ class Result:
         panels = [report._error_chart(self.scenario, self._runs, m, io.BytesIO()) for m in tracked]
         if tracked and len(self._runs) > 1:
             panels.append(report._summary_chart(self.scenario, self._runs, tracked, io.BytesIO()))
-        return Charts(next(iter(p.values())).figure for p in panels)
+        names = [f"{m.name.replace(' ', '_')}_vs_time" for m in tracked] + ["summary"] * (len(panels) > len(tracked))
+        return Charts((next(iter(p.values())).figure for p in panels), names)
 
     def report(self, out: str | os.PathLike[str]) -> pathlib.Path:
         """Write what ``run(..., out=out)`` and ``movingbase run --out OUT`` write, where they

@@ -48,7 +48,6 @@ import time
 from itertools import islice
 
 import numpy as np
-from tqdm import tqdm
 
 from fmu_src.atomic import replacing, write_bytes
 from scenarios.cosim import fmi, master
@@ -479,7 +478,7 @@ class Engine:
 
         batches = iter(lambda: list(islice(queue, size)), [])
 
-        bar = tqdm(total=count, desc=f"{name} ({len(skipped)} of {total} on disk)", unit="run",
+        bar = single.progress_bar(total=count, desc=f"{name} ({len(skipped)} of {total} on disk)", unit="run",
                    disable=not progress, smoothing=0.1)
         try:
             for batch in islice(batches, window):

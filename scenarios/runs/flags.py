@@ -458,7 +458,8 @@ def check(scenario, prediction, allow_unstable=False):
             hint += " or " + " or ".join(others)
         raise ScenarioError(scenario.source, "step", f"{text}. {hint[0].upper() + hint[1:]}; or run it anyway "
                                                      "with --allow-unstable (allow_unstable=True): it is then flagged")
-    return flags + [Flag("step_beyond_limit", text + " (run with --allow-unstable)")]
+    return flags + [Flag("step_beyond_limit", text + " (run anyway: allow_unstable=True, --allow-unstable on the "
+                                                       "command line)")]
 
 
 # ------------------------------------------------------------------ during the run
@@ -705,4 +706,7 @@ def run_flags(watch, run, instances, before=()):
     out = list(before) + (watch.flags(warnings) if watch else [])
     if run.failure:
         out.append(Flag("cut_short", f"stopped at t = {run.sim_time:g} s of the run: {run.failure}"))
+        if "StrokeError" in run.failure:   # the rows near the end, the plant's step beyond it: one story
+            out = [Flag(f.kind, f"{f.message} in its recorded rows, and left it between them (cut_short)")
+                   if f.kind == "stroke" else f for f in out]
     return out

@@ -12,8 +12,6 @@ import pathlib
 import sys
 import time
 
-from tqdm import tqdm
-
 from fmu_src import atomic, catalogue
 from fmu_src.native_build import ensure_native, ensure_native3
 from fmu_src.python_build import ensure_built
@@ -367,8 +365,9 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
             run.flags[:0] = before.get(run.label, ())
     for label, params in todo:
         desc = f"{scenario.name} [{label}]"
-        bar = tqdm(total=100, desc=f"{desc} loading and initialising the FMUs", unit="%", disable=not progress,
-                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
+        bar = single.progress_bar(total=100, desc=f"{desc} loading and initialising the FMUs", unit="%",
+                                  disable=not progress,
+                                  bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
 
         def update(fraction, bar=bar, desc=desc, begun=[]):
             if not begun:   # stepping has begun: the FMUs are loaded

@@ -2,7 +2,9 @@
 the guard (scenarios.runs.flags), its metrics taken from the rows as they are recorded, and
 the run's flags when it ends. Here, above the co-simulation layer, so that the master
 knows nothing of what watches it."""
+import importlib.util
 import pathlib
+import sys
 import time
 
 import numpy as np
@@ -12,6 +14,22 @@ from scenarios.cosim.master import Loop, Recorder, Run, RunFailed, failure_line,
 from scenarios.runs import flags as run_flags
 from scenarios.spec import file_label
 
+
+def progress_bar(**kwargs):
+    """A tqdm bar; in a Jupyter kernel its notebook form (a widget, where ipywidgets is
+    installed), else one that redraws at most every NOTEBOOK_INTERVAL s: a notebook keeps
+    every carriage-return update of a terminal bar in its saved output."""
+    from tqdm import tqdm
+    if "ipykernel" not in sys.modules:
+        return tqdm(**kwargs)
+    if importlib.util.find_spec("ipywidgets"):
+        from tqdm.notebook import tqdm as notebook_tqdm
+        kwargs.pop("bar_format", None)     # the widget draws its own bar
+        return notebook_tqdm(**kwargs)
+    return tqdm(mininterval=NOTEBOOK_INTERVAL, **kwargs)
+
+
+NOTEBOOK_INTERVAL = 5.0
 CHUNK = 2048   # most macro steps per C call: Ctrl-C is seen within one (~10 ms native, ~0.1 s pythonfmu)
 
 

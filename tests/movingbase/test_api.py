@@ -498,22 +498,33 @@ def test_a_run_plots_its_variables_with_their_units_and_its_status(result, cut_s
     run = result["moving_base"]
     (figure,) = run.plot("plant.pose", "controller.leg_force")
     axes = figure.axes
-    # the pose's components apart by unit: metres and radians are no one axis
-    assert [a.get_ylabel() for a in axes] == ["plant.pose[1:3]\n[m]", "plant.pose[4:6]\n[rad]",
-                                              "controller.leg_force\n[N]"]
-    np.testing.assert_array_equal(axes[1].get_lines()[2].get_ydata(), run["plant.pose"][:, 5])
-    np.testing.assert_array_equal(axes[2].get_lines()[0].get_xdata(), run.time)
-    assert [l.get_label() for l in axes[2].get_lines()] == [f"[{k}]" for k in range(1, 7)]
+    # the pose's components apart, named, each as its change from its start in the unit that
+    # reads (z = -2.68 m once flattened x and y, and rotations were drawn in rad)
+    labels = [a.get_ylabel() for a in axes]
+    assert labels[:3] == ["plant.pose[1] x\n[mm, from 0 m]", "plant.pose[2] y\n[mm, from 0 m]",
+                          "plant.pose[3] z\n[mm, from -2.6815 m]"], labels
+    assert [label.split("\n")[0] for label in labels[3:]] == ["plant.pose[4] roll", "plant.pose[5] pitch",
+                                                               "plant.pose[6] yaw", "controller.leg_force"]
+    pose, scale = run["plant.pose"], {"mm": 1e-3, "µrad": 1e-6, "nrad": 1e-9}
+    for k, ax in enumerate(axes[:6]):
+        unit = ax.get_ylabel().split("[")[-1].split(",")[0]
+        np.testing.assert_allclose(ax.get_lines()[0].get_ydata() * scale[unit], pose[:, k] - pose[0, k],
+                                   rtol=1e-12, atol=0)
+        assert 1 <= np.abs(ax.get_lines()[0].get_ydata()).max() < 1000      # the unit its largest change reads in
+    np.testing.assert_array_equal(axes[6].get_lines()[0].get_xdata(), run.time)
+    assert [l.get_label() for l in axes[6].get_lines()] == [f"[{k}]" for k in range(1, 7)]
     # without names: what the scenario's metrics read, each recorded
     default = run.plot()[0]
-    assert "plant.leg_length\n[m]" in [a.get_ylabel() for a in default.axes]
+    assert "plant.leg_length\n[mm, from the start]" in [a.get_ylabel() for a in default.axes]
     failed = cut_short[0]["none"].plot("plant.pose")[0]
     assert failed.get_suptitle().startswith("run none: FAILED (cut_short")
     with pytest.raises(KeyError, match="no recorded variable 'pose'; did you mean 'plant.pose'"):
         run.plot("pose")
     with pytest.raises(KeyError, match="no recorded variable 'plant.leg_lenght'; did you mean 'plant.leg_length'"):
         run["plant.leg_lenght"]
-    assert [p.name for p in run.plot("plant.pose").save(tmp_path / "c")] == ["chart_1.png"]
+    assert [p.name for p in run.plot("plant.pose").save(tmp_path / "c")] == ["moving_base_plant.pose.png"]
+    assert [p.name for p in result.plot().save(tmp_path / "c")] == ["leg_error_vs_time.png", "pose_error_vs_time.png",
+                                                                    "summary.png"]      # the report's names
 
 
 def test_tables_hold_numbers_with_their_units(result):
