@@ -17,14 +17,15 @@ as an SSP file and ``movingbase.simulate_ssp`` its run in fmpy (movingbase/api.p
 import typing as _typing
 
 __version__ = "0.2.0"
-__all__ = ["run", "campaign", "budget", "load_scenario", "fmus", "export_ssp", "simulate_ssp", "Result", "RunResult",
-           "CampaignResult", "Charts",
+__all__ = ["run", "campaign", "budget", "load_scenario", "fmus", "export_ssp", "simulate_ssp", "loop_analysis",
+           "Result", "RunResult", "CampaignResult", "Charts", "LoopAnalysis",
            "RunWarning", "ScenarioError", "__version__"]
 
 if _typing.TYPE_CHECKING:
     from movingbase.api import (
         CampaignResult,
         Charts,
+        LoopAnalysis,
         Result,
         RunResult,
         RunWarning,
@@ -33,6 +34,7 @@ if _typing.TYPE_CHECKING:
         export_ssp,
         fmus,
         load_scenario,
+        loop_analysis,
         run,
         simulate_ssp,
     )

@@ -25,6 +25,7 @@ import html
 import io
 import os
 import pathlib
+import re
 import sys
 import textwrap
 import time
@@ -122,7 +123,10 @@ def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = Non
         loaded = spec.load(path)
         overrides = {**(loaded.ci if ci else {}), **top}
         if overrides:
-            loaded = spec.load(path, overrides=overrides)
+            try:
+                loaded = spec.load(path, overrides=overrides)
+            except spec.ScenarioError as exc:
+                raise _as_set(exc, top) from None
         loaded.short = bool(ci)
     for key, value in set.items():
         if "." not in key:
@@ -149,15 +153,31 @@ def _set_source(source: str) -> str:
 
 
 def _as_set(error: spec.ScenarioError, given: Mapping[str, Any] | None) -> spec.ScenarioError:
-    """``error`` with each problem in a parameter that ``given`` (run's ``set``) set told as
-    ``set['inst.name']``, as set's own refusals are: the value is the caller's, not the file's."""
+    """``error`` told as the caller's where ``given`` (``set``) is to blame, as set's own
+    refusals are (a shipped file named first reads as broken): a problem in a parameter or
+    top-level key it set as ``set['inst.name']`` / ``set['stop_time']``, one whose text
+    names a value it set ("declination = ...", "stop_time (0.5 s)") from ``set=``. A
+    problem told for several keys in the same words (a source below the horizon: once per
+    sweep value) is told once."""
     paths = {f"fmus.{k.split('.', 1)[0]}.parameters.{k.split('.', 1)[1]}": k for k in given or {} if "." in k}
-    told = []
+    paths.update({k: k for k in given or {} if "." not in k})
+    named = [k.split(".", 1)[-1] for k in given or {}]
+    told, seen = [], {}
     for source, key, problem in error.problems:
-        path = next((p for p in paths if key == p or key.startswith(p + "[")), None)
-        told.append(spec.ScenarioError(source, key, problem) if path is None else
-                    spec.ScenarioError(_set_source(source), f"set[{paths[path]!r}]{key[len(path):]}", problem))
-    return spec.ScenarioError.joined(told)
+        if (source, problem) in seen:
+            seen[source, problem].append(key)
+            continue
+        seen[source, problem] = [key]
+        path = next((p for p in paths if key == p or key.startswith((p + "[", p + "."))), None)
+        if path is not None:
+            told.append([_set_source(source), f"set[{paths[path]!r}]{key[len(path):]}", problem])
+        elif any(re.search(rf"\b{re.escape(name)}\b( = |\s*\()", problem) for name in named):
+            told.append([_set_source(source), key, problem])
+        else:
+            told.append([source, key, problem])
+        told[-1].append(seen[source, problem])
+    return spec.ScenarioError.joined([spec.ScenarioError(source, key, problem + (
+        f" (the same at {', '.join(keys[1:])})" if len(keys) > 1 else "")) for source, key, problem, keys in told])
 
 
 def _overrides(source: str, values: Any) -> dict[str, Any]:
@@ -529,7 +549,10 @@ def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: boo
             prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation, out)
     except spec.ScenarioError as exc:
         raise _as_set(exc, set) from None
-    before = runner.pre_run_flags(prepared, paths, descriptions, values, loaded.short, allow_unstable)
+    try:
+        before = runner.pre_run_flags(prepared, paths, descriptions, values, loaded.short, allow_unstable)
+    except spec.ScenarioError as exc:
+        raise _as_set(exc, set) from None
     values_set = f" (set={textwrap.shorten(repr(dict(set)), 200, placeholder=' ...}')})" if set else ""
     for line in runner.foretold(prepared, before):    # before running: the user may stop and fix it
         warnings.warn(line.replace(": ", f"{values_set}: ", 1), RunWarning, stacklevel=3)
@@ -580,6 +603,14 @@ def export_ssp(scenario: ScenarioLike, path: str | os.PathLike[str], *, set: Map
         raise runner.OutputError(f"SSP file {spec.shown(target)}: " + (
             "is a folder" if target.is_dir() else f"its folder {spec.shown(target.parent)} does not exist")
             + "; give the path of the .ssp file to write")
+    prepared, paths, _, values = _one_run(scenario, set, ci, value, implementation, fmi_version)
+    return export(prepared, paths, values, target)
+
+
+def _one_run(scenario: ScenarioLike, set: Mapping[str, Any] | None, ci: bool, value: Any,
+             implementation: str | None = None, fmi_version: int | None = None) -> tuple:
+    """(scenario, FMU paths, descriptions, values) of one run: the sweep value ``value``
+    applied (default the first), every check done as before a run."""
     loaded = load_scenario(scenario, set=set, ci=ci)
     try:
         prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation, None, fmi_version)
@@ -594,7 +625,101 @@ def export_ssp(scenario: ScenarioLike, path: str | os.PathLike[str], *, set: Map
             raise spec.ScenarioError(prepared.source, "value", "the scenario has no sweep: give no value")
     except spec.ScenarioError as exc:
         raise _as_set(exc, set) from None
-    return export(prepared, paths, values, target)
+    return prepared, paths, descriptions, values
+
+
+class LoopAnalysis:
+    """A scenario's control loop as python-control objects, as the guard predicts it before
+    a run (scenarios/runs/flags.py, controller/design.py): the loop of the controller with
+    the lowest predicted step limit, each leg-space mode along the motion a SISO loop.
+
+    ``step`` the scenario's communication step [s]; ``step_limit`` the step [s] beyond
+    which a mode goes unstable (the guard refuses a run beyond it); ``observer_limit`` the
+    disturbance observer's bandwidth limit [Hz] at this step (None without an observer);
+    ``masses`` the distinct modes' masses [kg], lightest first; ``gains``
+    (controller.pid.PIDGains) and ``model`` (controller.design.LoopModel: master,
+    extrapolation, reflected mass, actuator, sensors, observer) as the scenario sets them.
+    ``open_loop(k)`` / ``closed_loop(k)`` mode k's discrete loop (python-control LTI, dt =
+    step; default the heaviest), ``margins()`` the heaviest and worst modes' margins
+    (controller.design.Design), ``table()`` every mode's. The model is linear: it leaves
+    out gravity stiffness, Coulomb friction and saturation."""
+
+    def __init__(self, name: str, prediction: run_flags.Prediction):
+        from controller import design
+        self._design = design
+        self.name, self.controller = name, prediction.controller
+        self.step, self.step_limit = prediction.step, prediction.limit
+        self.gains, self.model = prediction.gains, prediction.loop
+        self.masses = design.distinct_modes(prediction.masses)
+
+    @functools.cached_property
+    def observer_limit(self) -> float | None:
+        """The disturbance observer's bandwidth [Hz] beyond which a mode goes unstable at this
+        step (None without an observer; bisected: seconds)."""
+        if self.model.observer_bandwidth <= 0:
+            return None
+        return float(self._design.observer_limit(self.masses, self.gains, self.step, self.model))
+
+    @property
+    def stable(self) -> bool:
+        """True if the step is within the predicted limit (the guard runs it)."""
+        return self.step <= self.step_limit * (1 + 1e-9)
+
+    def open_loop(self, mode: int = -1) -> Any:
+        """Mode ``mode``'s loop transfer L(z) (python-control StateSpace, dt = step): for
+        ``control.stability_margins``, ``bode_plot``, ``nyquist_plot``."""
+        return self._design.mode_loop(self.masses[mode], self.gains, self.step, self.model)
+
+    def closed_loop(self, mode: int = -1) -> Any:
+        """Mode ``mode``'s closed loop L / (1 + L) (its poles: ``.poles()``)."""
+        import control
+        return control.feedback(self.open_loop(mode))
+
+    def margins(self) -> Any:
+        """controller.design.Design: the heaviest mode's crossover [Hz] and margins, the worst
+        phase and gain margin over every mode (ValueError if a mode is unstable)."""
+        return self._design.modal_margins(self.gains, self.step, self.masses, self.model)
+
+    def table(self) -> pandas.DataFrame:
+        """One row per mode: its mass, crossover, phase and gain margins (python-control's,
+        on the frequency response up to Nyquist) and the closed loop's largest pole radius
+        (< 1: stable); units in ``attrs``."""
+        pd = _pandas()
+        rows = []
+        for k, mass in enumerate(self.masses):
+            loop = self.open_loop(k)
+            w_gc, pm, gm, lower = self._design.loop_margins(loop)
+            with np.errstate(divide="ignore"):     # no lower gain margin: -inf dB
+                decibels = 20 * np.log10([gm, lower])
+            rows.append({"mass": float(mass), "crossover": float(w_gc / (2 * np.pi)), "phase margin": float(pm),
+                         "gain margin": float(decibels[0]), "lower gain margin": float(decibels[1]),
+                         "pole radius": float(np.abs(self.closed_loop(k).poles()).max())})
+        table = pd.DataFrame(rows)
+        table.attrs["units"] = {"mass": "kg", "crossover": "Hz", "phase margin": "deg", "gain margin": "dB",
+                                "lower gain margin": "dB", "pole radius": "1"}
+        return table
+
+    def __repr__(self) -> str:
+        observer = "" if self.observer_limit is None else (
+            f"; observer {self.model.observer_bandwidth:g} Hz, limit {self.observer_limit:.3g} Hz")
+        return (f"<LoopAnalysis {self.name!r} {self.controller!r}: step {self.step * 1e3:g} ms, predicted limit "
+                f"{self.step_limit * 1e3:.4g} ms ({'stable' if self.stable else 'UNSTABLE'}); {len(self.masses)} "
+                f"modes {self.masses[0]:.0f}..{self.masses[-1]:.0f} kg{observer}>")
+
+
+@_public
+def loop_analysis(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: bool = False,
+                  value: Any = None) -> LoopAnalysis:
+    """The scenario's control loop as the guard predicts it (LoopAnalysis): the predicted
+    step limit, the observer's limit, each leg-space mode's loop as python-control objects
+    and their margins; no run. ``value`` picks a sweep value (default the first); ``set``
+    and ``ci`` as in ``run``. ScenarioError if the scenario closes no loop the kit models."""
+    prepared, paths, descriptions, values = _one_run(scenario, set, ci, value)
+    prediction = run_flags.predict(prepared, paths, descriptions, values, ci=True)
+    if prediction is None:
+        raise spec.ScenarioError(prepared.source, "fmus", "no control loop the kit models (a controller FMU "
+                                 "closing a loop of fmu_src/catalogue.py's CONTROL_LOOPS)")
+    return LoopAnalysis(prepared.name, prediction)
 
 
 def simulate_ssp(path: str | os.PathLike[str], *, initial_exchange: bool = True) -> np.ndarray:

@@ -68,7 +68,7 @@ def _command(argv):
         print(__doc__)
         return
     command, rest = (argv[0], argv[1:]) if argv and argv[0] in COMMANDS else ("run", argv)
-    if command == "run" and argv and not argv[0].startswith("-"):
+    if argv and argv[0] not in COMMANDS and not argv[0].startswith("-"):
         unknown = _unknown_command(argv[0])
         if unknown:
             sys.exit(unknown)

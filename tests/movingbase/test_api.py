@@ -97,7 +97,7 @@ def test_a_bad_set_value_is_refused_as_the_file_s_value_is(key, value, written, 
     (_, file_key, problem), = in_file.value.problems
     (_, set_key, set_problem), = from_set.value.problems
     assert set_problem == problem       # the same check; told as set's value where set gave it
-    assert set_key == (f"set[{key!r}]" if "." in key else file_key)
+    assert set_key == f"set[{key!r}]"    # a top-level key too (it was told as the file's stop_time)
 
 
 @pytest.mark.parametrize("changes, problem", [
@@ -481,6 +481,28 @@ def test_a_bad_set_value_is_told_as_set_s_not_as_the_file_s(given, told):
     assert told in str(refused.value) and "fmus.base.parameters" not in str(refused.value)
     # told as the caller's set=, not as a fault of the shipped file
     assert str(refused.value).startswith("set= for telescope_slew.toml: set['b"), str(refused.value)
+
+
+@pytest.mark.parametrize("scene, given, told", [
+    ("telescope_slew", {"step": "5 ms"}, "set['step']: runs 'none', 'fixed_base', 'moving_base' (sweep of "
+                                         "controller.feedforward): 5 ms is beyond the predicted stability limit 2 ms"),
+    ("telescope_slew", {"stop_time": "0.5 s"}, "metrics[0].from: '5 s' lies at or after stop_time (0.5 s): the "
+                                               "metric would count nothing (the same at metrics[1].from, "
+                                               "metrics[2].from, metrics[4].from)"),
+    ("telescope_slew", {"sweep": {"parameter": "controller.kp", "values": ["1 N"]}},
+     "set['sweep'].values[0]: '1 N' is in N; expected a quantity in N/m"),
+    ("keyhole_tracking", {"base.declination": "-80 deg"}, "fmus.base.parameters: profile 'sidereal' with "
+                                                          "right_ascension = '222.32311789485317 deg', declination = "
+                                                          "'-80 deg'")])
+def test_set_s_top_level_keys_sweep_and_values_are_blamed_on_set_once_each(scene, given, told):
+    """Mistakes in set= beyond one parameter's own value (a top-level key, the step, the sweep,
+    a declination that puts the source below the horizon) were told as the shipped file's,
+    the stop time's four times over and the horizon's once per sweep value."""
+    with pytest.raises(spec.ScenarioError) as refused:
+        movingbase.run(scene, set=given, progress=False)
+    said = str(refused.value)
+    assert said.startswith(f"set= for {scene}.toml: {told}"), said
+    assert len(said.splitlines()) == 1 and said.count("below the horizon") <= 1, said
 
 
 # ------------------------------------------------------------------ what a notebook shows

@@ -25,3 +25,6 @@ def test_a_scenario_name_is_still_a_run_and_a_near_one_says_which(capsys):
     with pytest.raises(SystemExit) as done:       # a shipped name goes to run (here its --help)
         cli.main(["telescope_slew", "--help"])
     assert done.value.code == 0 and "usage: movingbase run" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as done:       # and so does the command's own name
+        cli.main(["run", "--help"])
+    assert done.value.code == 0 and "usage: movingbase run" in capsys.readouterr().out
