@@ -162,22 +162,16 @@ def _as_set(error: spec.ScenarioError, given: Mapping[str, Any] | None) -> spec.
     paths = {f"fmus.{k.split('.', 1)[0]}.parameters.{k.split('.', 1)[1]}": k for k in given or {} if "." in k}
     paths.update({k: k for k in given or {} if "." not in k})
     named = [k.split(".", 1)[-1] for k in given or {}]
-    told, seen = [], {}
+    told = []
     for source, key, problem in error.problems:
-        if (source, problem) in seen:
-            seen[source, problem].append(key)
-            continue
-        seen[source, problem] = [key]
         path = next((p for p in paths if key == p or key.startswith((p + "[", p + "."))), None)
         if path is not None:
-            told.append([_set_source(source), f"set[{paths[path]!r}]{key[len(path):]}", problem])
+            told.append(spec.ScenarioError(_set_source(source), f"set[{paths[path]!r}]{key[len(path):]}", problem))
         elif any(re.search(rf"\b{re.escape(name)}\b( = |\s*\()", problem) for name in named):
-            told.append([_set_source(source), key, problem])
+            told.append(spec.ScenarioError(_set_source(source), key, problem))
         else:
-            told.append([source, key, problem])
-        told[-1].append(seen[source, problem])
-    return spec.ScenarioError.joined([spec.ScenarioError(source, key, problem + (
-        f" (the same at {', '.join(keys[1:])})" if len(keys) > 1 else "")) for source, key, problem, keys in told])
+            told.append(spec.ScenarioError(source, key, problem))
+    return spec.ScenarioError.joined(told)     # each problem once
 
 
 def _overrides(source: str, values: Any) -> dict[str, Any]:

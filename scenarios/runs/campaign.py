@@ -35,6 +35,7 @@ one row per run, read back from the files.
 """
 import csv
 import dataclasses
+import difflib
 import itertools
 import json
 import pathlib
@@ -163,6 +164,12 @@ def _is_quantity(value):
         return False
 
 
+def _near(name, names):
+    """"; did you mean 'lever_arm'?" for a mistyped parameter (vectors by their name), or ''."""
+    near = difflib.get_close_matches(name, list(dict.fromkeys(n.split("[", 1)[0] for n in names)), 1, 0.6)
+    return f"; did you mean {near[0]!r}?" if near else ""
+
+
 def _label(value):
     return value if isinstance(value, str) else repr(value)
 
@@ -272,7 +279,8 @@ def parse(text, source="<string>", base_dir=".", ci=False):
         variables = {v.name: v for v in descriptions[inst].modelVariables}
         targets = spec.expand(variables, key)
         if not targets or any(variables[t].causality not in ("parameter", "input") for t in targets):
-            raise CampaignError(source, where, f"{inst} ({base.fmus[inst]}) has no parameter {name!r}")
+            raise CampaignError(source, where, f"{inst} ({base.fmus[inst]}) has no parameter {name!r}"
+                                + _near(name, [v for v, var in variables.items() if var.causality == "parameter"]))
         if (inst, name) in connected or any((inst, t) in connected for t in targets):
             raise CampaignError(source, where, f"{key} is an input that {path.name} connects: the connection "
                                 "feeds it in every run, a value set here would be ignored")
@@ -384,7 +392,8 @@ def _sample(source, table, base, descriptions):
         found = {v.name: v for v in descriptions[inst].modelVariables}
         targets = spec.expand(found, key)
         if not targets:
-            raise CampaignError(source, where, f"{inst} ({base.fmus[inst]}) has no parameter {name!r}")
+            raise CampaignError(source, where, f"{inst} ({base.fmus[inst]}) has no parameter {name!r}"
+                                + _near(name, [v for v, var in found.items() if var.causality == "parameter"]))
         if any(found[t].causality != "parameter" for t in targets):
             raise CampaignError(source, where, f"{key} is an {found[targets[0]].causality}, not a parameter: a sample "
                                 "draws the deviations of parameters")

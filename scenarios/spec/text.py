@@ -21,9 +21,16 @@ class ScenarioError(ValueError):
 
     @classmethod
     def joined(cls, errors):
-        """One error carrying every problem of ``errors``, in order."""
+        """One error carrying every problem of ``errors``, in order, each told once: a
+        problem told in the same words for several keys (a parameter a campaign does not
+        have, once per value; a source below the horizon, once per sweep value) is told at
+        the first key, the others named after it."""
         error = cls(*errors[0].problems[0])
-        error.problems = [p for e in errors for p in e.problems]
+        keys = {}
+        for source, key, problem in (p for e in errors for p in e.problems):
+            keys.setdefault((source, problem), []).append(key)
+        error.problems = [(source, found[0], problem + (f" (the same at {', '.join(found[1:])})" if len(found) > 1
+                                                         else "")) for (source, problem), found in keys.items()]
         error.args = ("\n".join(f"{shown(s)}: {k}: {p}" for s, k, p in error.problems),)
         return error
 
