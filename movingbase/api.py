@@ -770,8 +770,10 @@ class CampaignResult:
     def table(self) -> pandas.DataFrame:
         """One row per run: label, the case values, status, error, every metric number.
         Numbers are numbers: a case value written with a unit ("5 m", "2 ms") in SI
-        (plot a metric against it), the units in ``table.attrs["units"]`` ({"base.lever_arm":
-        "m", "leg error rms": "µm"}); summary.csv keeps the values as written."""
+        (plot a metric against it), a sampled input's draw in SI, each column named by its
+        key alone and its unit in ``table.attrs["units"]`` ({"base.lever_arm": "m",
+        "plant.payload_mass_error": "kg", "leg error rms": "µm"}); summary.csv keeps the
+        values as written and a draw's unit in its column's name."""
         table = _pandas().read_csv(self.summary_path)   # floats exact: written as repr, read round-trip
         for column in ("error", "flags"):               # '' (nothing went wrong) is text, not a missing number
             table[column] = table[column].astype(object).where(table[column].notna(), "")
@@ -781,6 +783,12 @@ class CampaignResult:
                 converted = _si_column(table[column].tolist())
                 if converted is not None:
                     table[column], units[column] = converted
+        sampled = {key for key, *_ in self.campaign.sample.inputs} if self.campaign.sample else set()
+        for column in list(table.columns):   # summary.csv's "plant.payload_mass_error [kg]": named as a grid
+            named = re.fullmatch(r"(.+) \[([^\]]+)\]", column)   # column is, the unit in attrs
+            if named and (named[1] in sampled or named[1].split("[", 1)[0] in sampled):
+                table = table.rename(columns={column: named[1]})
+                units[named[1]] = named[2]
         for job in self._keys.values():
             metrics = (self.store.read(job) or {}).get("metrics") if self.store.status(job) else None
             if metrics:

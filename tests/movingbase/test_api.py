@@ -658,3 +658,25 @@ def test_labels_are_the_values_as_typed_but_in_file_names(tmp_path):
     assert legend == values, legend
     if importlib.util.find_spec("pandas"):
         assert list(result.metrics_table().index) == values
+
+
+def test_a_sampled_campaign_s_columns_follow_the_grid_s_unit_rule(tmp_path):
+    """A sampled input's column was 'plant.payload_mass_error [kg]' while a grid column kept
+    its unit in attrs: now both are named by their key, their unit in attrs; the numbers are
+    the draws summary.csv holds."""
+    pytest.importorskip("pandas")
+    from scenarios.runs import campaign as campaigns
+    path = tmp_path / "sampled.toml"
+    path.write_text(f'scenario = "{campaigns.SHIPPED / "scenes" / "dynamic_budget.toml"}"\n'
+                    'set = { stop_time = "1.05 s" }\n[sample]\nsamples = 2\nseed = 7\n'
+                    '"plant.payload_mass_error" = { distribution = "normal", sd = "40 kg" }\n'
+                    '"imu.imu_alignment" = { distribution = "uniform", half_width = "1 mrad" }\n')
+    ran = movingbase.campaign(path, out=tmp_path / "out", jobs=1, progress=False)
+    table = ran.table()
+    sampled = ["plant.payload_mass_error"] + [f"imu.imu_alignment[{k}]" for k in (1, 2, 3)]
+    assert [c for c in table.columns if c.startswith(("plant.", "imu."))] == sampled
+    assert [table.attrs["units"][c] for c in sampled] == ["kg", "rad", "rad", "rad"]
+    campaign = campaigns.load(path)
+    for row, case in zip(table.to_dict("records"), campaign.cases):
+        draws, _ = campaign.sample.draws(case.sample)
+        assert row["plant.payload_mass_error"] == draws["plant.payload_mass_error"]
