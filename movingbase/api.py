@@ -539,7 +539,7 @@ def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: boo
     _flags_given(ci=ci, progress=progress, allow_unstable=allow_unstable)
     loaded = load_scenario(scenario, set=set, ci=ci)
     try:
-        with runner.announcing_builds(progress):
+        with runner.announcing_builds():    # always: a first build takes seconds (progress= is the bars)
             prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation, out)
     except spec.ScenarioError as exc:
         raise _as_set(exc, set) from None
@@ -576,8 +576,10 @@ def fmus(*names: str, implementation: str = "native", fmi_version: int = 2) -> d
     """The kit's FMU files, by the names scenario files give them (``fmu = "hexapod_plant"``;
     every FMU without names), built if missing or stale: what to give
     ``fmpy.simulate_fmu`` or any FMI tool. ``implementation`` "native" (C, no Python in
-    the host; FMI 2.0 or 3.0) or "python" (pythonfmu, FMI 2.0)."""
-    return runner.fmu_files(names or catalogue.KEYS, implementation, fmi_version)
+    the host; FMI 2.0 or 3.0) or "python" (pythonfmu, FMI 2.0). Each build is said on
+    stderr as it starts."""
+    with runner.announcing_builds():    # 25 s of first builds once passed without a word
+        return runner.fmu_files(names or catalogue.KEYS, implementation, fmi_version)
 
 
 @_public
@@ -607,7 +609,8 @@ def _one_run(scenario: ScenarioLike, set: Mapping[str, Any] | None, ci: bool, va
     applied (default the first), every check done as before a run."""
     loaded = load_scenario(scenario, set=set, ci=ci)
     try:
-        prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation, None, fmi_version)
+        with runner.announcing_builds():
+            prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation, None, fmi_version)
         if prepared.sweep:
             items = prepared.sweep[1]
             if value is not None and value not in items:

@@ -680,3 +680,22 @@ def test_a_sampled_campaign_s_columns_follow_the_grid_s_unit_rule(tmp_path):
     for row, case in zip(table.to_dict("records"), campaign.cases):
         draws, _ = campaign.sample.draws(case.sample)
         assert row["plant.payload_mass_error"] == draws["plant.payload_mass_error"]
+
+
+def test_builds_are_said_without_progress_bars_and_in_fmus(monkeypatch, capsys):
+    """fmus() and run(progress=False) built for 25 s without a word (issue 39): a build's
+    start is said on stderr whatever progress is (here a build stands in, logging as the
+    builders do: fmu_src/python_build.py)."""
+    import logging
+    real = runner.BUILDS["native"]
+
+    def building(scripts):
+        logging.getLogger("movingbase.build").info("building %s", ", ".join(scripts))
+        return real(scripts)
+    monkeypatch.setitem(runner.BUILDS, "native", building)
+    assert movingbase.fmus("telescope")["telescope"].name == "Telescope.fmu"
+    assert capsys.readouterr().err == "building telescope_fmu\n"
+    movingbase.load_scenario("paper_manoeuvre", ci=True)     # loading builds nothing
+    movingbase.run("paper_manoeuvre", ci=True, progress=False, set={"sweep": {"parameter": "controller.feedforward",
+                                                                              "values": ["none"]}})
+    assert capsys.readouterr().err.splitlines() == ["building hexapod_plant_fmu, leg_controller_fmu, telescope_fmu"]
