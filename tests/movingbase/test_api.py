@@ -42,7 +42,7 @@ def test_the_api_gives_the_cli_s_metrics_and_series_bit_for_bit(cli, result):
         assert on_disk.header == run.records.header and len(run.time) == 401
         assert on_disk.time.tobytes() == run.time.tobytes()
         assert on_disk.values.tobytes() == run.values.tobytes()
-        assert run.ok and run.flags == []
+        assert run.ok and run.flags == [] and run.failure is None      # None, not '', as fmpy/scipy say nothing
 
 
 def test_the_csv_export_is_the_records_exactly(cli, result, tmp_path):
@@ -163,6 +163,9 @@ def test_a_run_that_fails_is_flagged_with_its_partial_records():
     assert len(cut) == 1 and "StrokeError" in cut[0].message
     assert not failed.ok and 0 < failed.sim_time < 1.0 and "none" in ran.flags
     assert all("step_beyond_limit" in {f.kind for f in r.flags} for r in ran)
+    # in Python's words too: the switch is allow_unstable=True here, --allow-unstable on the command line
+    assert all(f.message.endswith("(run anyway: allow_unstable=True, --allow-unstable on the command line)")
+               for r in ran for f in r.flags if f.kind == "step_beyond_limit")
     assert all(any(f.kind == "cut_short" for f in r.flags) == (r.sim_time < 4.0) for r in ran)
     assert any(r.sim_time == pytest.approx(4.0) for r in ran)
     assert failed.time[-1] <= failed.sim_time and len(failed.time) >= 2
@@ -377,6 +380,10 @@ def test_a_cut_short_run_says_failed_first_everywhere(cut_short):
     for run, message in zip(result, said):
         assert run.status == "failed" and run.failure and run.sim_time < 8.0
         assert run.flags[0].kind == "cut_short"            # the cause before the symptoms
+        # the rows' share of the stroke and the plant's StrokeError tell one story
+        stroke, = [f.message for f in run.flags if f.kind == "stroke"]
+        assert stroke.endswith("% of its +-150 mm stroke in its recorded rows, and left it between them (cut_short)")
+        assert "StrokeError" in run.failure
         assert [f.kind for f in run.flags] == sorted((f.kind for f in run.flags), key=flags.SEVERITY.index)
         # which scenario and which values warned: a loop of runs tells its iterations apart
         assert message.startswith(f"telescope_slew (set={{'base.lever_arm': '1e6 m'}}), run {run.label!r} FAILED "
