@@ -116,15 +116,20 @@ class Interrupted(KeyboardInterrupt):
         self.runs, self.stopped, self.left = runs, stopped, left
 
 
-def interrupted_message(scenario, interrupted, outdir):
-    """What an interrupted sweep kept and how to run the rest (the exception's message)."""
+def interrupted_message(scenario, interrupted, outdir, command=False):
+    """What an interrupted sweep kept and how to run the rest (the exception's message), in
+    Python's words or, with ``command``, the command line's."""
     kept = ", ".join(repr(r.label) for r in interrupted.runs) or "none"
     where = f": records, metrics.json and a report marked interrupted in {outdir}" if outdir and interrupted.runs \
         else " (in memory only: nothing is kept without out=)" if interrupted.runs else ""
     values = [v for v in (scenario.sweep[1] if scenario.sweep else [])
               if spec.run_label(v) in interrupted.left]
-    rest = (f"set={{'sweep': {{'parameter': {scenario.sweep[0]!r}, 'values': {values!r}}}}}"
-            if scenario.sweep else "the same call")
+    if command:
+        rest = (f"a copy of {pathlib.Path(scenario.source).name} with [sweep] values = {values!r}, run into another "
+                "--out" if scenario.sweep else "the same command")
+    else:
+        rest = (f"set={{'sweep': {{'parameter': {scenario.sweep[0]!r}, 'values': {values!r}}}}}"
+                if scenario.sweep else "the same call")
     return (f"{scenario.name} interrupted during run {interrupted.stopped!r}: runs finished: {kept}{where}; "
             f"not run to their end: {', '.join(map(repr, interrupted.left))}; to run the rest: {rest}")
 
@@ -329,7 +334,7 @@ def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None,
     try:
         runs = run_prepared(scenario, paths, descriptions, values, outdir, progress, jobs, dask, before)
     except Interrupted as stopped:
-        keep_interrupted(scenario, stopped, outdir, charts)
+        keep_interrupted(scenario, stopped, outdir, charts, command=True)
         raise
     written = write_results(scenario, runs, outdir, charts)
     if earlier and left_over(outdir, started):
@@ -338,14 +343,14 @@ def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None,
     return scenario, runs, written
 
 
-def keep_interrupted(scenario, interrupted, outdir, charts="all"):
+def keep_interrupted(scenario, interrupted, outdir, charts="all", command=False):
     """Write what an interrupted sweep finished (its records are on disk already) with a
     report marked interrupted, release the folder, and say it all in the exception."""
     if outdir is not None:
         if interrupted.runs:
             write_results(scenario, interrupted.runs, outdir, charts, interrupted.left)
         unlock_folder(outdir)
-    interrupted.args = (interrupted_message(scenario, interrupted, outdir),)
+    interrupted.args = (interrupted_message(scenario, interrupted, outdir, command),)
 
 
 def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=True, jobs=None, dask=None,
