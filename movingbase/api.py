@@ -128,21 +128,26 @@ def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = Non
             except spec.ScenarioError as exc:
                 raise _as_set(exc, top) from None
         loaded.short = bool(ci)
+    problems = []   # every mistake of set= at once, not the first alone
     for key, value in set.items():
         if "." not in key:
             continue
         inst, name = key.split(".", 1)
         if inst not in loaded.fmus:
             near = difflib.get_close_matches(inst, list(loaded.fmus), 1, 0.6)
-            raise spec.ScenarioError(_set_source(loaded.source), f"set[{key!r}]", f"unknown FMU instance {inst!r}; "
-                                     + (f"did you mean {near[0]!r}? " if near else "")
-                                     + f"declared: {', '.join(loaded.fmus)} (top-level keys: no dot)")
-        if loaded.sweep and loaded.sweep[0] == key:
-            raise spec.ScenarioError(_set_source(loaded.source), f"set[{key!r}]",
-                                     "is the swept parameter; every run sets it "
-                                     f"from sweep.values; to run one value: set={{'sweep': {{'parameter': {key!r}, "
-                                     f"'values': [{value!r}]}}}}")
-        loaded.parameters[inst][name] = value
+            problems.append(spec.ScenarioError(_set_source(loaded.source), f"set[{key!r}]",
+                                               f"unknown FMU instance {inst!r}; "
+                                               + (f"did you mean {near[0]!r}? " if near else "")
+                                               + f"declared: {', '.join(loaded.fmus)} (top-level keys: no dot)"))
+        elif loaded.sweep and loaded.sweep[0] == key:
+            problems.append(spec.ScenarioError(_set_source(loaded.source), f"set[{key!r}]",
+                                               "is the swept parameter; every run sets it from sweep.values; to run "
+                                               f"one value: set={{'sweep': {{'parameter': {key!r}, "
+                                               f"'values': [{value!r}]}}}}"))
+        else:
+            loaded.parameters[inst][name] = value
+    if problems:
+        raise spec.ScenarioError.joined(problems)
     return loaded
 
 

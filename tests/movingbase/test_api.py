@@ -706,3 +706,12 @@ def test_builds_are_said_without_progress_bars_and_in_fmus(monkeypatch, capsys):
     movingbase.run("paper_manoeuvre", ci=True, progress=False, set={"sweep": {"parameter": "controller.feedforward",
                                                                               "values": ["none"]}})
     assert capsys.readouterr().err.splitlines() == ["building hexapod_plant_fmu, leg_controller_fmu, telescope_fmu"]
+
+
+def test_every_mistake_of_set_is_told_at_once():
+    """An unknown instance and the swept parameter in one set=: both told, not the first."""
+    with pytest.raises(spec.ScenarioError) as refused:
+        movingbase.load_scenario(NAME, set={"bsae.lever_arm": "5 m", "controller.feedforward": "none"})
+    assert [(k, p[:40]) for _, k, p in refused.value.problems] == [
+        ("set['bsae.lever_arm']", "unknown FMU instance 'bsae'; did you mea"),
+        ("set['controller.feedforward']", "is the swept parameter; every run sets i")]
