@@ -563,6 +563,7 @@ def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: boo
         runs = runner.run_prepared(prepared, paths, descriptions, values, outdir, progress, before=before)
     except runner.Interrupted as stopped:   # Ctrl-C: what finished is kept (on disk with out=), as campaign's
         runner.keep_interrupted(prepared, stopped, outdir)
+        stopped.result = Result(prepared, stopped.runs, outdir / "report.md" if outdir and stopped.runs else None)
         raise stopped.with_traceback(None) from None
     result = Result(prepared, runs, runner.write_results(prepared, runs, outdir) if outdir else None)
     if earlier and runner.left_over(outdir, started):

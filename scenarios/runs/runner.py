@@ -109,11 +109,12 @@ def unlock_folder(folder):
 
 class Interrupted(KeyboardInterrupt):
     """Ctrl-C during a sweep: ``runs`` those that finished (master.Run), ``stopped`` the
-    label of the run it stopped, ``left`` the labels not run to their end (it among them)."""
+    label of the run it stopped, ``left`` the labels not run to their end (it among them);
+    ``result`` what movingbase.run makes of the finished runs (set there)."""
 
     def __init__(self, runs, stopped, left):
         super().__init__(f"interrupted during run {stopped!r}")
-        self.runs, self.stopped, self.left = runs, stopped, left
+        self.runs, self.stopped, self.left, self.result = runs, stopped, left, None
 
 
 def interrupted_message(scenario, interrupted, outdir, command=False):
@@ -121,7 +122,8 @@ def interrupted_message(scenario, interrupted, outdir, command=False):
     Python's words or, with ``command``, the command line's."""
     kept = ", ".join(repr(r.label) for r in interrupted.runs) or "none"
     where = f": records, metrics.json and a report marked interrupted in {outdir}" if outdir and interrupted.runs \
-        else " (in memory only: nothing is kept without out=)" if interrupted.runs else ""
+        else " (in memory: the exception's .result holds them; out= would have written them)" if interrupted.runs \
+        else ""
     values = [v for v in (scenario.sweep[1] if scenario.sweep else [])
               if spec.run_label(v) in interrupted.left]
     if command:

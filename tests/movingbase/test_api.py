@@ -624,11 +624,14 @@ def test_an_interrupted_sweep_keeps_the_runs_that_finished(tmp_path, monkeypatch
     assert list(metrics) == ["none"]
     report = (folder / "report.md").read_text()
     assert "**Interrupted** (Ctrl-C): runs `fixed_base`, `moving_base` were not run to their end" in report
+    kept = stopped.value.result          # in Python too: a Result of the runs that finished
+    assert list(kept.runs) == ["none"] and kept.report_path == folder / "report.md"
     # the kept run is the one an uninterrupted sweep gives (its first run), bit for bit
     monkeypatch.setattr(single, "run", real)
     whole = movingbase.run(NAME, ci=True, progress=False, set={"sweep": {"parameter": "controller.feedforward",
                                                                           "values": ["none"]}})
     assert metrics["none"]["metrics"] == json.loads(json.dumps(whole["none"].metrics, default=float))
+    assert kept["none"].values.tobytes() == whole["none"].values.tobytes()
     assert read_records(folder / "none.npz").values.tobytes() == whole["none"].values.tobytes()
 
 
