@@ -540,7 +540,11 @@ def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: boo
     ``implementation`` ("native" or "python") for every FMU. A communication step beyond
     the predicted stability limit is refused (ScenarioError) unless ``allow_unstable``;
     then every run is flagged. Nothing is written to disk unless ``out`` is given: then
-    the files of ``movingbase run --out OUT`` (OUT/<file stem>/)."""
+    the files of ``movingbase run --out OUT`` (OUT/<file stem>/). A RunWarning names each
+    run that failed or was flagged, and before the runs start a slew its stop time cuts
+    (with the stop time that finishes it). Ctrl-C keeps the runs that finished: written
+    with ``out`` (a report marked interrupted), and the KeyboardInterrupt's ``.result``;
+    its message says how to run the rest. Statuses: scenarios/runs/status.py."""
     _flags_given(ci=ci, progress=progress, allow_unstable=allow_unstable)
     loaded = load_scenario(scenario, set=set, ci=ci)
     try:
