@@ -291,6 +291,24 @@ def _distinct(masses):
     return masses[np.r_[True, np.diff(masses) > 1e-9 * masses[1:]]]
 
 
+def distinct_modes(masses):
+    """The leg-space modes' masses [kg], sorted, each distinct mode once (the loops a
+    scenario's prediction is taken over: flags.Prediction.masses)."""
+    return _distinct(np.sort(np.asarray(masses, dtype=float)))
+
+
+def modal_margins(gains, comm_step, masses, loop=IDEAL):
+    """The Design record of PID ``gains`` (controller.pid.PIDGains) at the communication
+    step ``comm_step`` [s] on the leg-space modes ``masses`` [kg] in the loop model ``loop``
+    (LoopModel): the heaviest mode's crossover and margins, the worst over every mode.
+    ValueError naming the modes if a mode's closed loop is unstable."""
+    design = _modal_design(gains, comm_step, np.sort(np.asarray(masses, dtype=float)), loop)
+    if design is None:
+        raise ValueError(f"gains {gains} destabilise a leg-space mode of {_distinct(np.sort(masses))} kg at "
+                         f"{comm_step * 1e3:g} ms in {loop}")
+    return design
+
+
 def _modal_design(gains, comm_step, masses, loop, points=4000):
     """The Design of ``gains`` on the modes ``masses`` (heaviest last) in ``loop``; None
     if a mode's closed loop is unstable."""
@@ -306,13 +324,14 @@ def _modal_design(gains, comm_step, masses, loop, points=4000):
 
 
 def margins(params, gains, comm_step, loop=IDEAL, pose=HOME_POSE):
-    """The Design record (margins per mode) of given ``gains`` in ``loop``: e.g. the
-    shipped gains on the realistic plant. Raises ValueError if a mode is unstable."""
-    masses = modal_masses(params, loop, pose)
-    design = _modal_design(gains, comm_step, masses, loop)
-    if design is None:
-        raise ValueError(f"gains {gains} destabilise a leg-space mode in {loop}")
-    return design
+    """The Design record (margins per mode) of given ``gains`` in ``loop`` at one pose: e.g.
+    the shipped gains on the realistic plant. ``params``: the hexapod's parameters
+    (plant.hexapod.model.StewartParams, ``StewartParams.paper()`` the kit's); ``gains``:
+    controller.pid.PIDGains; ``comm_step`` [s]; ``loop``: a LoopModel (IDEAL, REALISTIC);
+    ``pose``: the platform's pose in {B} whose leg-space masses are taken (home). A
+    scenario's loop along its motion: movingbase.loop_analysis. Raises ValueError if a mode
+    is unstable."""
+    return modal_margins(gains, comm_step, modal_masses(params, loop, pose), loop)
 
 
 def _solve_gains(mass, crossover_hz, phase_margin_deg, comm_step, integral_ratio, loop):

@@ -11,27 +11,33 @@ Command line: ``movingbase run telescope_slew`` (or ``python -m movingbase run .
 In Python (notebooks): ``movingbase.run("telescope_slew", ci=True)`` returns a Result
 (time series as numpy arrays or pandas, metrics, flags, charts); ``movingbase.campaign``
 the same for campaign files; ``movingbase.budget`` a geometric tolerance budget;
-``movingbase.fmus()`` the FMU files for other FMI tools (movingbase/api.py).
+``movingbase.fmus()`` the FMU files for other FMI tools, ``movingbase.export_ssp`` a scenario
+as an SSP file and ``movingbase.simulate_ssp`` its run in fmpy (movingbase/api.py).
 """
 import typing as _typing
 
 __version__ = "0.2.0"
-__all__ = ["run", "campaign", "budget", "load_scenario", "fmus", "Result", "RunResult", "CampaignResult",
-           "BudgetResult", "Charts", "RunWarning", "ScenarioError", "__version__"]
+__all__ = ["run", "campaign", "budget", "load_scenario", "fmus", "export_ssp", "simulate_ssp", "loop_analysis",
+           "Result", "RunResult", "CampaignResult", "BudgetResult", "Charts", "LoopAnalysis",
+           "RunWarning", "ScenarioError", "__version__"]
 
 if _typing.TYPE_CHECKING:
     from movingbase.api import (
         BudgetResult,
         CampaignResult,
         Charts,
+        LoopAnalysis,
         Result,
         RunResult,
         RunWarning,
         budget,
         campaign,
+        export_ssp,
         fmus,
         load_scenario,
+        loop_analysis,
         run,
+        simulate_ssp,
     )
     from scenarios.spec import ScenarioError
 

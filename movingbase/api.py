@@ -25,8 +25,11 @@ import html
 import io
 import os
 import pathlib
+import re
 import sys
+import textwrap
 import time
+import types
 import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, Union
@@ -42,6 +45,7 @@ from scenarios.runs import campaign as campaigns
 from scenarios.runs import engine, runner
 from scenarios.runs import estimates as resources
 from scenarios.runs import flags as run_flags
+from scenarios.runs import status as run_status
 from scenarios.runs.flags import Flag
 from scenarios.runs.metrics import key_unit
 from scenarios.spec import units
@@ -119,23 +123,31 @@ def load_scenario(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = Non
         loaded = spec.load(path)
         overrides = {**(loaded.ci if ci else {}), **top}
         if overrides:
-            loaded = spec.load(path, overrides=overrides)
+            try:
+                loaded = spec.load(path, overrides=overrides)
+            except spec.ScenarioError as exc:
+                raise _as_set(exc, top) from None
         loaded.short = bool(ci)
+    problems = []   # every mistake of set= at once, not the first alone
     for key, value in set.items():
         if "." not in key:
             continue
         inst, name = key.split(".", 1)
         if inst not in loaded.fmus:
             near = difflib.get_close_matches(inst, list(loaded.fmus), 1, 0.6)
-            raise spec.ScenarioError(_set_source(loaded.source), f"set[{key!r}]", f"unknown FMU instance {inst!r}; "
-                                     + (f"did you mean {near[0]!r}? " if near else "")
-                                     + f"declared: {', '.join(loaded.fmus)} (top-level keys: no dot)")
-        if loaded.sweep and loaded.sweep[0] == key:
-            raise spec.ScenarioError(_set_source(loaded.source), f"set[{key!r}]",
-                                     "is the swept parameter; every run sets it "
-                                     f"from sweep.values; to run one value: set={{'sweep': {{'parameter': {key!r}, "
-                                     f"'values': [{value!r}]}}}}")
-        loaded.parameters[inst][name] = value
+            problems.append(spec.ScenarioError(_set_source(loaded.source), f"set[{key!r}]",
+                                               f"unknown FMU instance {inst!r}; "
+                                               + (f"did you mean {near[0]!r}? " if near else "")
+                                               + f"declared: {', '.join(loaded.fmus)} (top-level keys: no dot)"))
+        elif loaded.sweep and loaded.sweep[0] == key:
+            problems.append(spec.ScenarioError(_set_source(loaded.source), f"set[{key!r}]",
+                                               "is the swept parameter; every run sets it from sweep.values; to run "
+                                               f"one value: set={{'sweep': {{'parameter': {key!r}, "
+                                               f"'values': [{value!r}]}}}}"))
+        else:
+            loaded.parameters[inst][name] = value
+    if problems:
+        raise spec.ScenarioError.joined(problems)
     return loaded
 
 
@@ -146,15 +158,25 @@ def _set_source(source: str) -> str:
 
 
 def _as_set(error: spec.ScenarioError, given: Mapping[str, Any] | None) -> spec.ScenarioError:
-    """``error`` with each problem in a parameter that ``given`` (run's ``set``) set told as
-    ``set['inst.name']``, as set's own refusals are: the value is the caller's, not the file's."""
+    """``error`` told as the caller's where ``given`` (``set``) is to blame, as set's own
+    refusals are (a shipped file named first reads as broken): a problem in a parameter or
+    top-level key it set as ``set['inst.name']`` / ``set['stop_time']``, one whose text
+    names a value it set ("declination = ...", "stop_time (0.5 s)") from ``set=``. A
+    problem told for several keys in the same words (a source below the horizon: once per
+    sweep value) is told once."""
     paths = {f"fmus.{k.split('.', 1)[0]}.parameters.{k.split('.', 1)[1]}": k for k in given or {} if "." in k}
+    paths.update({k: k for k in given or {} if "." not in k})
+    named = [k.split(".", 1)[-1] for k in given or {}]
     told = []
     for source, key, problem in error.problems:
-        path = next((p for p in paths if key == p or key.startswith(p + "[")), None)
-        told.append(spec.ScenarioError(source, key, problem) if path is None else
-                    spec.ScenarioError(_set_source(source), f"set[{paths[path]!r}]{key[len(path):]}", problem))
-    return spec.ScenarioError.joined(told)
+        path = next((p for p in paths if key == p or key.startswith((p + "[", p + "."))), None)
+        if path is not None:
+            told.append(spec.ScenarioError(_set_source(source), f"set[{paths[path]!r}]{key[len(path):]}", problem))
+        elif any(re.search(rf"\b{re.escape(name)}\b( = |\s*\()", problem) for name in named):
+            told.append(spec.ScenarioError(_set_source(source), key, problem))
+        else:
+            told.append(spec.ScenarioError(source, key, problem))
+    return spec.ScenarioError.joined(told)     # each problem once
 
 
 def _overrides(source: str, values: Any) -> dict[str, Any]:
@@ -178,7 +200,12 @@ def _overrides(source: str, values: Any) -> dict[str, Any]:
 class Charts(list["Figure"]):
     """Figures that show themselves: a notebook cell ending in ``result.plot()`` draws
     them (as python-control's ControlPlot does), a script saves them (``save``). A list of
-    matplotlib Figures (not pyplot's: drawing them leaves the caller's figures alone)."""
+    matplotlib Figures (not pyplot's: drawing them leaves the caller's figures alone);
+    ``names`` the file name of each (the report's: "leg_error_vs_time")."""
+
+    def __init__(self, figures: Any = (), names: Sequence[str] = ()):
+        super().__init__(figures)
+        self.names = list(names)
 
     def _repr_html_(self) -> str:
         images = []
@@ -189,9 +216,11 @@ class Charts(list["Figure"]):
         return "<br/>".join(images)
 
     def save(self, folder: str | os.PathLike[str], stem: str = "chart") -> list[pathlib.Path]:
-        """Write each figure as ``folder/<stem>_<k>.png``; their paths."""
+        """Write each figure as ``folder/<its name>.png`` (the names report.md gives them;
+        ``<stem>_<k>.png`` for a figure without one); their paths."""
         made: pathlib.Path = runner.make_folder(folder)
-        paths = [made / f"{stem}_{k}.png" for k in range(1, len(self) + 1)]
+        names = self.names + [f"{stem}_{k}" for k in range(len(self.names) + 1, len(self) + 1)]
+        paths = [made / f"{spec.file_label(name)}.png" for name in names[:len(self)]]
         for figure, path in zip(self, paths):
             figure.savefig(path, dpi=120)
         return paths
@@ -201,13 +230,31 @@ class Charts(list["Figure"]):
         return f"<Charts: {len(self)} figure{'s' * (len(self) != 1)}{': ' + titles if titles else ''}>"
 
 
+_SMALL = {"m": ("nm", "µm", "mm", "m"), "rad": ("nrad", "µrad", "mrad", "rad")}   # their units by 1e-9 .. 1
+_POSE = ("x", "y", "z", "roll", "pitch", "yaw")      # a 6-vector of m, m, m, rad, rad, rad
+
+
+def _from_start(name: str, unit: str, values: np.ndarray, labels: list[str]) -> tuple[str, str, np.ndarray, list[str]]:
+    """Positions or angles (rows x n, one unit) as their change from their first row, in
+    the unit the largest change reads best in (µm, µrad, ...): a platform 2.68 m below the
+    base moving by microns is drawn as those microns, not as a flat line at -2.68 m."""
+    change = values - values[:1]
+    largest = float(np.nanmax(np.abs(change))) if change.size and np.isfinite(change).any() else 0.0
+    power = min(3, max(0, int(np.floor(np.log10(largest) / 3)) + 3)) if largest > 0 else 1
+    shown = _SMALL[unit][power]
+    start = f"from {values[0, 0]:.6g} {unit}" if values.shape[1] == 1 and len(values) else "from the start"
+    return name, f"{shown}, {start}", change / 10.0 ** (3 * power - 9), labels
+
+
 def _html_table(head: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     cells = "".join(f"<th>{html.escape(str(h))}</th>" for h in head)
     body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>" for row in rows)
     return f"<table><tr>{cells}</tr>{body}</table>"
 
 
-_STATUS_STYLE = {"ok": "", "flagged": "color:#b00020", "failed": "color:#b00020;font-weight:bold"}
+_STATUS_STYLE = {run_status.OK: "", run_status.FLAGGED: "color:#b00020",
+                 run_status.FAILED: "color:#b00020;font-weight:bold", run_status.REFUSED: "color:#b00020",
+                 run_status.NOT_RUN: "color:#777777"}
 
 
 class RunResult:
@@ -224,7 +271,7 @@ class RunResult:
         self.label: str = run.label
         self.metrics: dict = run.metrics
         self.flags: list[Flag] = run_flags.by_severity(run.flags)
-        self.failure: str | None = run.failure   # why an FMU stopped the run before its stop time
+        self.failure: str | None = run.failure or None   # why an FMU stopped the run before its stop time
         self.steps: int = run.steps
         self.wall_time: float = run.wall_time
         self.sim_time: float = run.sim_time
@@ -239,8 +286,8 @@ class RunResult:
     @property
     def status(self) -> str:
         """"failed" (cut short: an FMU stopped it), "flagged" (ran to its stop time, but its
-        numbers are not results) or "ok"."""
-        return "failed" if self.failure else "flagged" if self.flags else "ok"
+        numbers are not results) or "ok": the vocabulary of scenarios/runs/status.py."""
+        return run_status.of_run(self.failure, self.flags)
 
     @property
     def message(self) -> str:
@@ -316,19 +363,26 @@ class RunResult:
         if not chosen:
             raise ValueError(f"run {self.label}: name the variables to plot; recorded: "
                              f"{', '.join(self._variables()) or 'nothing'}")
-        columns = []     # (label, unit, rows x n): a vector's components apart by unit (a pose: m and rad)
+        columns = []     # (label, unit, rows x n, the lines' labels)
         for name in chosen:
             values = self[name].reshape(len(self.time), -1)
             parts = [name] if name in self.records.names else [n for n in self.names if n.startswith(name + "[")]
+            if [self.units[p] for p in parts] == ["m"] * 3 + ["rad"] * 3:   # a pose: each component apart, named
+                columns += [_from_start(f"{part} {_POSE[k]}", self.units[part], values[:, [k]], [""])
+                            for k, part in enumerate(parts)]
+                continue
             for unit in dict.fromkeys(self.units[p] for p in parts):
                 mine = [k for k, p in enumerate(parts) if self.units[p] == unit]
                 shown = name if len(mine) == len(parts) else f"{name}[{mine[0] + 1}:{mine[-1] + 1}]"
-                columns.append((shown, unit, values[:, mine], [parts[k][len(name):] for k in mine]))
+                labels = [parts[k][len(name):] for k in mine]
+                columns.append(_from_start(shown, unit, values[:, mine], labels) if unit in _SMALL else
+                               (shown, unit, values[:, mine], labels))
         status = "" if self.ok else self.message if self.status == "failed" else f"FLAGGED: {self.message}"
-        return Charts([report.variables_chart(self.label, self.time, columns, status)])
+        return Charts([report.variables_chart(self.label, self.time, columns, status)],
+                      [f"{self.label}_{'_'.join(chosen)}"])
 
     def _repr_html_(self) -> str:
-        state = html.escape(self.status.upper() if self.status != "ok" else "ok")
+        state = html.escape(self.status)
         said = f": {html.escape(self.message)}" if self.message else ""
         rows = [(m, k, f"{v:.4g}" if isinstance(v, float) else v, key_unit(values, k))
                 for m, values in self.metrics.items() for k, v in values.items() if k != "unit"]
@@ -392,7 +446,7 @@ class Result:
         ('' if nothing): a flagged run's numbers are not results, and the table says so
         where they stand."""
         pd = _pandas()
-        rows = {label: {("status", ""): r.status.upper() if r.status == "failed" else r.status,
+        rows = {label: {("status", ""): r.status,
                         **{(m, k): (float("nan") if v is None else v)
                            for m, values in r.metrics.items() for k, v in values.items() if k != "unit"},
                         ("flags", ""): run_flags.summary(r.flags)}
@@ -415,7 +469,8 @@ class Result:
         panels = [report._error_chart(self.scenario, self._runs, m, io.BytesIO()) for m in tracked]
         if tracked and len(self._runs) > 1:
             panels.append(report._summary_chart(self.scenario, self._runs, tracked, io.BytesIO()))
-        return Charts(next(iter(p.values())).figure for p in panels)
+        names = [f"{m.name.replace(' ', '_')}_vs_time" for m in tracked] + ["summary"] * (len(panels) > len(tracked))
+        return Charts((next(iter(p.values())).figure for p in panels), names)
 
     def report(self, out: str | os.PathLike[str]) -> pathlib.Path:
         """Write what ``run(..., out=out)`` and ``movingbase run --out OUT`` write, where they
@@ -428,13 +483,14 @@ class Result:
         runs = []
         for run in self._runs:
             kept = self.runs[run.label].records
-            target = folder / f"{run.label}.npz"
+            target = folder / f"{spec.file_label(run.label)}.npz"
             if run.record_path is None or pathlib.Path(str(run.record_path)).resolve() != target.resolve():
                 run = dataclasses.replace(run, record_path=kept.save(target))
             runs.append(run)
         written = runner.write_results(self.scenario, runs, folder)
         if earlier and runner.left_over(folder, started):
             print(runner.left_over(folder, started), file=sys.stderr, flush=True)
+        runner.unlock_folder(folder)
         return written
 
     @property
@@ -442,24 +498,35 @@ class Result:
         """True if no run was flagged or failed."""
         return all(r.ok for r in self)
 
+    def to_ssp(self, path: str | os.PathLike[str], run: str | None = None) -> pathlib.Path:
+        """Write the scenario as an SSP file with the sweep value of run ``run`` (a label;
+        default the first): ``export_ssp``, the values as this result ran them."""
+        value = None
+        if self.scenario.sweep:
+            label = run if run is not None else self[0].label
+            self[label]     # a KeyError naming the runs
+            value = next(item for item in self.scenario.sweep[1] if spec.run_label(item) == label)
+        elif run is not None and run not in self.runs:
+            raise KeyError(f"no run {run!r}; runs: {', '.join(self.runs)}")
+        return export_ssp(self.scenario, path, value=value)
+
     def __repr__(self) -> str:
-        failed = [label for label, r in self.runs.items() if r.status == "failed"]
-        flagged = [label for label, r in self.runs.items() if r.status == "flagged"]
-        state = (f"{', FAILED: ' + ', '.join(failed) if failed else ''}"
-                 f"{', flagged: ' + ', '.join(flagged) if flagged else ''}")
-        return f"<Result {self.scenario.name!r}: runs {', '.join(self.runs)}{state or ', all ok'}>"
+        bad = "".join(f"; {s}: {', '.join(label for label, r in self.runs.items() if r.status == s)}"
+                      for s in run_status.counts(r.status for r in self) if s != run_status.OK)
+        return f"<Result {self.scenario.name!r}: {run_status.told(r.status for r in self)}{bad}>"
 
     def _repr_html_(self) -> str:
         """Each run's status first (FAILED and flagged in red, with why), then its metrics."""
         tracked = [(m, k) for m, values in next(iter(self.runs.values())).metrics.items()
                    for k in ("rms", "peak") if k in values] if self.runs else []
         head = ["run", "status"] + [f"{m} {k} [{key_unit(self[0].metrics[m], k)}]" for m, k in tracked] + ["flags"]
-        rows = [[label, r.status.upper() if r.status != "ok" else "ok"]
+        rows = [[label, r.status]
                 + [f"{r.metrics[m][k]:.4g}" if isinstance(r.metrics.get(m, {}).get(k), float) else ""
                    for m, k in tracked] + [r.message] for label, r in self.runs.items()]
-        state = "all ok" if self.ok else "NOT ALL OK: a flagged or failed run's numbers are not results"
-        return (f"<p><b>Result {html.escape(self.scenario.name)}</b>: {len(self)} runs, "
-                f'<span style="{"" if self.ok else _STATUS_STYLE["failed"]}">{state}</span></p>'
+        state = run_status.told(r.status for r in self) + ("" if self.ok else ": a flagged or failed run's "
+                                                              "numbers are not results")
+        return (f"<p><b>Result {html.escape(self.scenario.name)}</b>: "
+                f'<span style="{_STATUS_STYLE[run_status.worst(r.status for r in self)]}">{state}</span></p>'
                 + _html_table(head, rows))
 
 
@@ -473,27 +540,45 @@ def run(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: boo
     ``implementation`` ("native" or "python") for every FMU. A communication step beyond
     the predicted stability limit is refused (ScenarioError) unless ``allow_unstable``;
     then every run is flagged. Nothing is written to disk unless ``out`` is given: then
-    the files of ``movingbase run --out OUT`` (OUT/<file stem>/)."""
+    the files of ``movingbase run --out OUT`` (OUT/<file stem>/). A RunWarning names each
+    run that failed or was flagged, and before the runs start a slew its stop time cuts
+    (with the stop time that finishes it). Ctrl-C keeps the runs that finished: written
+    with ``out`` (a report marked interrupted), and the KeyboardInterrupt's ``.result``;
+    its message says how to run the rest. Statuses: scenarios/runs/status.py."""
     _flags_given(ci=ci, progress=progress, allow_unstable=allow_unstable)
     loaded = load_scenario(scenario, set=set, ci=ci)
     try:
-        with runner.announcing_builds(progress):
+        with runner.announcing_builds():    # always: a first build takes seconds (progress= is the bars)
             prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation, out)
     except spec.ScenarioError as exc:
         raise _as_set(exc, set) from None
-    before = runner.pre_run_flags(prepared, paths, descriptions, values, loaded.short, allow_unstable)
+    try:
+        before = runner.pre_run_flags(prepared, paths, descriptions, values, loaded.short, allow_unstable)
+    except spec.ScenarioError as exc:
+        raise _as_set(exc, set) from None
+    values_set = f" (set={textwrap.shorten(repr(dict(set)), 200, placeholder=' ...}')})" if set else ""
+    for line in runner.foretold(prepared, before):    # before running: the user may stop and fix it
+        warnings.warn(line.replace(": ", f"{values_set}: ", 1), RunWarning, stacklevel=3)
     outdir = None if out is None else runner.output_folder(out, prepared.source)
     earlier, started = outdir is not None and runner.replaced(outdir), time.time()
     if earlier:
         print(earlier, file=sys.stderr, flush=True)
-    runs = runner.run_prepared(prepared, paths, descriptions, values, outdir, progress, before=before)
+    try:
+        runs = runner.run_prepared(prepared, paths, descriptions, values, outdir, progress, before=before)
+    except runner.Interrupted as stopped:   # Ctrl-C: what finished is kept (on disk with out=), as campaign's
+        runner.keep_interrupted(prepared, stopped, outdir)
+        stopped.result = Result(prepared, stopped.runs, outdir / "report.md" if outdir and stopped.runs else None)
+        raise stopped.with_traceback(None) from None
     result = Result(prepared, runs, runner.write_results(prepared, runs, outdir) if outdir else None)
     if earlier and runner.left_over(outdir, started):
         print(runner.left_over(outdir, started), file=sys.stderr, flush=True)
+    if outdir is not None:
+        runner.unlock_folder(outdir)
     for r in result:     # shown in a notebook as a warning: a failed run is no result
         if not r.ok:
             said = r.message if r.status == "failed" else f"flagged: {r.message}"
-            warnings.warn(f"run {r.label!r} {said}", RunWarning, stacklevel=3)   # the caller's line
+            warnings.warn(f"{prepared.name}{values_set}, run {r.label!r} {said}", RunWarning,
+                          stacklevel=3)   # the caller's line
     return result
 
 
@@ -501,8 +586,164 @@ def fmus(*names: str, implementation: str = "native", fmi_version: int = 2) -> d
     """The kit's FMU files, by the names scenario files give them (``fmu = "hexapod_plant"``;
     every FMU without names), built if missing or stale: what to give
     ``fmpy.simulate_fmu`` or any FMI tool. ``implementation`` "native" (C, no Python in
-    the host; FMI 2.0 or 3.0) or "python" (pythonfmu, FMI 2.0)."""
-    return runner.fmu_files(names or catalogue.KEYS, implementation, fmi_version)
+    the host; FMI 2.0 or 3.0) or "python" (pythonfmu, FMI 2.0). Each build is said on
+    stderr as it starts."""
+    with runner.announcing_builds():    # 25 s of first builds once passed without a word
+        return runner.fmu_files(names or catalogue.KEYS, implementation, fmi_version)
+
+
+@_public
+def export_ssp(scenario: ScenarioLike, path: str | os.PathLike[str], *, set: Mapping[str, Any] | None = None,
+               ci: bool = False, implementation: str | None = None, fmi_version: int | None = None,
+               value: Any = None) -> pathlib.Path:
+    """Write a scenario as an SSP file (``movingbase run NAME --ssp FILE``): SystemStructure.ssd
+    (its FMU instances, connections and parameter values as SSD bindings) with the FMUs it
+    chose; SSP 1.0, or 2.0 where an FMU is FMI 3.0 (``fmi_version=3``). A sweep's run is
+    one system: ``value`` picks the sweep value (default: the first). ``set``, ``ci`` and
+    ``implementation`` as in ``run``. Run it in fmpy with ``simulate_ssp``, in libcosim or
+    ecos as docs/hosts.md shows. Returns the file's path."""
+    from scenarios.ssp import export_ssp as export
+    _flags_given(ci=ci)
+    target = pathlib.Path(path)
+    if target.is_dir() or not target.parent.is_dir():
+        raise runner.OutputError(f"SSP file {spec.shown(target)}: " + (
+            "is a folder" if target.is_dir() else f"its folder {spec.shown(target.parent)} does not exist")
+            + "; give the path of the .ssp file to write")
+    prepared, paths, _, values = _one_run(scenario, set, ci, value, implementation, fmi_version)
+    return export(prepared, paths, values, target)
+
+
+def _one_run(scenario: ScenarioLike, set: Mapping[str, Any] | None, ci: bool, value: Any,
+             implementation: str | None = None, fmi_version: int | None = None) -> tuple:
+    """(scenario, FMU paths, descriptions, values) of one run: the sweep value ``value``
+    applied (default the first), every check done as before a run."""
+    loaded = load_scenario(scenario, set=set, ci=ci)
+    try:
+        with runner.announcing_builds():
+            prepared, paths, descriptions, values = runner.prepare_loaded(loaded, implementation, None, fmi_version)
+        if prepared.sweep:
+            items = prepared.sweep[1]
+            if value is not None and value not in items:
+                raise spec.ScenarioError(prepared.source, "value", f"{value!r} is not one of the sweep's values "
+                                         f"({prepared.sweep[0]}: {', '.join(map(repr, items))})")
+            inst, var, converted = spec.sweep_value(prepared, descriptions, items[0] if value is None else value)
+            values[inst][var] = converted
+        elif value is not None:
+            raise spec.ScenarioError(prepared.source, "value", "the scenario has no sweep: give no value")
+    except spec.ScenarioError as exc:
+        raise _as_set(exc, set) from None
+    return prepared, paths, descriptions, values
+
+
+class LoopAnalysis:
+    """A scenario's control loop as python-control objects, as the guard predicts it before
+    a run (scenarios/runs/flags.py, controller/design.py): the loop of the controller with
+    the lowest predicted step limit, each leg-space mode along the motion a SISO loop.
+
+    ``step`` the scenario's communication step [s]; ``step_limit`` the step [s] beyond
+    which a mode goes unstable (the guard refuses a run beyond it); ``observer_limit`` the
+    disturbance observer's bandwidth limit [Hz] at this step (None without an observer);
+    ``masses`` the distinct modes' masses [kg], lightest first; ``gains``
+    (controller.pid.PIDGains) and ``model`` (controller.design.LoopModel: master,
+    extrapolation, reflected mass, actuator, sensors, observer) as the scenario sets them.
+    ``open_loop(k)`` / ``closed_loop(k)`` mode k's discrete loop (python-control LTI, dt =
+    step; default the heaviest), ``margins()`` the heaviest and worst modes' margins
+    (controller.design.Design), ``table()`` every mode's. The model is linear: it leaves
+    out gravity stiffness, Coulomb friction and saturation."""
+
+    def __init__(self, name: str, prediction: run_flags.Prediction):
+        from controller import design
+        self._design = design
+        self.name, self.controller = name, prediction.controller
+        self.step, self.step_limit = prediction.step, prediction.limit
+        self.gains, self.model = prediction.gains, prediction.loop
+        self.masses = design.distinct_modes(prediction.masses)
+
+    @functools.cached_property
+    def observer_limit(self) -> float | None:
+        """The disturbance observer's bandwidth [Hz] beyond which a mode goes unstable at this
+        step (None without an observer; bisected: seconds)."""
+        if self.model.observer_bandwidth <= 0:
+            return None
+        return float(self._design.observer_limit(self.masses, self.gains, self.step, self.model))
+
+    @property
+    def stable(self) -> bool:
+        """True if the step is within the predicted limit (the guard runs it)."""
+        return self.step <= self.step_limit * (1 + 1e-9)
+
+    def open_loop(self, mode: int = -1) -> Any:
+        """Mode ``mode``'s loop transfer L(z) (python-control StateSpace, dt = step): for
+        ``control.stability_margins``, ``bode_plot``, ``nyquist_plot``."""
+        return self._design.mode_loop(self.masses[mode], self.gains, self.step, self.model)
+
+    def closed_loop(self, mode: int = -1) -> Any:
+        """Mode ``mode``'s closed loop L / (1 + L) (its poles: ``.poles()``)."""
+        import control
+        return control.feedback(self.open_loop(mode))
+
+    def margins(self) -> Any:
+        """controller.design.Design: the heaviest mode's crossover [Hz] and margins, the worst
+        phase and gain margin over every mode (ValueError if a mode is unstable)."""
+        return self._design.modal_margins(self.gains, self.step, self.masses, self.model)
+
+    def table(self) -> pandas.DataFrame:
+        """One row per mode: its mass, crossover, phase and gain margins (python-control's,
+        on the frequency response up to Nyquist) and the closed loop's largest pole radius
+        (< 1: stable); units in ``attrs``."""
+        pd = _pandas()
+        rows = []
+        for k, mass in enumerate(self.masses):
+            loop = self.open_loop(k)
+            w_gc, pm, gm, lower = self._design.loop_margins(loop)
+            with np.errstate(divide="ignore"):     # no lower gain margin: -inf dB
+                decibels = 20 * np.log10([gm, lower])
+            rows.append({"mass": float(mass), "crossover": float(w_gc / (2 * np.pi)), "phase margin": float(pm),
+                         "gain margin": float(decibels[0]), "lower gain margin": float(decibels[1]),
+                         "pole radius": float(np.abs(self.closed_loop(k).poles()).max())})
+        table = pd.DataFrame(rows)
+        table.attrs["units"] = {"mass": "kg", "crossover": "Hz", "phase margin": "deg", "gain margin": "dB",
+                                "lower gain margin": "dB", "pole radius": "1"}
+        return table
+
+    def __repr__(self) -> str:
+        observer = "" if self.observer_limit is None else (
+            f"; observer {self.model.observer_bandwidth:g} Hz, limit {self.observer_limit:.3g} Hz")
+        return (f"<LoopAnalysis {self.name!r} {self.controller!r}: step {self.step * 1e3:g} ms, predicted limit "
+                f"{self.step_limit * 1e3:.4g} ms ({'stable' if self.stable else 'UNSTABLE'}); {len(self.masses)} "
+                f"modes {self.masses[0]:.0f}..{self.masses[-1]:.0f} kg{observer}>")
+
+
+@_public
+def loop_analysis(scenario: ScenarioLike, *, set: Mapping[str, Any] | None = None, ci: bool = False,
+                  value: Any = None) -> LoopAnalysis:
+    """The scenario's control loop as the guard predicts it (LoopAnalysis): the predicted
+    step limit, the observer's limit, each leg-space mode's loop as python-control objects
+    and their margins; no run. ``value`` picks a sweep value (default the first); ``set``
+    and ``ci`` as in ``run``. ScenarioError if the scenario closes no loop the kit models."""
+    prepared, paths, descriptions, values = _one_run(scenario, set, ci, value)
+    prediction = run_flags.predict(prepared, paths, descriptions, values, ci=True)
+    if prediction is None:
+        raise spec.ScenarioError(prepared.source, "fmus", "no control loop the kit models (a controller FMU "
+                                 "closing a loop of fmu_src/catalogue.py's CONTROL_LOOPS)")
+    return LoopAnalysis(prepared.name, prediction)
+
+
+def simulate_ssp(path: str | os.PathLike[str], *, initial_exchange: bool = True) -> np.ndarray:
+    """Run an SSP of ``export_ssp`` in fmpy (``fmpy.ssp.simulate_ssp``, fmpy's own master,
+    plain Jacobi) with what fmpy needs given: the SSD's parameter values as its
+    ``parameter_set`` (fmpy reads the bindings but applies none) and the file's start,
+    step and stop; with ``initial_exchange`` (default) each FMU gets the connected inputs
+    at the start time before its first step, as this kit's master and libcosim do (fmpy as
+    it is steps first with every connected input 0.0: the controller's reference is then
+    the singular zero pose and the run stops at t = 0 with SingularConfigurationError).
+    fmpy's structured array: one row per step, "time" the end of the step, columns
+    "instance.connector"."""
+    from scenarios.ssp import experiment, simulate_exported
+    _flags_given(initial_exchange=initial_exchange)
+    start, step, stop = experiment(path)
+    timing = types.SimpleNamespace(start_time=start, step=step, stop_time=stop)
+    return simulate_exported(path, timing, initial_exchange)
 
 
 class RunWarning(UserWarning):
@@ -542,8 +783,10 @@ class CampaignResult:
     def table(self) -> pandas.DataFrame:
         """One row per run: label, the case values, status, error, every metric number.
         Numbers are numbers: a case value written with a unit ("5 m", "2 ms") in SI
-        (plot a metric against it), the units in ``table.attrs["units"]`` ({"base.lever_arm":
-        "m", "leg error rms": "µm"}); summary.csv keeps the values as written."""
+        (plot a metric against it), a sampled input's draw in SI, each column named by its
+        key alone and its unit in ``table.attrs["units"]`` ({"base.lever_arm": "m",
+        "plant.payload_mass_error": "kg", "leg error rms": "µm"}); summary.csv keeps the
+        values as written and a draw's unit in its column's name."""
         table = _pandas().read_csv(self.summary_path)   # floats exact: written as repr, read round-trip
         for column in ("error", "flags"):               # '' (nothing went wrong) is text, not a missing number
             table[column] = table[column].astype(object).where(table[column].notna(), "")
@@ -553,6 +796,12 @@ class CampaignResult:
                 converted = _si_column(table[column].tolist())
                 if converted is not None:
                     table[column], units[column] = converted
+        sampled = {key for key, *_ in self.campaign.sample.inputs} if self.campaign.sample else set()
+        for column in list(table.columns):   # summary.csv's "plant.payload_mass_error [kg]": named as a grid
+            named = re.fullmatch(r"(.+) \[([^\]]+)\]", column)   # column is, the unit in attrs
+            if named and (named[1] in sampled or named[1].split("[", 1)[0] in sampled):
+                table = table.rename(columns={column: named[1]})
+                units[named[1]] = named[2]
         for job in self._keys.values():
             metrics = (self.store.read(job) or {}).get("metrics") if self.store.status(job) else None
             if metrics:
@@ -588,17 +837,26 @@ class CampaignResult:
     def __len__(self) -> int:
         return len(self._keys)
 
+    @property
+    def statuses(self) -> dict[str, str]:
+        """{run label: its status} (scenarios/runs/status.py: ok, flagged, failed, not run)."""
+        return campaigns.summary_statuses(self.summary_path)
+
+    @property
+    def ok(self) -> bool:
+        """True if every run ran and nothing flagged it."""
+        return all(s == run_status.OK for s in self.statuses.values())
+
     def __repr__(self) -> str:
-        return f"<CampaignResult {self.campaign.name!r}: {len(self)} runs, table in {self.summary_path}>"
+        return (f"<CampaignResult {self.campaign.name!r}: {run_status.told(self.statuses.values())}, "
+                f"table in {self.summary_path}>")
 
     def _repr_html_(self) -> str:
         """How many runs are results, then the table (its first 20 rows)."""
         table = self.table()
-        counts = table["status"].value_counts().to_dict()
-        bad = len(table) - counts.get("ok", 0)
-        said = ", ".join(f"{n} {status.upper() if status != 'ok' else status}" for status, n in counts.items())
-        return (f"<p><b>Campaign {html.escape(self.campaign.name)}</b>: {len(self)} runs: "
-                f'<span style="{_STATUS_STYLE["failed"] if bad else ""}">{html.escape(said)}</span></p>'
+        said = run_status.told(table["status"])
+        return (f"<p><b>Campaign {html.escape(self.campaign.name)}</b>: "
+                f'<span style="{_STATUS_STYLE[run_status.worst(table["status"])]}">{html.escape(said)}</span></p>'
                 + table.head(20).to_html(index=False, float_format=lambda v: f"{v:.4g}"))
 
 
@@ -616,6 +874,7 @@ def campaign(path: str | os.PathLike[str], *, out: str | os.PathLike[str] = "out
         print(warning, file=sys.stderr, flush=True)
     jobs = None if jobs is None else int(jobs)       # numpy's integers too
     ran, job_list, store, outcome, summary = campaigns.run_campaign(path, out, ci=ci, jobs_=jobs, progress=progress)
+    runner.unlock_folder(summary.parent)
     if outcome.interrupted:   # Ctrl-C: an exception, as Python's own, not a result with runs "not run"
         raise KeyboardInterrupt(f"campaign {ran.name} interrupted: {len(outcome.computed)} runs done now and "
                                 f"{len(outcome.skipped)} before are on disk in {store.folder}; call it again to resume")

@@ -69,6 +69,10 @@ def _command(argv):
         print(__doc__)
         return
     command, rest = (argv[0], argv[1:]) if argv and argv[0] in COMMANDS else ("run", argv)
+    if argv and argv[0] not in COMMANDS and not argv[0].startswith("-"):
+        unknown = _unknown_command(argv[0])
+        if unknown:
+            sys.exit(unknown)
     if command == "run":
         return run_command(rest, prog="movingbase run")
     if command == "campaign":
@@ -87,6 +91,19 @@ def _command(argv):
         return f"headline error: {_os_problem(exc)} (--from names the --out of the full runs: movingbase run)"
     except (ValueError, KeyError) as exc:     # a metrics.json that is not the kit's
         return f"headline error: --from {rest[-1] if rest else ''}: results that are not the full runs' ({exc!r:.200})"
+
+
+def _unknown_command(word):
+    """The error for a first word that is neither a command nor a scenario (a file or a
+    shipped name), or None: `movingbase campain x` was read as scenarios 'campain', 'x'."""
+    import difflib
+
+    from scenarios.runs.runner import not_found, resolve
+    if resolve(word).exists():
+        return None
+    near = difflib.get_close_matches(word.lower(), COMMANDS, 1, 0.6)
+    return (f"movingbase: unknown command {word!r}" + (f"; did you mean {near[0]!r}?" if near else "")
+            + f"\n  commands: {', '.join(COMMANDS)} (movingbase --help)\n  or a scenario: {not_found([word])}")
 
 
 def _os_problem(exc):
@@ -125,9 +142,10 @@ def run_command(argv=None, prog="movingbase run"):
     parser.add_argument("--ssp", metavar="FILE", help="export the (one) scenario as an SSP file, first sweep value")
     args = parser.parse_args(argv)
     try:
-        _run(args, shipped)
-    except KeyboardInterrupt:
-        sys.exit(f"interrupted: the runs that finished are in {args.out}; a sweep run with --jobs or --dask "
+        return _run(args, shipped)
+    except KeyboardInterrupt as exc:     # runner.Interrupted says what it kept
+        sys.exit(f"interrupted: {exc}" if str(exc) else
+                 f"interrupted: the runs that finished are in {args.out}; a sweep run with --jobs or --dask "
                  "resumes where it stopped when the same command runs again")
 
 
@@ -135,6 +153,7 @@ def _run(args, shipped):
     """The checks of the command line (all before anything runs), then each scenario."""
     from scenarios.cosim.fmi import FmuFileError
     from scenarios.cosim.records import run_records
+    from scenarios.runs import status
     from scenarios.runs.engine import EngineError, check_address
     from scenarios.runs.estimates import ResourceError, check_jobs
     from scenarios.runs.runner import OutputError, not_found, resolve, run_scenario
@@ -172,7 +191,7 @@ def _run(args, shipped):
                      f"({', '.join(names)}); run one --ssp per scenario")
         _export(args, names[0])
         return
-    errors = []   # one line each; every scenario and every run is still tried
+    errors, statuses = [], []   # one line each; every scenario and every run is still tried
     for name in names:
         try:
             scenario, runs, report = run_scenario(name, args.out, ci=args.ci, progress=not args.quiet,
@@ -188,7 +207,8 @@ def _run(args, shipped):
         except OSError as exc:     # the disk filled or the folder went away while writing
             errors.append(f"{name}: output error: {exc.filename or args.out}: {exc.strerror or exc}")
             continue
-        print(f"{scenario.name}: report {report}")
+        statuses += [status.of_run(run.failure, run.flags) for run in runs]
+        print(f"{scenario.name}: report {report} ({status.told(statuses[-len(runs):])})")
         if args.csv:
             for run in runs:
                 if run.record_path:
@@ -203,7 +223,7 @@ def _run(args, shipped):
             for flag in run.flags:
                 if flag.kind != "cut_short":   # a failed run says so above
                     print(f"    FLAGGED {flag.kind}: {flag.message}")
-        flagged = [run.label for run in runs if run.flags]
+        flagged = [run.label for run in runs if run.flags and not run.failure]
         if flagged:
             print(f"  {len(flagged)} of {len(runs)} runs FLAGGED ({', '.join(flagged)}): their numbers are not "
                   f"results; see {report}")
@@ -212,16 +232,16 @@ def _run(args, shipped):
     if not args.scenarios:
         from studies.paper_forces import main as paper_charts  # pyplot: imported by what draws
         paper_charts(f"{args.out}/paper")
+    return status.exit_status(statuses) or None     # 3: a run flagged (docs/flagged-runs.md)
 
 
 def _export(args, name):
     """--ssp: the scenario (its first sweep value) as an SSP file; the target must be a
     file path whose folder exists."""
+    from movingbase.api import export_ssp
     from scenarios.cosim.fmi import FmuFileError
     from scenarios.runs.estimates import ResourceError
-    from scenarios.runs.runner import prepare, resolve
-    from scenarios.spec import ScenarioError, sweep_value
-    from scenarios.ssp import export_ssp
+    from scenarios.spec import ScenarioError
     target = pathlib.Path(args.ssp)
     if target.is_dir() or not target.parent.is_dir():
         blocker = next((p for p in target.parents if p.exists() and not p.is_dir()), None)
@@ -229,11 +249,7 @@ def _export(args, name):
             f"its folder {target.parent} does not exist"
         sys.exit(f"command error: --ssp {target}: {why}; give the path of the .ssp file to write")
     try:
-        scenario, paths, descriptions, values = prepare(resolve(name), ci=args.ci, implementation=args.implementation)
-        if scenario.sweep:
-            inst, var, value = sweep_value(scenario, descriptions, scenario.sweep[1][0])
-            values[inst][var] = value
-        print(f"SSP written to {export_ssp(scenario, paths, values, target)}")
+        print(f"SSP written to {export_ssp(name, target, ci=args.ci, implementation=args.implementation)}")
     except ScenarioError as exc:
         sys.exit(f"scenario error: {exc}")
     except (ResourceError, FmuFileError) as exc:
@@ -245,10 +261,10 @@ def _export(args, name):
 def campaign_command(argv=None):
     from scenarios import spec
     from scenarios.cosim.fmi import FmuFileError
-    from scenarios.runs import engine
+    from scenarios.runs import engine, status
     from scenarios.runs import estimates as resources
-    from scenarios.runs.campaign import run_campaign
-    from scenarios.runs.runner import OutputError
+    from scenarios.runs.campaign import run_campaign, summary_statuses
+    from scenarios.runs.runner import OutputError, unlock_folder
     parser = argparse.ArgumentParser(prog="movingbase campaign",
                                      description='Run a campaign file: many scenario runs, on worker processes or a '
                                                  'Dask cluster, results in a store.')
@@ -280,8 +296,10 @@ def campaign_command(argv=None):
         sys.exit(f"campaign error: output: {exc.filename or args.out}: {exc.strerror or exc}")
     except KeyboardInterrupt:
         sys.exit("interrupted: the runs finished so far are on disk; run the same command again to resume")
-    print(f"{campaign.name}: {len(outcome.computed)} runs done now, {len(outcome.skipped)} found on disk, "
-          f"{len(outcome.failed)} failed, of {outcome.total}, in {outcome.wall_time:.1f} s; summary {summary}")
+    unlock_folder(summary.parent)
+    statuses = summary_statuses(summary)
+    print(f"{campaign.name}: {status.told(statuses.values())}; {len(outcome.computed)} done now, "
+          f"{len(outcome.skipped)} found on disk, in {outcome.wall_time:.1f} s; summary {summary}")
     if outcome.damaged:
         print(f"  {len(outcome.damaged)} damaged results were found and run again (named above)")
     if outcome.orphans:
@@ -290,10 +308,13 @@ def campaign_command(argv=None):
     labels = {job.key: job.label for job in job_list}
     for key, message in list(outcome.failed.items())[:10]:
         print(f"  failed: {labels[key]}: {message.splitlines()[0]}")
+    flagged = [label for label, s in statuses.items() if s == status.FLAGGED]
+    if flagged:
+        print(f"  flagged: {', '.join(flagged[:10])}{' ...' if len(flagged) > 10 else ''}: their numbers are not "
+              "results; the flags column of the summary says why")
     if outcome.interrupted:
         sys.exit("interrupted: the runs finished so far are on disk; run the same command again to resume")
-    if outcome.failed:
-        sys.exit(1)
+    return status.exit_status(statuses.values()) or None
 
 
 def budget_command(argv=None):

@@ -383,6 +383,19 @@ def _initial_exchange():
         simulation.instantiate_fmu = original
 
 
+def experiment(ssp_path):
+    """(start, step, stop) [s] of an SSP written by export_ssp: its DefaultExperiment and
+    the step of its master annotation (what a host must be told: SSP 1.0 has no step)."""
+    with zipfile.ZipFile(ssp_path) as z:
+        root = ET.fromstring(z.read("SystemStructure.ssd"))
+    run = root.find(_q(SSD, "DefaultExperiment"))
+    master = root.find(f"{_q(SSD, 'System')}/{_q(SSD, 'Annotations')}/{_q(SSC, 'Annotation')}/{_q(MB, 'Master')}")
+    if run is None or master is None:
+        raise ValueError(f"{ssp_path}: not an SSP of this kit (no DefaultExperiment or movingbase master annotation); "
+                         "give start, step and stop yourself")
+    return float(run.get("startTime")), float(master.get("step")), float(run.get("stopTime"))
+
+
 def simulate_exported(ssp_path, scenario, initial_exchange=False):
     """Run an SSP written by export_ssp with fmpy.ssp.simulate_ssp: start/step/stop of
     ``scenario``, parameters from the SSD's bindings passed as ``parameter_set``.

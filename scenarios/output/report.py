@@ -400,14 +400,19 @@ def _stopped(scenario, run):
             f"{scenario.stop_time - scenario.start_time:g} s")
 
 
-def write(scenario, runs, outdir, charts="all"):
+def write(scenario, runs, outdir, charts="all", interrupted=()):
     """Write report.md and the ``charts`` (one of CHARTS: every chart, the summary bars
-    of several runs only, or none) into outdir; return the report's path."""
+    of several runs only, or none) into outdir; return the report's path. ``interrupted``:
+    the labels of the runs Ctrl-C left unrun (said first: the report is not the sweep's)."""
     if charts not in CHARTS:
         raise ValueError(f"charts must be one of {', '.join(CHARTS)}, got {charts!r}")
     tracked = [m for m in scenario.metrics if m.kind in TRACKING]
     per_run = [m for m in scenario.metrics if m.kind != "base_effect"]   # base effect: same for every run
-    lines = [f"# {scenario.name}", "", scenario.description, ""] + flag_lines(runs) + settings(scenario)
+    lines = [f"# {scenario.name}", "", scenario.description, ""]
+    if interrupted:
+        lines += [f"**Interrupted** (Ctrl-C): runs {', '.join(f'`{label}`' for label in interrupted)} were not run "
+                  "to their end; this report holds the runs that finished.", ""]
+    lines += flag_lines(runs) + settings(scenario)
     lines += ["## Results", "",
               "| run | " + " | ".join(f"{m.name} ({runs[0].metrics[m.name]['unit']})" for m in per_run)
               + " | wall time [s] | real-time factor |",

@@ -36,6 +36,7 @@ one row per run, read back from the files.
 """
 import csv
 import dataclasses
+import difflib
 import itertools
 import json
 import pathlib
@@ -49,7 +50,7 @@ import numpy as np
 from fmu_src import atomic
 from scenarios import spec
 from scenarios.cosim.fmi import description
-from scenarios.runs import engine, flags
+from scenarios.runs import engine, flags, status
 from scenarios.runs import estimates as resources
 from scenarios.runs.runner import OutputError, _named, fmu_paths, output_folder, resolve
 from scenarios.spec import distributions, units
@@ -171,6 +172,12 @@ def _is_quantity(value):
         return True
     except units.UnitError:
         return False
+
+
+def _near(name, names):
+    """"; did you mean 'lever_arm'?" for a mistyped parameter (vectors by their name), or ''."""
+    near = difflib.get_close_matches(name, list(dict.fromkeys(n.split("[", 1)[0] for n in names)), 1, 0.6)
+    return f"; did you mean {near[0]!r}?" if near else ""
 
 
 def _label(value):
@@ -298,7 +305,8 @@ def parse(text, source="<string>", base_dir=".", ci=False):
         variables = {v.name: v for v in descriptions[inst].modelVariables}
         targets = spec.expand(variables, key)
         if not targets or any(variables[t].causality not in ("parameter", "input") for t in targets):
-            raise CampaignError(source, where, f"{inst} ({base.fmus[inst]}) has no parameter {name!r}")
+            raise CampaignError(source, where, f"{inst} ({base.fmus[inst]}) has no parameter {name!r}"
+                                + _near(name, [v for v, var in variables.items() if var.causality == "parameter"]))
         if (inst, name) in connected or any((inst, t) in connected for t in targets):
             raise CampaignError(source, where, f"{key} is an input that {path.name} connects: the connection "
                                 "feeds it in every run, a value set here would be ignored")
@@ -412,7 +420,8 @@ def _sample(source, table, base, descriptions):
         found = {v.name: v for v in descriptions[inst].modelVariables}
         targets = spec.expand(found, key)
         if not targets:
-            raise CampaignError(source, where, f"{inst} ({base.fmus[inst]}) has no parameter {name!r}")
+            raise CampaignError(source, where, f"{inst} ({base.fmus[inst]}) has no parameter {name!r}"
+                                + _near(name, [v for v, var in found.items() if var.causality == "parameter"]))
         if any(found[t].causality != "parameter" for t in targets):
             raise CampaignError(source, where, f"{key} is an {found[targets[0]].causality}, not a parameter: a sample "
                                 "draws the deviations of parameters")
@@ -673,7 +682,7 @@ def write_summary(campaign, store, job_list, path):
                 row.update({f"{key} [{unit}]" if unit else key: repr(deviations[key])
                             for key, _, _, unit, _ in campaign.sample.inputs})
                 row.update(seeds)
-            row["status"] = record["status"] if record else "not run"
+            row["status"] = status.of_record(record)    # the vocabulary's: flagged, not the store's "ok"
             row["error"] = record.get("error", "") if record else ""
             row["flags"] = flags.summary(flags.from_dicts((record or {}).get("flags")))
             for name, values in ((record or {}).get("metrics") or {}).items():
@@ -684,6 +693,12 @@ def write_summary(campaign, store, job_list, path):
                 writer.writeheader()
             writer.writerow(row)
     return path
+
+
+def summary_statuses(path):
+    """{run label: status} from a summary.csv (write_summary)."""
+    with open(path, newline="", encoding="utf-8") as file:
+        return {row["label"]: row["status"] for row in csv.DictReader(file)}
 
 
 def rerun_sample(path, k, out="out", ci=False):

@@ -48,14 +48,13 @@ import time
 from itertools import islice
 
 import numpy as np
-from tqdm import tqdm
 
 from fmu_src.atomic import replacing, write_bytes
 from scenarios.cosim import fmi, master
 from scenarios.cosim.fmi import content_digest
-from scenarios.runs import flags, metrics, single
+from scenarios.runs import flags, metrics, single, status
 from scenarios.runs.estimates import cores
-from scenarios.spec import Link, file_label
+from scenarios.spec import Link, file_label, run_label
 
 RECORDS = ".records.npz"     # a kept run's recorded variables (scenarios.cosim.records), next to <key>.json
 # Runs per Dask task, at most: each task costs the client ~10 ms of CPU (scheduler and
@@ -309,6 +308,7 @@ class Outcome:
     interrupted: bool = False
     damaged: dict = dataclasses.field(default_factory=dict)    # key -> the fault found (recomputed)
     orphans: int = 0                # results in the store that belong to none of these jobs
+    statuses: dict = dataclasses.field(default_factory=dict)   # key -> status (scenarios.runs.status) of those run now
 
 
 @contextlib.contextmanager
@@ -508,7 +508,7 @@ class Engine:
 
         batches = iter(lambda: list(islice(queue, size)), [])
 
-        bar = tqdm(total=count, desc=f"{name} ({len(skipped)} of {total} on disk)", unit="run",
+        bar = single.progress_bar(total=count, desc=f"{name} ({len(skipped)} of {total} on disk)", unit="run",
                    disable=not progress, smoothing=0.1)
         try:
             for batch in islice(batches, window):
@@ -519,17 +519,19 @@ class Engine:
                     results = future.result()
                 except Exception as exc:        # the engine lost the task (e.g. a worker died too often)
                     outcome.failed.update({job.key: f"not run: {type(exc).__name__}: {exc}" for job in batch})
+                    outcome.statuses.update(dict.fromkeys((job.key for job in batch), status.NOT_RUN))
                 else:
                     for job, result in zip(batch, results):
                         store.write(job, dict(result))
                         outcome.computed.append(job.key)
                         if result["status"] != "ok":
                             outcome.failed[job.key] = result["error"]
+                        outcome.statuses[job.key] = status.of_record(result)
                         if on_result:
                             on_result(job, result)
                 future.release()
                 bar.update(len(batch))
-                bar.set_postfix(failed=len(outcome.failed), refresh=False)
+                bar.set_postfix(status.counts(outcome.statuses.values()), refresh=False)   # ok=7, flagged=3
                 nxt = next(batches, None)
                 if nxt is not None:
                     submit(nxt)
@@ -566,7 +568,7 @@ def run_sweep(scenario, paths, descriptions, values, items, outdir, jobs=None, a
     cases = []
     for item in items:
         inst, name, value = sweep_value(scenario, descriptions, item) if item is not None else (None, None, None)
-        cases.append(("run" if item is None else file_label(item), {inst: {name: value}} if inst else {}))
+        cases.append(("run" if item is None else run_label(item), {inst: {name: value}} if inst else {}))
     job_list, files = prepared_jobs(scenario, paths, values, cases)
     store = Store(pathlib.Path(outdir) / "runs")
     with Engine(jobs, address) as eng:
@@ -582,7 +584,7 @@ def run_sweep(scenario, paths, descriptions, values, items, outdir, jobs=None, a
             raise RuntimeError(f"run {job.label} of {scenario.name} was not run: {outcome.failed.get(job.key)}")
         record, record_path = store.read(job.key), None    # no records: refused before the first row
         if store.path(job.key, RECORDS).exists():
-            record_path = pathlib.Path(outdir) / f"{job.label}.npz"
+            record_path = pathlib.Path(outdir) / f"{file_label(job.label)}.npz"
             write_bytes(record_path, store.path(job.key, RECORDS).read_bytes())
         run = master.Run(job.label, record_path, record.get("steps", 0), record.get("run_time_s", 0.0),
                          record.get("sim_time_s", 0.0), record.get("metrics", {}),

@@ -46,6 +46,7 @@ from fmu_src import catalogue
 from plant.errors import PlantError
 from plant.hexapod.model import FIDELITIES, HOME_POSE, StewartParams, dynamics_terms
 from plant.mechanism3t import model as mechanism3t
+from plant.telescope import model as telescope_model
 from scenarios.cosim.records import Block
 from scenarios.runs import auto_fidelity
 from scenarios.spec import Scenario, ScenarioError
@@ -329,7 +330,8 @@ def predict(scenario, paths, descriptions, values, ci=False, cache=None):
             motion, axis_rate = (auto_fidelity.scene_motion(scenario, paths, values, telescope, axes=True)
                                  if telescope else (None, None))
             masses = _merge(masses_of(scenario, paths, descriptions, values, loop, motion))
-            unfinished = tuple(_unfinished(scenario, telescope, axis_rate, _delay(values, descriptions, telescope))
+            unfinished = tuple(_unfinished(scenario, telescope, axis_rate, _delay(values, descriptions, telescope),
+                                           motion_end(scenario, values, descriptions, telescope))
                                ) if telescope else ()
             cache[key] = (Prediction(design.step_limit(masses, loop.gains, loop.model), scenario.step, loop.model,
                                      loop.gains, masses, unfinished, loop.controller))
@@ -349,7 +351,8 @@ def motion_flags(scenario, paths, descriptions, values):
         if telescope:
             out += _unfinished(scenario, telescope,
                                auto_fidelity.scene_motion(scenario, paths, values, telescope, axes=True)[1],
-                               _delay(values, descriptions, telescope))
+                               _delay(values, descriptions, telescope),
+                               motion_end(scenario, values, descriptions, telescope))
     return out
 
 
@@ -366,11 +369,37 @@ def _delay(values, descriptions, telescope):
     return float(_value(values, descriptions, telescope, "start_delay"))
 
 
-def _unfinished(scenario, telescope, axis_rate, delay=0.0):
+def motion_end(scenario, values, descriptions, telescope):
+    """When the telescope's commanded motion ends [s, absolute], from its analytic profile
+    (plant/telescope/model.py): start_delay plus the slew's duration (the slower axis at
+    its rate and acceleration limits) or the paper manoeuvre's; None for a profile that
+    does not end (tracking). An axis servo (servo_bandwidth > 0) settles after it."""
+    profile = scenario.parameters.get(telescope, {}).get("profile", "slew")
+    get = lambda name: float(_value(values, descriptions, telescope, name))   # noqa: E731
+    if profile == "paper":
+        return get("start_delay") + get("paper_duration")
+    if profile != "slew":
+        return None
+    params = replace(telescope_model.TelescopeParams.tianma(), **{
+        k: get(k) for k in ("az_rate_max", "az_acc_max", "el_rate_max", "el_acc_max")})
+    return get("start_delay") + telescope_model.slew_duration(
+        params, (get("start_azimuth"), get("start_elevation")), (get("target_azimuth"), get("target_elevation")))
+
+
+def _ends(profile, telescope, end, stop_time):
+    """"; the slew of 'base' ends at t = 107.3 s: stop_time >= 108 s" ('' when the end is not
+    known or not after the stop time: an axis servo's settling then keeps it turning)."""
+    if end is None or end <= stop_time:
+        return ""
+    return f"; it ends at t = {end:.4g} s: stop_time >= {math.ceil(end - 1e-9):g} s"
+
+
+def _unfinished(scenario, telescope, axis_rate, delay=0.0, end=None):
     """[motion_unfinished] if the slew (or paper manoeuvre) never starts (its ``delay`` at
     or after the stop time: the run holds the start pointing throughout) or still turns
     the antenna's axes at the stop time (``axis_rate`` along the run: the slew itself, not
-    the sway of a flexible support, which never stops in wind), else []."""
+    the sway of a flexible support, which never stops in wind), else []. ``end``: when
+    the profile ends (motion_end), said with the stop time that would finish it."""
     profile = scenario.parameters.get(telescope, {}).get("profile", "slew")
     if profile not in ("slew", "paper"):
         return []
@@ -382,7 +411,8 @@ def _unfinished(scenario, telescope, axis_rate, delay=0.0):
     if turning > MOVING:
         return [Flag("motion_unfinished", f"the {profile} of {telescope!r} has not ended at the stop time "
                                           f"{scenario.stop_time:g} s: the antenna still turns at "
-                                          f"{math.degrees(turning):.3g} deg/s")]
+                                          f"{math.degrees(turning):.3g} deg/s"
+                                          + _ends(profile, telescope, end, scenario.stop_time))]
     return []
 
 
@@ -444,7 +474,8 @@ def check(scenario, prediction, allow_unstable=False):
             hint += " or " + " or ".join(others)
         raise ScenarioError(scenario.source, "step", f"{text}. {hint[0].upper() + hint[1:]}; or run it anyway "
                                                      "with --allow-unstable (allow_unstable=True): it is then flagged")
-    return flags + [Flag("step_beyond_limit", text + " (run with --allow-unstable)")]
+    return flags + [Flag("step_beyond_limit", text + " (run anyway: allow_unstable=True, --allow-unstable on the "
+                                                       "command line)")]
 
 
 # ------------------------------------------------------------------ during the run
@@ -691,4 +722,7 @@ def run_flags(watch, run, instances, before=()):
     out = list(before) + (watch.flags(warnings) if watch else [])
     if run.failure:
         out.append(Flag("cut_short", f"stopped at t = {run.sim_time:g} s of the run: {run.failure}"))
+        if "StrokeError" in run.failure:   # the rows near the end, the plant's step beyond it: one story
+            out = [Flag(f.kind, f"{f.message} in its recorded rows, and left it between them (cut_short)")
+                   if f.kind == "stroke" else f for f in out]
     return out

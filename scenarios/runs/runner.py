@@ -12,8 +12,6 @@ import pathlib
 import sys
 import time
 
-from tqdm import tqdm
-
 from fmu_src import atomic, catalogue
 from fmu_src.native_build import ensure_native, ensure_native3
 from fmu_src.python_build import ensure_built
@@ -95,6 +93,47 @@ def lock_folder(folder):
     os.write(fd, f"process {os.getpid()} ({' '.join(sys.argv)[:120]})".encode("utf-8", "surrogateescape"))
     _LOCKS[key] = fd
     return folder
+
+
+def unlock_folder(folder):
+    """Release ``folder``'s lock (lock_folder) and remove its lock file: a notebook's
+    process lives on after its runs, and the file was left beside the results."""
+    key = os.path.realpath(folder)
+    fd = _LOCKS.pop(key, None)
+    if fd is None:
+        return
+    with contextlib.suppress(OSError):
+        os.unlink(os.path.join(key, LOCK))    # while still locked: no other process holds it meanwhile
+    os.close(fd)
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C during a sweep: ``runs`` those that finished (master.Run), ``stopped`` the
+    label of the run it stopped, ``left`` the labels not run to their end (it among them);
+    ``result`` what movingbase.run makes of the finished runs (set there)."""
+
+    def __init__(self, runs, stopped, left):
+        super().__init__(f"interrupted during run {stopped!r}")
+        self.runs, self.stopped, self.left, self.result = runs, stopped, left, None
+
+
+def interrupted_message(scenario, interrupted, outdir, command=False):
+    """What an interrupted sweep kept and how to run the rest (the exception's message), in
+    Python's words or, with ``command``, the command line's."""
+    kept = ", ".join(repr(r.label) for r in interrupted.runs) or "none"
+    where = f": records, metrics.json and a report marked interrupted in {outdir}" if outdir and interrupted.runs \
+        else " (in memory: the exception's .result holds them; out= would have written them)" if interrupted.runs \
+        else ""
+    values = [v for v in (scenario.sweep[1] if scenario.sweep else [])
+              if spec.run_label(v) in interrupted.left]
+    if command:
+        rest = (f"a copy of {pathlib.Path(scenario.source).name} with [sweep] values = {values!r}, run into another "
+                "--out" if scenario.sweep else "the same command")
+    else:
+        rest = (f"set={{'sweep': {{'parameter': {scenario.sweep[0]!r}, 'values': {values!r}}}}}"
+                if scenario.sweep else "the same call")
+    return (f"{scenario.name} interrupted during run {interrupted.stopped!r}: runs finished: {kept}{where}; "
+            f"not run to their end: {', '.join(map(repr, interrupted.left))}; to run the rest: {rest}")
 
 
 def _named(folder):
@@ -288,15 +327,32 @@ def run_scenario(path, out="out", ci=False, progress=True, jobs=None, dask=None,
     with announcing_builds(progress):
         scenario, paths, descriptions, values = prepare(resolve(path), ci, implementation, out, fmi_version)
     before = pre_run_flags(scenario, paths, descriptions, values, ci, allow_unstable)
+    for line in foretold(scenario, before):
+        print(line, file=sys.stderr, flush=True)
     outdir = output_folder(out, scenario.source)
     earlier, started = replaced(outdir), time.time()
     if earlier:
         print(earlier, file=sys.stderr)
-    runs = run_prepared(scenario, paths, descriptions, values, outdir, progress, jobs, dask, before)
+    try:
+        runs = run_prepared(scenario, paths, descriptions, values, outdir, progress, jobs, dask, before)
+    except Interrupted as stopped:
+        keep_interrupted(scenario, stopped, outdir, charts, command=True)
+        raise
     written = write_results(scenario, runs, outdir, charts)
     if earlier and left_over(outdir, started):
         print(left_over(outdir, started), file=sys.stderr)
+    unlock_folder(outdir)
     return scenario, runs, written
+
+
+def keep_interrupted(scenario, interrupted, outdir, charts="all", command=False):
+    """Write what an interrupted sweep finished (its records are on disk already) with a
+    report marked interrupted, release the folder, and say it all in the exception."""
+    if outdir is not None:
+        if interrupted.runs:
+            write_results(scenario, interrupted.runs, outdir, charts, interrupted.left)
+        unlock_folder(outdir)
+    interrupted.args = (interrupted_message(scenario, interrupted, outdir, command),)
 
 
 def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=True, jobs=None, dask=None,
@@ -316,8 +372,9 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
             run.flags[:0] = before.get(run.label, ())
     for label, params in todo:
         desc = f"{scenario.name} [{label}]"
-        bar = tqdm(total=100, desc=f"{desc} loading and initialising the FMUs", unit="%", disable=not progress,
-                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
+        bar = single.progress_bar(total=100, desc=f"{desc} loading and initialising the FMUs", unit="%",
+                                  disable=not progress,
+                                  bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
 
         def update(fraction, bar=bar, desc=desc, begun=[]):
             if not begun:   # stepping has begun: the FMUs are loaded
@@ -327,13 +384,20 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
         try:
             runs.append(single.run(scenario, paths, params, outdir, label,
                                    [metrics.make(m) for m in scenario.metrics], update, before.get(label, ())))
+            if runs[-1].flags:
+                bar.set_description_str(f"{desc} flagged", refresh=False)
         except master.RunFailed as failed:   # keep what it did; the other runs still run
             failed.run.failure = f"{scenario.source}: scene {scenario.name}, run {label}: {failed.run.failure}"
             runs.append(failed.run)
             bar.set_description_str(f"{desc} FAILED at t = {failed.run.sim_time:g} s", refresh=False)
             bar.close()                      # where it stopped, not 100 %
             continue
-        except BaseException:                # Ctrl-C, or an error that ends the command
+        except KeyboardInterrupt:            # Ctrl-C: the finished runs are kept (Interrupted)
+            bar.close()
+            done = {r.label for r in runs}
+            raise Interrupted(runs, label, [lb for lb, _ in sweep_runs(scenario, descriptions, values)
+                                            if lb not in done]) from None
+        except BaseException:                # an error that ends the command
             bar.close()                      # where it stopped, not 100 %
             raise
         bar.update(100 - bar.n)
@@ -341,9 +405,9 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
     return runs
 
 
-def write_results(scenario, runs, outdir, charts="all"):
+def write_results(scenario, runs, outdir, charts="all", interrupted=()):
     """metrics.json, the ``charts`` (report.CHARTS) and report.md of the runs into outdir;
-    the report's path."""
+    the report's path. ``interrupted``: the labels Ctrl-C left unrun (the report says so)."""
     summary = {r.label: {"metrics": r.metrics, "wall_time_s": r.wall_time, "steps": r.steps,
                          "real_time_factor": r.real_time_factor, **({"failed": r.failure} if r.failure else {}),
                          **({"ci": True} if scenario.short else {}),     # a short run: no full run's numbers
@@ -351,7 +415,7 @@ def write_results(scenario, runs, outdir, charts="all"):
                for r in runs}
     outdir.mkdir(parents=True, exist_ok=True)
     atomic.write_text(outdir / "metrics.json", json.dumps(_no_nan(summary), indent=2, default=float))
-    return report.write(scenario, runs, outdir, charts)
+    return report.write(scenario, runs, outdir, charts, interrupted)
 
 
 def sweep_runs(scenario, descriptions, values):
@@ -363,7 +427,7 @@ def sweep_runs(scenario, descriptions, values):
             continue
         inst, name, value = spec.sweep_value(scenario, descriptions, item)
         params[inst][name] = value
-        yield spec.file_label(item), params
+        yield spec.run_label(item), params
 
 
 def pre_run_flags(scenario, paths, descriptions, values, ci=False, allow_unstable=False):
@@ -391,6 +455,19 @@ def pre_run_flags(scenario, paths, descriptions, values, ci=False, allow_unstabl
                                      f"(sweep of {scenario.sweep[0]}): {problem}")
             for problem, labels in by_problem.items()])
     return found
+
+
+def foretold(scenario, before):
+    """What the flags known before the runs (pre_run_flags) say of the motion, as lines to
+    say BEFORE running: a slew cut by the stop time is known from its analytic profile, and
+    a user who waited for a 60 s run to learn it needs 107 s tried twice more."""
+    by_message = {}
+    for label, found in before.items():
+        for flag in found:
+            if flag.kind == "motion_unfinished":
+                by_message.setdefault(flag.message, []).append(label)
+    return [f"{scenario.name}: run{'s' * (len(labels) > 1)} {', '.join(map(repr, labels))} will be flagged "
+            f"motion_unfinished: {message}" for message, labels in by_message.items()]
 
 
 def _no_nan(value):

@@ -2,7 +2,9 @@
 the guard (scenarios.runs.flags), its metrics taken from the rows as they are recorded, and
 the run's flags when it ends. Here, above the co-simulation layer, so that the master
 knows nothing of what watches it."""
+import importlib.util
 import pathlib
+import sys
 import time
 
 import numpy as np
@@ -10,14 +12,32 @@ import numpy as np
 from scenarios.cosim.fmi import FmuError
 from scenarios.cosim.master import Loop, Recorder, Run, RunFailed, failure_line, start, step_order
 from scenarios.runs import flags as run_flags
+from scenarios.spec import file_label
 
+
+def progress_bar(**kwargs):
+    """A tqdm bar; in a Jupyter kernel its notebook form (a widget, where ipywidgets is
+    installed), else one that redraws at most every NOTEBOOK_INTERVAL s: a notebook keeps
+    every carriage-return update of a terminal bar in its saved output."""
+    from tqdm import tqdm
+    if "ipykernel" not in sys.modules:
+        return tqdm(**kwargs)
+    if importlib.util.find_spec("ipywidgets"):
+        from tqdm.notebook import tqdm as notebook_tqdm
+        kwargs.pop("bar_format", None)     # the widget draws its own bar
+        return notebook_tqdm(**kwargs)
+    return tqdm(mininterval=NOTEBOOK_INTERVAL, **kwargs)
+
+
+NOTEBOOK_INTERVAL = 5.0
 CHUNK = 2048   # most macro steps per C call: Ctrl-C is seen within one (~10 ms native, ~0.1 s pythonfmu)
 
 
 def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), progress=None, flags=()):
     """Co-simulate ``scenario`` once. ``fmu_paths``: instance -> FMU file; ``parameters``:
     instance -> {variable: value} (already converted, see spec.bind). The records stay in
-    memory (Run.records); with an ``outdir`` they are also written to outdir/<label>.npz
+    memory (Run.records); with an ``outdir`` they are also written to outdir/<label>.npz (the
+    label made a file name: spec.file_label)
     (also those of a run that fails or is interrupted). ``progress(done_fraction)`` is
     called about 200 times. Run.flags: ``flags`` known before the run, the detectors'
     (scenarios.runs.flags.Watch, fed every recorded row), the FMUs' warnings and a stop before
@@ -27,7 +47,7 @@ def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), p
     h, t0 = scenario.step, scenario.start_time
     steps = int(round((scenario.stop_time - t0) / h))
     every = int(round(scenario.record_interval / h))
-    path = None if outdir is None else pathlib.Path(outdir) / f"{label}.npz"
+    path = None if outdir is None else pathlib.Path(outdir) / f"{file_label(label)}.npz"
     done, failure, began, cpu_began, watch = 0, None, time.perf_counter(), time.thread_time(), None
     try:
         exchange, _ = start(scenario, fmu_paths, parameters, instances)

@@ -45,6 +45,7 @@ from scenarios.spec.text import (
     file_label,
     read_text,
     read_toml,
+    run_label,
     shown,
     unknown_keys,
 )
@@ -52,5 +53,5 @@ from scenarios.spec.text import (
 __all__ = ['FMI_VERSIONS', 'IMPLEMENTATIONS', 'KEYS', 'Link', 'MAX_FILE_BYTES', 'METRIC_KINDS', 'Metric', 'Problems',
            'Scenario', 'ScenarioError', 'TOP_KEYS', '_REQUIRED', '_value', 'as_data', 'bind', 'check_links',
            'check_models', 'check_name', 'check_rates', 'check_wiring', 'enumeration', 'expand', 'file_label', 'load',
-           'parse', 'parse_data', 'payload_problems', 'plain', 'read_text', 'read_toml', 'with_sources', 'shown',
-           'sources_of', 'sweep_value', 'unknown_keys']
+           'parse', 'parse_data', 'payload_problems', 'plain', 'read_text', 'read_toml', 'run_label', 'with_sources',
+           'shown', 'sources_of', 'sweep_value', 'unknown_keys']

@@ -21,9 +21,16 @@ class ScenarioError(ValueError):
 
     @classmethod
     def joined(cls, errors):
-        """One error carrying every problem of ``errors``, in order."""
+        """One error carrying every problem of ``errors``, in order, each told once: a
+        problem told in the same words for several keys (a parameter a campaign does not
+        have, once per value; a source below the horizon, once per sweep value) is told at
+        the first key, the others named after it."""
         error = cls(*errors[0].problems[0])
-        error.problems = [p for e in errors for p in e.problems]
+        keys = {}
+        for source, key, problem in (p for e in errors for p in e.problems):
+            keys.setdefault((source, problem), []).append(key)
+        error.problems = [(source, found[0], problem + (f" (the same at {', '.join(found[1:])})" if len(found) > 1
+                                                         else "")) for (source, problem), found in keys.items()]
         error.args = ("\n".join(f"{shown(s)}: {k}: {p}" for s, k, p in error.problems),)
         return error
 
@@ -79,11 +86,16 @@ def check_name(source, key, value, error=ScenarioError):
     return value
 
 
+def run_label(value):
+    """The label of a run made from a value as written (a sweep value): the user's text
+    ("1.8e6 N/m"), as results, tables and legends name the run."""
+    return value if isinstance(value, str) else repr(value)
+
+
 def file_label(value):
-    """The label of a run made from a value as written (a sweep value): also a file name,
-    so every character but letters, digits and ' _.,+=-' becomes '_' ("10 N/m" -> "10 N_m")."""
-    text = value if isinstance(value, str) else repr(value)
-    return re.sub(r"[^A-Za-z0-9 _.,+=-]", "_", text)[:100] or "_"
+    """The file name of a run's label (run_label): every character but letters, digits and
+    ' _.,+=-' becomes '_' ("10 N/m" -> "10 N_m"); file names only, never shown as its label."""
+    return re.sub(r"[^A-Za-z0-9 _.,+=-]", "_", run_label(value))[:100] or "_"
 
 
 def read_toml(text, source, error=ScenarioError):

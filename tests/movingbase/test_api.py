@@ -42,7 +42,7 @@ def test_the_api_gives_the_cli_s_metrics_and_series_bit_for_bit(cli, result):
         assert on_disk.header == run.records.header and len(run.time) == 401
         assert on_disk.time.tobytes() == run.time.tobytes()
         assert on_disk.values.tobytes() == run.values.tobytes()
-        assert run.ok and run.flags == []
+        assert run.ok and run.flags == [] and run.failure is None      # None, not '', as fmpy/scipy say nothing
 
 
 def test_the_csv_export_is_the_records_exactly(cli, result, tmp_path):
@@ -97,7 +97,7 @@ def test_a_bad_set_value_is_refused_as_the_file_s_value_is(key, value, written, 
     (_, file_key, problem), = in_file.value.problems
     (_, set_key, set_problem), = from_set.value.problems
     assert set_problem == problem       # the same check; told as set's value where set gave it
-    assert set_key == (f"set[{key!r}]" if "." in key else file_key)
+    assert set_key == f"set[{key!r}]"    # a top-level key too (it was told as the file's stop_time)
 
 
 @pytest.mark.parametrize("changes, problem", [
@@ -163,6 +163,9 @@ def test_a_run_that_fails_is_flagged_with_its_partial_records():
     assert len(cut) == 1 and "StrokeError" in cut[0].message
     assert not failed.ok and 0 < failed.sim_time < 1.0 and "none" in ran.flags
     assert all("step_beyond_limit" in {f.kind for f in r.flags} for r in ran)
+    # in Python's words too: the switch is allow_unstable=True here, --allow-unstable on the command line
+    assert all(f.message.endswith("(run anyway: allow_unstable=True, --allow-unstable on the command line)")
+               for r in ran for f in r.flags if f.kind == "step_beyond_limit")
     assert all(any(f.kind == "cut_short" for f in r.flags) == (r.sim_time < 4.0) for r in ran)
     assert any(r.sim_time == pytest.approx(4.0) for r in ran)
     assert failed.time[-1] <= failed.sim_time and len(failed.time) >= 2
@@ -211,11 +214,14 @@ def test_a_campaign_s_table_holds_the_numbers_of_its_runs_run_one_by_one(tmp_pat
                     '[[grid]]\n"base.lever_arm" = ["5 m", "2000 mm"]\n')
     ran = movingbase.campaign(path, out=tmp_path / "out", jobs=1, progress=False)
     table = ran.table()
-    assert len(ran) == len(table) == 6 and list(table["status"]) == ["ok"] * 6
+    # every run is a 2.5 s cut of a slew that goes on (motion_unfinished): flagged, as run() says it, not "ok"
+    assert len(ran) == len(table) == 6 and list(table["status"]) == ["flagged"] * 6
+    assert repr(ran).startswith("<CampaignResult 'lever': 6 runs: 6 flagged, table in ") and not ran.ok
+    assert set(ran.statuses.values()) == {"flagged"} and not (tmp_path / "out" / "lever" / ".movingbase.lock").exists()
     # the swept quantity as an SI number (a plot against it gets a number axis), its unit in attrs
     assert sorted(table["base.lever_arm"]) == [2.0] * 3 + [5.0] * 3 and table.attrs["units"]["base.lever_arm"] == "m"
     assert table.attrs["units"]["leg error rms"] == "µm" and table["leg error rms"].dtype == float
-    assert "6 runs: <span style=\"\">6 ok</span>" in ran._repr_html_()
+    assert '<span style="color:#b00020">6 runs: 6 flagged</span>' in ran._repr_html_()
     assert list(table["error"]) == [""] * 6 and all(f.startswith("motion_unfinished") for f in table["flags"])
     alone = movingbase.run(NAME, progress=False, set={"stop_time": "2.5 s", "base.lever_arm": "5 m"})
     for row in table[table["base.lever_arm"] == 5.0].to_dict("records"):
@@ -227,6 +233,12 @@ def test_a_campaign_s_table_holds_the_numbers_of_its_runs_run_one_by_one(tmp_pat
         ran.records(ran.labels[0])
     t, _ = ran.series(ran.labels[0])["leg error"]
     assert t[0] >= 2.0
+    # the command says it too: the summary file's status column and the exit status (3: flagged)
+    from movingbase import cli
+    assert cli.main(["campaign", str(path), "--out", str(tmp_path / "out"), "--jobs", "1", "--quiet"]) == 3
+    summary = (tmp_path / "out" / "lever" / "summary.csv").read_text().splitlines()
+    status = summary[0].split(",").index("status")
+    assert [row.split(",")[status] for row in summary[1:]] == ["flagged"] * 6
 
 
 @pytest.mark.parametrize("content, problem", [
@@ -373,12 +385,18 @@ def test_a_cut_short_run_says_failed_first_everywhere(cut_short):
     for run, message in zip(result, said):
         assert run.status == "failed" and run.failure and run.sim_time < 8.0
         assert run.flags[0].kind == "cut_short"            # the cause before the symptoms
+        # the rows' share of the stroke and the plant's StrokeError tell one story
+        stroke, = [f.message for f in run.flags if f.kind == "stroke"]
+        assert stroke.endswith("% of its +-150 mm stroke in its recorded rows, and left it between them (cut_short)")
+        assert "StrokeError" in run.failure
         assert [f.kind for f in run.flags] == sorted((f.kind for f in run.flags), key=flags.SEVERITY.index)
-        assert message.startswith(f"run {run.label!r} FAILED (cut_short")
+        # which scenario and which values warned: a loop of runs tells its iterations apart
+        assert message.startswith(f"telescope_slew (set={{'base.lever_arm': '1e6 m'}}), run {run.label!r} FAILED "
+                                  "(cut_short")
         assert repr(run).startswith(f"<RunResult {run.label!r}: FAILED at t = {run.sim_time:g} s: cut_short")
-    assert "FAILED: none, fixed_base, moving_base" in repr(result)
+    assert repr(result) == "<Result 'telescope_slew': 3 runs: 3 failed; failed: none, fixed_base, moving_base>"
     table = result.metrics_table()
-    assert list(table[("status", "")]) == ["FAILED"] * 3 and table.columns[0] == ("status", "")
+    assert list(table[("status", "")]) == ["failed"] * 3 and table.columns[0] == ("status", "")
     assert all(cell.startswith("FAILED (cut_short: stopped at t = 5.01 s") for cell in table[("flags", "")])
 
 
@@ -477,6 +495,28 @@ def test_a_bad_set_value_is_told_as_set_s_not_as_the_file_s(given, told):
     assert str(refused.value).startswith("set= for telescope_slew.toml: set['b"), str(refused.value)
 
 
+@pytest.mark.parametrize("scene, given, told", [
+    ("telescope_slew", {"step": "5 ms"}, "set['step']: runs 'none', 'fixed_base', 'moving_base' (sweep of "
+                                         "controller.feedforward): 5 ms is beyond the predicted stability limit 2 ms"),
+    ("telescope_slew", {"stop_time": "0.5 s"}, "metrics[0].from: '5 s' lies at or after stop_time (0.5 s): the "
+                                               "metric would count nothing (the same at metrics[1].from, "
+                                               "metrics[2].from, metrics[4].from)"),
+    ("telescope_slew", {"sweep": {"parameter": "controller.kp", "values": ["1 N"]}},
+     "set['sweep'].values[0]: '1 N' is in N; expected a quantity in N/m"),
+    ("keyhole_tracking", {"base.declination": "-80 deg"}, "fmus.base.parameters: profile 'sidereal' with "
+                                                          "right_ascension = '222.32311789485317 deg', declination = "
+                                                          "'-80 deg'")])
+def test_set_s_top_level_keys_sweep_and_values_are_blamed_on_set_once_each(scene, given, told):
+    """Mistakes in set= beyond one parameter's own value (a top-level key, the step, the sweep,
+    a declination that puts the source below the horizon) were told as the shipped file's,
+    the stop time's four times over and the horizon's once per sweep value."""
+    with pytest.raises(spec.ScenarioError) as refused:
+        movingbase.run(scene, set=given, progress=False)
+    said = str(refused.value)
+    assert said.startswith(f"set= for {scene}.toml: {told}"), said
+    assert len(said.splitlines()) == 1 and said.count("below the horizon") <= 1, said
+
+
 # ------------------------------------------------------------------ what a notebook shows
 def test_plot_gives_charts_a_notebook_draws(result):
     """A cell ending in result.plot() shows the charts: Charts renders each figure as a
@@ -492,22 +532,33 @@ def test_a_run_plots_its_variables_with_their_units_and_its_status(result, cut_s
     run = result["moving_base"]
     (figure,) = run.plot("plant.pose", "controller.leg_force")
     axes = figure.axes
-    # the pose's components apart by unit: metres and radians are no one axis
-    assert [a.get_ylabel() for a in axes] == ["plant.pose[1:3]\n[m]", "plant.pose[4:6]\n[rad]",
-                                              "controller.leg_force\n[N]"]
-    np.testing.assert_array_equal(axes[1].get_lines()[2].get_ydata(), run["plant.pose"][:, 5])
-    np.testing.assert_array_equal(axes[2].get_lines()[0].get_xdata(), run.time)
-    assert [l.get_label() for l in axes[2].get_lines()] == [f"[{k}]" for k in range(1, 7)]
+    # the pose's components apart, named, each as its change from its start in the unit that
+    # reads (z = -2.68 m once flattened x and y, and rotations were drawn in rad)
+    labels = [a.get_ylabel() for a in axes]
+    assert labels[:3] == ["plant.pose[1] x\n[mm, from 0 m]", "plant.pose[2] y\n[mm, from 0 m]",
+                          "plant.pose[3] z\n[mm, from -2.6815 m]"], labels
+    assert [label.split("\n")[0] for label in labels[3:]] == ["plant.pose[4] roll", "plant.pose[5] pitch",
+                                                               "plant.pose[6] yaw", "controller.leg_force"]
+    pose, scale = run["plant.pose"], {"mm": 1e-3, "µrad": 1e-6, "nrad": 1e-9}
+    for k, ax in enumerate(axes[:6]):
+        unit = ax.get_ylabel().split("[")[-1].split(",")[0]
+        np.testing.assert_allclose(ax.get_lines()[0].get_ydata() * scale[unit], pose[:, k] - pose[0, k],
+                                   rtol=1e-12, atol=0)
+        assert 1 <= np.abs(ax.get_lines()[0].get_ydata()).max() < 1000      # the unit its largest change reads in
+    np.testing.assert_array_equal(axes[6].get_lines()[0].get_xdata(), run.time)
+    assert [l.get_label() for l in axes[6].get_lines()] == [f"[{k}]" for k in range(1, 7)]
     # without names: what the scenario's metrics read, each recorded
     default = run.plot()[0]
-    assert "plant.leg_length\n[m]" in [a.get_ylabel() for a in default.axes]
+    assert "plant.leg_length\n[mm, from the start]" in [a.get_ylabel() for a in default.axes]
     failed = cut_short[0]["none"].plot("plant.pose")[0]
     assert failed.get_suptitle().startswith("run none: FAILED (cut_short")
     with pytest.raises(KeyError, match="no recorded variable 'pose'; did you mean 'plant.pose'"):
         run.plot("pose")
     with pytest.raises(KeyError, match="no recorded variable 'plant.leg_lenght'; did you mean 'plant.leg_length'"):
         run["plant.leg_lenght"]
-    assert [p.name for p in run.plot("plant.pose").save(tmp_path / "c")] == ["chart_1.png"]
+    assert [p.name for p in run.plot("plant.pose").save(tmp_path / "c")] == ["moving_base_plant.pose.png"]
+    assert [p.name for p in result.plot().save(tmp_path / "c")] == ["leg_error_vs_time.png", "pose_error_vs_time.png",
+                                                                    "summary.png"]      # the report's names
 
 
 def test_tables_hold_numbers_with_their_units(result):
@@ -524,7 +575,7 @@ def test_tables_hold_numbers_with_their_units(result):
 
 def test_html_reprs_say_status_first(result, cut_short):
     shown = cut_short[0]._repr_html_()
-    assert "NOT ALL OK" in shown and shown.count("<td>FAILED</td>") == 3
+    assert "3 runs: 3 failed: a flagged or failed run" in shown and shown.count("<td>failed</td>") == 3
     assert "leg error rms [µm]" in shown
     run = result["moving_base"]._repr_html_()
     assert "<b>run moving_base</b>" in run and "<td>µrad</td>" in run
@@ -556,3 +607,125 @@ def test_a_campaign_takes_numpy_s_integers_as_a_worker_count(tmp_path):
     """campaign(jobs=np.int64(1)) was refused: any integer type is a count."""
     result = movingbase.campaign("slew_sizes", ci=True, jobs=np.int64(1), out=tmp_path, progress=False)
     assert len(result) > 0 and set(result.table()["status"]) <= {"ok", "flagged"}
+
+
+def test_an_interrupted_sweep_keeps_the_runs_that_finished(tmp_path, monkeypatch):
+    """Ctrl-C during the second run of a three-run sweep: the first run's records, metrics
+    and a report marked interrupted are on disk, the lock file is gone, and the message
+    says what was kept and how to run the rest (it was an empty KeyboardInterrupt)."""
+    from scenarios.runs import single
+    real, calls = single.run, []
+
+    def interrupted_at_the_second(*args, **kwargs):
+        calls.append(args[4])
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+    monkeypatch.setattr(single, "run", interrupted_at_the_second)
+    with pytest.raises(KeyboardInterrupt) as stopped:
+        movingbase.run(NAME, ci=True, progress=False, out=tmp_path)
+    folder = tmp_path / NAME
+    said = str(stopped.value)
+    assert said.startswith(f"{NAME} interrupted during run 'fixed_base': runs finished: 'none': records, metrics.json "
+                           f"and a report marked interrupted in {folder}")
+    assert said.endswith("not run to their end: 'fixed_base', 'moving_base'; to run the rest: set={'sweep': "
+                         "{'parameter': 'controller.feedforward', 'values': ['fixed_base', 'moving_base']}}")
+    assert sorted(p.name for p in folder.iterdir() if p.suffix != ".png") == ["metrics.json", "none.npz", "report.md"]
+    metrics = json.loads((folder / "metrics.json").read_text())
+    assert list(metrics) == ["none"]
+    report = (folder / "report.md").read_text()
+    assert "**Interrupted** (Ctrl-C): runs `fixed_base`, `moving_base` were not run to their end" in report
+    kept = stopped.value.result          # in Python too: a Result of the runs that finished
+    assert list(kept.runs) == ["none"] and kept.report_path == folder / "report.md"
+    # the kept run is the one an uninterrupted sweep gives (its first run), bit for bit
+    monkeypatch.setattr(single, "run", real)
+    whole = movingbase.run(NAME, ci=True, progress=False, set={"sweep": {"parameter": "controller.feedforward",
+                                                                          "values": ["none"]}})
+    assert metrics["none"]["metrics"] == json.loads(json.dumps(whole["none"].metrics, default=float))
+    assert kept["none"].values.tobytes() == whole["none"].values.tobytes()
+    assert read_records(folder / "none.npz").values.tobytes() == whole["none"].values.tobytes()
+
+
+def test_a_slew_cut_by_its_stop_time_is_told_before_anything_runs(monkeypatch):
+    """The profile is analytic: a 20 s cut of the shipped slew (it ends at 56.2 s, worked by
+    hand in tests/scenarios/runs/test_flags.py) is warned of, naming the values set, before
+    the first run starts (here it is stopped there)."""
+    from scenarios.runs import single
+
+    def stopped(*args, **kwargs):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(single, "run", stopped)
+    with pytest.warns(movingbase.RunWarning) as said, pytest.raises(KeyboardInterrupt):
+        movingbase.run("telescope_slew", set={"stop_time": "20 s"}, progress=False)
+    assert [str(w.message) for w in said] == [
+        "telescope_slew (set={'stop_time': '20 s'}): runs 'none', 'fixed_base', 'moving_base' will be flagged "
+        "motion_unfinished: the slew of 'base' has not ended at the stop time 20 s: the antenna still turns at "
+        "0.583 deg/s; it ends at t = 56.2 s: stop_time >= 57 s"]
+
+
+def test_labels_are_the_values_as_typed_but_in_file_names(tmp_path):
+    """A kp sweep of "1.8e6 N/m": the runs are labelled as typed (result["1.8e6 N/m"], the
+    tables, metrics.json, the legends); only the records' file name makes the '/' a '_'."""
+    values = ["1.8e6 N/m", "2.2e6 N/m"]
+    result = movingbase.run(NAME, ci=True, progress=False, out=tmp_path,
+                            set={"sweep": {"parameter": "controller.kp", "values": values}})
+    assert list(result.runs) == values and result["1.8e6 N/m"] is result[0]
+    assert result["1.8e6 N/m"].run.record_path.name == "1.8e6 N_m.npz"
+    folder = tmp_path / NAME
+    assert list(json.loads((folder / "metrics.json").read_text())) == values
+    assert sorted(p.name for p in folder.glob("*.npz")) == ["1.8e6 N_m.npz", "2.2e6 N_m.npz"]
+    assert "| 1.8e6 N/m |" in (folder / "report.md").read_text()
+    legend = [t.get_text() for t in result.plot()[0].legends[0].get_texts()]
+    assert legend == values, legend
+    if importlib.util.find_spec("pandas"):
+        assert list(result.metrics_table().index) == values
+
+
+def test_a_sampled_campaign_s_columns_follow_the_grid_s_unit_rule(tmp_path):
+    """A sampled input's column was 'plant.payload_mass_error [kg]' while a grid column kept
+    its unit in attrs: now both are named by their key, their unit in attrs; the numbers are
+    the draws summary.csv holds."""
+    pytest.importorskip("pandas")
+    from scenarios.runs import campaign as campaigns
+    path = tmp_path / "sampled.toml"
+    path.write_text(f'scenario = "{campaigns.SHIPPED / "scenes" / "dynamic_budget.toml"}"\n'
+                    'set = { stop_time = "1.05 s" }\n[sample]\nsamples = 2\nseed = 7\n'
+                    '"plant.payload_mass_error" = { distribution = "normal", sd = "40 kg" }\n'
+                    '"imu.imu_alignment" = { distribution = "uniform", half_width = "1 mrad" }\n')
+    ran = movingbase.campaign(path, out=tmp_path / "out", jobs=1, progress=False)
+    table = ran.table()
+    sampled = ["plant.payload_mass_error"] + [f"imu.imu_alignment[{k}]" for k in (1, 2, 3)]
+    assert [c for c in table.columns if c.startswith(("plant.", "imu."))] == sampled
+    assert [table.attrs["units"][c] for c in sampled] == ["kg", "rad", "rad", "rad"]
+    campaign = campaigns.load(path)
+    for row, case in zip(table.to_dict("records"), campaign.cases):
+        draws, _ = campaign.sample.draws(case.sample)
+        assert row["plant.payload_mass_error"] == draws["plant.payload_mass_error"]
+
+
+def test_builds_are_said_without_progress_bars_and_in_fmus(monkeypatch, capsys):
+    """fmus() and run(progress=False) built for 25 s without a word (issue 39): a build's
+    start is said on stderr whatever progress is (here a build stands in, logging as the
+    builders do: fmu_src/python_build.py)."""
+    import logging
+    real = runner.BUILDS["native"]
+
+    def building(scripts):
+        logging.getLogger("movingbase.build").info("building %s", ", ".join(scripts))
+        return real(scripts)
+    monkeypatch.setitem(runner.BUILDS, "native", building)
+    assert movingbase.fmus("telescope")["telescope"].name == "Telescope.fmu"
+    assert capsys.readouterr().err == "building telescope_fmu\n"
+    movingbase.load_scenario("paper_manoeuvre", ci=True)     # loading builds nothing
+    movingbase.run("paper_manoeuvre", ci=True, progress=False, set={"sweep": {"parameter": "controller.feedforward",
+                                                                              "values": ["none"]}})
+    assert capsys.readouterr().err.splitlines() == ["building hexapod_plant_fmu, leg_controller_fmu, telescope_fmu"]
+
+
+def test_every_mistake_of_set_is_told_at_once():
+    """An unknown instance and the swept parameter in one set=: both told, not the first."""
+    with pytest.raises(spec.ScenarioError) as refused:
+        movingbase.load_scenario(NAME, set={"bsae.lever_arm": "5 m", "controller.feedforward": "none"})
+    assert [(k, p[:40]) for _, k, p in refused.value.problems] == [
+        ("set['bsae.lever_arm']", "unknown FMU instance 'bsae'; did you mea"),
+        ("set['controller.feedforward']", "is the swept parameter; every run sets i")]

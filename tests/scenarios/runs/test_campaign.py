@@ -263,3 +263,18 @@ def test_a_ci_campaign_keeps_its_short_runs_unflagged(tmp_path):
     assert len(table) == 3 and all(r["status"] == "ok" and r["flags"] == "" for r in table), table   # x the sweep
     # the [ci] stop time, 8 s: the slew (from 5 s to ~56 s) is cut
     assert [store.read(job.key)["sim_time_s"] for job in jobs] == pytest.approx([8.0] * 3)
+
+
+def test_a_mistyped_key_is_told_once_with_a_did_you_mean_and_every_other_problem_too(tmp_path):
+    """A grid key typo gave one identical line per value, no did-you-mean, and hid the
+    second mistake behind the first (issue 39)."""
+    path = tmp_path / "typo.toml"
+    path.write_text('name = "typo"\nscenario = "paper_manoeuvre"\n[[grid]]\n"base.lever_arn" = ["1 m", "2 m"]\n'
+                    '[[grid]]\n"controller.kq" = [1.0, 2.0, 3.0]\n')
+    with pytest.raises(campaign.CampaignError) as refused:
+        campaign.load(path)
+    assert [line.split(": ", 1)[1] for line in str(refused.value).splitlines()] == [
+        "grid[0].base.lever_arn[0]: base (telescope) has no parameter 'lever_arn'; did you mean 'lever_arm'? "
+        "(the same at grid[0].base.lever_arn[1])",
+        "grid[1].controller.kq[0]: controller (leg_controller) has no parameter 'kq' (the same at "
+        "grid[1].controller.kq[1], grid[1].controller.kq[2])"]

@@ -246,6 +246,19 @@ def test_a_slew_cut_before_its_end_is_flagged_before_it_runs(tmp_path):
         assert [f.kind for f in each] == ["motion_unfinished"] and "deg/s" in each[0].message
 
 
+def test_a_cut_slew_says_when_it_ends_and_the_stop_time_that_finishes_it(tmp_path):
+    """The shipped slew, az 0 -> 20 deg and el 30 -> 45 deg from t = 5 s, by hand: the
+    elevation (0.3 deg/s, 0.25 deg/s2) is the slower axis: 1.2 s to its rate and 1.2 s to
+    stop, 0.18 deg each, and 14.64 deg at 0.3 deg/s (48.8 s): it ends at 5 + 51.2 = 56.2 s.
+    A stop at 56 s is flagged saying so; at 57 s (what it advises) the run is not."""
+    for stop, said in ((20, True), (56, True), (57, False)):
+        path = copied(tmp_path, f"slew_{stop}", **{'stop_time = "60 s"': f'stop_time = "{stop} s"'})
+        found = runner.pre_run_flags(*runner.prepare(path))
+        messages = [f.message for each in found.values() for f in each]
+        assert len(messages) == (3 if said else 0), (stop, messages)
+        assert all(m.endswith("; it ends at t = 56.2 s: stop_time >= 57 s") for m in messages), messages
+
+
 def test_a_slew_that_never_starts_is_flagged_before_it_runs(tmp_path):
     # start_delay 7 s beyond a 6 s run: the base holds its start pointing throughout, and its
     # rate at the stop time (zero) said nothing; a delay inside the run still flags the turning base
