@@ -11,13 +11,14 @@ Command line: ``movingbase run telescope_slew`` (or ``python -m movingbase run .
 In Python (notebooks): ``movingbase.run("telescope_slew", ci=True)`` returns a Result
 (time series as numpy arrays or pandas, metrics, flags, charts); ``movingbase.campaign``
 the same for campaign files; ``movingbase.budget`` a geometric tolerance budget;
+``movingbase.regress`` holds scenario files against stored baselines (CI);
 ``movingbase.fmus()`` the FMU files for other FMI tools (movingbase/api.py).
 """
 import typing as _typing
 
 __version__ = "0.2.0"
-__all__ = ["run", "campaign", "budget", "load_scenario", "fmus", "Result", "RunResult", "CampaignResult", "Charts",
-           "RunWarning", "ScenarioError", "__version__"]
+__all__ = ["run", "campaign", "budget", "regress", "load_scenario", "fmus", "Result", "RunResult", "CampaignResult",
+           "Charts", "RunWarning", "ScenarioError", "__version__"]
 
 if _typing.TYPE_CHECKING:
     from movingbase.api import (
@@ -30,6 +31,7 @@ if _typing.TYPE_CHECKING:
         campaign,
         fmus,
         load_scenario,
+        regress,
         run,
     )
     from scenarios.spec import ScenarioError

@@ -18,6 +18,7 @@ import math
 import pathlib
 import platform
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -25,6 +26,7 @@ import numpy as np
 from fmu_src import atomic
 from scenarios import spec
 from scenarios.cosim.fmi import content_digest
+from scenarios.cosim.records import read_records
 from scenarios.runs import runner
 from scenarios.runs.metrics import key_unit
 from scenarios.spec import units
@@ -108,7 +110,7 @@ def tube(t, y, value_tol, time_tol=0.0):
         first = np.searchsorted(t, t - time_tol, "left")
         last = np.searchsorted(t, t + time_tol, "right") - 1
         index = np.arange(len(t))
-        for shift in range(1, int(max(index - first.min(), last - index).max()) + 1):
+        for shift in range(1, int(max((index - first).max(), (last - index).max())) + 1):
             for other in (index - shift, index + shift):
                 within = (other >= first) & (other <= last)
                 high[within] = np.fmax(high[within], y[other[within]])
@@ -566,12 +568,12 @@ def regress_scene(name, baseline, update=False, ci=False, overrides=None, time_t
         if stored is not None and bool(stored[0]["provenance"]["master"]["ci"]) != bool(ci) and not update:
             length = "[ci]" if stored[0]["provenance"]["master"]["ci"] else "full"
             raise BaselineError(f"baseline {folder_of(baseline, path)} holds the {length} runs; run with"
-                                f"{'' if length == 'full' else 'out'} --ci, or --update")
+                                f"{'out' if length == 'full' else ''} --ci, or --update")
         with runner.announcing_builds(progress):
             scenario, paths, descriptions, values = runner.prepare(path, ci, implementation, None, fmi_version)
         outcome.name = scenario.name
         before = runner.pre_run_flags(scenario, paths, descriptions, values, ci)
-        runs = runner.run_prepared(scenario, paths, descriptions, values, None, progress, jobs, None, before)
+        runs = _run(scenario, paths, descriptions, values, progress, jobs, before)
         prov = provenance(scenario, paths, descriptions, values, ci)
         if stored is not None:
             data, curves = stored
@@ -595,8 +597,7 @@ def regress_scene(name, baseline, update=False, ci=False, overrides=None, time_t
             finer_values, changed = halved(scenario, descriptions, values)
             if not changed:
                 outcome.notes.append("no plant integrator step (max_step) to halve: tolerances are the floors")
-            finer = runner.run_prepared(scenario, paths, descriptions, finer_values, None, progress, jobs, None,
-                                        before) if changed else []
+            finer = _run(scenario, paths, descriptions, finer_values, progress, jobs, before) if changed else []
             write_baseline(baseline, scenario, runs, finer, prov, overrides or {})
             if outcome.updated is None:
                 outcome.runs = [RunOutcome(r.label, [], 0) for r in runs]
@@ -605,6 +606,20 @@ def regress_scene(name, baseline, update=False, ci=False, overrides=None, time_t
     outcome.wall_time = time.perf_counter() - began
     return outcome
 
+
+
+def _run(scenario, paths, descriptions, values, progress, jobs, before):
+    """The scenario's runs, in memory; with ``jobs`` on worker processes, whose records
+    pass through a temporary folder (the engine's store is on disk)."""
+    if not jobs:
+        return runner.run_prepared(scenario, paths, descriptions, values, None, progress, None, None, before)
+    with tempfile.TemporaryDirectory(prefix="movingbase-regress-") as scratch:
+        runs = runner.run_prepared(scenario, paths, descriptions, values, pathlib.Path(scratch), progress, jobs, None,
+                                   before)
+        for run in runs:
+            if run.records is None and run.record_path:
+                run.records = read_records(run.record_path)
+        return runs
 
 
 # ------------------------------------------------------------------------ many scenarios
