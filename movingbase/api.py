@@ -230,6 +230,13 @@ class RunResult:
         self.sim_time: float = run.sim_time
         records = run_records(run)
         self.records: Records = records if records is not None else Records([], [], 0)
+        # the file's [requirements] judged on this run (Result fills them in): [{"requirement", "value", "unit", "met"}]
+        self.requirements: list[dict] = []
+
+    @property
+    def requirements_met(self) -> bool:
+        """True if the run meets every requirement of its file that holds for it."""
+        return all(j["met"] for j in self.requirements)
 
     @property
     def ok(self) -> bool:
@@ -334,14 +341,19 @@ class RunResult:
                 for m, values in self.metrics.items() for k, v in values.items() if k != "unit"]
         return (f'<p><b>run {html.escape(self.label)}</b>: <span style="{_STATUS_STYLE[self.status]}">{state}'
                 f'{said}</span>; {len(self.time)} rows x {len(self.names)} variables, {self.sim_time:g} s '
-                f'simulated</p>' + _html_table(("metric", "", "value", "unit"), rows))
+                f'simulated</p>' + _html_table(("metric", "", "value", "unit"), rows)
+                + (_html_table(("requirement", "value", ""), [
+                    (j["requirement"], "not counted" if j["value"] is None else f"{j['value']:.4g} {j['unit']}",
+                     "met" if j["met"] else "NOT MET") for j in self.requirements]) if self.requirements else ""))
 
     def __repr__(self) -> str:
         kinds = "; ".join(f.kind for f in self.flags)
         state = {"ok": "ok", "flagged": f"flagged: {kinds}",
                  "failed": f"FAILED at t = {self.sim_time:g} s: {kinds}"}[self.status]
+        missed = spec.unmet(self.requirements)
+        said = f"; requirements NOT MET: {missed}" if missed else "; requirements met" if self.requirements else ""
         return (f"<RunResult {self.label!r}: {state}; {len(self.time)} rows x {len(self.names)} variables, "
-                f"{self.sim_time:g} s simulated>")
+                f"{self.sim_time:g} s simulated{said}>")
 
 
 class Result:
@@ -354,6 +366,8 @@ class Result:
         self._runs = list(runs)
         read = [v for m in scenario.metrics for v in m.args.values() if isinstance(v, str) and "." in v]
         self.runs: dict[str, RunResult] = {r.label: RunResult(r, list(dict.fromkeys(read))) for r in self._runs}
+        for result in self.runs.values():
+            result.requirements = spec.judge(scenario.requirements, result.label, result.metrics)
         self.report_path = report_path     # where ``out`` wrote the report, if it was given
 
     def __getitem__(self, label: str | int) -> RunResult:
@@ -395,7 +409,8 @@ class Result:
         rows = {label: {("status", ""): r.status.upper() if r.status == "failed" else r.status,
                         **{(m, k): (float("nan") if v is None else v)
                            for m, values in r.metrics.items() for k, v in values.items() if k != "unit"},
-                        ("flags", ""): run_flags.summary(r.flags)}
+                        ("flags", ""): run_flags.summary(r.flags),
+                        **({("requirements", ""): spec.unmet(r.requirements) or "met"} if r.requirements else {})}
                 for label, r in self.runs.items()}
         table = pd.DataFrame.from_dict(rows, orient="index")
         table.attrs["units"] = {(m, k): key_unit(values, k) for r in self.runs.values()
@@ -442,12 +457,20 @@ class Result:
         """True if no run was flagged or failed."""
         return all(r.ok for r in self)
 
+    @property
+    def requirements_met(self) -> bool:
+        """True if every run meets every requirement of the file that holds for it."""
+        return all(r.requirements_met for r in self)
+
     def __repr__(self) -> str:
         failed = [label for label, r in self.runs.items() if r.status == "failed"]
         flagged = [label for label, r in self.runs.items() if r.status == "flagged"]
         state = (f"{', FAILED: ' + ', '.join(failed) if failed else ''}"
                  f"{', flagged: ' + ', '.join(flagged) if flagged else ''}")
-        return f"<Result {self.scenario.name!r}: runs {', '.join(self.runs)}{state or ', all ok'}>"
+        missed = [label for label, r in self.runs.items() if not r.requirements_met]
+        said = f", requirements NOT MET: {', '.join(missed)}" if missed else \
+            ", requirements met" if any(r.requirements for r in self) else ""
+        return f"<Result {self.scenario.name!r}: runs {', '.join(self.runs)}{state or ', all ok'}{said}>"
 
     def _repr_html_(self) -> str:
         """Each run's status first (FAILED and flagged in red, with why), then its metrics."""
@@ -457,6 +480,10 @@ class Result:
         rows = [[label, r.status.upper() if r.status != "ok" else "ok"]
                 + [f"{r.metrics[m][k]:.4g}" if isinstance(r.metrics.get(m, {}).get(k), float) else ""
                    for m, k in tracked] + [r.message] for label, r in self.runs.items()]
+        if any(r.requirements for r in self):
+            head.append("requirements")
+            for row, r in zip(rows, self):
+                row.append(spec.unmet(r.requirements) or ("met" if r.requirements else ""))
         state = "all ok" if self.ok else "NOT ALL OK: a flagged or failed run's numbers are not results"
         return (f"<p><b>Result {html.escape(self.scenario.name)}</b>: {len(self)} runs, "
                 f'<span style="{"" if self.ok else _STATUS_STYLE["failed"]}">{state}</span></p>'

@@ -125,6 +125,8 @@ def run_command(argv=None, prog="movingbase run"):
                         help="all: error against time per metric and the summary bars (default); summary: the "
                              "summary bars of a sweep only; none: no charts (the report's tables and the records)")
     parser.add_argument("--ssp", metavar="FILE", help="export the (one) scenario as an SSP file, first sweep value")
+    parser.add_argument("--require", action="store_true",
+                        help="exit with status 1 if a run does not meet a requirement of its file ([requirements])")
     args = parser.parse_args(argv)
     try:
         _run(args, shipped)
@@ -140,7 +142,7 @@ def _run(args, shipped):
     from scenarios.runs.engine import EngineError, check_address
     from scenarios.runs.estimates import ResourceError, check_jobs
     from scenarios.runs.runner import OutputError, not_found, resolve, run_scenario
-    from scenarios.spec import ScenarioError
+    from scenarios.spec import ScenarioError, judge, unmet
     names = args.scenarios or ["telescope_slew"]
     if not all(n.strip() for n in names):
         sys.exit("scenario error: an empty scenario name; give a scenario file or a shipped name: " + shipped)
@@ -205,6 +207,14 @@ def _run(args, shipped):
             for flag in run.flags:
                 if flag.kind != "cut_short":   # a failed run says so above
                     print(f"    FLAGGED {flag.kind}: {flag.message}")
+        for run in runs:
+            for judged in judge(scenario.requirements, run.label, run.metrics):
+                value = "not counted" if judged["value"] is None else f"{judged['value']:.3g} {judged['unit']}"
+                said = "met" if judged["met"] else "NOT MET"
+                print(f"  {run.label}: requirement {judged['requirement']}: {said} ({value})")
+            missed = unmet(judge(scenario.requirements, run.label, run.metrics))
+            if missed and args.require:
+                errors.append(f"requirement error: {scenario.name}, run {run.label}: {missed}")
         flagged = [run.label for run in runs if run.flags]
         if flagged:
             print(f"  {len(flagged)} of {len(runs)} runs FLAGGED ({', '.join(flagged)}): their numbers are not "

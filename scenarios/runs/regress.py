@@ -520,6 +520,14 @@ def _shown(value):
     return "n/a" if value is None or value != value else f"{value:.6g}"
 
 
+def requirement_findings(scenario, run):
+    """A finding per requirement of the file that ``run`` does not meet."""
+    return [Finding("requirement", j["requirement"], f"requirement {j['requirement']} NOT MET: "
+                    + ("not counted" if j["value"] is None else f"{j['value']:.4g} {j['unit']}"),
+                    unit=j["unit"], new=j["value"])
+            for j in spec.judge(scenario.requirements, run.label, run.metrics) if not j["met"]]
+
+
 def describe_changes(data, prov):
     """Lines saying what differs between a stored baseline's provenance and a new one."""
     old = data.get("provenance", {})
@@ -599,8 +607,9 @@ def regress_scene(name, baseline, update=False, ci=False, overrides=None, time_t
                 outcome.notes.append("no plant integrator step (max_step) to halve: tolerances are the floors")
             finer = _run(scenario, paths, descriptions, finer_values, progress, jobs, before) if changed else []
             write_baseline(baseline, scenario, runs, finer, prov, overrides or {})
-            if outcome.updated is None:
-                outcome.runs = [RunOutcome(r.label, [], 0) for r in runs]
+            outcome.runs = [RunOutcome(r.label, [], 0) for r in runs]
+        for run, told in zip(runs, outcome.runs):   # the file's absolute specs, whatever the baseline says
+            told.findings[:0] = requirement_findings(scenario, run)
     except (spec.ScenarioError, BaselineError, runner.OutputError, OSError) as exc:
         outcome.error = f"{exc.filename}: {exc.strerror}" if isinstance(exc, OSError) and exc.filename else str(exc)
     outcome.wall_time = time.perf_counter() - began
@@ -663,6 +672,7 @@ class Regression:
                                  + (":" if changed else ""))
                 lines += [f"    {label}: {f.text}" for label, f in changed[:most * 2]]
                 lines += [f"  changed since: {note}" for note in scene.notes]
+                lines += [f"  {run.label}: {f.text}" for run in scene.runs for f in run.findings]   # requirements
                 continue
             bad = [r for r in scene.runs if r.findings]
             lines.append(f"{scene.name}: {'REGRESSION' if bad else 'pass'} ({len(scene.runs)} runs"
@@ -677,7 +687,8 @@ class Regression:
             if bad:
                 lines += [f"  changed since the baseline: {note}" for note in scene.notes]
         verdict = {0: "passed", 1: "REGRESSION", 2: "COULD NOT RUN every scenario"}[self.exit_code]
-        lines.append("baselines updated" if self.update and self.exit_code != 2 else
+        lines.append("baselines updated" if self.update and self.exit_code == 0 else
+                     "baselines updated; REQUIREMENTS NOT MET" if self.update and self.exit_code == 1 else
                      f"regress: {verdict} ({sum(s.verdict == 'pass' for s in self.scenes)} of {len(self.scenes)} "
                      "scenarios passed)")
         return "\n".join(lines)
