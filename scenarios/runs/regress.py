@@ -675,7 +675,8 @@ class Regression:
                 lines += [f"  {run.label}: {f.text}" for run in scene.runs for f in run.findings]   # requirements
                 continue
             bad = [r for r in scene.runs if r.findings]
-            lines.append(f"{scene.name}: {'REGRESSION' if bad else 'pass'} ({len(scene.runs)} runs"
+            lines.append(f"{scene.name}: {'REGRESSION' if bad else 'pass'} ({len(scene.runs)} run"
+                         f"{'s' * (len(scene.runs) != 1)}"
                          f"{f', {len(bad)} regressed' if bad else ''}; {scene.wall_time:.1f} s)")
             for run in scene.runs:
                 if not run.findings:
