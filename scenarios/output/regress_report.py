@@ -124,7 +124,7 @@ def tube_chart(scene, label, name, finding, t, y, low, high, t_new, y_new, unit)
     top.plot(t_new, y_new, color="#1f77b4", lw=1.0, ls="--", label="new run")
     top.plot(t[out], at[out], "o", ms=3, color=MARK_COLOUR, label="outside the tube")
     bottom.fill_between(t, low - y, high - y, color="0.75", alpha=0.6, lw=0,
-                        label=f"tube (+-{finding.tolerance:.2g} {unit}: may be too thin to see)")
+                        label=f"tube (up to +-{float(np.nanmax(high - y)):.2g} {unit}: may be too thin to see)")
     bottom.plot(t, at - y, color="#1f77b4", lw=1.0)
     bottom.plot(t[out], (at - y)[out], "o", ms=3, color=MARK_COLOUR)
     bottom.axhline(0.0, color="0.2", lw=0.8)
