@@ -3,7 +3,7 @@ the metrics, status, flags, provenance and tolerances), and the comparison of a 
 with it (``movingbase regress``).
 
 Each tolerance is sized from the run's own numerical error, as the kit's golden metrics
-always were (tests/update_golden.py): twice the change when every plant's integrator
+always were (and its shipped scenes' baselines in tests/golden/regress are): twice the change when every plant's integrator
 step is halved, floored for rounding across processors (RELATIVE, FLOOR). A signal is
 compared within a tube in time and value: the funnel of BuildingsPy's pyfunnel (each
 baseline point widened by the time tolerance, then by the value tolerance), computed here
@@ -321,12 +321,15 @@ def _run_data(run, signals, series, metric_tols, signal_tols):
 
 
 def _arrays(signals, series):
-    """The npz arrays of a run's baseline: each signal and series at its kept rows."""
+    """The npz arrays of a run's baseline: each signal and series at its kept rows; the
+    signals' times once (they are the records' rows: a third of the file, stored 30 times)."""
     arrays = {}
-    for kind, group in (("signal", signals), ("series", series)):
-        for k, (name, (t, v, _)) in enumerate(group.items()):
-            keep = thinned(len(t))
-            arrays[f"{kind}{k}_t"], arrays[f"{kind}{k}_v"] = np.asarray(t)[keep], np.asarray(v)[keep]
+    for k, (name, (t, v, _)) in enumerate(signals.items()):
+        keep = thinned(len(t))
+        arrays["signal_t"], arrays[f"signal{k}_v"] = np.asarray(t)[keep], np.asarray(v)[keep]
+    for k, (name, (t, v, _)) in enumerate(series.items()):
+        keep = thinned(len(t))
+        arrays[f"series{k}_t"], arrays[f"series{k}_v"] = np.asarray(t)[keep], np.asarray(v)[keep]
     return arrays
 
 
@@ -356,9 +359,10 @@ def read_baseline(baseline, source):
         curves = {}
         for label, run in data["runs"].items():
             with np.load(folder / f"{spec.file_label(label)}.npz") as arrays:
-                curves[label] = {name: (arrays[f"{kind}{k}_t"], arrays[f"{kind}{k}_v"])
-                                 for kind, key in (("signal", "signals"), ("series", "series"))
-                                 for k, name in enumerate(run[key])}
+                curves[label] = {name: (arrays["signal_t"], arrays[f"signal{k}_v"])
+                                 for k, name in enumerate(run["signals"])}
+                curves[label].update({name: (arrays[f"series{k}_t"], arrays[f"series{k}_v"])
+                                      for k, name in enumerate(run["series"])})
     except (OSError, ValueError, KeyError) as exc:
         raise BaselineError(f"baseline {folder}: cannot be read ({exc}); make it again with --update") from None
     if data.get("format") != FORMAT:
