@@ -243,3 +243,38 @@ def test_a_baseline_of_the_other_length_is_refused(held):
     outcome = regress.regress([held[0]], held[1], ci=False)
     assert outcome.exit_code == 2 and "holds the [ci] runs; run with --ci" in outcome.scenes[0].error
 
+
+
+@pytest.mark.slow
+def test_an_fmu_rebuilt_fresh_passes_and_one_rebuilt_from_changed_c_is_caught(held, tmp_path, monkeypatch):
+    """The controller's native FMU rebuilt from a copy of its C: as it is, the baseline
+    holds (a fresh build is no change); with the PID's integral step in controller/c/pid.c
+    halved (the supplier's next FMU), the scene is caught."""
+    from fmu_src import native_build
+    from fmu_src.python_build import ensure_built
+    python_fmu = ensure_built(["leg_controller_fmu"])["leg_controller_fmu"]
+    kernels, paths = native_build.KERNELS, runner.fmu_paths
+    old = "double candidate = integral[i] + dt * error[i];"
+
+    def rebuilt(folder, change):
+        copy = tmp_path / folder / "controller_c"
+        copy.mkdir(parents=True)
+        for source in kernels[1].iterdir():
+            if source.is_file():
+                copy.joinpath(source.name).write_bytes(source.read_bytes())
+        assert old in (copy / "pid.c").read_text()
+        (copy / "pid.c").write_text((copy / "pid.c").read_text().replace(old, change))
+        with monkeypatch.context() as building:    # the copy for this build only: build/ is never made from it
+            building.setattr(native_build, "KERNELS", (kernels[0], copy))
+            fmu = native_build.build_native(python_fmu, tmp_path / folder / "fmu")
+        monkeypatch.setattr(runner, "fmu_paths", lambda scenario: {**paths(scenario), "controller": fmu})
+        return regress.regress([held[0]], held[1], ci=True)
+
+    fresh = rebuilt("fresh", old)
+    assert fresh.exit_code == 0, fresh.summary()
+    changed = rebuilt("changed", "double candidate = integral[i] + 0.5 * dt * error[i];")
+    assert changed.exit_code == 1, changed.summary()
+    first = changed.findings()[0][2]
+    assert first.name.startswith("plant.pose") and 0 < first.first < 8.0, first.text
+    assert any(note.startswith("FMU controller (leg_controller): rebuilt from other sources")
+               for note in changed.scenes[0].notes), changed.scenes[0].notes
