@@ -71,7 +71,7 @@ def write_report(outcome, folder):
             lines += [f"- {f.text}" for f in run.findings]
             drawn = set()
             for finding in run.findings:
-                name = _curve_name(finding)
+                name = finding.curve
                 if name not in run.curves or name in drawn or len(drawn) == CHARTS_PER_RUN:
                     continue
                 png = f"{_file(scene.name)}_{_file(run.label)}_{_file(name)}.png"
@@ -90,15 +90,6 @@ def _remove_earlier(folder):
     if earlier.is_file():
         for png in re.findall(r"\]\(([^)/]+\.png)\)", earlier.read_text(encoding="utf-8")):
             (folder / png).unlink(missing_ok=True)
-
-
-def _curve_name(finding):
-    """The curve a finding is drawn on: a signal's own, a metric's series."""
-    if finding.kind == "signal":
-        return finding.name
-    metric, key = finding.name.rsplit(" ", 1)
-    return metric + (" rotation" if key.startswith("rotation") else
-                     " path" if key.startswith(("path", "efficiency")) else "")
 
 
 def _cell(text):

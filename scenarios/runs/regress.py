@@ -3,12 +3,13 @@ the metrics, status, flags, provenance and tolerances), and the comparison of a 
 with it (``movingbase regress``).
 
 Each tolerance is sized from the run's own numerical error, as the kit's golden metrics
-always were (and its shipped scenes' baselines in tests/golden/regress are): twice the change when every plant's integrator
-step is halved, floored for rounding across processors (RELATIVE, FLOOR). A signal is
-compared within a tube in time and value: the funnel of BuildingsPy's pyfunnel (each
-baseline point widened by the time tolerance, then by the value tolerance), computed here
-on the kit's fixed record grid (``tube``; pyfunnel ships a prebuilt library and talks
-through CSV files in a folder, for a comparison that is a sliding maximum here).
+always were (and its shipped scenes' baselines, tests/golden/regress, are): twice the
+change when every plant's integrator step is halved, floored for rounding across
+processors (RELATIVE, FLOOR). A signal is compared within a tube in time and value: the
+funnel of BuildingsPy's pyfunnel (each baseline point widened by the time tolerance, then
+by the value tolerance), computed here on the kit's fixed record grid (``tube``; pyfunnel
+ships a prebuilt library and talks through CSV files in a folder, for a comparison that
+is a sliding maximum here).
 """
 import dataclasses
 import hashlib
@@ -54,7 +55,8 @@ class BaselineError(ValueError):
 class Finding:
     """One thing outside its tolerance: a signal (``kind`` "signal"), a metric, the status
     or the flags. ``first``: first time outside the tube [s]; ``excursion``: the largest
-    distance beyond the tube's edge, at ``worst`` [s]; ``old``/``new`` the values compared."""
+    distance beyond the tube's edge, at ``worst`` [s]; ``old``/``new`` the values compared;
+    ``curve``: the signal or metric series it is drawn on ("" if none)."""
 
     kind: str
     name: str
@@ -66,6 +68,7 @@ class Finding:
     old: object = None
     new: object = None
     tolerance: float = math.nan
+    curve: str = ""
 
 
 @dataclasses.dataclass
@@ -466,8 +469,9 @@ def compare_run(stored, curves, run, overrides=None, time_tol=0.0, where=""):
                 continue
             first = firsts.get(series_for(metric, key), math.nan)
             findings.append(Finding("metric", f"{metric} {key}", _metric_text(metric, key, old, new, unit, tol, first),
-                                    first=first, unit=unit, old=old, new=new, tolerance=tol))
-    told = {series_for(*f.name.rsplit(" ", 1)) for f in findings if f.kind == "metric"}
+                                    first=first, unit=unit, old=old, new=new, tolerance=tol,
+                                    curve=series_for(metric, key)))
+    told = {f.curve for f in findings if f.kind == "metric"}
     for name in stored["series"]:
         if name in firsts and name not in told:
             t, y, low, high, tn, yn, unit = shown[name]
@@ -478,10 +482,7 @@ def compare_run(stored, curves, run, overrides=None, time_tol=0.0, where=""):
     findings.sort(key=lambda f: (order.get(f.kind, 3), f.first if math.isfinite(f.first) else math.inf,
                                  f.kind != "metric"))   # at one time, the metric (the domain's terms) first
     return RunOutcome(run.label, findings, len(curves) + sum(len(v) - 1 for v in stored["metrics"].values()),
-                      {f.name if f.kind == "signal" else series_for(*f.name.rsplit(" ", 1)):
-                       shown[f.name if f.kind == "signal" else series_for(*f.name.rsplit(" ", 1))]
-                       for f in findings if f.kind in ("signal", "metric")
-                       and (f.name if f.kind == "signal" else series_for(*f.name.rsplit(" ", 1))) in shown})
+                      {f.curve: shown[f.curve] for f in findings if f.curve in shown})
 
 
 def _group_text(variable, group, first, worst):
@@ -505,7 +506,7 @@ def _signal_finding(name, t, beyond, first, worst, unit, tol):
     said = "ended before" if math.isinf(excursion) else f"largest excursion {excursion:.3g} {unit} beyond it"
     return Finding("signal", name, f"{name} first outside its tube at t = {t[first]:.4g} s, {said} at "
                    f"t = {t[worst]:.4g} s (tube +-{tol:.3g} {unit})", first=float(t[first]), worst=float(t[worst]),
-                   excursion=excursion, unit=unit, tolerance=tol)
+                   excursion=excursion, unit=unit, tolerance=tol, curve=name)
 
 
 def _metric_text(metric, key, old, new, unit, tol, first):
@@ -719,6 +720,11 @@ def regress(names, baseline, update=False, ci=False, overrides=None, time_tol=0.
     for name in overrides:
         if not isinstance(name, str) or not name.strip():
             raise BaselineError(f"tolerance: a name of a metric number or signal, got {name!r}")
+    stems = [pathlib.Path(str(n)).stem for n in names]
+    shared = sorted({stem for stem in stems if stems.count(stem) > 1})
+    if shared:
+        raise BaselineError(f"{', '.join(shared)}: more than one scenario file of that name; a baseline is kept per "
+                            "file name (baseline/<stem>/): hold them in separate --baseline folders")
     scenes = [regress_scene(str(n), baseline, update, ci, overrides, time_tol, jobs, implementation, fmi_version,
                             progress) for n in names]
     return Regression(scenes, str(baseline), update)

@@ -278,3 +278,14 @@ def test_an_fmu_rebuilt_fresh_passes_and_one_rebuilt_from_changed_c_is_caught(he
     assert first.name.startswith("plant.pose") and 0 < first.first < 8.0, first.text
     assert any(note.startswith("FMU controller (leg_controller): rebuilt from other sources")
                for note in changed.scenes[0].notes), changed.scenes[0].notes
+
+
+def test_bad_arguments_are_refused_before_anything_runs(tmp_path):
+    with pytest.raises(regress.BaselineError, match="x: more than one scenario file of that name"):
+        regress.regress([tmp_path / "a" / "x.toml", tmp_path / "b" / "x.toml"], tmp_path)
+    with pytest.raises(regress.BaselineError, match="write 'NAME = QUANTITY'"):
+        regress.parse_override("pose error peak 1 um")
+    assert regress.parse_override(" pose error peak = 0.5 µm ") == ("pose error peak", "0.5 µm")
+    done = subprocess.run([sys.executable, "-m", "movingbase", "regress", "telescope_slew", "--baseline",
+                           str(tmp_path), "--time-tolerance", "5 kg"], capture_output=True, text=True)
+    assert done.returncode == 2 and "regress error: unknown unit 'kg'" in done.stderr
