@@ -1,8 +1,9 @@
 """movingbase regress: planted changes caught with the first thing outside its tolerance
-named, no false failure (1 and 2 jobs, FMI 2 and 3), the floors measured, the tube against
+named, no false failure (1 and 2 jobs, FMI 2 and 3, numpy and glibc without AVX-512/FMA), the floors measured, the tube against
 its definition by brute force, exit codes, JUnit and the report."""
 import json
 import math
+import os
 import subprocess
 import sys
 from xml.etree import ElementTree
@@ -289,3 +290,19 @@ def test_bad_arguments_are_refused_before_anything_runs(tmp_path):
     done = subprocess.run([sys.executable, "-m", "movingbase", "regress", "telescope_slew", "--baseline",
                            str(tmp_path), "--time-tolerance", "5 kg"], capture_output=True, text=True)
     assert done.returncode == 2 and "regress error: unknown unit 'kg'" in done.stderr
+
+
+def test_the_baseline_holds_on_the_vector_units_of_a_smaller_processor(held):
+    """Another x86-64 machine, as far as one machine can play it: numpy's AVX-512 loops
+    and glibc's FMA and AVX2 function variants switched off for the comparing process
+    (NPY_DISABLE_CPU_FEATURES, GLIBC_TUNABLES), against the baseline made with them."""
+    from numpy._core._multiarray_umath import __cpu_features__
+    off = [f for f in ("AVX512_SPR", "AVX512_ICL", "X86_V4") if __cpu_features__.get(f)]
+    if not off:
+        pytest.skip("this processor has no AVX-512 for numpy to leave aside")
+    env = {**os.environ, "NPY_DISABLE_CPU_FEATURES": " ".join(off),
+           "GLIBC_TUNABLES": "glibc.cpu.hwcaps=-AVX512F,-AVX2,-FMA,-AVX512F_Usable,-AVX2_Usable,-FMA_Usable"}
+    done = subprocess.run([sys.executable, "-m", "movingbase", "regress", str(held[0]), "--baseline", str(held[1]),
+                           "--ci", "--quiet"], capture_output=True, text=True, env=env)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "telescope_slew: pass (1 run" in done.stdout
