@@ -1,6 +1,7 @@
 """movingbase regress: planted changes caught with the first thing outside its tolerance
-named, no false failure (1 and 2 jobs, FMI 2 and 3, numpy and glibc without AVX-512/FMA), the floors measured, the tube against
-its definition by brute force, exit codes, JUnit and the report."""
+named, no false failure (1 and 2 jobs, FMI 2 and 3, a fresh FMU build, numpy and glibc
+without AVX-512 and FMA), the floors measured, the tube against its definition by brute
+force, exit codes, JUnit and the report."""
 import json
 import math
 import os
