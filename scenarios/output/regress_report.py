@@ -122,8 +122,8 @@ def tube_chart(scene, label, name, finding, t, y, low, high, t_new, y_new, unit)
     if math.isfinite(finding.first):
         for ax in (top, bottom):
             ax.axvline(finding.first, color=MARK_COLOUR, lw=0.8, ls=":")
-        top.annotate(f"first outside: t = {finding.first:.4g} s", (finding.first, float(np.nanmax(high))),
-                     xytext=(4, -12), textcoords="offset points", color=MARK_COLOUR, fontsize=8)
+        bottom.text(0.01, 0.03, f"first outside: t = {finding.first:.4g} s (dotted)", transform=bottom.transAxes,
+                    color=MARK_COLOUR, fontsize=8)
     top.set_ylabel(f"{name}\n[{unit or '-'}]")
     bottom.set_ylabel(f"new - baseline\n[{unit or '-'}]")
     bottom.set_xlabel("time [s]")
