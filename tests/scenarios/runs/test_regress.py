@@ -84,11 +84,12 @@ def test_a_metric_change_is_told_in_the_domain_terms(held, tmp_path):
     assert "base.lever_arm 25.0 -> 25.5" in outcome.scenes[0].notes
 
 
-def test_the_same_baseline_passes_with_two_jobs_and_under_fmi3(held):
-    """No false failure: the sweep's run on a worker process, and the FMI 3.0 FMUs (the kit
-    claims the same numbers bit for bit: docs/fmi3.md)."""
+def test_the_same_baseline_passes_with_two_jobs_under_fmi3_and_pythonfmu(held):
+    """No false failure: the sweep's run on a worker process, the FMI 3.0 FMUs (the kit
+    claims the same numbers bit for bit: docs/fmi3.md) and the pythonfmu FMUs (the same
+    numbers, scenarios/files/telescope_slew.toml says)."""
     path, baseline = held
-    for settings in ({}, {"jobs": 2}, {"fmi_version": 3}):
+    for settings in ({}, {"jobs": 2}, {"fmi_version": 3}, {"implementation": "python"}):
         outcome = regress.regress([path], baseline, ci=True, **settings)
         assert outcome.exit_code == 0, (settings, outcome.summary())
         assert outcome.scenes[0].runs[0].compared > 40
