@@ -356,6 +356,7 @@ def regress_command(argv=None):
     scenario (or the command) that could not run."""
     from scenarios.output.regress_report import write_junit, write_report
     from scenarios.runs import regress
+    from scenarios.runs.estimates import ResourceError, check_jobs
     from scenarios.spec import units
     parser = argparse.ArgumentParser(prog="movingbase regress",
                                      description="Hold scenarios in CI: re-run each and compare its signals (within "
@@ -379,11 +380,14 @@ def regress_command(argv=None):
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     try:
+        warning = check_jobs(args.jobs)
+        if warning:
+            print(warning, file=sys.stderr)
         overrides = dict(regress.parse_override(text) for text in args.tolerance)
         time_tol = units.to_si(args.time_tolerance, "s")
         outcome = regress.regress(args.scenarios, args.baseline, args.update, args.ci, overrides, time_tol, args.jobs,
                                   None, args.fmi_version, not args.quiet)
-    except (regress.BaselineError, units.UnitError) as exc:
+    except (regress.BaselineError, units.UnitError, ResourceError) as exc:
         print(f"regress error: {exc}", file=sys.stderr)
         return 2
     print(outcome.summary())

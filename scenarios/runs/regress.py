@@ -26,9 +26,11 @@ import numpy as np
 
 from fmu_src import atomic
 from scenarios import spec
-from scenarios.cosim.fmi import content_digest
+from scenarios.cosim.fmi import FmuFileError, content_digest
 from scenarios.cosim.records import read_records
 from scenarios.runs import runner
+from scenarios.runs.engine import EngineError
+from scenarios.runs.estimates import ResourceError
 from scenarios.runs.metrics import key_unit
 from scenarios.spec import units
 
@@ -615,7 +617,8 @@ def regress_scene(name, baseline, update=False, ci=False, overrides=None, time_t
             outcome.runs = [RunOutcome(r.label, [], 0) for r in runs]
         for run, told in zip(runs, outcome.runs):   # the file's absolute specs, whatever the baseline says
             told.findings[:0] = requirement_findings(scenario, run)
-    except (spec.ScenarioError, BaselineError, runner.OutputError, OSError) as exc:
+    except (spec.ScenarioError, BaselineError, runner.OutputError, FmuFileError, ResourceError, EngineError,
+            OSError) as exc:
         outcome.error = f"{exc.filename}: {exc.strerror}" if isinstance(exc, OSError) and exc.filename else str(exc)
     outcome.wall_time = time.perf_counter() - began
     return outcome
