@@ -16,15 +16,16 @@ import hashlib
 import importlib.metadata
 import json
 import math
+import os
 import pathlib
 import platform
+import shutil
 import sys
 import tempfile
 import time
 
 import numpy as np
 
-from fmu_src import atomic
 from scenarios import spec
 from scenarios.cosim.fmi import FmuFileError, content_digest
 from scenarios.cosim.records import read_records
@@ -378,9 +379,12 @@ def read_baseline(baseline, source):
 
 def write_baseline(baseline, scenario, runs, finer, prov, overrides):
     """Store the baseline of ``runs`` (their tolerances from ``finer``, the same runs at
-    half the plant's step) in baseline/<stem>/: baseline.json and one compressed npz per
-    run, each written whole; files of runs no longer in the scenario removed."""
-    folder = runner.make_folder(folder_of(baseline, scenario.source))
+    half the plant's step) as baseline/<stem>/: baseline.json and one compressed npz per
+    run. Everything is computed (and the overrides checked) first, the files written into
+    a new folder beside it, which then takes the old one's place: a reader finds the old
+    baseline or the new one, never a mix."""
+    target = folder_of(baseline, scenario.source)
+    runner.make_folder(target.parent)
     by_label = {r.label: r for r in finer}
     variables = read_variables(scenario)
     data = {"format": FORMAT, "scene": scenario.name, "source": str(scenario.source), "provenance": prov,
@@ -388,6 +392,7 @@ def write_baseline(baseline, scenario, runs, finer, prov, overrides):
                                                   f"at least {RELATIVE:g} of the value and {FLOOR:g} in a metric's "
                                                   f"unit (a signal: {SIGNAL_RELATIVE:g} of its variable's "
                                                   f"largest value and {SI_FLOOR:g} SI)", "runs": {}}
+    files = {}
     for run in runs:
         fine = by_label.get(run.label)
         signals, series = signals_of(run, variables), series_of(run)
@@ -399,14 +404,26 @@ def write_baseline(baseline, scenario, runs, finer, prov, overrides):
         apply_overrides(overrides, metric_tols, signal_tols, run.metrics,
                         {n: u for n, (_, _, u) in {**signals, **series}.items()}, f"scenario {scenario.name}")
         data["runs"][run.label] = _run_data(run, signals, series, metric_tols, signal_tols)
-        with atomic.replacing(folder / f"{spec.file_label(run.label)}.npz") as file:
-            np.savez_compressed(file, **_arrays(signals, series))
-    atomic.write_text(folder / "baseline.json", json.dumps(_plain(data), indent=1, ensure_ascii=False) + "\n")
-    kept = {f"{spec.file_label(label)}.npz" for label in data["runs"]} | {"baseline.json", runner.LOCK}
-    for stale in folder.iterdir():
-        if stale.is_file() and stale.name not in kept and stale.suffix == ".npz":
-            stale.unlink()
-    return folder
+        files[f"{spec.file_label(run.label)}.npz"] = _arrays(signals, series)
+    fresh, old = (target.with_name(f".{target.name}.{os.getpid()}.{end}") for end in ("new", "old"))
+    try:
+        fresh.mkdir()
+        for name, arrays in files.items():
+            np.savez_compressed(fresh / name, **arrays)
+        (fresh / "baseline.json").write_text(json.dumps(_plain(data), indent=1, ensure_ascii=False) + "\n",
+                                             encoding="utf-8")
+        if target.exists():
+            os.replace(target, old)
+        try:
+            os.replace(fresh, target)
+        except BaseException:
+            if old.exists():
+                os.replace(old, target)     # the old baseline back in its place
+            raise
+    finally:
+        shutil.rmtree(fresh, ignore_errors=True)
+    shutil.rmtree(old, ignore_errors=True)
+    return target
 
 
 def _finer_metric(fine, metric, key):

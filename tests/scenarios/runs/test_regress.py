@@ -180,6 +180,10 @@ def test_a_tolerance_override_with_units_replaces_one_and_is_stored(held, tmp_pa
     regress.regress([held[0]], stored_in, update=True, ci=True, overrides={"pose error peak": "0.5 mm"})
     run = json.loads((stored_in / "slew" / "baseline.json").read_text())["runs"]["fixed_base"]
     assert run["tolerances"]["metrics"]["pose error"]["peak"] == pytest.approx(500.0)    # µm
+    before = {f.name: f.read_bytes() for f in (stored_in / "slew").iterdir()}
+    refused = regress.regress([held[0]], stored_in, update=True, ci=True, overrides={"pose eror peak": "1 um"})
+    assert refused.exit_code == 2 and {f.name: f.read_bytes() for f in (stored_in / "slew").iterdir()} == before
+    assert sorted(p.name for p in stored_in.iterdir()) == ["slew"]      # nothing half-written beside it
     for override, said in (({"pose eror peak": "1 um"}, "tolerance 'pose eror peak': no metric number"),
                            ({"pose error peak": "1 kN"}, "expected a quantity in µm")):
         refused = regress.regress([held[0]], held[1], ci=True, overrides=override)
