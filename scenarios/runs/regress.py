@@ -387,7 +387,7 @@ def write_baseline(baseline, scenario, runs, finer, prov, overrides):
     runner.make_folder(target.parent)
     by_label = {r.label: r for r in finer}
     variables = read_variables(scenario)
-    data = {"format": FORMAT, "scene": scenario.name, "source": str(scenario.source), "provenance": prov,
+    data = {"format": FORMAT, "scene": scenario.name, "source": pathlib.Path(scenario.source).name, "provenance": prov,
             "overrides": dict(overrides), "rule": f"tolerance = 2 x the change with every plant's max_step halved, "
                                                   f"at least {RELATIVE:g} of the value and {FLOOR:g} in a metric's "
                                                   f"unit (a signal: {SIGNAL_RELATIVE:g} of its variable's "
