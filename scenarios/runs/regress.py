@@ -552,6 +552,11 @@ def requirement_findings(scenario, run):
             for j in spec.judge(scenario.requirements, run.label, run.metrics) if not j["met"]]
 
 
+def _said(value):
+    """A parameter's value as bound, or the FMU's default where the file set none."""
+    return "(the FMU's default)" if value is None else repr(value)
+
+
 def describe_changes(data, prov):
     """Lines saying what differs between a stored baseline's provenance and a new one."""
     old = data.get("provenance", {})
@@ -569,7 +574,7 @@ def describe_changes(data, prov):
         before = old.get("parameters", {}).get(inst, {})
         for key, value in params.items():
             if before.get(key) != value:
-                lines.append(f"{inst}.{key} {before.get(key)!r} -> {value!r}")
+                lines.append(f"{inst}.{key} {_said(before.get(key))} -> {_said(value)}")
     for key, value in prov["master"].items():
         if old.get("master", {}).get(key) != value:
             lines.append(f"{key} {old.get('master', {}).get(key)!r} -> {value!r}")

@@ -85,7 +85,7 @@ def test_the_pytest_fixture_stores_then_holds_then_catches(tmp_path):
                                                                     '"21.297 kg",'))
     caught = pytest_run("--regress-report", "report")
     assert caught.returncode == 1 and "held_slew: REGRESSION" in caught.stdout, caught.stdout
-    assert "plant.payload_mass_error None -> 21.297" in caught.stdout
+    assert "plant.payload_mass_error (the FMU's default) -> 21.297" in caught.stdout
     assert (tmp_path / "report" / "held_slew" / "regress.md").is_file()
     assert pytest_run("--regress-update").returncode == 0      # the change accepted: stored anew
     assert pytest_run().returncode == 0
