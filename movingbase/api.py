@@ -666,13 +666,15 @@ def regress(scenarios: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
             baseline: str | os.PathLike[str], update: bool = False, ci: bool = False,
             tolerances: Mapping[str, str] | None = None, time_tolerance: str | float = 0.0,
             junit: str | os.PathLike[str] | None = None, report: str | os.PathLike[str] | None = None,
-            jobs: int | None = None, fmi_version: int | None = None, progress: bool = True) -> Any:
+            jobs: int | None = None, fmi_version: int | None = None, progress: bool = True,
+            signals: Sequence[str] | None = None) -> Any:
     """Hold scenario files as ``movingbase regress`` does: re-run each and compare it with
     its baseline in the folder ``baseline`` (signals within their tubes, metrics within
     their tolerances, status and flags unchanged), or with ``update`` store the baselines.
     ``tolerances`` overrides one metric number or signal each, with units
     (``{"pose error peak": "0.5 µm", "plant.pose": "1 um"}``); ``time_tolerance`` widens
-    the tubes in time ("5 ms"); ``junit`` and ``report`` write the JUnit file and the
+    the tubes in time ("5 ms"); ``signals`` (with ``update``) the recorded variables to
+    store instead of those the metrics read; ``junit`` and ``report`` write the JUnit file and the
     Markdown report. Returns a Regression: ``.passed``, ``.exit_code`` (0 pass, 1 a
     regression, 2 could not run), ``.findings()``, and its summary as its repr."""
     from scenarios.output.regress_report import write_junit, write_report
@@ -683,7 +685,7 @@ def regress(scenarios: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
     except UnitError as exc:
         raise regression.BaselineError(f"time_tolerance: {exc}") from None
     outcome = regression.regress(scenarios, baseline, update, ci, tolerances, time_tol, jobs, None, fmi_version,
-                                 progress)
+                                 progress, signals)
     if junit is not None:
         write_junit(outcome, junit)
     if report is not None:

@@ -371,6 +371,9 @@ def regress_command(argv=None):
     parser.add_argument("--tolerance", action="append", default=[], metavar="'NAME = QUANTITY'",
                         help="override one tolerance, with units: 'pose error peak = 0.5 um', 'plant.pose = 1 um' "
                              "(repeatable; with --update it is stored)")
+    parser.add_argument("--signal", action="append", default=[], metavar="INST.VAR",
+                        help="with --update: a recorded variable to store and compare (repeatable; default: the "
+                             "variables the metrics read)")
     parser.add_argument("--time-tolerance", default="0 s", metavar="DURATION",
                         help="width of the signals' tubes in time (default 0 s: the record grid is fixed)")
     parser.add_argument("--junit", metavar="FILE", help="write a JUnit XML file for CI servers")
@@ -386,7 +389,7 @@ def regress_command(argv=None):
         overrides = dict(regress.parse_override(text) for text in args.tolerance)
         time_tol = units.to_si(args.time_tolerance, "s")
         outcome = regress.regress(args.scenarios, args.baseline, args.update, args.ci, overrides, time_tol, args.jobs,
-                                  None, args.fmi_version, not args.quiet)
+                                  None, args.fmi_version, not args.quiet, args.signal)
     except (regress.BaselineError, units.UnitError, ResourceError) as exc:
         print(f"regress error: {exc}", file=sys.stderr)
         return 2

@@ -377,16 +377,22 @@ def read_baseline(baseline, source):
     return data, curves
 
 
-def write_baseline(baseline, scenario, runs, finer, prov, overrides):
+def write_baseline(baseline, scenario, runs, finer, prov, overrides, signals=None):
     """Store the baseline of ``runs`` (their tolerances from ``finer``, the same runs at
     half the plant's step) as baseline/<stem>/: baseline.json and one compressed npz per
-    run. Everything is computed (and the overrides checked) first, the files written into
+    run; the recorded variables ``signals`` ("plant.pose") or, without them, those the
+    metrics read. Everything is computed (and the overrides checked) first, the files written into
     a new folder beside it, which then takes the old one's place: a reader finds the old
     baseline or the new one, never a mix."""
     target = folder_of(baseline, scenario.source)
     runner.make_folder(target.parent)
     by_label = {r.label: r for r in finer}
-    variables = read_variables(scenario)
+    variables = list(signals) if signals else read_variables(scenario)
+    recorded = {c.split("[", 1)[0] for r in runs if r.records is not None for c in r.records.names}
+    missing = [v for v in variables if recorded and v not in recorded]
+    if missing:
+        raise BaselineError(f"scenario {scenario.name}: signal {missing[0]!r} is not recorded; recorded: "
+                            f"{', '.join(sorted(recorded))} (add it to [record] variables)")
     data = {"format": FORMAT, "scene": scenario.name, "source": pathlib.Path(scenario.source).name, "provenance": prov,
             "overrides": dict(overrides), "rule": f"tolerance = 2 x the change with every plant's max_step halved, "
                                                   f"at least {RELATIVE:g} of the value and {FLOOR:g} in a metric's "
@@ -585,7 +591,7 @@ def describe_changes(data, prov):
 
 # ------------------------------------------------------------------------ a scenario
 def regress_scene(name, baseline, update=False, ci=False, overrides=None, time_tol=0.0, jobs=None,
-                  implementation=None, fmi_version=None, progress=False):
+                  implementation=None, fmi_version=None, progress=False, signals=None):
     """Compare one scenario file's runs with its baseline, or (``update``) record the
     baseline anew, saying first what changed against the one it replaces. A SceneOutcome;
     anything that keeps it from running is its ``error``."""
@@ -635,7 +641,7 @@ def regress_scene(name, baseline, update=False, ci=False, overrides=None, time_t
             if not changed:
                 outcome.notes.append("no plant integrator step (max_step) to halve: tolerances are the floors")
             finer = _run(scenario, paths, descriptions, finer_values, progress, jobs, before) if changed else []
-            write_baseline(baseline, scenario, runs, finer, prov, overrides or {})
+            write_baseline(baseline, scenario, runs, finer, prov, overrides or {}, signals)
             outcome.runs = [RunOutcome(r.label, [], 0) for r in runs]
         for run, told in zip(runs, outcome.runs):   # the file's absolute specs, whatever the baseline says
             told.findings[:0] = requirement_findings(scenario, run)
@@ -729,11 +735,12 @@ class Regression:
 
 
 def regress(names, baseline, update=False, ci=False, overrides=None, time_tol=0.0, jobs=None, implementation=None,
-            fmi_version=None, progress=False):
+            fmi_version=None, progress=False, signals=None):
     """Compare (or with ``update`` record) every scenario file of ``names`` against its
     baseline in the folder ``baseline``; a Regression. ``overrides``: {name: quantity}
     tolerances ("pose error peak": "0.5 µm", "plant.pose": "1 um"); ``time_tol`` the
-    tube's width in time [s]."""
+    tube's width in time [s]; ``signals``: with ``update``, the recorded variables to store
+    ("plant.pose") instead of those the metrics read."""
     if not isinstance(baseline, (str, pathlib.PurePath)) or not str(baseline).strip():
         raise BaselineError(f"baseline must name a folder, got {baseline!r}")
     names = [names] if isinstance(names, (str, pathlib.PurePath)) else list(names)
@@ -745,11 +752,17 @@ def regress(names, baseline, update=False, ci=False, overrides=None, time_tol=0.
     for name in overrides:
         if not isinstance(name, str) or not name.strip():
             raise BaselineError(f"tolerance: a name of a metric number or signal, got {name!r}")
+    signals = [signals] if isinstance(signals, str) else list(signals or [])
+    if signals and not update:
+        raise BaselineError("signals are chosen when a baseline is stored (--update); a comparison compares "
+                            "what its baseline holds")
+    if any(not isinstance(v, str) or "." not in v for v in signals):
+        raise BaselineError(f"signals are recorded variables 'instance.variable' ('plant.pose'), got {signals!r}")
     stems = [pathlib.Path(str(n)).stem for n in names]
     shared = sorted({stem for stem in stems if stems.count(stem) > 1})
     if shared:
         raise BaselineError(f"{', '.join(shared)}: more than one scenario file of that name; a baseline is kept per "
                             "file name (baseline/<stem>/): hold them in separate --baseline folders")
     scenes = [regress_scene(str(n), baseline, update, ci, overrides, time_tol, jobs, implementation, fmi_version,
-                            progress) for n in names]
+                            progress, signals) for n in names]
     return Regression(scenes, str(baseline), update)

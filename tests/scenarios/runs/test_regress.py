@@ -312,3 +312,19 @@ def test_the_baseline_holds_on_the_vector_units_of_a_smaller_processor(held):
                            "--ci", "--quiet"], capture_output=True, text=True, env=env)
     assert done.returncode == 0, done.stdout + done.stderr
     assert "telescope_slew: pass (1 run" in done.stdout
+
+
+def test_the_signals_named_are_those_stored(held, tmp_path):
+    made = regress.regress([held[0]], tmp_path, update=True, ci=True, signals=["plant.pose"])
+    assert made.exit_code == 0, made.summary()
+    run = json.loads((tmp_path / "slew" / "baseline.json").read_text())["runs"]["fixed_base"]
+    assert run["signals"] == [f"plant.pose[{k}]" for k in range(1, 7)]
+    assert regress.regress([held[0]], tmp_path, ci=True).exit_code == 0
+    old, new, _ = PLANTED["master"]
+    assert regress.regress([_changed(tmp_path, old, new)], tmp_path, ci=True).findings()[0][2].name.startswith(
+        "plant.pose")
+    unrecorded = regress.regress([held[0]], tmp_path / "b", update=True, ci=True, signals=["plant.leg_rate"])
+    assert unrecorded.exit_code == 2 and "signal 'plant.leg_rate' is not recorded; recorded: " in \
+        unrecorded.scenes[0].error
+    with pytest.raises(regress.BaselineError, match="signals are chosen when a baseline is stored"):
+        regress.regress([held[0]], tmp_path, ci=True, signals=["plant.pose"])
