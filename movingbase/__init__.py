@@ -11,14 +11,15 @@ Command line: ``movingbase run telescope_slew`` (or ``python -m movingbase run .
 In Python (notebooks): ``movingbase.run("telescope_slew", ci=True)`` returns a Result
 (time series as numpy arrays or pandas, metrics, flags, charts); ``movingbase.campaign``
 the same for campaign files; ``movingbase.budget`` a geometric tolerance budget;
+``movingbase.regress`` holds scenario files against stored baselines (CI);
 ``movingbase.fmus()`` the FMU files for other FMI tools, ``movingbase.export_ssp`` a scenario
 as an SSP file and ``movingbase.simulate_ssp`` its run in fmpy (movingbase/api.py).
 """
 import typing as _typing
 
 __version__ = "0.2.0"
-__all__ = ["run", "campaign", "budget", "load_scenario", "fmus", "export_ssp", "simulate_ssp", "loop_analysis",
-           "Result", "RunResult", "CampaignResult", "BudgetResult", "Charts", "LoopAnalysis",
+__all__ = ["run", "campaign", "budget", "regress", "load_scenario", "fmus", "export_ssp", "simulate_ssp",
+           "loop_analysis", "Result", "RunResult", "CampaignResult", "BudgetResult", "Charts", "LoopAnalysis",
            "RunWarning", "ScenarioError", "__version__"]
 
 if _typing.TYPE_CHECKING:
@@ -36,6 +37,7 @@ if _typing.TYPE_CHECKING:
         fmus,
         load_scenario,
         loop_analysis,
+        regress,
         run,
         simulate_ssp,
     )

@@ -277,6 +277,13 @@ class RunResult:
         self.sim_time: float = run.sim_time
         records = run_records(run)
         self.records: Records = records if records is not None else Records([], [], 0)
+        # the file's [requirements] judged on this run (Result fills them in): [{"requirement", "value", "unit", "met"}]
+        self.requirements: list[dict] = []
+
+    @property
+    def requirements_met(self) -> bool:
+        """True if the run meets every requirement of its file that holds for it."""
+        return all(j["met"] for j in self.requirements)
 
     @property
     def ok(self) -> bool:
@@ -388,14 +395,19 @@ class RunResult:
                 for m, values in self.metrics.items() for k, v in values.items() if k != "unit"]
         return (f'<p><b>run {html.escape(self.label)}</b>: <span style="{_STATUS_STYLE[self.status]}">{state}'
                 f'{said}</span>; {len(self.time)} rows x {len(self.names)} variables, {self.sim_time:g} s '
-                f'simulated</p>' + _html_table(("metric", "", "value", "unit"), rows))
+                f'simulated</p>' + _html_table(("metric", "", "value", "unit"), rows)
+                + (_html_table(("requirement", "value", ""), [
+                    (j["requirement"], "not counted" if j["value"] is None else f"{j['value']:.4g} {j['unit']}",
+                     "met" if j["met"] else "NOT MET") for j in self.requirements]) if self.requirements else ""))
 
     def __repr__(self) -> str:
         kinds = "; ".join(f.kind for f in self.flags)
         state = {"ok": "ok", "flagged": f"flagged: {kinds}",
                  "failed": f"FAILED at t = {self.sim_time:g} s: {kinds}"}[self.status]
+        missed = spec.unmet(self.requirements)
+        said = f"; requirements NOT MET: {missed}" if missed else "; requirements met" if self.requirements else ""
         return (f"<RunResult {self.label!r}: {state}; {len(self.time)} rows x {len(self.names)} variables, "
-                f"{self.sim_time:g} s simulated>")
+                f"{self.sim_time:g} s simulated{said}>")
 
 
 class Result:
@@ -408,6 +420,8 @@ class Result:
         self._runs = list(runs)
         read = [v for m in scenario.metrics for v in m.args.values() if isinstance(v, str) and "." in v]
         self.runs: dict[str, RunResult] = {r.label: RunResult(r, list(dict.fromkeys(read))) for r in self._runs}
+        for result in self.runs.values():
+            result.requirements = spec.judge(scenario.requirements, result.label, result.metrics)
         self.report_path = report_path     # where ``out`` wrote the report, if it was given
 
     def __getitem__(self, label: str | int) -> RunResult:
@@ -449,7 +463,8 @@ class Result:
         rows = {label: {("status", ""): r.status,
                         **{(m, k): (float("nan") if v is None else v)
                            for m, values in r.metrics.items() for k, v in values.items() if k != "unit"},
-                        ("flags", ""): run_flags.summary(r.flags)}
+                        ("flags", ""): run_flags.summary(r.flags),
+                        **({("requirements", ""): spec.unmet(r.requirements) or "met"} if r.requirements else {})}
                 for label, r in self.runs.items()}
         table = pd.DataFrame.from_dict(rows, orient="index")
         table.attrs["units"] = {(m, k): key_unit(values, k) for r in self.runs.values()
@@ -510,10 +525,18 @@ class Result:
             raise KeyError(f"no run {run!r}; runs: {', '.join(self.runs)}")
         return export_ssp(self.scenario, path, value=value)
 
+    @property
+    def requirements_met(self) -> bool:
+        """True if every run meets every requirement of the file that holds for it."""
+        return all(r.requirements_met for r in self)
+
     def __repr__(self) -> str:
         bad = "".join(f"; {s}: {', '.join(label for label, r in self.runs.items() if r.status == s)}"
                       for s in run_status.counts(r.status for r in self) if s != run_status.OK)
-        return f"<Result {self.scenario.name!r}: {run_status.told(r.status for r in self)}{bad}>"
+        missed = [label for label, r in self.runs.items() if not r.requirements_met]
+        said = f"; requirements NOT MET: {', '.join(missed)}" if missed else \
+            "; requirements met" if any(r.requirements for r in self) else ""
+        return f"<Result {self.scenario.name!r}: {run_status.told(r.status for r in self)}{bad}{said}>"
 
     def _repr_html_(self) -> str:
         """Each run's status first (FAILED and flagged in red, with why), then its metrics."""
@@ -523,6 +546,10 @@ class Result:
         rows = [[label, r.status]
                 + [f"{r.metrics[m][k]:.4g}" if isinstance(r.metrics.get(m, {}).get(k), float) else ""
                    for m, k in tracked] + [r.message] for label, r in self.runs.items()]
+        if any(r.requirements for r in self):
+            head.append("requirements")
+            for row, r in zip(rows, self):
+                row.append(spec.unmet(r.requirements) or ("met" if r.requirements else ""))
         state = run_status.told(r.status for r in self) + ("" if self.ok else ": a flagged or failed run's "
                                                               "numbers are not results")
         return (f"<p><b>Result {html.escape(self.scenario.name)}</b>: "
@@ -1034,3 +1061,35 @@ def budget(path: str | os.PathLike[str], *, samples: int | None = None, out: str
     _flags_given(progress=progress)
     data = run_budget(path, samples=samples, out=out, progress=progress)
     return BudgetResult(data, pathlib.Path(out) / f"{data['name']}.md" if out is not None else None)
+
+
+@_public
+def regress(scenarios: str | os.PathLike[str] | Sequence[str | os.PathLike[str]], *,
+            baseline: str | os.PathLike[str], update: bool = False, ci: bool = False,
+            tolerances: Mapping[str, str] | None = None, time_tolerance: str | float = 0.0,
+            junit: str | os.PathLike[str] | None = None, report: str | os.PathLike[str] | None = None,
+            jobs: int | None = None, fmi_version: int | None = None, progress: bool = True,
+            signals: Sequence[str] | None = None) -> Any:
+    """Hold scenario files as ``movingbase regress`` does: re-run each and compare it with
+    its baseline in the folder ``baseline`` (signals within their tubes, metrics within
+    their tolerances, status and flags unchanged), or with ``update`` store the baselines.
+    ``tolerances`` overrides one metric number or signal each, with units
+    (``{"pose error peak": "0.5 µm", "plant.pose": "1 um"}``); ``time_tolerance`` widens
+    the tubes in time ("5 ms"); ``signals`` (with ``update``) the recorded variables to
+    store instead of those the metrics read; ``junit`` and ``report`` write the JUnit file and the
+    Markdown report. Returns a Regression: ``.passed``, ``.exit_code`` (0 pass, 1 a
+    regression, 2 could not run), ``.findings()``, and its summary as its repr."""
+    from scenarios.output.regress_report import write_junit, write_report
+    from scenarios.runs import regress as regression
+    _flags_given(update=update, ci=ci, progress=progress)
+    try:
+        time_tol = units.to_si(time_tolerance, "s")
+    except UnitError as exc:
+        raise regression.BaselineError(f"time_tolerance: {exc}") from None
+    outcome = regression.regress(scenarios, baseline, update, ci, tolerances, time_tol, jobs, None, fmi_version,
+                                 progress, signals)
+    if junit is not None:
+        write_junit(outcome, junit)
+    if report is not None:
+        write_report(outcome, report)
+    return outcome

@@ -4,6 +4,7 @@
     movingbase run SCENARIO ...     run scenario files or shipped names (movingbase run --help)
     movingbase campaign FILE        run a campaign of many scenario runs
     movingbase budget FILE          a geometric tolerance budget (pose error, Sobol indices, allocation)
+    movingbase regress SCENARIO... --baseline DIR   compare runs with their stored baselines (--update stores)
     movingbase build                build every FMU (as build.py)
     movingbase headline             regenerate the README's headline from docs/headline.json
     movingbase --version
@@ -20,7 +21,7 @@ import sys
 
 from movingbase import __version__
 
-COMMANDS = ("run", "campaign", "budget", "build", "headline")
+COMMANDS = ("run", "campaign", "budget", "build", "headline", "regress")
 # Each command imports what it runs when it runs: `movingbase --version` and `--help` pay for
 # no master, fmpy or Dask (0.04 s, against 0.3 s with every command's imports at the top).
 
@@ -79,6 +80,8 @@ def _command(argv):
         return campaign_command(rest)
     if command == "budget":
         return budget_command(rest)
+    if command == "regress":
+        return regress_command(rest)
     if command == "build":
         try:
             build_command(rest)    # it returns the output folder: not an exit status
@@ -140,6 +143,8 @@ def run_command(argv=None, prog="movingbase run"):
                         help="all: error against time per metric and the summary bars (default); summary: the "
                              "summary bars of a sweep only; none: no charts (the report's tables and the records)")
     parser.add_argument("--ssp", metavar="FILE", help="export the (one) scenario as an SSP file, first sweep value")
+    parser.add_argument("--require", action="store_true",
+                        help="exit with status 1 if a run does not meet a requirement of its file ([requirements])")
     args = parser.parse_args(argv)
     try:
         return _run(args, shipped)
@@ -157,7 +162,7 @@ def _run(args, shipped):
     from scenarios.runs.engine import EngineError, check_address
     from scenarios.runs.estimates import ResourceError, check_jobs
     from scenarios.runs.runner import OutputError, not_found, resolve, run_scenario
-    from scenarios.spec import ScenarioError
+    from scenarios.spec import ScenarioError, judge, unmet
     names = args.scenarios or ["telescope_slew"]
     if not all(n.strip() for n in names):
         sys.exit("scenario error: an empty scenario name; give a scenario file or a shipped name: " + shipped)
@@ -223,6 +228,14 @@ def _run(args, shipped):
             for flag in run.flags:
                 if flag.kind != "cut_short":   # a failed run says so above
                     print(f"    FLAGGED {flag.kind}: {flag.message}")
+        for run in runs:
+            for judged in judge(scenario.requirements, run.label, run.metrics):
+                value = "not counted" if judged["value"] is None else f"{judged['value']:.3g} {judged['unit']}"
+                said = "met" if judged["met"] else "NOT MET"
+                print(f"  {run.label}: requirement {judged['requirement']}: {said} ({value})")
+            missed = unmet(judge(scenario.requirements, run.label, run.metrics))
+            if missed and args.require:
+                errors.append(f"requirement error: {scenario.name}, run {run.label}: {missed}")
         flagged = [run.label for run in runs if run.flags and not run.failure]
         if flagged:
             print(f"  {len(flagged)} of {len(runs)} runs FLAGGED ({', '.join(flagged)}): their numbers are not "
@@ -377,6 +390,60 @@ def summary(result):
     lines.append(f"status: {state}" + (f" ({len(flags)} flag{'s' * (len(flags) != 1)}: the targets not met are "
                                        "above, as NOT met)" if flags else ": every target met"))
     return "\n".join(lines)
+
+
+def regress_command(argv=None):
+    """movingbase regress: exit status 0 every scenario passed, 1 a regression, 2 a
+    scenario (or the command) that could not run."""
+    from scenarios.output.regress_report import write_junit, write_report
+    from scenarios.runs import regress
+    from scenarios.runs.estimates import ResourceError, check_jobs
+    from scenarios.spec import units
+    parser = argparse.ArgumentParser(prog="movingbase regress",
+                                     description="Hold scenarios in CI: re-run each and compare its signals (within "
+                                                 "a tube), metrics (within tolerances), status and flags with the "
+                                                 "baseline stored in --baseline DIR; --update stores the baseline. "
+                                                 "Exit status 0 pass, 1 regression, 2 could not run.")
+    parser.add_argument("scenarios", nargs="+", help="scenario files or shipped names")
+    parser.add_argument("--baseline", required=True, metavar="DIR", help="folder of the baselines (one per file)")
+    parser.add_argument("--update", action="store_true", help="run and store the baselines (saying first what "
+                        "changed against those they replace); tolerances from the run at half the plant's step")
+    parser.add_argument("--ci", action="store_true", help="apply each file's [ci] overrides (short runs)")
+    parser.add_argument("--tolerance", action="append", default=[], metavar="'NAME = QUANTITY'",
+                        help="override one tolerance, with units: 'pose error peak = 0.5 um', 'plant.pose = 1 um' "
+                             "(repeatable; with --update it is stored)")
+    parser.add_argument("--signal", action="append", default=[], metavar="INST.VAR",
+                        help="with --update: a recorded variable to store and compare (repeatable; default: the "
+                             "variables the metrics read)")
+    parser.add_argument("--time-tolerance", default="0 s", metavar="DURATION",
+                        help="width of the signals' tubes in time (default 0 s: the record grid is fixed)")
+    parser.add_argument("--junit", metavar="FILE", help="write a JUnit XML file for CI servers")
+    parser.add_argument("--report", metavar="DIR", help="write DIR/regress.md with a chart per failure")
+    parser.add_argument("--jobs", type=int, help="run each file's sweep values on N worker processes")
+    parser.add_argument("--fmi-version", type=int, choices=(2, 3), help="run every native FMU as FMI 2.0 or 3.0")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    try:
+        warning = check_jobs(args.jobs)
+        if warning:
+            print(warning, file=sys.stderr)
+        overrides = dict(regress.parse_override(text) for text in args.tolerance)
+        time_tol = units.to_si(args.time_tolerance, "s")
+        outcome = regress.regress(args.scenarios, args.baseline, args.update, args.ci, overrides, time_tol, args.jobs,
+                                  None, args.fmi_version, not args.quiet, args.signal)
+    except (regress.BaselineError, units.UnitError, ResourceError) as exc:
+        print(f"regress error: {exc}", file=sys.stderr)
+        return 2
+    print(outcome.summary())
+    try:
+        if args.junit:
+            print(f"JUnit: {write_junit(outcome, args.junit)}")
+        if args.report:
+            print(f"report: {write_report(outcome, args.report)}")
+    except OSError as exc:
+        print(f"regress error: output: {exc.filename}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+    return outcome.exit_code
 
 
 def _rerun_sample(args):

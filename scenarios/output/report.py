@@ -24,6 +24,7 @@ from scenarios.output.charts import (  # noqa: F401
     run_colour,
     save,
 )
+from scenarios.spec import judge
 
 TRACKING = ("leg_tracking", "pose_tracking", "tracking")
 COINCIDE = 0.02      # two curves closer than this fraction of their peak are said to coincide
@@ -426,6 +427,7 @@ def write(scenario, runs, outdir, charts="all", interrupted=()):
     lines += [f"- **run {r.label} {_stopped(scenario, r)}**; its row covers the run up to then: {r.failure}"
               for r in runs if r.failure]
     lines += [f"- {note}" for note in scenario.notes]
+    lines += requirement_lines(scenario, runs)
     lines += _findings(scenario, runs, tracked)
     for metric in tracked if charts == "all" else ():
         chart = outdir / f"{metric.name.replace(' ', '_')}_vs_time.png"
@@ -439,6 +441,18 @@ def write(scenario, runs, outdir, charts="all", interrupted=()):
     path = outdir / "report.md"
     atomic.write_text(path, "\n".join(lines) + "\n")
     return path
+
+
+def requirement_lines(scenario, runs):
+    """Markdown: the file's requirements judged per run, a table ([] if it has none)."""
+    judged = [(run.label, j) for run in runs for j in judge(scenario.requirements, run.label, run.metrics)]
+    if not judged:
+        return []
+    lines = ["", "### Requirements", "", "| run | requirement | value | |", "|---|---|---|---|"]
+    lines += [f"| {label} | {j['requirement']} | {'not counted' if j['value'] is None else fmt(j['value'])} "
+              f"{j['unit'] if j['value'] is not None else ''} | {'met' if j['met'] else '**NOT MET**'} |"
+              for label, j in judged]
+    return lines + [""]
 
 
 def flag_lines(runs):

@@ -411,7 +411,9 @@ def write_results(scenario, runs, outdir, charts="all", interrupted=()):
     summary = {r.label: {"metrics": r.metrics, "wall_time_s": r.wall_time, "steps": r.steps,
                          "real_time_factor": r.real_time_factor, **({"failed": r.failure} if r.failure else {}),
                          **({"ci": True} if scenario.short else {}),     # a short run: no full run's numbers
-                         "flags": flags.as_dicts(r.flags)}
+                         "flags": flags.as_dicts(r.flags),
+                         **({"requirements": spec.judge(scenario.requirements, r.label, r.metrics)}
+                            if scenario.requirements else {})}
                for r in runs}
     outdir.mkdir(parents=True, exist_ok=True)
     atomic.write_text(outdir / "metrics.json", json.dumps(_no_nan(summary), indent=2, default=float))

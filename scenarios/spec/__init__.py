@@ -33,9 +33,12 @@ from scenarios.spec.keys import (
     TOP_KEYS,
     Link,
     Metric,
+    Requirement,
     Scenario,
     enumeration,
     expand,
+    judge,
+    unmet,
 )
 from scenarios.spec.parsing import load, parse, parse_data, sources_of, with_sources
 from scenarios.spec.text import (
@@ -51,7 +54,7 @@ from scenarios.spec.text import (
 )
 
 __all__ = ['FMI_VERSIONS', 'IMPLEMENTATIONS', 'KEYS', 'Link', 'MAX_FILE_BYTES', 'METRIC_KINDS', 'Metric', 'Problems',
-           'Scenario', 'ScenarioError', 'TOP_KEYS', '_REQUIRED', '_value', 'as_data', 'bind', 'check_links',
-           'check_models', 'check_name', 'check_rates', 'check_wiring', 'enumeration', 'expand', 'file_label', 'load',
-           'parse', 'parse_data', 'payload_problems', 'plain', 'read_text', 'read_toml', 'run_label', 'with_sources',
-           'shown', 'sources_of', 'sweep_value', 'unknown_keys']
+           'Requirement', 'Scenario', 'ScenarioError', 'TOP_KEYS', '_REQUIRED', '_value', 'as_data', 'bind',
+           'check_links', 'check_models', 'check_name', 'check_rates', 'check_wiring', 'enumeration', 'expand',
+           'file_label', 'judge', 'load', 'parse', 'parse_data', 'payload_problems', 'plain', 'read_text', 'read_toml',
+           'run_label', 'shown', 'sources_of', 'sweep_value', 'unknown_keys', 'unmet', 'with_sources']

@@ -223,6 +223,8 @@ def as_data(scenario):
         data["ci"] = scenario.ci
     if scenario.fidelity_tolerance is not None:
         data["fidelity_tolerance"] = plain(scenario.fidelity_tolerance)
+    if scenario.requirements:
+        data["requirements"] = {r.name: r.written for r in scenario.requirements}
     return data
 
 

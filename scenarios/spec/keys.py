@@ -32,8 +32,20 @@ METRIC_UNITS = {
     "peak": {"variable": "N"},
     "pointing": {"measured": _POSE, "reference": _POSE},
 }
+# kind -> {number: its unit}: what each metric gives (scenarios.runs.metrics), which
+# [requirements] bound; tests/scenarios/spec/test_requirements.py holds it to the metrics' results
+METRIC_NUMBERS = {
+    "leg_tracking": {"rms": "µm", "peak": "µm"},
+    "pose_tracking": {"rms": "µm", "peak": "µm", "rotation_rms": "µrad", "rotation_peak": "µrad"},
+    "tracking": {"rms": "µm", "peak": "µm"},
+    "peak": {"rms": "kN", "peak": "kN"},
+    "base_effect": {"rms": "kN", "peak": "kN", "gravity_peak": "kN", "transport_peak": "kN"},
+    "pointing": {"rms": "arcsec", "peak": "arcsec", "path_rms": "µm", "path_peak": "µm",
+                 **{f"efficiency_loss_{band}GHz": "%" for band in (15, 22, 31, 43)}},
+}
+REQUIREMENT_RELATIONS = ("<=", ">=", "<", ">")
 TOP_KEYS = {"name", "description", "start_time", "stop_time", "step", "master", "extrapolation",
-             "fmus", "connections", "record", "metrics", "sweep", "ci", "fidelity_tolerance"}
+             "fmus", "connections", "record", "metrics", "sweep", "ci", "fidelity_tolerance", "requirements"}
 _REQUIRED = "required"
 # Every key of a scenario file: key -> (what it takes, default, meaning), in the order the
 # reference lists them. The scenario-file reference is generated from this table and the
@@ -72,13 +84,20 @@ KEYS = {
     "sweep.parameter": ('"instance.parameter"', _REQUIRED, "the parameter to sweep: one run per value"),
     "sweep.values": ("non-empty list of values", _REQUIRED, "its values, written as in parameters"),
     "ci": ("table of top-level keys", "none", "what replaces them in the short CI run (--ci)"),
+    "requirements.<metric> <number>": ('"< 10 µm" (<, <=, >, >=), or a table { limit = "< 10 µm", runs = '
+                                       '[sweep values] }', "none",
+                                       "an absolute spec every run (or the runs named) must meet, e.g. "
+                                       '"pose error peak" = "< 10 µm"; judged in every run, shown in the report '
+                                       "and metrics.json; it fails `movingbase run --require` and `movingbase "
+                                       "regress`"),
 }
 # the TOML types each top-level key takes (checked before its value: a table where text
 # belongs is told as such); what it takes in words comes from KEYS
 TOP_LEVEL_TYPES = {"name": (str,), "description": (str,), "start_time": (int, float, str),
                    "stop_time": (int, float, str), "step": (int, float, str), "master": (str,),
                    "extrapolation": (str,), "fidelity_tolerance": (int, float, str), "fmus": (dict,),
-                   "connections": (list,), "record": (dict,), "metrics": (list,), "sweep": (dict,), "ci": (dict,)}
+                   "connections": (list,), "record": (dict,), "metrics": (list,), "sweep": (dict,), "ci": (dict,),
+                   "requirements": (dict,)}
 TYPE_NAMES = {str: "text", int: "integer", float: "number", dict: "table", list: "array", bool: "true/false"}
 PLAIN_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}")     # names that become file or folder names
 INSTANCE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
@@ -106,6 +125,56 @@ class Metric:
     start: float = 0.0     # metrics count from this time on (after a settling period)
 
 
+@dataclass(frozen=True)
+class Requirement:
+    """An absolute spec a run must meet: ``metric``'s number ``key`` ``relation`` ``limit``
+    (in the number's ``unit``), for the runs labelled in ``runs`` (None: every run);
+    ``name`` and ``written`` as in the file ("pose error peak" = "< 10 µm")."""
+
+    name: str
+    metric: str
+    key: str
+    relation: str
+    limit: float
+    unit: str
+    runs: tuple | None
+    written: object
+
+    @property
+    def text(self):
+        return f"{self.name} {self.relation} {self.limit:g} {self.unit}"
+
+    def met(self, value):
+        """True if ``value`` meets it; False if not, or if it is no number (NaN, None: a
+        run that counted nothing shows no spec met)."""
+        if value is None or value != value:
+            return False
+        return {"<": value < self.limit, "<=": value <= self.limit, ">": value > self.limit,
+                ">=": value >= self.limit}[self.relation]
+
+
+def judge(requirements, label, metrics):
+    """Each requirement that holds for run ``label``, judged on its ``metrics``:
+    [{"requirement": text, "value": the number (None: not counted), "unit", "met"}]."""
+    judged = []
+    for r in requirements:
+        if r.runs is not None and label not in r.runs:
+            continue
+        value = metrics.get(r.metric, {}).get(r.key)
+        value = None if value is None or value != value else value
+        judged.append({"requirement": r.text, "value": value, "unit": r.unit, "met": r.met(value)})
+    return judged
+
+
+def unmet(judged):
+    """One line of the requirements a run did not meet ('' if it met them all)."""
+    return "; ".join(f"{j['requirement']} NOT MET ({_value_text(j)})" for j in judged if not j["met"])
+
+
+def _value_text(judged):
+    return "not counted" if judged["value"] is None else f"{judged['value']:.3g} {judged['unit']}"
+
+
 @dataclass
 class Scenario:
     source: str
@@ -129,6 +198,7 @@ class Scenario:
     implementations: dict = field(default_factory=dict)  # instance -> one of IMPLEMENTATIONS
     fmi_versions: dict = field(default_factory=dict)     # instance -> one of FMI_VERSIONS
     short: bool = False         # its [ci] settings applied: a run cut short on purpose, not motion_unfinished
+    requirements: list = field(default_factory=list)     # Requirement: absolute specs every run is judged by
 
 
 def enumeration(var):

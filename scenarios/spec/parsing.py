@@ -16,11 +16,14 @@ from scenarios.spec.keys import (
     MASTERS,
     MAX_TIME_ULP,
     METRIC_KINDS,
+    METRIC_NUMBERS,
     NOT_IN_FILE_NAMES,
+    REQUIREMENT_RELATIONS,
     TOP_KEYS,
     TOP_LEVEL_TYPES,
     TYPE_NAMES,
     Metric,
+    Requirement,
     Scenario,
 )
 from scenarios.spec.text import (
@@ -33,7 +36,7 @@ from scenarios.spec.text import (
     read_toml,
     unknown_keys,
 )
-from scenarios.spec.units import UnitError, to_si
+from scenarios.spec.units import UnitError, in_unit, to_si
 
 
 def _time_span(step):
@@ -315,10 +318,58 @@ def parse_data(data, source="<string>", overrides=None):
         if params.get("fidelity") == "auto" and (fmus[inst] != "hexapod_plant" or "fidelity_tolerance" not in data):
             problems.errors.append(ScenarioError(source, f"fmus.{inst}.parameters.fidelity",
                                    '"auto" needs a hexapod_plant and a top-level fidelity_tolerance (a force)'))
+    requirements = []
+    if "requirements" in data:
+        with problems.part():
+            requirements = [parse_requirement(source, name_, written, metrics, sweep)
+                            for name_, written in data["requirements"].items()]
     problems.raise_any()
     return Scenario(source, name, data.get("description", ""), start, stop, step, master, extrapolation,
                     fmus, parameters, connections, interval, recorded, metrics, sweep, ci, tolerance,
-                    implementations=implementations, fmi_versions=versions)
+                    implementations=implementations, fmi_versions=versions, requirements=requirements)
+
+
+_RELATION = re.compile(r"^\s*(<=|>=|<|>)\s*(.*)$")
+
+
+def parse_requirement(source, name, written, metrics, sweep):
+    """A Requirement from ``"pose error peak" = "< 10 µm"`` (or a table with ``limit`` and
+    ``runs``): the metric and its number named, the limit in the number's unit; a
+    ScenarioError naming an unknown metric or number, relation, unit or run."""
+    key = f"requirements.{name!r}" if " " in name else f"requirements.{name}"
+    numbers = {f"{m.name} {number}": (m.name, number, unit) for m in metrics
+               for number, unit in METRIC_NUMBERS[m.kind].items()}
+    if name not in numbers:
+        near = difflib.get_close_matches(name, list(numbers), 1, 0.6)
+        raise ScenarioError(source, key, f"no metric number {name!r}; "
+                            + (f"did you mean {near[0]!r}? " if near else "")
+                            + f"write '<metric name> <number>', one of: {', '.join(numbers) or 'none (no metrics)'}")
+    metric, number, unit = numbers[name]
+    runs = None
+    limit = written
+    if isinstance(written, dict):
+        for extra, problem in unknown_keys(set(written) - {"limit", "runs"}, ["limit", "runs"]):
+            raise ScenarioError(source, f"{key}.{extra}", problem)
+        if "limit" not in written:
+            raise ScenarioError(source, f"{key}.limit", 'missing: the spec, e.g. limit = "< 10 µm"')
+        limit, runs = written["limit"], written.get("runs")
+        labels = [file_label(v) for v in sweep[1]] if sweep else ["run"]
+        if not isinstance(runs, list) or not runs:
+            raise ScenarioError(source, f"{key}.runs", f"expected a non-empty list of the runs it holds for, of: "
+                                f"{', '.join(labels)}")
+        unknown = [r for r in runs if file_label(r) not in labels]
+        if unknown:
+            raise ScenarioError(source, f"{key}.runs", f"no run {unknown[0]!r}; the runs: {', '.join(labels)}")
+        runs = tuple(file_label(r) for r in runs)
+    match = _RELATION.match(limit) if isinstance(limit, str) else None
+    if not match:
+        raise ScenarioError(source, key, f"expected a relation and a limit such as \"< 10 {unit}\" "
+                            f"({', '.join(REQUIREMENT_RELATIONS)}), got {limit!r:.60}")
+    try:
+        value = in_unit(match[2], unit)
+    except UnitError as exc:
+        raise ScenarioError(source, key, str(exc)) from None
+    return Requirement(name, metric, number, match[1], value, unit, runs, written)
 
 
 def load(path, overrides=None, told_as=None):

@@ -107,3 +107,28 @@ def to_si(value, dimension=None):
     if not math.isfinite(number):
         raise UnitError(f"{value!r} is not a finite number")
     return number
+
+
+# units of the metrics' numbers (scenarios.runs.metrics) that no parameter is written in
+METRIC_UNITS = {"arcsec": (math.pi / 648000, "rad"), "mas": (math.pi / 648000000, "rad"), "%": (0.01, "1")}
+
+
+def _factor(unit):
+    """(SI factor, dimension) of a unit as written (UNITS, METRIC_UNITS); None if unknown."""
+    unit = spelled(unit.strip())
+    return UNITS.get(unit) or METRIC_UNITS.get(unit)
+
+
+def in_unit(value, unit):
+    """A "<number> <unit>" string in ``unit`` (a metric's: "µm", "kN", "arcsec", "%"):
+    "0.5 mm" in "µm" is 500.0; a bare number is taken as in ``unit``. UnitError for an
+    unknown unit or one of another dimension, naming the units that fit."""
+    number, written = split(value) if isinstance(value, str) else (to_si(value), None)
+    if written is None or spelled(written) == spelled(unit):
+        return number
+    given, target = _factor(written), _factor(unit)
+    if given is None or target is None or given[1] != target[1]:
+        fits = [u for u, (_, d) in {**UNITS, **METRIC_UNITS}.items() if target and d == target[1]] or [unit]
+        said = "unknown unit" if given is None else "a unit of another dimension"
+        raise UnitError(f"{value!r}: {said} {written!r}; expected a quantity in {unit} ({', '.join(fits)})")
+    return number * given[0] / target[0]

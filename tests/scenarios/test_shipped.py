@@ -1,7 +1,6 @@
 """Scenario files, the master and the shipped scenarios: schema errors that point at the
-problem, master semantics, determinism, failure reporting, and golden metrics."""
+problem, master semantics, determinism, failure reporting, and the shipped scenes held against their baselines."""
 import dataclasses
-import json
 import pathlib
 
 import numpy as np
@@ -11,9 +10,9 @@ from scenarios import spec
 from scenarios.cosim import master
 from scenarios.cosim.fmi import FmuError, unpack
 from scenarios.cosim.records import read_records
-from scenarios.runs import auto_fidelity, metrics, runner, single
+from scenarios.runs import auto_fidelity, metrics, regress, runner, single
 
-GOLDEN = pathlib.Path(__file__).resolve().parents[1] / "golden"
+BASELINES = pathlib.Path(__file__).resolve().parents[1] / "golden" / "regress"
 SHIPPED = sorted(p.stem for p in runner.SHIPPED.glob("*.toml"))
 MINIMAL = '''
 stop_time = "0.05 s"
@@ -176,18 +175,26 @@ def test_metric_series_stay_bounded_on_long_runs():
 
 
 # ------------------------------------------------------------- shipped scenarios (CI)
+# each shipped scene's [ci] requirements not met: the observer scenes' 10 µm holds for their full
+# runs (5.47 and 7.84 µm, docs/wind-rejection.md); their [ci] cut counts the observer's first
+# second in the wind, 0.5-1.5 s, where the peak is 18.7 and 23.7 µm
+NOT_MET_AT_CI = {"telescope_slew_observer": ["8 Hz: requirement pose error peak < 10 µm NOT MET: 18.73 µm"],
+                 "keyhole_tracking_observer": ["8 Hz: requirement pose error peak < 10 µm NOT MET: 23.71 µm"]}
+
+
 @pytest.mark.parametrize("name", SHIPPED)
-def test_shipped_scenario_matches_its_golden_metrics(name, tmp_path):
-    """The [ci] version of each shipped scenario against metrics stored in tests/golden;
-    each tolerance is the change the metric shows when the plant's integrator step is
-    halved (the integrator's own error), doubled for margin (tests/update_golden.py)."""
-    golden = json.loads((GOLDEN / f"{name}.json").read_text())
-    _, runs, report = runner.run_scenario(name, tmp_path, ci=True, progress=False)
-    assert report.exists()
-    for run in runs:
-        for metric, values in golden[run.label].items():
-            for key, (expected, tolerance) in values.items():
-                assert run.metrics[metric][key] == pytest.approx(expected, abs=tolerance), (run.label, metric, key)
+def test_shipped_scenario_holds_its_baseline(name):
+    """The [ci] version of each shipped scenario held against its baseline in
+    tests/golden/regress as `movingbase regress` holds a user's scenes (scenarios/runs/
+    regress.py): every signal its metrics read and every metric's series within its tube,
+    every metric within its tolerance (twice the change when the plant's integrator step is
+    halved: the integrator's own error; at least the rounding floors), status and flags as
+    stored. Rewritten by `movingbase regress NAMES --baseline tests/golden/regress --update
+    --ci` (docs/development.md)."""
+    outcome = regress.regress_scene(name, BASELINES, ci=True)
+    assert not outcome.error, outcome.error
+    assert [f"{r.label}: {f.text}" for r in outcome.runs for f in r.findings] == NOT_MET_AT_CI.get(name, [])
+    assert all(r.compared >= 15 for r in outcome.runs)     # signals, series and metric numbers
 
 
 # ----------------------------------------------------------------------- fidelity auto
