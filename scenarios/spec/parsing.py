@@ -99,6 +99,7 @@ def parse_data(data, source="<string>", overrides=None):
              "(example: scenarios/files/telescope_slew.toml)")
     if not data:
         raise ScenarioError(source, "file", f"empty (no TOML keys): {needs}")
+    written_sweep = data.get("sweep")
     data = merged(data, overrides)
     if "scenario" in data and "fmus" not in data:    # not a wall of unknown keys: the other kind of file
         raise ScenarioError(source, "file", "this is a campaign file (it names a scenario and has no [fmus]), "
@@ -321,7 +322,8 @@ def parse_data(data, source="<string>", overrides=None):
     requirements = []
     if "requirements" in data:
         with problems.part():
-            requirements = [parse_requirement(source, name_, written, metrics, sweep)
+            replaced = data.get("sweep") != written_sweep   # set= or [ci] gave other runs: those named may be gone
+            requirements = [parse_requirement(source, name_, written, metrics, sweep, replaced)
                             for name_, written in data["requirements"].items()]
     problems.raise_any()
     return Scenario(source, name, data.get("description", ""), start, stop, step, master, extrapolation,
@@ -332,10 +334,12 @@ def parse_data(data, source="<string>", overrides=None):
 _RELATION = re.compile(r"^\s*(<=|>=|<|>)\s*(.*)$")
 
 
-def parse_requirement(source, name, written, metrics, sweep):
+def parse_requirement(source, name, written, metrics, sweep, sweep_replaced=False):
     """A Requirement from ``"pose error peak" = "< 10 µm"`` (or a table with ``limit`` and
     ``runs``): the metric and its number named, the limit in the number's unit; a
-    ScenarioError naming an unknown metric or number, relation, unit or run."""
+    ScenarioError naming an unknown metric or number, relation, unit or run. A run it names
+    that a sweep replaced by ``set=`` or ``[ci]`` (``sweep_replaced``) no longer has is not an
+    error: the requirement holds for the runs it names that are there."""
     key = f"requirements.{name!r}" if " " in name else f"requirements.{name}"
     numbers = {f"{m.name} {number}": (m.name, number, unit) for m in metrics
                for number, unit in METRIC_NUMBERS[m.kind].items()}
@@ -358,7 +362,7 @@ def parse_requirement(source, name, written, metrics, sweep):
             raise ScenarioError(source, f"{key}.runs", f"expected a non-empty list of the runs it holds for, of: "
                                 f"{', '.join(labels)}")
         unknown = [r for r in runs if file_label(r) not in labels]
-        if unknown:
+        if unknown and not sweep_replaced:
             raise ScenarioError(source, f"{key}.runs", f"no run {unknown[0]!r}; the runs: {', '.join(labels)}")
         runs = tuple(file_label(r) for r in runs)
     match = _RELATION.match(limit) if isinstance(limit, str) else None

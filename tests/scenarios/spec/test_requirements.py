@@ -116,3 +116,15 @@ def test_the_wind_scenes_ship_the_10_um_of_the_wind_rejection_page():
     for name in ("telescope_slew_observer", "keyhole_tracking_observer"):
         (requirement,) = spec.load(runner.resolve(name)).requirements
         assert (requirement.text, requirement.runs) == ("pose error peak < 10 µm", ("8 Hz",))
+
+
+def test_a_requirement_of_runs_a_set_sweep_replaced_is_kept_for_those_left():
+    """A requirement for the 8 Hz run refused a set= sweep of other bandwidths ("no run '8 Hz'"):
+    the file named its own runs right; with the sweep replaced, it holds for those it names that
+    are left (none here), while a run the file's own sweep lacks is still refused."""
+    text = _with('"pose error peak" = { limit = "< 10 µm", runs = ["moving_base"] }')
+    replaced = spec.parse(text, "slew.toml", {"sweep": {"parameter": "controller.feedforward", "values": ["none"]}})
+    assert [r.runs for r in replaced.requirements] == [("moving_base",)]
+    assert spec.judge(replaced.requirements, "none", {}) == []      # not a run it holds for
+    with pytest.raises(spec.ScenarioError, match=r"no run 'moving'"):
+        spec.parse(_with('"pose error peak" = { limit = "< 10 µm", runs = ["moving"] }'), "slew.toml")
