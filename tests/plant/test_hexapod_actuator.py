@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from plant.errors import ConvergenceError, InvalidInputError
+from plant.errors import InvalidInputError
 from plant.hexapod import kernel as kane
 from plant.hexapod.model import HOME_POSE, StewartParams, inverse_dynamics, inverse_kinematics
 from plant.hexapod.ode import Actuator, HexapodODE
