@@ -26,6 +26,9 @@ from plant.hexapod.ode import Actuator, HexapodODE
 from plant.integrators import INTEGRATORS
 
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
+# error-controlled substeps' pose error per substep: up to 1 mm (more is no control of a
+# hexapod whose stroke is ~0.1 m); 0 is fixed substeps
+TOLERANCE_RANGE = (0.0, 1e-3)
 # half stroke: from 1 mm (less stops a run at the first mm of motion; no actuator has
 # less travel) to the shortest home leg length (more leaves a negative lowest length)
 STROKE_RANGE = (1e-3, float(StewartParams.paper().home_lengths.min()))
@@ -56,6 +59,10 @@ class HexapodPlant(GuardedSlave):
         self.stroke = 0.15
         self.real("max_step", PARAMETER, "largest internal integration step; > 0", "s", self.max_step,
                   valid=(POSITIVE_TIME, None))
+        self.tolerance = 0.0
+        self.real("tolerance", PARAMETER, "rk4 only: error-controlled substeps of at most max_step, each one's "
+                  "pose error (m, rad) at most this, the actuator lag exact; 0: fixed substeps of max_step", "m",
+                  self.tolerance, valid=TOLERANCE_RANGE)
         self.real("stroke", PARAMETER, "half stroke of every leg about its home length (assumed)", "m", self.stroke,
                   valid=STROKE_RANGE)
         self.actuator = self.parameters((
@@ -122,7 +129,8 @@ class HexapodPlant(GuardedSlave):
         actuator = Actuator(a["actuator_bandwidth"], a["reflected_mass"], a["coulomb_friction"], a["viscous_friction"],
                             a["friction_velocity"], a["actuator_force_limit"])
         self.ode = HexapodODE(params, FIDELITIES[self.fidelity], bool(self.moving_base),
-                              INTEGRATORS[self.integrator], self.max_step, self.inputs, self.outputs, actuator)
+                              INTEGRATORS[self.integrator], self.max_step, self.inputs, self.outputs, actuator,
+                              self.tolerance)
         self.x[12:] = 0.0   # motor forces of an earlier evaluation in initialization mode: gone, as native
         self.state = self.x[:12 + actuator.states]   # the ODE's state: a view of x
         self.state[:] = self.ode.initial_state(self.initial_pose)

@@ -25,8 +25,6 @@ import zipfile
 from importlib import metadata
 
 import fmpy
-from fmpy.validation import validate_fmu
-from pythonfmu.builder import FmuBuilder
 
 from fmu_src import atomic, catalogue
 
@@ -223,6 +221,8 @@ def build(script, out):
             project_files.append(pathlib.Path(tmp) / name)
             atomic.write_text(project_files[-1], make())
         made = pathlib.Path(tmp) / "fmu"
+        from fmpy.validation import validate_fmu  # here: a run whose FMUs are built pays for neither (docs/speed.md)
+        from pythonfmu.builder import FmuBuilder
         fmu = FmuBuilder.build_FMU(path, dest=made, project_files=project_files, canGetAndSetFMUstate=True,
                                    canSerializeFMUstate=True)
         _rewrite(fmu, *_recorded(fmu), compile_shim(tmp))

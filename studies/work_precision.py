@@ -44,6 +44,15 @@ equal error is at most 1.10 (the accuracy it delivers cannot be had for less tha
 of its CPU time); the verdict is given for the position RMS (what the hexapod is for)
 and, as a second opinion, for the leg-force RMS.
 
+The realistic plant's integrator (``--plant-integrator``): on the [ci] runs of two
+realistic scenes (screw friction and force loop in the plant), the plant's fixed RK4
+substeps (max_step 1 ms to 0.05 ms; 0.1 ms is what the scenes shipped before issue 41)
+beside its error-controlled ones (tolerance 1e-8 to 1e-12 m a substep, at most 1 ms, the
+lag exact; 1e-10 ships), each against the same co-simulation with RK4 at 0.01 ms fixed
+substeps: platform position error, largest over the metrics' window, against the CPU time
+of the stepping; the 1 % line is 1 % of the scene's pose error peak (issue 41's equal
+accuracy). It writes docs/figures/work_precision_realistic_plant.png.
+
 Run ``python -m studies.work_precision [--scenes ...] [--repeats N] [--quick]``; it prints a
 table per scene and writes docs/figures/work_precision_<scene>.png.
 """
@@ -539,6 +548,110 @@ def chart(name, results, path, note=""):
     return path
 
 
+# ----------------------------------------------------------- the realistic plant's integrator
+REALISTIC_SCENES = ("telescope_slew_realistic", "keyhole_tracking_observer")
+FIXED_SUBSTEPS = (1e-3, 0.5e-3, 0.25e-3, 0.1e-3, 0.05e-3)   # s; 0.1 ms: the scenes before issue 41
+TOLERANCES = (1e-8, 1e-9, 1e-10, 1e-11, 1e-12)           # m a substep; 1e-10: the scenes now
+REFERENCE_SUBSTEP = 1e-5                                  # s, fixed RK4 substeps of the reference
+
+
+def _realistic_run(name):
+    """A realistic scene's [ci] run, its last sweep value: (scenario, paths, label, parameters,
+    plant instance, the pose error metric's window start [s])."""
+    scenario, paths, descriptions, values = runner.prepare(runner.resolve(name), ci=True)
+    label, params = list(runner.sweep_runs(scenario, descriptions, values))[-1]
+    plant = next(inst for inst, fmu in scenario.fmus.items() if fmu == "hexapod_plant")
+    pose = next(m for m in scenario.metrics if m.kind == "pose_tracking")
+    return scenario, paths, label, params, plant, pose.start
+
+
+def _plant_run(run, plant_values, outdir):
+    """(CPU time of the stepping [s], times, platform position (n, 3) [m], pose error peak [µm])."""
+    from scenarios.runs import metrics
+    scenario, paths, label, params, plant, _ = run
+    params = {inst: dict(v) for inst, v in params.items()}
+    params[plant].update(plant_values)
+    outdir.mkdir(parents=True)
+    done = single.run(scenario, paths, params, outdir, label, [metrics.make(m) for m in scenario.metrics])
+    columns = [k for k, c in enumerate(done.records.names) if c.startswith(f"{plant}.pose[")][:3]
+    return done.cpu_time, done.records.time, done.records.values[:, columns], done.metrics["pose error"]["peak"]
+
+
+def plant_integrators(repeats=3):
+    """{scene: {"reference_peak_um", "settings": [(kind, value, CPU [s], error max [µm])]}} of
+    the realistic plant's fixed and error-controlled substeps (see the module's docstring);
+    CPU times the median of ``repeats`` interleaved rounds."""
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in REALISTIC_SCENES:
+            run = _realistic_run(name)
+            _, t, ref, peak = _plant_run(run, {"tolerance": 0.0, "max_step": REFERENCE_SUBSTEP},
+                                         pathlib.Path(tmp) / name / "reference")
+            window = t >= run[5]
+            settings = [("fixed", h, {"tolerance": 0.0, "max_step": h}) for h in FIXED_SUBSTEPS]
+            settings += [("controlled", tol, {"tolerance": tol, "max_step": 1e-3}) for tol in TOLERANCES]
+            costs, errors = [[] for _ in settings], [0.0] * len(settings)
+            for k in range(repeats):
+                for i, (_, _, plant_values) in enumerate(settings):
+                    cpu, _, pose, _ = _plant_run(run, plant_values, pathlib.Path(tmp) / name / f"{k}_{i}")
+                    costs[i].append(cpu)
+                    errors[i] = float(np.abs(pose - ref)[window].max() * 1e6)
+            out[name] = {"reference_peak_um": peak,
+                         "settings": [(kind, value, float(np.median(c)), e)
+                                      for (kind, value, _), c, e in zip(settings, costs, errors)]}
+    return out
+
+
+def plant_integrators_table(results):
+    lines = []
+    for name, r in results.items():
+        lines += [f"\n{name} [ci]: pose error peak {r['reference_peak_um']:.4g} µm (1 %: "
+                  f"{0.01 * r['reference_peak_um'] * 1e3:.3g} nm)",
+                  f"{'plant integrator':34s} {'CPU [s]':>8s} {'position error max [nm]':>24s}"]
+        for kind, value, cpu, error in r["settings"]:
+            what = f"RK4 fixed, max_step {value * 1e3:g} ms" if kind == "fixed" else f"RK4 controlled, tol {value:g} m"
+            lines.append(f"{what:34s} {cpu:8.3f} {error * 1e3:24.3g}")
+    return "\n".join(lines)
+
+
+def plant_integrators_chart(results, path):
+    """Position error against CPU time, log-log, one panel per scene: fixed substeps
+    (circles, labelled by max_step) and error-controlled ones (squares, by tolerance); the
+    scenes' old and new settings starred; the 1 % line dashed."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from scenarios.output.charts import label_points, plain_log_axis, save
+
+    fig, axes = plt.subplots(1, len(results), figsize=(13, 5.6), layout="constrained")
+    for ax, (name, r) in zip(np.atleast_1d(axes), results.items()):
+        for kind, marker, colour, shipped in (("fixed", "o", "tab:blue", 1e-4), ("controlled", "s", "tab:orange",
+                                                                                  1e-10)):
+            rows = [row for row in r["settings"] if row[0] == kind]
+            xs, ys = np.array([row[2] for row in rows]), np.array([row[3] * 1e3 for row in rows])
+            ax.plot(xs, ys, marker=marker, color=colour, lw=1.0,
+                    label=("RK4, fixed substeps (max_step)" if kind == "fixed"
+                           else "RK4, error-controlled substeps (tolerance), lag exact"))
+            star = [i for i, row in enumerate(rows) if row[1] == shipped]
+            ax.scatter(xs[star], ys[star], s=260, marker="*", facecolors="gold", edgecolors="k", zorder=4)
+            label_points(ax, xs, ys, [f"{row[1] * 1e3:g} ms" if kind == "fixed" else f"{row[1]:g}" for row in rows])
+        ax.axhline(10 * r["reference_peak_um"], color="0.3", ls="--", lw=1.0, label="1 % of the pose error peak")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        plain_log_axis(ax.xaxis)
+        ax.set_xlabel("CPU time of the stepping [s] (median of repeats)")
+        ax.set_ylabel("platform position error against RK4 at 0.01 ms, max [nm]")
+        ax.set_title(f"{name} [ci], its last sweep value", fontsize=9)
+        ax.grid(True, which="major", alpha=0.3)
+    np.atleast_1d(axes)[0].legend(fontsize=8, loc="lower left")
+    fig.suptitle("The realistic plant's integrator (screw friction, force loop): fixed against error-controlled "
+                 "RK4 substeps; stars: the scenes before issue 41 (0.1 ms) and now (tolerance 1e-10 m)", fontsize=9)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    save(fig, path)
+    return path
+
+
 def summary(results):
     """JSON-ready results."""
     return [{**dataclasses.asdict(r["config"]), "label": r["config"].label, "cpu_time_s": r["cpu_time"],
@@ -553,7 +666,14 @@ def main(argv=None):
     parser.add_argument("--quick", action="store_true", help="a handful of settings around the default")
     parser.add_argument("--figures", type=pathlib.Path, default=FIGURES, help="where the PNGs go")
     parser.add_argument("--json", type=pathlib.Path, help="also write all results to this JSON file")
+    parser.add_argument("--plant-integrator", action="store_true",
+                        help="only the realistic plant's fixed against error-controlled substeps")
     args = parser.parse_args(argv)
+    if args.plant_integrator:
+        results = plant_integrators(args.repeats)
+        print(plant_integrators_table(results))
+        print(f"chart: {plant_integrators_chart(results, args.figures / 'work_precision_realistic_plant.png')}")
+        return results
     everything = {}
     begin = time.perf_counter()
     # every scene bound (and its FMUs built) once, up front: FMUs rebuilt mid-study from

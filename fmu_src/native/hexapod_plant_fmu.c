@@ -20,7 +20,7 @@ typedef struct {
     double act[MB_ACTUATOR_NDATA];
     double data[MB_HEXAPOD_NDATA];   /* KERNEL_DATA with the payload errors added at init */
     double bounds[12];   /* (2, 6) lowest and highest leg lengths */
-    double max_step;
+    double max_step, tolerance;   /* tolerance > 0: mb_hexapod_advance_controlled */
     int base_mode, legs, rk4;
 } Model;
 
@@ -31,12 +31,18 @@ static const char *const INPUT_NAMES[5] = {"leg forces", "base pose", "base rate
 /* Advance over [t0, t0 + h] and fill the outputs; 0, or 1 after mb_error. */
 static int advance(mb_instance *inst, double *r, Model *m, double t0, double h)
 {
-    int substeps;
-    if (mb_substeps(inst, h, m->max_step, &substeps)) return 1;
+    int substeps = 0, counts[2], status;
     double det = 0.0, *outputs = &r[VR_leg_length];
-    int status = mb_hexapod_advance_actuated(m->rk4, substeps, BASE_JOINTS, PLATFORM_JOINTS, m->data, m->act,
+    if (m->tolerance > 0.0) {
+        status = mb_hexapod_advance_controlled(m->tolerance, m->max_step, MB_MAX_SUBSTEPS, BASE_JOINTS,
+                                               PLATFORM_JOINTS, m->data, m->act, m->x, &r[VR_leg_force], t0, h,
+                                               m->base_mode, m->legs, m->bounds, outputs, &det, counts);
+    } else {
+        if (mb_substeps(inst, h, m->max_step, &substeps)) return 1;
+        status = mb_hexapod_advance_actuated(m->rk4, substeps, BASE_JOINTS, PLATFORM_JOINTS, m->data, m->act,
                                              m->x, &r[VR_leg_force], t0, h, m->base_mode, m->legs, m->bounds,
                                              outputs, &det);
+    }
     if (status == MB_HEXAPOD_OK && det >= SINGULAR_RATIO * HOME_DET) {
         memcpy(&r[VR_pose], m->x, 6 * sizeof(double));
         return 0;
@@ -45,6 +51,14 @@ static int advance(mb_instance *inst, double *r, Model *m, double t0, double h)
         char bad[96];
         mb_nonfinite_rows(5, 6, &r[VR_leg_force], INPUT_NAMES, bad, sizeof bad);
         mb_error(inst, "InvalidInputError", "%s input contains NaN or inf", bad);
+    } else if (status == MB_HEXAPOD_WORK) {   /* HexapodODE.advance's words */
+        char hb[32], tb[32];
+        mb_error(inst, "WorkBoundError", "a step of %s s needs more than %d substeps to keep the pose error per "
+                 "substep within tolerance %s: take a larger tolerance or shorter communication steps", mb_repr(h, hb),
+                 MB_MAX_SUBSTEPS, mb_repr(m->tolerance, tb));
+    } else if (status == MB_HEXAPOD_DIVERGED && substeps == 0) {
+        mb_error(inst, "ConvergenceError", "integrator rk4 diverged over [%.6g, %.6g] s (substep error-controlled, "
+                 "tolerance %g): the state is no longer finite or bounded", t0, t0 + h, m->tolerance);
     } else if (status == MB_HEXAPOD_DIVERGED) {
         mb_error(inst, "ConvergenceError", "integrator %s diverged over [%.6g, %.6g] s (substep %.3g s): "
                  "the state is no longer finite or bounded", INTEGRATOR_NAMES[m->rk4 ? INTEGRATOR_RK4 : INTEGRATOR_EULER],
@@ -78,6 +92,12 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     if (mb_check_integrator(inst, "HexapodPlant", integrator, N_INTEGRATOR_NAMES, INTEGRATOR_RADAU, m->max_step))
         return 1;
     m->rk4 = integrator == INTEGRATOR_RK4;
+    m->tolerance = r[VR_tolerance];
+    if (m->tolerance > 0.0 && !m->rk4) {   /* plant.hexapod.ode.check_tolerance */
+        mb_error(inst, "InvalidInputError", "tolerance %g (error-controlled substeps) needs integrator rk4, got '%s'; "
+                 "set tolerance 0 for %s", m->tolerance, INTEGRATOR_NAMES[integrator], INTEGRATOR_NAMES[integrator]);
+        return 1;
+    }
     m->act[MB_ACT_BANDWIDTH] = r[VR_actuator_bandwidth];
     m->act[MB_ACT_REFLECTED_MASS] = r[VR_reflected_mass];
     m->act[MB_ACT_COULOMB] = r[VR_coulomb_friction];
@@ -86,7 +106,7 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     m->act[MB_ACT_FORCE_LIMIT] = r[VR_actuator_force_limit];
     double bw = m->act[MB_ACT_BANDWIDTH], rate_step = 2 * M_PI * bw * m->max_step;
     double stable = m->rk4 ? RK4_STABLE_RATE_STEP : 1.0;
-    if (rate_step > stable) {   /* Actuator.check_step */
+    if (m->tolerance == 0.0 && rate_step > stable) {   /* Actuator.check_step; the controlled substeps' lag is exact */
         mb_error(inst, "InvalidInputError", "actuator bandwidth %g Hz is too fast for %s at max_step %g s "
                  "(2 pi f max_step = %.3g); lower max_step below %.3g s", bw,
                  INTEGRATOR_NAMES[integrator], m->max_step, rate_step, stable / (2 * M_PI * bw));

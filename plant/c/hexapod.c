@@ -690,6 +690,106 @@ int mb_hexapod_advance_actuated(int rk4, int substeps, const double *bj, const d
     return advance(rk4, substeps, bj, pj, data, act, x, inputs, t0, h, base_mode, legs, bounds, outputs, det_min);
 }
 
+/* The pose rates [v, RPY rates] of x = [pose, twist]: no dynamics, the kinematics alone. */
+static void pose_rate(const double *x, double *rate)
+{
+    const trig t = angles(x + 3);
+    v3 rr = rpy_rate(&t, load(x + 9));
+    for (int k = 0; k < 3; k++) {
+        rate[k] = x[6 + k];
+        rate[3 + k] = rr.e[k];
+    }
+}
+
+/* The motor forces of the lag at tau after the step's start: exact, the command held. */
+static void lag_forces(const double *act, const double *command, const double *f0, double tau, double *f)
+{
+    double decay = exp(-2.0 * M_PI * act[MB_ACT_BANDWIDTH] * tau);
+    for (int j = 0; j < 6; j++) {
+        double target = clamp(command[j], act[MB_ACT_FORCE_LIMIT]);
+        f[j] = target + (f0[j] - target) * decay;
+    }
+}
+
+int mb_hexapod_advance_controlled(double tol, double max_step, int max_substeps, const double *bj,
+                                  const double *pj, const double *data, const double *act, double *x,
+                                  const double *inputs, double t0, double h, int base_mode, int legs,
+                                  const double *bounds, double *outputs, double *det_min, int *counts)
+{
+    double k1[18], k2[18], k3[18], k4[18], xs[18], xn[12], x0[18], f0[6], rate[6];
+    int lag = act[MB_ACT_BANDWIDTH] > 0.0;
+    *det_min = 0.0;
+    counts[0] = counts[1] = 0;
+    for (int k = 0; k < 30; k++)
+        if (!isfinite(inputs[k])) return MB_HEXAPOD_BAD_INPUT;
+    const double *forces = inputs, *base0 = inputs + 6, *wrench = NULL;
+    for (int k = 24; k < 30; k++)
+        if (inputs[k] != 0.0) wrench = inputs + 24;
+    for (int k = 0; k < (lag ? 18 : 12); k++) x0[k] = x[k];
+    for (int j = 0; j < 6; j++) f0[j] = lag ? x[12 + j] : 0.0;
+    double tau = 0.0, dt = h < max_step ? h : max_step, dmin = INFINITY;
+    base_memo memo;
+    memo.valid = 0;
+    while (tau < h) {
+        if (counts[0] + counts[1] >= max_substeps) {   /* x as it came */
+            for (int k = 0; k < (lag ? 18 : 12); k++) x[k] = x0[k];
+            return MB_HEXAPOD_WORK;
+        }
+        int last = tau + dt >= h * (1.0 - 1e-12);
+        if (last) dt = h - tau;
+        double t = t0 + tau, d, dstep = INFINITY;
+        /* classic RK4 over [tau, tau + dt], the lag's forces exact at each stage's time */
+        if (lag) lag_forces(act, forces, f0, tau, x + 12);
+        d = rhs(bj, pj, data, act, x, forces, wrench, base0, t0, t, base_mode, legs, k1, NULL, &memo);
+        dstep = d < dstep ? d : dstep;
+        for (int k = 0; k < 12; k++) xs[k] = x[k] + 0.5 * dt * k1[k];
+        if (lag) lag_forces(act, forces, f0, tau + 0.5 * dt, xs + 12);
+        d = rhs(bj, pj, data, act, xs, forces, wrench, base0, t0, t + 0.5 * dt, base_mode, legs, k2, NULL, &memo);
+        dstep = d < dstep ? d : dstep;
+        for (int k = 0; k < 12; k++) xs[k] = x[k] + 0.5 * dt * k2[k];
+        d = rhs(bj, pj, data, act, xs, forces, wrench, base0, t0, t + 0.5 * dt, base_mode, legs, k3, NULL, &memo);
+        dstep = d < dstep ? d : dstep;
+        for (int k = 0; k < 12; k++) xs[k] = x[k] + dt * k3[k];
+        if (lag) lag_forces(act, forces, f0, tau + dt, xs + 12);
+        d = rhs(bj, pj, data, act, xs, forces, wrench, base0, t0, t + dt, base_mode, legs, k4, NULL, &memo);
+        dstep = d < dstep ? d : dstep;
+        for (int k = 0; k < 12; k++) xn[k] = x[k] + dt / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k]);
+        /* the embedded third-order pose, x + dt/6 (k1 + 2 k2 + 2 k3 + k5) with k5 the rate at
+           the new state: its pose part is kinematic, so the estimate costs no dynamics */
+        pose_rate(xn, rate);
+        double err = 0.0;
+        for (int k = 0; k < 6; k++) {
+            double e = fabs(dt / 6.0 * (k4[k] - rate[k])) / tol;
+            err = e > err || isnan(e) ? e : err;
+        }
+        int finite = 1;
+        for (int k = 0; k < 12; k++) finite &= isfinite(xn[k]);
+        if (err <= 1.0 && finite) {
+            for (int k = 0; k < 12; k++) x[k] = xn[k];
+            tau = last ? h : tau + dt;
+            dmin = dstep < dmin ? dstep : dmin;
+            counts[0]++;
+        } else {
+            counts[1]++;
+        }
+        /* the next substep: the usual controller for a local error of order 4, within [0.2, 4] x */
+        double grow = err > 0.0 ? 0.9 * pow(err, -0.25) : 4.0;
+        grow = !(grow >= 0.2) ? 0.2 : (grow > 4.0 ? 4.0 : grow);
+        dt *= grow;
+        if (dt > max_step) dt = max_step;
+    }
+    if (lag) lag_forces(act, forces, f0, h, x + 12);
+    *det_min = dmin;
+    for (int k = 0; k < 12; k++)
+        if (!isfinite(x[k]) || (k < 3 && fabs(x[k]) > 100.0)) return MB_HEXAPOD_DIVERGED;
+    mb_hexapod_leg_kinematics(bj, pj, x, outputs);
+    delivered(act, x, forces, outputs + 6, outputs + 18);
+    int status = MB_HEXAPOD_OK;
+    for (int j = 0; j < 6; j++)
+        if (outputs[j] < bounds[j] || outputs[j] > bounds[6 + j]) status = MB_HEXAPOD_STROKE;
+    return status;
+}
+
 double mb_hexapod_inverse_dynamics(const double *base_joints, const double *platform_joints,
                                    const double *data, const double *pose, const double *pose_rate,
                                    const double *pose_acc, const double *base_pose,

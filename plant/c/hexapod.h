@@ -43,7 +43,8 @@ enum mb_hexapod_status {
     MB_HEXAPOD_OK = 0,
     MB_HEXAPOD_BAD_INPUT = 1,  /* an input is NaN or inf: x untouched */
     MB_HEXAPOD_DIVERGED = 2,   /* the state became non-finite or |position| > 100 m */
-    MB_HEXAPOD_STROKE = 3      /* a leg length left [bounds[0], bounds[1]] */
+    MB_HEXAPOD_STROKE = 3,     /* a leg length left [bounds[0], bounds[1]] */
+    MB_HEXAPOD_WORK = 4        /* mb_hexapod_advance_controlled needed more than max_substeps tries */
 };
 
 /* Batched kernel over n states; mirrors plant.hexapod.kernel.kane.
@@ -150,6 +151,21 @@ int mb_hexapod_advance_actuated(int rk4, int substeps, const double *base_joints
                                 const double *data, const double *act, double *x, const double *inputs,
                                 double t0, double h, int base_mode, int legs, const double *bounds,
                                 double *outputs, double *det_min);
+
+/* mb_hexapod_advance_actuated with error-controlled substeps: classic RK4 on [pose, twist]
+   over substeps of at most max_step [s], each accepted when the embedded third-order
+   estimate of its pose error (x + dt/6 (k1 + 2 k2 + 2 k3 + k5), k5 the pose rates at the
+   new state: kinematics, no dynamics) is at most tol [m for positions, rad for angles];
+   the next substep from the usual controller for a local error of order 4 (within 0.2x
+   and 4x, at most max_step), the first one min(h, max_step). The lag's motor forces
+   x[12..17] (with a bandwidth) are integrated exactly: the command is held over the step,
+   so F(t) = F_cmd + (F(t0) - F_cmd) exp(-2 pi bandwidth (t - t0)) at every stage.
+   counts (2) = substeps accepted, rejected. More than max_substeps tries: MB_HEXAPOD_WORK,
+   x untouched. Otherwise as mb_hexapod_advance_actuated. */
+int mb_hexapod_advance_controlled(double tol, double max_step, int max_substeps, const double *base_joints,
+                                  const double *platform_joints, const double *data, const double *act, double *x,
+                                  const double *inputs, double t0, double h, int base_mode, int legs,
+                                  const double *bounds, double *outputs, double *det_min, int *counts);
 
 /* Kinematic read-out of x (12) = [pose, twist]: outputs (3, 6) = leg lengths [m], leg
    rates [m/s], pose rates (velocity [m/s], RPY rates [rad/s]). */

@@ -24,8 +24,8 @@ from plant.errors import InvalidInputError, SingularConfigurationError
 ID, FD, TERMS = lib.MB_HEXAPOD_ID, lib.MB_HEXAPOD_FD, lib.MB_HEXAPOD_TERMS  # what the kernel solves for
 BASE_NONE, BASE_GRAVITY, BASE_FULL = (lib.MB_HEXAPOD_BASE_NONE, lib.MB_HEXAPOD_BASE_GRAVITY,
                                       lib.MB_HEXAPOD_BASE_FULL)  # how much base motion it keeps
-OK, BAD_INPUT, DIVERGED, STROKE = (lib.MB_HEXAPOD_OK, lib.MB_HEXAPOD_BAD_INPUT, lib.MB_HEXAPOD_DIVERGED,
-                                   lib.MB_HEXAPOD_STROKE)  # advance_fixed status codes
+OK, BAD_INPUT, DIVERGED, STROKE, WORK = (lib.MB_HEXAPOD_OK, lib.MB_HEXAPOD_BAD_INPUT, lib.MB_HEXAPOD_DIVERGED,
+                                         lib.MB_HEXAPOD_STROKE, lib.MB_HEXAPOD_WORK)  # advance_* status codes
 NDATA = lib.MB_HEXAPOD_NDATA   # length of StewartParams.kernel_data
 ACTUATOR_NDATA = lib.MB_ACTUATOR_NDATA   # [bandwidth, reflected_mass, coulomb, viscous, friction_velocity, force_limit]
 _F64 = np.dtype(np.float64)   # numpy's float64 dtype is one object: compared by identity
@@ -148,6 +148,7 @@ class HexapodKernel:
         self.params = (reading(base_joints, (6, 3), "base_joints"),   # each keeps its array alive
                        reading(platform_joints, (6, 3), "platform_joints"), reading(data, (NDATA,), "data"))
         self._det = ffi.new("double *")
+        self.counts = ffi.new("int[2]")   # advance_controlled's substeps: accepted, rejected
 
     def __reduce__(self):   # pointers do not pickle: rebuild from the arrays
         return HexapodKernel, self._arrays
@@ -228,6 +229,18 @@ class HexapodKernel:
         status = lib.mb_hexapod_advance_actuated(bool(rk4), substeps, *self.params, actuator,
                                                  pointer(x, (nx,), "x"), inputs, t0, h, base_mode, bool(legs),
                                                  bounds, outputs, self._det)
+        return self._det[0], status
+
+    def advance_controlled(self, tol, max_step, max_substeps, actuator, x, inputs, t0, h, base_mode, legs, bounds,
+                           outputs):
+        """advance_actuated with error-controlled RK4 substeps of at most ``max_step`` and
+        the lag exact (mb_hexapod_advance_controlled): each substep's pose error at most
+        ``tol``, at most ``max_substeps`` tries (else status WORK, x untouched); the
+        substeps accepted and rejected are in ``counts``. Pointers as advance_actuated's."""
+        nx = 18 if _bandwidth(actuator) > 0 else 12
+        status = lib.mb_hexapod_advance_controlled(tol, max_step, max_substeps, *self.params, actuator,
+                                                   pointer(x, (nx,), "x"), inputs, t0, h, base_mode, bool(legs),
+                                                   bounds, outputs, self._det, self.counts)
         return self._det[0], status
 
     def rhs_actuated(self, actuator, x, command, wrench, base0, t0, t, base_mode, legs, dx, force=None):

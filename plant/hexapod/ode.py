@@ -19,6 +19,13 @@ The leg actuator (Actuator: force-loop bandwidth, reflected mass, screw friction
 limit) and an external wrench on the platform are terms of the same C call
 (mb_hexapod_advance_actuated); all off, it is advance_fixed bit for bit. With a
 bandwidth the six motor forces join the state: x = [pose, twist, motor forces] (18).
+
+With a ``tolerance`` (> 0, rk4 only) the substeps are error-controlled instead of fixed
+(mb_hexapod_advance_controlled): RK4 substeps of at most max_step, each accepted when the
+embedded third-order estimate of its pose error is within the tolerance, and the force
+loop's lag integrated exactly (linear, the command held: an exponential). The screw
+friction's steep tanh then costs substeps only where the legs cross zero rate, and only
+as many as its error asks for, instead of 0.1 ms substeps everywhere (docs/speed.md).
 """
 import math
 from dataclasses import astuple, dataclass
@@ -26,7 +33,7 @@ from dataclasses import astuple, dataclass
 import numpy as np
 
 from plant import integrators
-from plant.errors import ConvergenceError, InvalidInputError, SingularConfigurationError
+from plant.errors import ConvergenceError, InvalidInputError, SingularConfigurationError, WorkBoundError
 from plant.hexapod import kernel as kane
 from plant.hexapod.model import SINGULAR_RATIO, check_stroke, fidelity_mode, inverse_kinematics, jacobian
 
@@ -76,6 +83,15 @@ class Actuator:
                 f"{(RK4_STABLE_RATE_STEP if method == 'rk4' else 1.0) / (2 * math.pi * self.bandwidth):.3g} s")
 
 
+def check_tolerance(tolerance, method):
+    """InvalidInputError unless ``tolerance`` is 0 (fixed substeps) or, with rk4, finite and > 0."""
+    if not (math.isfinite(tolerance) and tolerance >= 0):
+        raise InvalidInputError(f"tolerance must be finite and >= 0 (0: fixed substeps), got {tolerance!r}")
+    if tolerance and method != "rk4":
+        raise InvalidInputError(f"tolerance {tolerance:g} (error-controlled substeps) needs integrator rk4, "
+                                f"got {method!r}; set tolerance 0 for {method}")
+
+
 class HexapodODE:
     """The hexapod plant between communication points: hold inputs, advance, read out.
 
@@ -85,16 +101,18 @@ class HexapodODE:
     to ``advance`` is (12,) + actuator.states."""
 
     def __init__(self, params, fidelity="full", moving_base=True, method="rk4", max_step=1e-3,
-                 inputs=None, outputs=None, actuator=None):
+                 inputs=None, outputs=None, actuator=None, tolerance=0.0):
         if method not in integrators.INTEGRATORS:
             raise InvalidInputError(f"unknown integrator {method!r}; choose one of {integrators.INTEGRATORS}")
         if not max_step > 0:
             raise InvalidInputError(f"max_step must be positive, got {max_step}")
-        self.params, self.method, self.max_step = params, method, max_step
+        check_tolerance(tolerance, method)
+        self.params, self.method, self.max_step, self.tolerance = params, method, max_step, tolerance
         base_mode, self.legs = fidelity_mode(fidelity)
         self.base_mode = base_mode if moving_base else kane.BASE_NONE
         self.actuator = Actuator() if actuator is None else actuator
-        self.actuator.check_step(max_step, method)
+        if not tolerance:   # error-controlled substeps take the lag exactly
+            self.actuator.check_step(max_step, method)
         self.inputs = np.zeros((5, 6)) if inputs is None else inputs
         self.outputs = np.zeros((4, 6)) if outputs is None else outputs
         self.bounds = params.home_lengths + np.array(params.stroke)[:, None]
@@ -144,19 +162,30 @@ class HexapodODE:
         stroke."""
         if self.method == "radau":
             return self._advance_radau(x, h)
-        substeps = integrators.substep_count(h, self.max_step)
-        det, status = self._kernel.advance_actuated(self.method == "rk4", substeps, self._actuator, x, self._inputs,
-                                                    self.t0, h, self.base_mode, self.legs, self._bounds,
-                                                    self._outputs)
+        if self.tolerance:
+            substeps = 0
+            det, status = self._kernel.advance_controlled(self.tolerance, self.max_step, integrators.MAX_SUBSTEPS,
+                                                          self._actuator, x, self._inputs, self.t0, h, self.base_mode,
+                                                          self.legs, self._bounds, self._outputs)
+        else:
+            substeps = integrators.substep_count(h, self.max_step)
+            det, status = self._kernel.advance_actuated(self.method == "rk4", substeps, self._actuator, x,
+                                                        self._inputs, self.t0, h, self.base_mode, self.legs,
+                                                        self._bounds, self._outputs)
         if status == kane.OK and det >= SINGULAR_RATIO * self.params.home_det:
             return self.outputs
         if status == kane.BAD_INPUT:
             names = ("leg forces", "base pose", "base rate", "base acc", "platform wrench")
             bad = [n for n, row in zip(names, self.inputs) if not np.isfinite(row).all()]
             raise InvalidInputError(f"{', '.join(bad)} input contains NaN or inf")
+        if status == kane.WORK:
+            raise WorkBoundError(f"a step of {h!r} s needs more than {integrators.MAX_SUBSTEPS} substeps to keep "
+                                 f"the pose error per substep within tolerance {self.tolerance!r}: take a larger "
+                                 "tolerance or shorter communication steps")
         if status == kane.DIVERGED:
+            substep = f"{h / substeps:.3g} s" if substeps else f"error-controlled, tolerance {self.tolerance:g}"
             raise ConvergenceError(f"integrator {self.method} diverged over [{self.t0:.6g}, {self.t0 + h:.6g}] s "
-                                   f"(substep {h / substeps:.3g} s): the state is no longer finite or bounded")
+                                   f"(substep {substep}): the state is no longer finite or bounded")
         self._check_det(det)
         check_stroke(self.params, self.outputs[0])
         return self.outputs

@@ -147,6 +147,20 @@ def test_plant_radau_needs_python(native):
     assert status == ERROR and "radau needs the python implementation" in failure_lines(inst)[-1]
 
 
+def test_plant_tolerance_needs_rk4(fmus, native):
+    """Error-controlled substeps are RK4's: with Euler the tolerance is refused at
+    initialization, in the same words by both implementations (plant.hexapod.ode.check_tolerance)."""
+    texts = []
+    for paths in (fmus, native):
+        inst, status = opened(paths["hexapod_plant_fmu"], **dict(PLANT, integrator=1, tolerance=1e-10))
+        texts.append(_failure(failure_lines(inst)[-1]))
+        if paths is native:
+            assert status == ERROR
+    assert texts[0] == texts[1]
+    assert texts[1] == ("InvalidInputError in initialization: tolerance 1e-10 (error-controlled substeps) needs "
+                        "integrator rk4, got 'euler'; set tolerance 0 for euler")
+
+
 def test_controller_nan_input_discards(fmus, native):
     text = _stepping_failure(fmus, native, "leg_controller_fmu", {}, {"leg_rate[4]": math.nan})
     assert text == "InvalidInputError at t=0 s: leg_rate input contains NaN or inf"

@@ -291,3 +291,90 @@ def test_native_plant_refuses_a_force_loop_too_fast_as_python_does(fmus, native_
         lines.append([line for line in failure_lines(inst) if "too fast" in line])
     assert lines[0] == lines[1] and len(lines[0]) == 1
     assert "actuator bandwidth 1000 Hz is too fast for rk4 at max_step 0.001 s" in lines[0][0]
+
+
+# --------------------------------------------- error-controlled substeps (tolerance > 0)
+SHIPPED_ACTUATOR = dict(bandwidth=50.0, reflected_mass=758.0, coulomb=200.0, viscous=2000.0, force_limit=25e3)
+
+
+def _sliding_then_sticking(actuator, n, max_step, tolerance=0.0, fidelity="massless_legs"):
+    """Poses of the free platform launched at a few mm/s (its legs slide, slow down and
+    stick) under the held static forces plus a step in the command, every 1 ms step."""
+    ode = HexapodODE(PARAMS, fidelity, moving_base=False, max_step=max_step, actuator=actuator, tolerance=tolerance)
+    ode.set_inputs(0.0, STATIC)
+    x = ode.initial_state(HOME_POSE)
+    x[6:12] = [0.004, -0.003, 0.002, 0.002, -0.001, 0.003]
+    poses, substeps = [], 0
+    for k in range(n):
+        ode.set_inputs(k * 1e-3, STATIC + 300.0 * np.sin(0.05 * k + np.arange(6)))
+        ode.advance(x, 1e-3)
+        poses.append(x[:6].copy())
+        substeps += PARAMS.kernel.counts[0] if tolerance else 0
+    return np.array(poses), substeps
+
+
+def test_controlled_substeps_integrate_the_lag_exactly():
+    """The force loop is linear and its command held over a step: F(t0 + h) = F_cmd + (F(t0)
+    - F_cmd) exp(-2 pi f h), to rounding, whatever substeps the friction asks for (fixed
+    RK4 substeps of 1 ms miss it by RK4's error at 2 pi f h = 0.31, ~2.6e-5 of the step)."""
+    bandwidth = 50.0
+    step = np.array([400.0, -300.0, 200.0, 100.0, -500.0, 250.0])
+    forces = {}
+    for tolerance in (1e-10, 0.0):
+        ode = HexapodODE(PARAMS, "massless_legs", moving_base=False, max_step=1e-3, tolerance=tolerance,
+                         actuator=Actuator(**SHIPPED_ACTUATOR))
+        ode.set_inputs(0.0, STATIC)
+        x = ode.initial_state(HOME_POSE)
+        truth = x[12:].copy()
+        for k in range(5):
+            ode.set_inputs(k * 1e-3, STATIC + step)
+            ode.advance(x, 1e-3)
+            truth = STATIC + step + (truth - STATIC - step) * math.exp(-2 * math.pi * bandwidth * 1e-3)
+        forces[tolerance] = x[12:]
+    np.testing.assert_allclose(forces[1e-10], truth, rtol=0, atol=1e-9)   # ~4e3 N: 2.5e-13 relative
+    assert abs(truth - STATIC - step).max() > 50.0   # the lag is still in its transient
+    assert abs(forces[0.0] - truth).max() > 1e-3
+
+
+@pytest.mark.parametrize("friction_velocity, tolerance, substeps, fixed_error",
+                         [(1e-4, 1e-10, (45, 58), 1e-9), (1e-5, 1e-11, (110, 135), 3e-7)])
+def test_controlled_substeps_follow_a_stiff_friction(friction_velocity, tolerance, substeps, fixed_error):
+    """Against RK4 at 1 µs fixed substeps (converged: 0.5 µs agrees to 1e-13 m), the free
+    platform whose legs slide and stick, pushed by a varying command, under the shipped
+    screw (v_s 0.1 mm/s: slope 2e6 N s/m) at the shipped tolerance, and under one 10x
+    steeper at a 10x smaller one: within 0.5 nm at every 1 ms step, on about one substep a
+    step for the shipped screw (40 steps), three for the steeper. Fixed 1 ms substeps
+    miss by ``fixed_error`` and more."""
+    actuator = Actuator(**SHIPPED_ACTUATOR, friction_velocity=friction_velocity)
+    n = 40
+    reference, _ = _sliding_then_sticking(actuator, n, 1e-6)
+    assert np.abs(reference[-1] - reference[0]).max() > 5e-5   # the platform moved
+    poses, taken = _sliding_then_sticking(actuator, n, 1e-3, tolerance)
+    assert np.abs(poses - reference).max() < 5e-10
+    assert substeps[0] <= taken <= substeps[1]
+    fixed, _ = _sliding_then_sticking(actuator, n, 1e-3)
+    assert np.abs(fixed - reference).max() > fixed_error
+
+
+def test_controlled_substeps_refuse_endless_work_and_leave_the_state():
+    """More tries than max_substeps: status WORK, x as it came (the FMU then reports a
+    WorkBoundError and a host may retry the step)."""
+    ode = HexapodODE(PARAMS, "massless_legs", moving_base=False, max_step=1e-3, tolerance=1e-10,
+                     actuator=Actuator(**SHIPPED_ACTUATOR, friction_velocity=1e-7))
+    ode.set_inputs(0.0, STATIC + 500.0)
+    x = ode.initial_state(HOME_POSE)
+    x[6:12] = 0.003
+    before = x.copy()
+    _, status = PARAMS.kernel.advance_controlled(1e-18, 1e-3, 10, ode._actuator, x, ode._inputs, 0.0, 1e-3,
+                                                 ode.base_mode, ode.legs, ode._bounds, ode._outputs)
+    assert status == kane.WORK
+    assert x.tobytes() == before.tobytes()
+    assert PARAMS.kernel.counts[0] + PARAMS.kernel.counts[1] == 10
+
+
+@pytest.mark.parametrize("method, tolerance, words", [("euler", 1e-10, "needs integrator rk4"),
+                                                      ("rk4", -1e-10, "finite and >= 0"),
+                                                      ("rk4", math.nan, "finite and >= 0")])
+def test_a_tolerance_the_integrator_cannot_take_is_refused(method, tolerance, words):
+    with pytest.raises(InvalidInputError, match=words):
+        HexapodODE(PARAMS, method=method, tolerance=tolerance)
