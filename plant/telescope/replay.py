@@ -42,6 +42,7 @@ LIMIT_MARGIN = 0.08      # the spline's rate and acceleration may pass a drive l
 #                          lobe's area, 1.067), plus 1.3 % for noise and the table's ends
 MIN_ROWS = 4
 SHOWN_PROBLEMS = 10      # problems listed in one error; the rest counted
+RESOURCE = "resource:"   # a Telescope FMU's replay_table "resource:<name>": a file in its resources folder
 
 
 @dataclass(frozen=True)
@@ -208,4 +209,6 @@ def replay_table(table, params, max_gap=MAX_GAP, smoothing_time=SMOOTHING_TIME):
 
 def load(path, params, max_gap=MAX_GAP, smoothing_time=SMOOTHING_TIME):
     """read_table then replay_table: the Replay of a file."""
+    if not str(path):
+        raise InvalidInputError("the replay profile needs a table: replay_table is empty")
     return replay_table(read_table(path), params, max_gap, smoothing_time)
