@@ -50,6 +50,7 @@ ASTROPY_STEP = 5.0        # s: astropy positions this far apart, cubic-interpola
 #                           below the keyhole: (5/384) step^4 |x''''|; the tests measure it against astropy)
 ELEVATION_LIMIT = math.radians(15.0)   # default lowest elevation of a scan (assumed observing practice)
 KEYHOLE = math.radians(80.0)           # default highest elevation of a scan (assumed)
+STUDY_KEYS = ("requirements", "wind")   # tables a night file holds for studies/night.py, not read here
 SLEW_ITERATIONS = 4       # slew target = the source at arrival: fixed-point iterations (converge to < 1e-9 s)
 
 
@@ -200,10 +201,10 @@ def plan(path, params=None):
     path = pathlib.Path(path)
     source = str(path)
     data = read_toml(read_text(path, what="schedule"), source)
-    unknown = set(data) - {"start", "elevation_limit", "keyhole", "scans", "name", "description"}
+    unknown = set(data) - {"start", "elevation_limit", "keyhole", "scans", "name", "description", *STUDY_KEYS}
     if unknown:
         raise ScenarioError(source, sorted(unknown)[0], "unknown key (start, elevation_limit, keyhole, scans, name, "
-                            "description)")
+                            f"description; {', '.join(STUDY_KEYS)} for studies/night.py)")
     utc_start = _utc(source, "start", data.get("start"))
     low = parse_quantity(source, "elevation_limit", data.get("elevation_limit", ELEVATION_LIMIT), "rad")
     high = parse_quantity(source, "keyhole", data.get("keyhole", KEYHOLE), "rad")
