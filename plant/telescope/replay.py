@@ -22,6 +22,7 @@ import csv
 import math
 import pathlib
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy.interpolate import make_smoothing_spline
@@ -81,20 +82,14 @@ def read_table(path):
             named = {_column(name, name, source): np.asarray(data[name], dtype=float).ravel() for name in data.files}
     else:
         with path.open(newline="") as f:
-            rows = [r for r in csv.reader(line for line in f if not line.lstrip().startswith("#")) if r]
-        if not rows:
+            lines = [line for line in f if line.strip() and not line.lstrip().startswith("#")]
+        if not lines:
             raise InvalidInputError(f"{source}: no header line")
-        keys = [_column(cell, cell, source) for cell in rows[0]]
-        values = np.full((len(rows) - 1, len(keys)), np.nan)
-        for i, row in enumerate(rows[1:]):
-            if len(row) != len(keys):
-                raise InvalidInputError(f"{source}: row {i + 1} has {len(row)} values, the header {len(keys)}")
-            for j, cell in enumerate(row):
-                try:
-                    values[i, j] = float(cell)
-                except ValueError:
-                    raise InvalidInputError(f"{source}: row {i + 1}, column {rows[0][j].strip()!r}: "
-                                            f"{cell!r} is not a number") from None
+        header = next(csv.reader(lines[:1]))
+        keys = [_column(cell, cell, source) for cell in header]
+        values = _numbers(lines[1:], len(keys))
+        if values is None:
+            _name_bad_cell([header, *csv.reader(lines[1:])], source)
         named = {key: values[:, j] for j, key in enumerate(keys)}
     found = {key for key, _ in named}
     if found != set(COLUMNS) or len(named) != len(COLUMNS):
@@ -102,6 +97,31 @@ def read_table(path):
                                 f"{', '.join(sorted(k for k, _ in named))}")
     si = {key: array * factor for (key, factor), array in named.items()}
     return Table(si["time"], si["azimuth"], si["elevation"], source)
+
+
+def _numbers(lines, width):
+    """The CSV data lines as an (n, width) float array, or None if a row or a cell is not a number."""
+    if not lines:
+        return np.empty((0, width))
+    try:
+        values = np.loadtxt(lines, delimiter=",", ndmin=2, dtype=float)
+    except ValueError:
+        return None
+    return values if values.shape == (len(lines), width) else None
+
+
+def _name_bad_cell(rows, source):
+    """InvalidInputError naming the first row of the wrong length or cell that is not a number."""
+    header = rows[0]
+    for i, row in enumerate(rows[1:]):
+        if len(row) != len(header):
+            raise InvalidInputError(f"{source}: row {i + 1} has {len(row)} values, the header {len(header)}")
+        for j, cell in enumerate(row):
+            try:
+                float(cell)
+            except ValueError:
+                raise InvalidInputError(f"{source}: row {i + 1}, column {header[j].strip()!r}: "
+                                        f"{cell!r} is not a number") from None
 
 
 def _unwrap(azimuth):
@@ -208,7 +228,21 @@ def replay_table(table, params, max_gap=MAX_GAP, smoothing_time=SMOOTHING_TIME):
 
 
 def load(path, params, max_gap=MAX_GAP, smoothing_time=SMOOTHING_TIME):
-    """read_table then replay_table: the Replay of a file."""
+    """read_table then replay_table: the Replay of a file. The last few are kept, keyed by
+    the file's path, size and modification time and the settings: the scenario check and
+    the FMU read a night's table (720,000 rows: ~45 s to smooth) once between them."""
     if not str(path):
         raise InvalidInputError("the replay profile needs a table: replay_table is empty")
-    return replay_table(read_table(path), params, max_gap, smoothing_time)
+    path = pathlib.Path(path)
+    stat = path.stat() if path.is_file() else None
+    if stat is None:
+        return replay_table(read_table(path), params, max_gap, smoothing_time)
+    return _load(str(path.resolve()), stat.st_size, stat.st_mtime_ns, params, float(max_gap), float(smoothing_time))
+
+
+@lru_cache(maxsize=4)
+def _load(path, size, mtime_ns, params, max_gap, smoothing_time):
+    result = replay_table(read_table(path), params, max_gap, smoothing_time)
+    for array in (result.breakpoints, result.coefficients):
+        array.flags.writeable = False     # shared between callers
+    return result

@@ -3,6 +3,7 @@ analytic slew and sidereal track the table was sampled from (the smoothing's err
 of Silverman's equivalent kernel, derived apart in the docs), scipy's own evaluation of
 the spline, the noise gain of that kernel, and a table with every defect class."""
 import dataclasses
+import os
 from datetime import datetime
 
 import numpy as np
@@ -179,3 +180,19 @@ def test_c_refuses_a_bad_spline():
         motion_profile("replay", replay=bad)
     with pytest.raises(InvalidInputError, match="needs a table"):
         motion_profile("replay")
+
+
+def test_a_file_is_smoothed_once_until_it_changes(tmp_path):
+    """load keeps the last Replays by path, size and time: the scenario check and the FMU
+    share one; a rewritten file is read again."""
+    table, _ = slew_table()
+    path = tmp_path / "log.csv"
+    rows = np.column_stack([table.time, np.degrees(table.azimuth), np.degrees(table.elevation)])
+    np.savetxt(path, rows, delimiter=",", header="time [s],azimuth [deg],elevation [deg]", comments="")
+    first = rp.load(path, P)
+    assert rp.load(path, P) is first and rp.load(path, P, smoothing_time=0.5) is not first
+    rows[:, 2] += 1.0
+    np.savetxt(path, rows, delimiter=",", header="time [s],azimuth [deg],elevation [deg]", comments="")
+    os.utime(path, ns=(0, 10 ** 9))      # a new modification time, whatever the clock's resolution
+    again = rp.load(path, P)
+    assert again is not first and again.coefficients[0, 4] == pytest.approx(first.coefficients[0, 4] + np.radians(1))
