@@ -9,9 +9,12 @@ import numpy as np
 import pytest
 
 import movingbase
+from fmu_src import catalogue
 from plant.telescope import model as tm
 from scenarios import spec, ssp
+from scenarios.cosim.fmi import FmuError
 from scenarios.runs import single
+from tests.fmu_helpers import free_all, open_fmu
 from tests.scenario_helpers import SLEW, edited
 from tests.ssp_helpers import RECORD, START_DELAY, columns, configure, run_columns
 
@@ -124,3 +127,13 @@ def test_ssp_export_carries_the_table(fmus, tmp_path):
     for name in columns(scenario, descriptions, RECORD):
         np.testing.assert_allclose(theirs[name], ours[name][1:], rtol=1e-9, atol=1e-12, err_msg=name)
     assert np.ptp(ours["base.base_pose[2]"]) > 1e-4      # the replayed slew moves the base
+
+
+def test_the_native_telescope_refuses_replay_saying_why(native_fmus):
+    """The native FMUs have no String variable for the table: profile replay fails at
+    initialization with a line saying what to use instead (not a crash, not a silent slew)."""
+    with pytest.raises(FmuError, match="failed in exitInitializationMode") as error:
+        open_fmu(native_fmus[catalogue.BY_KEY["telescope"].script], profile=tm.PROFILE_KINDS.index("replay"))
+    assert "profile replay reads its table (replay_table, a String) in Python: use the pythonfmu Telescope" \
+        in str(error.value)
+    free_all()
