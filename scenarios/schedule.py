@@ -34,12 +34,14 @@ import numpy as np
 from astropy.utils import iers
 
 iers.conf.auto_download = False   # offline: the bundled IERS tables, never a download
+iers.conf.auto_max_age = None     # and their predictions however old (UT1 drifts from them by ms a month: mas)
 import astropy.units as u  # noqa: E402
 from astropy.coordinates import AltAz, Angle, EarthLocation, SkyCoord, get_body  # noqa: E402
 from astropy.time import Time  # noqa: E402
 from scipy.interpolate import CubicSpline  # noqa: E402
 
 from fmu_src import atomic  # noqa: E402
+from plant.errors import InvalidInputError  # noqa: E402
 from plant.telescope import model as telescope  # noqa: E402
 from plant.telescope import replay  # noqa: E402
 from scenarios.spec.parsing import parse_quantity  # noqa: E402
@@ -99,16 +101,24 @@ def altaz(params, target, utc_start, t):
     name) at t [s] after utc_start, from astropy (no refraction)."""
     times = Time(utc_start) + np.atleast_1d(t) * u.s
     frame = AltAz(obstime=times, location=site(params), pressure=0 * u.hPa)
+    end = iers.IERS_Auto.open()["MJD"][-1].value
+    if times.mjd.max() > end:   # astropy would go on with the last value, up to 0.9 s of UT1: 13 arcsec
+        raise InvalidInputError(f"{times[times.mjd.argmax()].isot[:19]} UTC is past the end of the IERS table "
+                                f"bundled with astropy ({Time(end, format='mjd').isot[:10]}): the Earth's "
+                                "orientation is not known offline that far ahead")
     coord = get_body(target, times, site(params)) if isinstance(target, str) else target
     position = coord.transform_to(frame)
     return np.asarray(position.az.rad, dtype=float), np.asarray(position.alt.rad, dtype=float)
 
 
 def _utc(source, key, text):
+    """A UTC datetime from text ("2024-03-01T12:00:00", "...Z", an offset) or a TOML date-time."""
     try:
         value = datetime.fromisoformat(text.replace("Z", "+00:00")) if isinstance(text, str) else None
     except ValueError:
         value = None
+    if isinstance(text, datetime):
+        value = text
     if value is None:
         raise ScenarioError(source, key, f"{text!r} is not a UTC time such as \"2024-03-01T12:00:00\"")
     return value.replace(tzinfo=timezone.utc) if value.tzinfo is None else value.astimezone(timezone.utc)
@@ -239,27 +249,37 @@ def plan(path, params=None):
 
         def refuse(why, key=key, name=name):
             _refuse(source, key, name, why)
-        if pointing is None:   # the night starts on the first source, on the turn nearest the wrap's middle
-            arrive = at or 0.0
-            az_spline, el_spline, shift, _ = _scan_track(params, target, utc_start, arrive, duration,
-                                                         sum(replay.AZIMUTH_LIMITS) / 2, low, high, refuse)
-            slew_start = arrive
-        else:
-            arrive = _slew_in(params, target, utc_start, t, pointing, 0.0, at)[1]
-            turn = _scan_track(params, target, utc_start, arrive, duration, pointing[0], low, high, refuse)[3]
-            slew_start, arrive, aim = _slew_in(params, target, utc_start, t, pointing, turn, at)
-            if slew_start < t - 1e-6:
-                refuse(f"its start {scan['start']} is before the slew from the last scan can arrive "
-                       f"({t + arrive - slew_start:.1f} s after the schedule's start)")
-            az_spline, el_spline, shift, _ = _scan_track(params, target, utc_start, arrive, duration, aim[0], low,
-                                                         high, refuse)
-            pieces.append(("slew", slew_start, arrive, pointing, (float(az_spline(arrive)) + shift,
-                                                                  float(el_spline(arrive)))))
-        pieces.append(("track", arrive, arrive + duration, (az_spline, el_spline, shift)))
-        done.append(Scan(name, slew_start, arrive, arrive + duration))
-        t = arrive + duration
-        pointing = (float(az_spline(t)) + shift, float(el_spline(t)))
+        try:
+            t, pointing = _plan_scan(params, scan, target, name, duration, at, utc_start, low, high, t, pointing,
+                                     pieces, done, refuse)
+        except InvalidInputError as exc:
+            raise ScenarioError(source, key, f"{name}: {exc}") from None
     return _sample(params, utc_start, pieces, done)
+
+
+def _plan_scan(params, scan, target, name, duration, at, utc_start, low, high, t, pointing, pieces, done, refuse):
+    """One scan's slew (from the second on) and track appended to pieces and done; returns
+    the time it ends and the pointing there."""
+    if pointing is None:   # the night starts on the first source, on the turn nearest the wrap's middle
+        arrive = at or 0.0
+        az_spline, el_spline, shift, _ = _scan_track(params, target, utc_start, arrive, duration,
+                                                     sum(replay.AZIMUTH_LIMITS) / 2, low, high, refuse)
+        slew_start = arrive
+    else:
+        arrive = _slew_in(params, target, utc_start, t, pointing, 0.0, at)[1]
+        turn = _scan_track(params, target, utc_start, arrive, duration, pointing[0], low, high, refuse)[3]
+        slew_start, arrive, aim = _slew_in(params, target, utc_start, t, pointing, turn, at)
+        if slew_start < t - 1e-6:
+            refuse(f"its start {scan['start']} is before the slew from the last scan can arrive "
+                   f"({t + arrive - slew_start:.1f} s after the schedule's start)")
+        az_spline, el_spline, shift, _ = _scan_track(params, target, utc_start, arrive, duration, aim[0], low,
+                                                     high, refuse)
+        pieces.append(("slew", slew_start, arrive, pointing, (float(az_spline(arrive)) + shift,
+                                                              float(el_spline(arrive)))))
+    pieces.append(("track", arrive, arrive + duration, (az_spline, el_spline, shift)))
+    done.append(Scan(name, slew_start, arrive, arrive + duration))
+    t = arrive + duration
+    return t, (float(az_spline(t)) + shift, float(el_spline(t)))
 
 
 def _sample(params, utc_start, pieces, scans):

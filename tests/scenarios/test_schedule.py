@@ -136,3 +136,19 @@ def test_a_solar_system_body(tmp_path):
     times = Time(datetime(2024, 3, 1, 11, tzinfo=timezone.utc)) + t * u.s
     c = get_body("jupiter", times, site).transform_to(AltAz(obstime=times, location=site, pressure=0 * u.hPa))
     assert np.abs(plan.elevation[::400] - c.alt.rad).max() < 1 * ARCSEC
+
+
+def test_times_beyond_the_bundled_iers_table_are_refused(tmp_path):
+    """Offline, UT1 is known as far as the bundled table predicts (its predictions used
+    however old); past its end the schedule is refused, not computed on a guess."""
+    end = Time(iers.IERS_Auto.open()["MJD"][-1].value, format="mjd")
+    late = (end + 30 * u.day).isot[:19]
+    with pytest.raises(ScenarioError, match=r"OJ 287: .* UTC is past the end of the IERS table bundled with astropy"):
+        schedule.plan(write(tmp_path, late, OJ287[0] + 'duration = "2 min"\n'))
+    soon = (end - 200 * u.day).isot[:10]      # in the table's predictions: planned
+    path = tmp_path / "soon.toml"             # a circumpolar source (21..41 deg at Tianma), a TOML date-time
+    path.write_text(f'start = {soon}T12:00:00Z\n[[scans]]\nsource = "near pole"\nra = "19h15m00s"\ndec = "80d"\n'
+                    'duration = "1 min"\n')
+    plan = schedule.plan(path)
+    assert plan.utc_start == datetime.fromisoformat(f"{soon}T12:00:00+00:00")
+    assert 21.0 < np.degrees(plan.elevation).min() < np.degrees(plan.elevation).max() < 41.1
