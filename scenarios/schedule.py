@@ -18,6 +18,8 @@ A schedule file::
     duration = "10 min"
     start = "2024-03-01T12:30:00"  # optional: wait for it; without, the scan starts when the slew arrives
 
+([requirements] and [wind] tables may follow: studies/night.py reads them, this module not.)
+
 Between scans the antenna slews at the axis limits (the kit's trapezoidal slew, which
 arrives where the source is at the arrival time), choosing the azimuth turn within the
 cable wrap (plant/telescope/replay.py AZIMUTH_LIMITS) nearest the last one whose scan stays

@@ -45,6 +45,7 @@ ENCODER_LOG = ROOT / "scenarios" / "nights" / "tianma_encoder_log.csv"
 REPORT = ROOT / "docs" / "night.md"
 ERROR_CHART = ROOT / "docs" / "figures" / "night_error.png"
 SKY_CHART = ROOT / "docs" / "figures" / "night_sky.png"
+BUDGET_CHART = ROOT / "docs" / "figures" / "night_budget.png"
 SCENE = "telescope_slew_support"
 WINDOW = 40.0          # s per scan run: WINDOW / 2 before the arrival (the slew's end), WINDOW / 2 after
 SETTLE = 10.0          # s at the window's start left out of the metrics (the loops start mid-slew)
@@ -207,6 +208,24 @@ def charts(night, results, spoiled):
     save(fig, SKY_CHART)
 
 
+def budget_chart(results, calm_peaks, requirements):
+    """The budget over the night: each scan's pose error peak in its wind and without, against
+    the requirement."""
+    fig, ax = plt.subplots(figsize=(9, 3.6), layout="constrained")
+    x = np.arange(len(results))
+    windy = [run.metrics["pose error"]["peak"] for _, run, _, _ in results]
+    ax.bar(x - 0.2, calm_peaks, 0.4, color="0.6", label="calm twin (the motion, the sway it drives)")
+    ax.bar(x + 0.2, windy, 0.4, color="C0", label="in the night's wind")
+    if "pose_error_peak_um" in requirements:
+        ax.axhline(requirements["pose_error_peak_um"], color="C3", lw=1, ls="--", label="requirement")
+    ax.set_yscale("log")
+    ax.set_xticks(x, [f"{scan.source}\n{speed:g} m/s" for scan, _, _, speed in results], fontsize=7)
+    ax.set_ylabel("pose error peak [µm]")
+    ax.set_title("The budget over the night: each scan's pose error peak, without and with wind", fontsize=9)
+    ax.legend(fontsize=7, loc="upper left")
+    save(fig, BUDGET_CHART)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--night", default=str(NIGHT))
@@ -245,6 +264,7 @@ def main(argv=None):
     log = synthetic_log(night)
     loaded, refused = log_checks(log, params)
     charts(night, results, spoiled)
+    budget_chart(results, calm_peaks, requirements)
     header = ("| # | source | start [h] | wind [m/s] | pose rms [µm] | pose peak [µm] | calm: pose peak [µm] | "
               "pointing rms [arcsec] | "
               "pointing peak [arcsec] | " + " | ".join(f"loss {k[len('efficiency_loss_'):]} [%]" for k in BANDS) +
@@ -270,6 +290,7 @@ def main(argv=None):
             ": the slews' ends, replayed through the axis servo with the moving-base feedforward, spoil no scan "
             "here; the wind and the sway it drives do." if by_wind == sum(spoiled) else "."), "",
         "![the night's error](figures/night_error.png)", "", "![the sky track](figures/night_sky.png)", "",
+        "![the budget over the night](figures/night_budget.png)", "",
         "## Cost", "",
         f"{len(night.scans)} runs of {WINDOW:g} s ({simulated:g} s simulated at 1 ms) took {run_seconds:.0f} s of "
         f"wall time here ({run_seconds / simulated:.2f} s per simulated second, 2 shared cores). The whole night, "
