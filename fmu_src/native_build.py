@@ -109,7 +109,7 @@ def _telescope():
             *(f"static const double TIANMA_{f.upper()} = {_c_literal(getattr(t, f))};" for f in fields),
             _array("TIANMA_HOME", t.home), _array("HOME_POSE", HOME_POSE), _array("S_BAND_POSE", S_BAND_POSE),
             f"enum {{ PROFILE_SLEW = {PROFILES.index('slew')}, PROFILE_SIDEREAL = {PROFILES.index('sidereal')}, "
-            f"PROFILE_PAPER = {PROFILES.index('paper')} }};"]
+            f"PROFILE_PAPER = {PROFILES.index('paper')}, PROFILE_REPLAY = {PROFILES.index('replay')} }};"]
 
 
 def _mechanism3t():
@@ -129,11 +129,21 @@ def _c_name(name):
     return name.split("[", 1)[0]
 
 
+def _numeric(slave):
+    """The slave's variables the native FMU has: all but Strings (the native core has none;
+    slave.strings registers them last, so no other variable's index moves)."""
+    from pythonfmu.variables import String
+    kept = {vr: var for vr, var in slave.vars.items() if not isinstance(var, String)}
+    if any(vr > min((v for v in slave.vars if v not in kept), default=vr) for vr in kept):
+        raise RuntimeError("a String variable comes before a numeric one: register Strings last (slave.strings)")
+    return kept
+
+
 def starts(slave):
-    """value reference -> start value of the slave instance, exactly."""
+    """value reference -> start value of the slave instance's numeric variables, exactly."""
     from pythonfmu.variables import Real
     return {vr: (slave.get_real([vr]) if isinstance(var, Real) else slave.get_integer([vr]))[0]
-            for vr, var in slave.vars.items()}
+            for vr, var in _numeric(slave).items()}
 
 
 def vars_header(identifier, guid, slave, root):
@@ -143,7 +153,7 @@ def vars_header(identifier, guid, slave, root):
     exact = starts(slave)
     allowed = slave.allowed   # Integers whose range has gaps (slave.py)
     rows, enums, seen = [], [], {}
-    for vr, var in sorted(slave.vars.items()):
+    for vr, var in sorted(_numeric(slave).items()):
         element = xml_vars[var.name]
         kind = element[0]
         is_real = kind.tag == "Real"
@@ -173,6 +183,10 @@ def model_description(xml_text, guid, sources, exact):
     SourceFiles; Real starts (``exact``: by value reference) written to round-trip
     (pythonfmu rounds them to 16 digits)."""
     root = ET.fromstring(xml_text)
+    variables = root.find("ModelVariables")
+    for var in list(variables):
+        if var.find("String") is not None:   # the last ones (slave.strings): no output index moves
+            variables.remove(var)
     for var in root.iter("ScalarVariable"):
         real = var.find("Real")
         if real is not None and real.get("start") is not None:

@@ -346,6 +346,20 @@ class GuardedSlave(Fmi2Slave):
                       setter=lambda v, n=name: store.__setitem__(n, v), valid=valid)
         return store
 
+    def strings(self, rows):
+        """String parameters (name, default, description) backed by a dict, returned. The
+        native FMUs have no String variables (fmu_src/native_build.py leaves them out), so
+        a slave registers these after every other variable: the others' indices in the
+        modelDescription stay the native FMU's."""
+        store = {}
+        for name, default, text in rows:
+            store[name] = default
+            self.register_variable(String(name, causality=PARAMETER, description=text,
+                                          variability=Fmi2Variability.fixed, start=default,
+                                          getter=lambda n=name: store[n],
+                                          setter=lambda v, n=name: store.__setitem__(n, v)), nested=False)
+        return store
+
     def pid_gains(self, defaults, subject, note):
         """kp, ki, kd, force_limit parameters of a PID on ``subject`` (e.g. "leg length")."""
         return self.parameters((

@@ -16,6 +16,7 @@ ends of the step, Hermite-interpolated between them), base_*, reference_* and ax
 the actual motion and command_base_* the commanded one. Off (0, the default), the outputs
 are today's block rows, and command_base_* equal base_*.
 """
+import pathlib
 from dataclasses import replace
 
 import numpy as np
@@ -34,6 +35,7 @@ from fmu_src.slave import (
 )
 from plant.hexapod.model import HOME_POSE, S_BAND_POSE
 from plant.telescope import model as telescope
+from plant.telescope import replay
 
 PROFILES = telescope.PROFILE_KINDS   # slew, sidereal, paper (the base and platform motion of Yao et al.)
 BLOCK = 1000
@@ -50,7 +52,8 @@ SUPPORT_SHAPES = ((1.0, 0.0, 0.0, 0.0, 0.06, 0.0), (0.0, 1.0, 0.0, -0.06, 0.0, 0
 
 
 class Telescope(GuardedSlave):
-    description = "Alt-azimuth telescope pointing (slew, sidereal tracking, paper manoeuvre) -> hexapod base motion"
+    description = ("Alt-azimuth telescope pointing (slew, sidereal tracking, paper manoeuvre, a replayed table) -> "
+                   "hexapod base motion")
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -83,6 +86,8 @@ class Telescope(GuardedSlave):
              "second-order loop); 0 = off, the axes follow the command exactly. Assumed: large-antenna axis servos "
              "have ~0.5-1 Hz locked-rotor bandwidth (SRT, GBT)", (0.0, 10.0)),
             ("servo_damping", "1", 0.7, "damping ratio of the antenna's axis servo (assumed)", (0.01, 10.0)),
+            ("replay_smoothing", "s", replay.SMOOTHING_TIME, "profile replay: the table's smoothing time h "
+             "(docs/conventions/telescope.md gives the error it costs); > 0", (POSITIVE_TIME, 60.0)),
         ))
         pose_desc = lambda prefix: [f"{prefix} {n}" for n in POSE_NAMES]
         self.now = np.zeros(66)   # every output: one row of the evaluated block (60), the support's sway
@@ -104,6 +109,11 @@ class Telescope(GuardedSlave):
         )):
             self.vector(name, size, OUTPUT, desc, units, values=self.now[start:start + size])
         self._support_variables(tianma)
+        self.text = self.strings((   # last: the native FMUs have no Strings (slave.strings)
+            ("replay_table", "", "profile replay: the table of az/el samples it follows, a CSV or npz file "
+             "(plant/telescope/replay.py: columns and units, checks, smoothing); an absolute path, relative "
+             "to the working directory (a scenario file's parameter: to its folder), or resource:<name> in the "
+             "FMU's resources folder (an SSP export puts it there). The pythonfmu FMU's alone"),))
 
     def _support_variables(self, tianma):
         """The flexible feed support's parameters, its load input and its sway output."""
@@ -151,11 +161,13 @@ class Telescope(GuardedSlave):
                               latitude=s["latitude"], longitude=s["longitude"],
                               az_rate_max=s["az_rate_max"], az_acc_max=s["az_acc_max"],
                               el_rate_max=s["el_rate_max"], el_acc_max=s["el_acc_max"])
+        table = replay.load(self._table_path(), self.params, smoothing_time=s["replay_smoothing"]) \
+            if kind == "replay" else None
         self.motion = telescope.motion_profile(
             kind, (s["start_azimuth"], s["start_elevation"]), (s["target_azimuth"], s["target_elevation"]),
             ra=s["right_ascension"], dec=s["declination"], utc_start=s["utc_start"],
             paper_duration=s["paper_duration"], start_delay=s["start_delay"],
-            reference=(HOME_POSE, S_BAND_POSE))   # the paper's platform motion: home to S-band
+            reference=(HOME_POSE, S_BAND_POSE), replay=table)   # the paper's platform motion: home to S-band
         self.block_t, self.block_h, self.block = np.inf, 0.0, None
         g = {name: np.array(values) for name, values in self.support_settings.items()}
         self.modes = telescope.support(g["support_frequency"], g["support_damping"], g["support_modal_mass"],
@@ -175,6 +187,14 @@ class Telescope(GuardedSlave):
         else:
             self._publish(0.0, 0.0)
         self._sway(None)
+
+    def _table_path(self):
+        """replay_table as a path: "resource:<name>" is a file in this FMU's resources folder
+        (where scenarios/ssp.py puts the table an SSP carries), anything else a path."""
+        name = self.text["replay_table"]
+        if name.startswith(replay.RESOURCE):
+            return str(pathlib.Path(self.resources or ".") / name[len(replay.RESOURCE):])
+        return name
 
     def step(self, t, h):
         if self.servo:

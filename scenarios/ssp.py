@@ -25,6 +25,9 @@ it, tests/hosts/test_libcosim.py; the pythonfmu FMUs too, with Python in the too
   written as their numbers;
 - the FMUs under resources/ with their Enumeration parameters declared as Integers
   (``integer_choices``: the SSP hosts set no FMI 2 Enumeration), everything else as built;
+- a replayed table (the telescope's replay_table) inside that instance's own copy of the
+  FMU, under its resources/, the parameter written as "resource:<file name>"
+  (``carried_table``);
 - Units from the FMUs' unit definitions, DefaultExperiment start/stop, and an
   annotation with our master settings (algorithm, step, extrapolation).
 
@@ -46,6 +49,8 @@ and from our master in these ways; ``simulate_exported`` deals with each:
   mode, and steps first with the outputs at t0. ``initial_exchange=True`` adds our
   initial exchange to fmpy's run (see ``_initial_exchange``); everything else
   (parsing, connection resolution, stepping, input/output transfer) stays fmpy's.
+- its set_value refuses String variables ("Unsupported type"): ``simulate_exported``
+  sets them with fmi2SetString (``_string_parameters``).
 - an input connector without a connection silently takes the connection of the input
   declared before it (or fails): only connected inputs are declared here.
 - time: ``time += step`` accumulates, and the loop runs ``while time < stop``, so the
@@ -66,6 +71,7 @@ import zipfile
 import numpy as np
 
 from fmu_src import atomic
+from plant.telescope.replay import RESOURCE
 from scenarios import spec
 from scenarios.cosim.fmi import element_count, unpack
 from scenarios.cosim.master import start, step_order
@@ -284,15 +290,20 @@ def export_ssp(scenario, fmu_paths, parameters, path):
     Component), which SSP tools apply; fmpy.ssp.simulate_ssp ignores them: run the file
     with ``simulate_exported``, which passes them to fmpy as ``parameter_set``."""
     path = pathlib.Path(path)
-    files, sources = {}, {}
+    files, sources, tables = {}, {}, {}
+    values = resolve_links(scenario, fmu_paths, parameters)
     for inst in scenario.fmus:
         fmu = pathlib.Path(fmu_paths[inst]).resolve()
         name = f"resources/{fmu.name}"
+        table = values.get(inst, {}).get("replay_table")
+        if table:   # the table goes into this instance's own copy of the FMU (carried_table)
+            values[inst] = {**values[inst], "replay_table": RESOURCE + pathlib.Path(table).name}
+            name = f"resources/{inst}_{fmu.name}"
+            tables[name] = pathlib.Path(table)
         if files.get(name, fmu) != fmu:   # another FMU file of the same name
             name = f"resources/{inst}_{fmu.name}"
         files[name] = fmu
         sources[inst] = name
-    values = resolve_links(scenario, fmu_paths, parameters)
     root = build_ssd(scenario, fmu_paths, values, sources)
     ET.indent(root)
     text = ET.tostring(root, encoding="utf-8", xml_declaration=True)
@@ -301,8 +312,22 @@ def export_ssp(scenario, fmu_paths, parameters, path):
         z.writestr("SystemStructure.ssd", text, compress_type=zipfile.ZIP_DEFLATED)
         for name, fmu in files.items():
             data = integer_choices(fmu) if unpack(fmu)[0].fmiVersion.startswith("2") else fmu.read_bytes()
+            if name in tables:
+                data = carried_table(data, tables[name])
             z.writestr(name, data, compress_type=zipfile.ZIP_STORED)   # an FMU is a zip already
     return path
+
+
+def carried_table(fmu_bytes, table):
+    """The FMU's bytes with the replay table added as resources/<its name>: the SSP carries
+    the file, and the telescope reads it as replay_table = "resource:<its name>" wherever the
+    importing tool unpacks the FMU (a path of the exporting machine would mean nothing there)."""
+    out = io.BytesIO()
+    with zipfile.ZipFile(io.BytesIO(fmu_bytes)) as source, zipfile.ZipFile(out, "w") as z:
+        for info in source.infolist():
+            z.writestr(info, source.read(info))
+        z.writestr(f"resources/{table.name}", table.read_bytes(), compress_type=zipfile.ZIP_DEFLATED)
+    return out.getvalue()
 
 
 def integer_choices(fmu):
@@ -344,6 +369,26 @@ def bound_parameters(ssp_path):
                 for p in parameter_set.parameters:
                     parameters.append(Parameter(name=f"{component.name}.{p.name}", type=p.type, value=p.value))
     return ParameterSet(name=ssd.name, parameters=parameters), [c.name for c in find_components(ssd.system)]
+
+
+@contextlib.contextmanager
+def _string_parameters():
+    """Within the block, fmpy.ssp's set_value sets String variables (fmi2SetString), which
+    it refuses as "Unsupported type" (the telescope's replay_table)."""
+    from fmpy.ssp import simulation
+    original = simulation.set_value
+
+    def set_value(component, name, value):
+        variable = component.variables[name]
+        if variable.type != "String":
+            return original(component, name, value)
+        component.fmu.setString([variable.valueReference], [str(value)])
+
+    simulation.set_value = set_value
+    try:
+        yield
+    finally:
+        simulation.set_value = original
 
 
 @contextlib.contextmanager
@@ -422,7 +467,7 @@ def simulate_exported(ssp_path, scenario, initial_exchange=False):
                          f"{clash[0][1]!r}; rename one")
     t0, h = scenario.start_time, scenario.step
     steps = int(round((scenario.stop_time - t0) / h))
-    with _initial_exchange() if initial_exchange else contextlib.nullcontext():
+    with _initial_exchange() if initial_exchange else contextlib.nullcontext(), _string_parameters():
         result = simulate_ssp(str(ssp_path), start_time=t0, stop_time=t0 + (steps - 0.5) * h, step_size=h,
                               parameter_set=parameter_set)
     if len(result) != steps:

@@ -129,8 +129,13 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     Model *m = model;
     int kind = i[VR_profile];
     if (kind < 0 || kind >= N_PROFILE_NAMES) {
-        mb_error(inst, "IndexError", "profile %d is not one of 0..%d (0 slew, 1 sidereal, 2 paper)", kind,
+        mb_error(inst, "IndexError", "profile %d is not one of 0..%d (0 slew, 1 sidereal, 2 paper, 3 replay)", kind,
                  N_PROFILE_NAMES - 1);
+        return 1;
+    }
+    if (kind == PROFILE_REPLAY) {
+        mb_error(inst, "InvalidInputError", "profile replay reads its table (replay_table, a String) in Python: "
+                 "use the pythonfmu Telescope; the native FMUs have no String variables");
         return 1;
     }
     mb_tel_params *p = &m->params;

@@ -29,9 +29,11 @@ const char *mb_tel_status_text(int status)
                                "undefined; offset dec from the latitude";
     case MB_TEL_BELOW_HORIZON: return "the source is below the horizon";
     case MB_TEL_DURATION_NOT_POSITIVE: return "the manoeuvre's duration must be > 0";
-    case MB_TEL_BAD_KIND: return "unknown profile kind (0 slew, 1 sidereal, 2 paper)";
+    case MB_TEL_BAD_KIND: return "unknown profile kind (0 slew, 1 sidereal, 2 paper, 3 replay)";
     case MB_TEL_SUPPORT_RANGE: return "a support mode needs a frequency >= 0, a damping in [0, 1) and a modal "
                                       "mass > 0, and every support setting finite";
+    case MB_TEL_REPLAY_TABLE: return "the replay table needs at least 2 finite, strictly increasing times "
+                                     "and finite coefficients";
     default: return "unknown status";
     }
 }
@@ -185,6 +187,50 @@ int mb_tel_quintic(int dim, const double *start, const double *stop, double dura
     return MB_TEL_OK;
 }
 
+/* --- replay of a table ------------------------------------------------------------------ */
+
+int mb_tel_replay_check(int n, const double *t, const double *coef, int *first_bad)
+{
+    if (first_bad) *first_bad = -1;
+    if (n < 2 || !t || !coef) return MB_TEL_REPLAY_TABLE;
+    for (int i = 0; i < n; i++) {
+        int bad = !isfinite(t[i]) || (i > 0 && !(t[i] > t[i - 1]));
+        for (int k = 0; i < n - 1 && k < 8; k++) bad = bad || !isfinite(coef[8 * i + k]);
+        if (bad) {
+            if (first_bad) *first_bad = i;
+            return MB_TEL_REPLAY_TABLE;
+        }
+    }
+    return MB_TEL_OK;
+}
+
+/* Azimuth (astronomical) and elevation with their two derivatives at profile time t. */
+static void replay_at(const mb_tel_profile *prof, double t, double az[3], double el[3])
+{
+    const double *bp = prof->replay_t;
+    int n = prof->replay_n, lo = 0, hi = n - 1;
+    double tt = bp[0] + t, s;
+    int hold = tt < bp[0] || tt > bp[n - 1];
+    if (tt >= bp[n - 1]) {
+        lo = n - 2;
+        s = bp[n - 1] - bp[n - 2];
+    } else {
+        if (tt < bp[0]) tt = bp[0];
+        while (hi - lo > 1) {   /* bp[lo] <= tt < bp[hi] */
+            int mid = lo + (hi - lo) / 2;
+            if (bp[mid] <= tt) lo = mid; else hi = mid;
+        }
+        s = tt - bp[lo];
+    }
+    const double *c = prof->replay_coef + 8 * lo;
+    for (int axis = 0; axis < 2; axis++, c += 4) {
+        double *out = axis ? el : az;
+        out[0] = ((c[3] * s + c[2]) * s + c[1]) * s + c[0];
+        out[1] = hold ? 0.0 : (3 * c[3] * s + 2 * c[2]) * s + c[1];
+        out[2] = hold ? 0.0 : 6 * c[3] * s + 2 * c[2];
+    }
+}
+
 /* --- a profile's axes --------------------------------------------------------------- */
 
 static int check_profile(const mb_tel_params *p, const mb_tel_profile *prof, int n,
@@ -219,6 +265,8 @@ static int check_profile(const mb_tel_params *p, const mb_tel_profile *prof, int
                 return MB_TEL_NONFINITE;
         if (!(prof->paper_duration > 0)) return MB_TEL_DURATION_NOT_POSITIVE;
         return MB_TEL_OK;
+    case MB_TEL_REPLAY:   /* the spline itself: mb_tel_replay_check, once */
+        return prof->replay_n >= 2 && prof->replay_t && prof->replay_coef ? MB_TEL_OK : MB_TEL_REPLAY_TABLE;
     default:
         return MB_TEL_BAD_KIND;
     }
@@ -284,6 +332,22 @@ static void paper_axes(const mb_tel_profile *prof, int n, const double *t, doubl
     }
 }
 
+static int replay_axes(const mb_tel_profile *prof, int n, const double *t, double *axes, int *first_bad)
+{
+    int status = MB_TEL_OK;
+    for (int i = 0; i < n; i++) {
+        double az[3], el[3], *row = axes + 6 * i;
+        replay_at(prof, t[i] - prof->start_delay, az, el);
+        row[0] = mount_angle(az[0]); row[1] = -az[1]; row[2] = -az[2];
+        row[3] = el[0]; row[4] = el[1]; row[5] = el[2];
+        if (el[0] < 0 && status == MB_TEL_OK) {
+            status = MB_TEL_BELOW_HORIZON;
+            if (first_bad) *first_bad = i;
+        }
+    }
+    return status;
+}
+
 int mb_tel_axes(const mb_tel_params *p, const mb_tel_profile *prof, int n, const double *t,
                 double *axes, int *first_bad)
 {
@@ -293,6 +357,7 @@ int mb_tel_axes(const mb_tel_params *p, const mb_tel_profile *prof, int n, const
     switch (prof->kind) {
     case MB_TEL_SLEW: slew_axes(p, prof, n, t, axes); return MB_TEL_OK;
     case MB_TEL_SIDEREAL: return sidereal_axes(p, prof, n, t, axes, first_bad);
+    case MB_TEL_REPLAY: return replay_axes(prof, n, t, axes, first_bad);
     default: paper_axes(prof, n, t, axes); return MB_TEL_OK;
     }
 }

@@ -27,7 +27,8 @@ typedef struct {
 enum mb_tel_kind {
     MB_TEL_SLEW = 0,       /* trapezoidal slew start -> target at the axis limits */
     MB_TEL_SIDEREAL = 1,   /* track (ra, dec) from utc_start */
-    MB_TEL_PAPER = 2       /* the paper's stress manoeuvre over paper_duration */
+    MB_TEL_PAPER = 2,      /* the paper's stress manoeuvre over paper_duration */
+    MB_TEL_REPLAY = 3      /* a table of az/el samples, as its smoothing spline (replay_*) */
 };
 
 /* One motion profile (the telescope FMU's parameters). Every profile function evaluates
@@ -42,6 +43,15 @@ typedef struct {
     double start_delay;        /* s */
     double ref_start[6];       /* paper: the platform reference is the quintic from ref_start */
     double ref_stop[6];        /*   to ref_stop over paper_duration (HOME_POSE -> S_BAND_POSE) */
+    /* replay: a piecewise cubic in each axis over replay_n breakpoints replay_t (s, strictly
+       increasing, replay_t[0] is the profile's t = 0); replay_coef (replay_n - 1, 8) per
+       interval: astronomical azimuth c0..c3, elevation c0..c3 (rad) of
+       c0 + c1 s + c2 s^2 + c3 s^3, s the time since the interval's start. Before the first
+       and after the last breakpoint the end pointing holds (rate and acceleration 0).
+       Checked once by mb_tel_replay_check; the arrays belong to the caller. */
+    int replay_n;
+    const double *replay_t;
+    const double *replay_coef;
 } mb_tel_profile;
 
 /* Status of every function: 0 is success; otherwise the first problem found. */
@@ -54,11 +64,13 @@ enum mb_tel_status {
     MB_TEL_ELEVATION_RANGE = 5,    /* a slew elevation outside [0, 90 deg] (1e-9 rad allowed) */
     MB_TEL_DEC_RANGE = 6,          /* |dec| > 90 deg */
     MB_TEL_ZENITH = 7,             /* |dec - latitude| < 1e-6: the source passes the zenith */
-    MB_TEL_BELOW_HORIZON = 8,      /* the tracked source has E < 0 at a requested time */
+    MB_TEL_BELOW_HORIZON = 8,      /* the tracked source (or replay) has E < 0 at a time */
     MB_TEL_DURATION_NOT_POSITIVE = 9, /* paper_duration (or a quintic's duration) <= 0 */
     MB_TEL_BAD_KIND = 10,          /* profile kind not in enum mb_tel_kind */
-    MB_TEL_SUPPORT_RANGE = 11      /* a support mode's frequency < 0, damping outside [0, 1) or
+    MB_TEL_SUPPORT_RANGE = 11,     /* a support mode's frequency < 0, damping outside [0, 1) or
                                       modal mass <= 0, or a support setting not finite */
+    MB_TEL_REPLAY_TABLE = 12       /* a replay spline with < 2 breakpoints, breakpoints not
+                                      finite and strictly increasing, or a coefficient not finite */
 };
 
 /* A sentence naming the problem of a status (for FMU logs). */
@@ -73,6 +85,10 @@ double mb_tel_lst(double longitude, double utc);
 
 /* Checks of the parameters alone (finite, latitude, lever arm, limits). */
 int mb_tel_check_params(const mb_tel_params *p);
+
+/* A replay spline (mb_tel_profile's replay_*): MB_TEL_OK or MB_TEL_REPLAY_TABLE, with
+   *first_bad the breakpoint (or interval) at fault, -1 if none. O(n): once, not per call. */
+int mb_tel_replay_check(int n, const double *t, const double *coef, int *first_bad);
 
 /* Seconds until both axes of the slew start -> target have arrived. */
 int mb_tel_slew_duration(const mb_tel_params *p, double start_az, double start_el,

@@ -9,7 +9,8 @@ The numbers come from plant/c/telescope.c (the native FMUs compile the same file
 module holds the Python API and its validation, and turns the C's status codes into
 InvalidInputError with a message naming the problem.
 
-Pipeline: a profile (``slew``, ``sidereal_track``, ``paper_manoeuvre``) gives the axis
+Pipeline: a profile (``slew``, ``sidereal_track``, ``paper_manoeuvre``, ``replay_track``
+of a table read and smoothed by plant/telescope/replay.py) gives the axis
 angles A (the mount's azimuth angle), E (elevation) and their first two derivatives as an
 ``AxisMotion``;
 ``base_motion`` / ``base_twist`` turn it into the motion of the hexapod's base {B} in
@@ -28,6 +29,7 @@ Modelling assumptions (beyond the values labelled "assumed" in ``TelescopeParams
   paper's manoeuvre is given as base yaw = A directly.
 """
 import math
+import weakref
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from functools import lru_cache
@@ -41,7 +43,7 @@ from plant.integrators import substep_count
 EARTH_RATE = lib.mb_tel_earth_rate()   # rad/s, the rate at which the hour angle advances
 _UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
 _E_TOLERANCE = 1e-9                 # rad of rounding allowed outside [0, 90 deg] (as in the C)
-PROFILE_KINDS = ("slew", "sidereal", "paper")   # enum mb_tel_kind
+PROFILE_KINDS = ("slew", "sidereal", "paper", "replay")   # enum mb_tel_kind
 
 
 def _finite(name, value):
@@ -170,15 +172,33 @@ def _c_params(params):
     return c
 
 
+_REPLAY_ARRAYS = weakref.WeakKeyDictionary()   # profile -> the arrays its replay_* pointers point into
+
+
 def motion_profile(kind, start_az_el=(0.0, 0.0), target_az_el=(0.0, 0.0), ra=0.0, dec=0.0,
                    utc_start=0.0, paper_duration=6.0, start_delay=0.0,
-                   reference=((0.0,) * 6, (0.0,) * 6)):
+                   reference=((0.0,) * 6, (0.0,) * 6), replay=None):
     """A profile for the C (an mb_tel_profile): ``kind`` one of PROFILE_KINDS, angles in
     rad, ``utc_start`` in Unix seconds, ``reference`` the (start, stop) poses of the
-    paper's platform quintic. Checked where it is used (InvalidInputError)."""
+    paper's platform quintic, ``replay`` the replay profile's spline (a
+    plant.telescope.replay.Replay; its arrays live as long as the profile). Checked where
+    it is used (InvalidInputError)."""
     if kind not in PROFILE_KINDS:
         raise InvalidInputError(f"profile must be one of {PROFILE_KINDS}, got {kind!r}")
     c = ffi.new("mb_tel_profile *")
+    if kind == "replay":
+        if replay is None:
+            raise InvalidInputError("the replay profile needs a table (replay=)")
+        arrays = (np.ascontiguousarray(replay.breakpoints, dtype=float),
+                  np.ascontiguousarray(replay.coefficients, dtype=float))
+        bad = ffi.new("int *")
+        if arrays[1].shape != (arrays[0].size - 1, 8) or lib.mb_tel_replay_check(arrays[0].size, _doubles(arrays[0]),
+                                                                                  _doubles(arrays[1]), bad):
+            raise InvalidInputError(f"replay spline of {replay.source}: "
+                                    + ffi.string(lib.mb_tel_status_text(lib.MB_TEL_REPLAY_TABLE)).decode()
+                                    + (f" (breakpoint {bad[0]})" if bad[0] >= 0 else ""))
+        c.replay_n, c.replay_t, c.replay_coef = arrays[0].size, _doubles(arrays[0]), _doubles(arrays[1])
+        _REPLAY_ARRAYS[c] = arrays
     c.kind = PROFILE_KINDS.index(kind)
     (c.start_az, c.start_el), (c.target_az, c.target_el) = start_az_el, target_az_el
     c.ra, c.dec, c.utc_start = ra, dec, utc_start
@@ -338,6 +358,15 @@ def paper_manoeuvre(t, T=6.0):
 def _any_params():
     """The C wants parameters with every profile; the paper's axes use none of them."""
     return TelescopeParams.tianma()
+
+
+# --- a replayed table --------------------------------------------------------------------
+
+def replay_track(params, replay, t, start_delay=0.0):
+    """The axes of a replayed table (a plant.telescope.replay.Replay: the table's smoothing
+    spline, its first time at t = 0) at times t [s]; the end pointings hold outside it."""
+    t = _times(t)
+    return _axes(params, motion_profile("replay", replay=replay, start_delay=float(start_delay)), t)
 
 
 # --- what the axes do to the base and to the reference ---------------------------------

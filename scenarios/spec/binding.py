@@ -231,6 +231,11 @@ def as_data(scenario):
 def _value(source, key, var, raw):
     """raw converted for var (SI float or integer index), within the FMU's declared range."""
     raw = plain(raw)
+    if var.type == "String":   # a file's path (the telescope's replay_table): relative to the scenario's folder
+        if not isinstance(raw, str):
+            raise ScenarioError(source, key, f"{raw!r} is not text ({var.name}: {var.description})")
+        folder = pathlib.Path(source).parent if pathlib.Path(source).is_file() else pathlib.Path.cwd()
+        return str(folder / raw) if raw else raw
     if var.type in ("Integer", "Enumeration"):
         choices = enumeration(var)
         if isinstance(raw, str) and raw in choices:

@@ -13,6 +13,7 @@ from plant.errors import InvalidInputError
 from plant.hexapod.model import StewartParams, body_problems
 from plant.mechanism3t import model as mechanism3t
 from plant.telescope import model as telescope
+from plant.telescope import replay
 from scenarios.spec.keys import (
     CHECK_POINTS,
     METRIC_RESULT_UNITS,
@@ -402,7 +403,8 @@ def _check_telescope(src, key, scenario, inst, md_variables, values, written):
         if name in values:
             return values[name]
         var = md_variables[name]
-        return int(var.start) if var.type in ("Integer", "Enumeration") else float(var.start)
+        return (var.start if var.type == "String" else int(var.start) if var.type in ("Integer", "Enumeration")
+                else float(var.start))
 
     def shown(names):
         raws = {**scenario.parameters[inst], **{n: r for (i, n), r in written.items() if i == inst}}
@@ -414,8 +416,12 @@ def _check_telescope(src, key, scenario, inst, md_variables, values, written):
     profile = next((p for p, i in profiles.items() if i == setting("profile")), None)
     names = {"slew": ("start_azimuth", "start_elevation", "target_azimuth", "target_elevation"),
              "sidereal": ("right_ascension", "declination", "utc_start", "latitude", "longitude"),
-             "paper": ("paper_duration",)}.get(profile, ())
+             "paper": ("paper_duration",), "replay": ("replay_table", "replay_smoothing")}.get(profile, ())
     where = f"fmus.{inst}.parameters" if key == "fmus" else key
+    if profile == "replay" and "replay_table" not in md_variables:
+        raise ScenarioError(src, where, "profile 'replay' reads its table (replay_table, a String parameter) in the "
+                            "pythonfmu telescope: set implementation = \"python\" for it (the native FMUs have no "
+                            "String variables)")
     limits = ("lever_arm", "latitude", "longitude", "az_rate_max", "az_acc_max", "el_rate_max", "el_acc_max")
     try:
         params = dataclasses.replace(telescope.TelescopeParams.tianma(), **{n: setting(n) for n in limits})
@@ -434,6 +440,8 @@ def _check_telescope(src, key, scenario, inst, md_variables, values, written):
             telescope.sidereal_track(params, setting("right_ascension"), setting("declination"), utc, times)
         elif profile == "paper":
             telescope.paper_manoeuvre(times, setting("paper_duration"))
+        elif profile == "replay":   # read, checked and smoothed as the FMU will, before the run
+            replay.load(setting("replay_table"), params, smoothing_time=setting("replay_smoothing"))
     except (InvalidInputError, OverflowError, OSError, ValueError) as exc:
         raise ScenarioError(src, where, f"profile {profile!r} with {shown(names)}: plant.telescope refuses it: "
                             f"{exc}") from None

@@ -23,7 +23,7 @@ NAMES = {"hexapod_plant_fmu": "HexapodPlant", "telescope_fmu": "Telescope", "leg
          "leg_sensor_fmu": "LegSensor", "base_sensor_fmu": "BaseSensor", "wind_fmu": "Wind"}
 CHOICES = {"HexapodPlant": {"fidelity": ("full", "massless_legs", "base_gravity", "no_base"),
                             "integrator": ("rk4", "euler", "radau")},
-           "Telescope": {"profile": ("slew", "sidereal", "paper")},
+           "Telescope": {"profile": ("slew", "sidereal", "paper", "replay")},
            "LegController": {"feedforward": ("none", "fixed_base", "moving_base")},
            "Mechanism3TPlant": {"integrator": ("rk4", "euler", "radau")},
            "SliderController": {"feedforward": ("off", "on")},

@@ -30,6 +30,8 @@ def test_every_parameter_declares_a_range_that_holds_its_default(fmus, script):
     """FMI min/max on every scalar parameter (other tools read them), and the default
     inside; an enumeration's max is its last label's index, read back from its description."""
     for v in _parameters(fmus[script]):
+        if v.type == "String":   # a path (the telescope's replay_table): no range to declare
+            continue
         assert v.min is not None or v.max is not None, v.name
         start = float(v.start)
         assert (v.min is None or float(v.min) <= start) and (v.max is None or start <= float(v.max)), v.name

@@ -1,0 +1,248 @@
+"""Replay a table of azimuth/elevation samples (a pointing log, a schedule's track) as the
+telescope's motion: read it, check it row by row, smooth it into a spline the C evaluates.
+
+Why a smoothing spline: the loop's feedforward sees the base's acceleration, the second
+derivative of the logged angles. Interpolating 20 Hz encoder samples exactly turns their
+noise into acceleration spikes (1 arcsec of noise at 20 Hz differenced twice is ~400
+arcsec/s^2); a cubic smoothing spline (scipy's ``make_smoothing_spline``, knots at every
+sample) has continuous rate and acceleration and removes what is faster than the smoothing
+time h. With the penalty lam = r h^4 (r the sampling rate) it acts as Silverman's (1984)
+equivalent kernel of bandwidth h, gain 1 / (1 + (w h)^4): a smooth motion is kept to
+h^4 |x''''|, and the errors the docs state (docs/conventions/telescope.md, "Replaying a
+table") follow from that kernel: at an acceleration step J, 0.161 J h^2 in angle,
+0.354 J h in rate, J / 2 in acceleration (3.4 % overshoot); encoder noise sigma leaves
+0.515, 0.297 and 0.297 sigma / sqrt(r h^(1, 3, 5)) in angle, rate and acceleration; a
+rate or acceleration pulse at a drive's limit is passed by at most 6.7 % (LIMIT_MARGIN).
+
+A table: columns ``time [s]``, ``azimuth [deg|rad]`` (astronomical, north through east),
+``elevation [deg|rad]``, the unit in brackets in the header (CSV, '#' lines ignored) or in
+the array names (npz). Its first time is the profile's t = 0.
+"""
+import csv
+import math
+import pathlib
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from scipy.interpolate import make_smoothing_spline
+
+from plant.errors import InvalidInputError
+
+COLUMNS = ("time", "azimuth", "elevation")
+UNITS = {"time": {"s": 1.0}, "angle": {"deg": math.pi / 180, "rad": 1.0}}
+SMOOTHING_TIME = 0.25    # s, h: the kernel's bandwidth (the docs' error figures are for it)
+MAX_GAP = 1.0            # s, longest step between two rows the spline bridges (a dropout)
+WRAP_JUMP = math.pi      # rad: an azimuth step larger than this between two rows is a 360 deg wrap
+# Assumed axis ranges (no public Tianma figure): a cable wrap of 540 deg as large alt-az
+# antennas have (GBT -90..450 deg), elevation from 5 deg (a typical lower limit) to the zenith.
+AZIMUTH_LIMITS = (math.radians(-90.0), math.radians(450.0))
+ELEVATION_LIMITS = (math.radians(5.0), math.radians(90.0))
+LIMIT_MARGIN = 0.08      # the spline's rate and acceleration may pass a drive limit by this share:
+#                          the kernel overshoots a pulse at the limit by up to 6.7 % (its positive
+#                          lobe's area, 1.067), plus 1.3 % for noise and the table's ends
+MIN_ROWS = 4
+SHOWN_PROBLEMS = 10      # problems listed in one error; the rest counted
+RESOURCE = "resource:"   # a Telescope FMU's replay_table "resource:<name>": a file in its resources folder
+
+
+@dataclass(frozen=True)
+class Table:
+    """Times [s], astronomical azimuth and elevation [rad] of a table, as read (not checked)."""
+
+    time: np.ndarray
+    azimuth: np.ndarray
+    elevation: np.ndarray
+    source: str = "table"
+
+
+def _column(name, header, source):
+    """(column, SI factor) of a header cell 'name [unit]'."""
+    text = header.strip()
+    key, _, unit = text.partition("[")
+    key, unit = key.strip(), unit.rstrip("]").strip()
+    if key not in COLUMNS:
+        raise InvalidInputError(f"{source}: column {text!r} is not one of {', '.join(COLUMNS)} "
+                                "(written 'name [unit]')")
+    units = UNITS["time" if key == "time" else "angle"]
+    if unit not in units:
+        raise InvalidInputError(f"{source}: column {key!r} needs its unit in brackets, one of "
+                                f"{', '.join(units)}; got {text!r}")
+    return key, units[unit]
+
+
+def read_table(path):
+    """A Table from a CSV or npz file (units in the header or the arrays' names)."""
+    path = pathlib.Path(path)
+    source = str(path)
+    if not path.is_file():
+        raise InvalidInputError(f"replay table {source!r} does not exist")
+    if path.suffix == ".npz":
+        with np.load(path) as data:
+            named = {_column(name, name, source): np.asarray(data[name], dtype=float).ravel() for name in data.files}
+    else:
+        with path.open(newline="") as f:
+            lines = [line for line in f if line.strip() and not line.lstrip().startswith("#")]
+        if not lines:
+            raise InvalidInputError(f"{source}: no header line")
+        header = next(csv.reader(lines[:1]))
+        keys = [_column(cell, cell, source) for cell in header]
+        values = _numbers(lines[1:], len(keys))
+        if values is None:
+            _name_bad_cell([header, *csv.reader(lines[1:])], source)
+        named = {key: values[:, j] for j, key in enumerate(keys)}
+    found = {key for key, _ in named}
+    if found != set(COLUMNS) or len(named) != len(COLUMNS):
+        raise InvalidInputError(f"{source}: needs the columns {', '.join(COLUMNS)} once each, got "
+                                f"{', '.join(sorted(k for k, _ in named))}")
+    si = {key: array * factor for (key, factor), array in named.items()}
+    return Table(si["time"], si["azimuth"], si["elevation"], source)
+
+
+def _numbers(lines, width):
+    """The CSV data lines as an (n, width) float array, or None if a row or a cell is not a number."""
+    if not lines:
+        return np.empty((0, width))
+    try:
+        values = np.loadtxt(lines, delimiter=",", ndmin=2, dtype=float)
+    except ValueError:
+        return None
+    return values if values.shape == (len(lines), width) else None
+
+
+def _name_bad_cell(rows, source):
+    """InvalidInputError naming the first row of the wrong length or cell that is not a number."""
+    header = rows[0]
+    for i, row in enumerate(rows[1:]):
+        if len(row) != len(header):
+            raise InvalidInputError(f"{source}: row {i + 1} has {len(row)} values, the header {len(header)}")
+        for j, cell in enumerate(row):
+            try:
+                float(cell)
+            except ValueError:
+                raise InvalidInputError(f"{source}: row {i + 1}, column {header[j].strip()!r}: "
+                                        f"{cell!r} is not a number") from None
+
+
+def _unwrap(azimuth):
+    """The azimuth with every step beyond WRAP_JUMP taken as a 360 deg wrap, and the rows
+    (1-based) where one was."""
+    steps = np.diff(azimuth)
+    turns = np.round(steps / (2 * math.pi)) * (np.abs(steps) > WRAP_JUMP)
+    return azimuth - 2 * math.pi * np.concatenate(([0.0], np.cumsum(turns))), np.flatnonzero(turns) + 2
+
+
+@dataclass(frozen=True, eq=False)
+class Replay:
+    """A checked table as its smoothing spline: breakpoints [s] and per interval the cubic
+    coefficients (n - 1, 8) of azimuth and elevation [rad] (mb_tel_profile's replay_*)."""
+
+    breakpoints: np.ndarray
+    coefficients: np.ndarray
+    smoothing_time: float
+    wraps: tuple             # rows (1-based) where the azimuth wrapped by 360 deg
+    source: str
+
+    @property
+    def duration(self):
+        return float(self.breakpoints[-1] - self.breakpoints[0])
+
+
+def _spline(t, y, h):
+    """Cubic coefficients (n - 1, 4) of the smoothing spline of y(t) on each interval."""
+    rate = 1.0 / float(np.median(np.diff(t)))
+    spline = make_smoothing_spline(t, y, lam=rate * h ** 4)
+    mid = 0.5 * (t[1:] + t[:-1])
+    left = t[:-1]
+    return np.column_stack([spline(left), spline(left, 1), spline(left, 2) / 2, spline(mid, 3) / 6])
+
+
+def _derivatives(t, coef):
+    """Rate and acceleration at the breakpoints, the intervals' midpoints and their ends."""
+    s = np.diff(t)[:, None] * np.array([0.0, 0.5, 1.0])
+    c = coef[:, :, None]
+    rate = c[:, 1] + 2 * c[:, 2] * s + 3 * c[:, 3] * s ** 2
+    acc = 2 * c[:, 2] + 6 * c[:, 3] * s
+    return rate, acc
+
+
+def _problems(table, params, max_gap, smoothing_time):
+    """The problems of a table, each naming its row (1-based, as the file's data rows), and
+    the spline's coefficients (None if a problem stopped the checks before them)."""
+    t, az, el = table.time, table.azimuth, table.elevation
+    problems = []
+    if not (t.size == az.size == el.size):
+        return [f"the columns have different lengths ({t.size}, {az.size}, {el.size})"], None
+    if t.size < MIN_ROWS:
+        return [f"{t.size} rows: a replay needs at least {MIN_ROWS}"], None
+    for name, values in (("time", t), ("azimuth", az), ("elevation", el)):
+        problems += [f"row {i + 1}: {name} is {float(values[i])!r}, not a number"
+                     for i in np.flatnonzero(~np.isfinite(values))]
+    if problems:
+        return problems, None
+    step = np.diff(t)
+    problems += [f"row {i + 2}: time {t[i + 1]:.6g} s does not follow row {i + 1}'s {t[i]:.6g} s (out of order or "
+                 "repeated)" for i in np.flatnonzero(step <= 0)]
+    problems += [f"rows {i + 1}-{i + 2}: a gap of {step[i]:.6g} s from {t[i]:.6g} s, more than the {max_gap:g} s "
+                 "the spline may bridge" for i in np.flatnonzero(step > max_gap)]
+    az, _ = _unwrap(az)
+    low, high = AZIMUTH_LIMITS
+    problems += [f"row {i + 1}: azimuth {math.degrees(az[i]):.6g} deg (unwrapped) is outside the cable wrap "
+                 f"[{math.degrees(low):g}, {math.degrees(high):g}] deg"
+                 for i in np.flatnonzero((az < low) | (az > high))]
+    low, high = ELEVATION_LIMITS
+    problems += [f"row {i + 1}: elevation {math.degrees(el[i]):.6g} deg is outside [{math.degrees(low):g}, "
+                 f"{math.degrees(high):g}] deg" for i in np.flatnonzero((el < low) | (el > high))]
+    if problems:
+        return problems, None
+    coef = np.concatenate([_spline(t, az, smoothing_time), _spline(t, el, smoothing_time)], axis=1)
+    for axis, col, limits in (("azimuth", 0, (params.az_rate_max, params.az_acc_max)),
+                              ("elevation", 4, (params.el_rate_max, params.el_acc_max))):
+        for what, values, limit, unit in zip(("rate", "acceleration"), _derivatives(t, coef[:, col:col + 4]), limits,
+                                             ("deg/s", "deg/s2")):
+            worst = np.abs(values).max(axis=1)
+            over = np.flatnonzero(worst > limit * (1 + LIMIT_MARGIN))
+            problems += [f"row {i + 1}: the smoothed {axis} {what} {math.degrees(worst[i]):.4g} {unit} passes the "
+                         f"drive's {math.degrees(limit):.4g} {unit} (+{LIMIT_MARGIN:.0%} allowed)" for i in over]
+    return problems, coef
+
+
+def replay_table(table, params, max_gap=MAX_GAP, smoothing_time=SMOOTHING_TIME):
+    """A checked Table as a Replay for ``params`` (a TelescopeParams: the drives' limits).
+    InvalidInputError listing every problem with its row: a value not a number, times not
+    strictly increasing, a gap beyond ``max_gap`` [s], an axis outside its range, a smoothed
+    rate or acceleration beyond the drive's limit. Handled, not refused: a 360 deg azimuth
+    wrap (unwrapped), noise (smoothed over ``smoothing_time`` [s]), gaps up to max_gap."""
+    if not (np.isfinite(smoothing_time) and smoothing_time > 0):
+        raise InvalidInputError(f"smoothing_time must be finite and > 0, got {smoothing_time!r}")
+    if not (np.isfinite(max_gap) and max_gap > 0):
+        raise InvalidInputError(f"max_gap must be finite and > 0, got {max_gap!r}")
+    problems, coef = _problems(table, params, max_gap, smoothing_time)
+    if problems:
+        more = len(problems) - SHOWN_PROBLEMS
+        raise InvalidInputError(f"{table.source}: {len(problems)} problem(s): " + "; ".join(problems[:SHOWN_PROBLEMS])
+                                + (f"; and {more} more" if more > 0 else ""))
+    _, wraps = _unwrap(table.azimuth)
+    return Replay(np.ascontiguousarray(table.time, dtype=float), np.ascontiguousarray(coef),
+                  float(smoothing_time), tuple(int(r) for r in wraps), table.source)
+
+
+def load(path, params, max_gap=MAX_GAP, smoothing_time=SMOOTHING_TIME):
+    """read_table then replay_table: the Replay of a file. The last few are kept, keyed by
+    the file's path, size and modification time and the settings: the scenario check and
+    the FMU read a night's table (720,000 rows: ~45 s to smooth) once between them."""
+    if not str(path):
+        raise InvalidInputError("the replay profile needs a table: replay_table is empty")
+    path = pathlib.Path(path)
+    stat = path.stat() if path.is_file() else None
+    if stat is None:
+        return replay_table(read_table(path), params, max_gap, smoothing_time)
+    return _load(str(path.resolve()), stat.st_size, stat.st_mtime_ns, params, float(max_gap), float(smoothing_time))
+
+
+@lru_cache(maxsize=4)
+def _load(path, size, mtime_ns, params, max_gap, smoothing_time):
+    result = replay_table(read_table(path), params, max_gap, smoothing_time)
+    for array in (result.breakpoints, result.coefficients):
+        array.flags.writeable = False     # shared between callers
+    return result
