@@ -168,13 +168,21 @@ def _connect(data, source, target):
     data["connections"].append({"from": source, "to": target})
 
 
-def variant(scene, effects=(), source="exact", modes=MODES, overrides=None, window=False, gains=None):
+# The operating point (issue 41): the plant starts holding itself still against its start
+# inputs (the mean wind load included) and the controller's integral or observer starts
+# holding what its feedforward lacks, as a loop that has been running long would
+OPERATING_POINT = {"plant": {"start_equilibrium": 1}, "controller": {"start_force": "@plant.leg_force_actual"}}
+
+
+def variant(scene, effects=(), source="exact", modes=MODES, overrides=None, window=False, gains=None,
+            operating_point=False):
     """The scenario dict of ``scene`` (a shipped name) with ``effects`` (EFFECTS names) on
     and the feedforward's base motion from ``source``, swept over ``modes``.
     ``overrides``: {effect or "base_sensor": {parameter: value}} replacing the realistic
     values (the tests change one setting); ``window``: the study's time window
     (WINDOWS) instead of the shipped one; ``gains``: (tag, {"kp", "ki", "kd": value}) the
-    controller's PID gains instead of its shipped ones, the tag in the scenario's name."""
+    controller's PID gains instead of its shipped ones, the tag in the scenario's name;
+    ``operating_point``: the loop starts at its operating point (OPERATING_POINT)."""
     unknown = set(effects) - set(EFFECTS)
     if unknown or source not in SOURCES:
         raise ValueError(f"unknown effect {sorted(unknown)} or source {source!r}; effects: {EFFECTS}, "
@@ -198,6 +206,9 @@ def variant(scene, effects=(), source="exact", modes=MODES, overrides=None, wind
     fmus = data["fmus"]
     if gains:
         fmus["controller"].setdefault("parameters", {}).update(gains[1])
+    if operating_point:
+        for inst, values in OPERATING_POINT.items():
+            fmus[inst].setdefault("parameters", {}).update(values)
     if window and scene in WINDOWS:
         data["stop_time"] = WINDOWS[scene]["stop_time"]
         fmus["base"]["parameters"]["utc_start"] += WINDOWS[scene]["utc_shift"]

@@ -62,6 +62,35 @@ static int observe(mb_instance *inst, double *r, const double *ff, const double 
     return 0;
 }
 
+/* The operating point (start_force not all 0; the Python FMU's _start_holding): start_force
+   commanded, its part beyond the feedforward held by the observer's estimate or the integral. */
+static int start_holding(mb_instance *inst, double *r, const double *ff)
+{
+    const double *start = &r[VR_start_force], limit = r[VR_force_limit];
+    double hold[6], largest = 0.0;
+    int any = 0;
+    for (int k = 0; k < 6; k++) {
+        any |= start[k] != 0.0;
+        hold[k] = start[k] - ff[k];
+        largest = fabs(hold[k]) > largest ? fabs(hold[k]) : largest;
+    }
+    if (!any) return 0;
+    for (int k = 0; k < 6; k++) {
+        if (r[VR_observer_bandwidth] > 0.0) {
+            r[VR_disturbance_estimate + k] = r[VR_observer_state + MB_OBSERVER_STATES * k] = -hold[k];
+            r[VR_integral + k] = 0.0;
+        } else if (r[VR_ki] > 0.0) {
+            r[VR_integral + k] = hold[k] / r[VR_ki];
+        } else {
+            mb_error(inst, "InvalidInputError", "start_force needs an integral gain ki > 0 (or the observer) to "
+                     "hold %.6g N beyond the feedforward; ki is 0", largest);
+            return 1;
+        }
+        r[VR_leg_force + k] = start[k] < -limit ? -limit : (start[k] > limit ? limit : start[k]);
+    }
+    return 0;
+}
+
 /* Forces from the inputs now; the integral advances only on a real step (h > 0 given). */
 static int update(mb_instance *inst, double *r, Model *m, int stepping, double h)
 {
@@ -90,6 +119,7 @@ static int update(mb_instance *inst, double *r, Model *m, int stepping, double h
         for (int k = 0; k < 6; k++) off[k] = lengths[k] - ref_lengths[k];
         memcpy(forces, ff, sizeof ff);
         mb_observer_start(6, off, &r[VR_observer_state]);
+        if (start_holding(inst, r, ff)) return 1;
     } else {
         double error[6], error_rate[6], new_integral[6];
         for (int k = 0; k < 6; k++) {
