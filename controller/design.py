@@ -149,14 +149,17 @@ class LoopModel:
     u_k + (u_k - u_k-1) / 2, a lead of about half a step that doubles the gain at Nyquist);
     ``gauss_seidel``: the master steps the FMUs one after the other, so of the loop's
     connections only the one into the FMU that steps first is stale (its source has not
-    stepped yet: one step of delay, and the only input extrapolated); Jacobi: all stale.
+    stepped yet: one step of delay, and the only input extrapolated): the plant, which
+    scenarios.cosim.master.step_order steps first on the loop's cycles (the load cell's path
+    then fresh as the leg sensor's); Jacobi: all stale.
     ``gravity_rate`` [1/s^2]: the largest destabilising eigenvalue of the plant's
     acceleration per displacement under gravity at rest (the 3T mechanism's sliders: a
     real open-loop pole at sqrt of it), given every mode as a negative stiffness
     (conservative: gravity's mode shapes are not the mass's); the hexapod's is left out
     (its modal limit is the full linearised plant's). Coulomb friction is left out
     (nonlinear: below its smoothing velocity it is a stiff damper, above it a constant
-    force, a disturbance), and so are quantisation and noise.
+    force, a disturbance; the guard checks the loop with that damper's slope added to say
+    when the friction hides an instability), and so are quantisation and noise.
 
     The disturbance observer (controller/c/observer.c; ``observer_bandwidth`` [Hz] > 0):
     the controller also subtracts Q_d(z) [M_o (z - 1)^2 / (z^2 h^2) l_meas - F_meas] from

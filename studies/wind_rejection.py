@@ -42,13 +42,20 @@ SCENES = rl.SCENES
 SPEEDS = (0.0, 5.0, 10.0, 15.0)   # m/s
 GOAL = 10.0                        # µm, peak pose position error
 TODAY = {"telescope_slew": {0.0: 5.53, 10.0: 41.9}, "keyhole_tracking": {10.0: 76.0}}   # docs/realistic_loop.md
-OBSERVER_MASS = 2605.6747045735265   # kg: mean diagonal of M_leg at home (1848 kg) + the 758 kg reflected
+# kg: between the lightest leg-space modes (1352-1554 kg with the 758 kg reflected) and their mean
+# diagonal (2606 kg, issue 29's choice): at 20 Hz it keeps the widest margins (1800 kg: 11.9 deg /
+# 2.7 dB, 2000: 14.9 / 2.7, 2200: 11.3 / 2.0, 2606: 4.1 / 0.7; controller.design.margins)
+OBSERVER_MASS = 2000.0
 # The legs' load cells (LoadCell): none of these is public for this hexapod; ASSUMED from
 # strain-gauge cells of a 25 kN range (the actuator's force limit): 0.02 % of range RMS
 # noise, a 24-bit converter's step far below it (0.5 N), 200 Hz amplifier low-pass
 # (anti-aliasing below the 500 Hz Nyquist of the 1 ms step), no extra delay.
 LOAD_CELL = {"resolution": "0.5 N", "noise": "5 N", "bandwidth": "200 Hz", "delay_steps": 0, "seed": 2}
-OBSERVER_BANDWIDTH = 8.0   # Hz: controller.design.design_observer, PM >= 25 deg and GM >= 5 dB (bandwidth())
+# Hz: controller.design.design_observer at DESIGN_MARGINS (bandwidth()): 20.6 Hz. Issue 29's 8 Hz
+# (25 deg, 5 dB at 2606 kg) held 10 µm on its one gust seed only; at turbulence 0.3 the unseen seeds
+# gave up to 13 µm, and 16 Hz up to 10.5 (issue 41)
+OBSERVER_BANDWIDTH = 20.0
+DESIGN_MARGINS = (12.0, 2.5)   # deg, dB on every leg-space mode
 SCHEMES: dict[str, dict] = {
     "pid": {"name": "PID + moving-base feedforward (today)"},
     "observer": {
@@ -82,12 +89,15 @@ GUST_SPEEDS = (10.0, 15.0)
 # controller's integral and observer at rest) meets the whole mean wind at t = 0, a gust
 # front; counted from 0 s over the 5 s hold before the slew
 STEP_STOP = "5 s"
+STEP_CHART = "wind_rejection_step.png"
 
 
-def scheme_scenario(scene, scheme, speed, bandwidth=None, window=True, seed=1, intensity=0.15, step=False):
+def scheme_scenario(scene, scheme, speed, bandwidth=None, window=True, seed=1, intensity=0.15, step=False,
+                    mass=None):
     """The scenario dict of ``scene`` in the realistic loop at ``speed`` m/s with ``scheme``
     (a SCHEMES key), from its operating point and counted from FROM; ``bandwidth`` [Hz]
-    overrides the observer's, ``seed`` and ``intensity`` the gusts'; ``step``: the wind as a
+    overrides the observer's bandwidth, ``mass`` [kg] its mass, ``seed`` and ``intensity`` the
+    gusts'; ``step``: the wind as a
     step onto the calm loop at t = 0 (no operating point; counted from 0 s, to STEP_STOP)."""
     effects = rl.EFFECTS if speed > 0 else rl.LOOPS["calm"]
     wind = {"mean_speed": f"{speed:g} m/s", "seed": seed, "turbulence_intensity": intensity}
@@ -101,6 +111,8 @@ def scheme_scenario(scene, scheme, speed, bandwidth=None, window=True, seed=1, i
     changes = copy.deepcopy(SCHEMES[scheme])
     if bandwidth is not None:
         changes["parameters"]["controller"]["observer_bandwidth"] = f"{bandwidth:g} Hz"
+    if mass is not None:
+        changes["parameters"]["controller"]["observer_mass"] = mass
     data["fmus"].update(changes.get("fmus", {}))
     for inst, values in changes.get("parameters", {}).items():
         if inst in data["fmus"]:   # calm air has no wind FMU: its anemometer is not there either
@@ -108,6 +120,7 @@ def scheme_scenario(scene, scheme, speed, bandwidth=None, window=True, seed=1, i
     data["connections"] += [c for c in changes.get("connections", [])
                             if c["from"].split(".")[0] in data["fmus"]]
     data["name"] = (f"{scene}-wind_{speed:g}-{scheme}" + (f"_{bandwidth:g}Hz" if bandwidth is not None else "")
+                    + (f"_{mass:.0f}kg" if mass is not None else "")
                     + (f"-seed_{seed}-ti_{intensity:g}" if (seed, intensity) != (1, 0.15) else "")
                     + ("-step" if step else ""))
     data["description"] = (f"{data['name']}: {scene} in the realistic loop, {speed:g} m/s Kaimal wind (seed "
@@ -164,13 +177,16 @@ def run(out="out", jobs=None, address=None, progress=True, selected=None, window
         m, point = (record["metrics"][rl.METRIC], record["metrics"]["pointing"]) if ok else (None, None)
         results["/".join(key)] = ({"rms": m["rms"], "peak": m["peak"], "pointing_peak": point["peak"],
                                    "loss_q": point[loss_key("Q")], "pointing": point} if m else None)
+        if m and key[1] == "step":   # the step's pose error against time, for its chart
+            t, values = store.series(job.key)[rl.METRIC]
+            results["/".join(key)]["series"] = [[round(float(a), 4) for a in t], [float(f"{v:.4g}") for v in values]]
     return results
 
 
 def bandwidth():
     """The observer's design on the realistic plant (controller.design): the highest
-    bandwidth with PM >= 25 deg and GM >= 5 dB on every mode, its margins at the shipped
-    bandwidth and the guard's predicted limit of the bandwidth at the 1 ms step."""
+    bandwidth with DESIGN_MARGINS on every mode, its margins at the shipped bandwidth and
+    the guard's predicted limit of the bandwidth at the 1 ms step."""
     from dataclasses import replace
 
     from controller import design
@@ -178,7 +194,7 @@ def bandwidth():
     params, gains = StewartParams.paper(), design.default_gains(StewartParams.paper())
     loop = replace(design.REALISTIC, observer_bandwidth=1.0, observer_mass=OBSERVER_MASS, load_cell=True,
                    load_cell_bandwidth=200.0)
-    best = design.design_observer(params, gains, 1e-3, loop, 25.0, 5.0)
+    best = design.design_observer(params, gains, 1e-3, loop, *DESIGN_MARGINS)
     shipped = design.margins(params, gains, 1e-3, replace(loop, observer_bandwidth=OBSERVER_BANDWIDTH))
     limit = design.observer_limit(design.modal_masses(params, loop), gains, 1e-3, loop)
     return {"design_hz": best.loop.observer_bandwidth, "pm_deg": shipped.modal_phase_margin_deg,
@@ -254,6 +270,83 @@ def pointing(s):
             + "\n".join(lines))
 
 
+def _gusts(s, scene, speed, intensity):
+    """The peaks [µm] of the unseen gust seeds (None: failed or not run)."""
+    return [(s["runs"].get(f"{scene}/gusts/{speed:g}/{intensity:g}/{seed}") or {}).get("peak") for seed in GUST_SEEDS]
+
+
+def gust_table(s):
+    """Per scene, speed and turbulence intensity: the observer's peak pose error over the
+    seeds it was not tuned on, the largest, and whether all are under the goal."""
+    lines = ["| scene | mean wind | intensity | " + " | ".join(f"seed {k}" for k in GUST_SEEDS)
+             + " | largest [µm] | all under 10 µm |", "|---|---|---|" + "---|" * (len(GUST_SEEDS) + 2)]
+    for scene in SCENES:
+        for u in GUST_SPEEDS:
+            for ti in INTENSITIES:
+                peaks = _gusts(s, scene, u, ti)
+                done = [p for p in peaks if p is not None]
+                top = max(done) if done else None
+                lines.append(f"| `{scene}` | {u:g} m/s | {ti:g} | " + " | ".join(
+                    "failed" if p is None else fmt(p) for p in peaks) + f" | {fmt(top) if top else 'failed'} | "
+                    + ("yes" if len(done) == len(peaks) and top < GOAL else "no") + " |")
+    return "\n".join(lines)
+
+
+def gust_verdict(s):
+    """What the unseen gusts say of the shipped configuration, per speed."""
+    out = []
+    for u in GUST_SPEEDS:
+        tops = {(scene, ti): max((p for p in _gusts(s, scene, u, ti) if p is not None), default=None)
+                for scene in SCENES for ti in INTENSITIES}
+        cells = ", ".join(f"`{scene}` at {ti:g}: {fmt(top) if top else 'failed'} µm"
+                          for (scene, ti), top in tops.items())
+        met = all(top is not None and top < GOAL for top in tops.values())
+        out.append(f"- **{u:g} m/s**, the largest peak over the {len(GUST_SEEDS)} unseen seeds: {cells}. "
+                   + ("Under 10 µm on both motions at both intensities." if met else "Not under 10 µm everywhere."))
+    return "\n".join(out)
+
+
+def _step(s, scheme):
+    return s["runs"].get(f"telescope_slew/step/{scheme}")
+
+
+def step_text(s):
+    """The wind as a step (a gust front) onto the calm slew: the start's peak with and without
+    the observer, against the same loop's steady peak from its operating point."""
+    a, b = _step(s, "pid"), _step(s, "observer")
+    steady = {k: _peak(s, "telescope_slew", k, BOUND_SPEED) for k in ("pid", "observer")}
+    if not (a and b and all(steady.values())):
+        return "The step runs failed."
+    return (f"The whole mean wind of {BOUND_SPEED:g} m/s arriving at once onto the slew's loop at its calm-air "
+            f"operating point (the 5 s hold, counted from 0 s): peak pose error {fmt(a['peak'])} µm without the "
+            f"observer, {fmt(b['peak'])} µm with it ({a['peak'] / b['peak']:.1f}x less), against steady peaks from "
+            f"the operating point of {fmt(steady['pid'])} and {fmt(steady['observer'])} µm "
+            f"({steady['pid'] / steady['observer']:.1f}x). A step holds every frequency: the observer rejects the "
+            "part below its bandwidth, and the first tens of milliseconds (before its estimate has risen) reach the "
+            "PID alone. Such a load is a different case from the gusts and has its own figure; the shipped scenes "
+            "start at their operating point instead, so that no start step is counted as wind.")
+
+
+def step_chart(s, path):
+    """The pose error against time after the wind arrives as a step, with and without the observer."""
+    fig, ax = plt.subplots(figsize=(8, 4.2), layout="constrained")
+    styles = {"pid": {"color": "tab:blue", "ls": "-"}, "observer": {"color": "tab:green", "ls": (0, (6, 3))}}
+    for scheme in ("pid", "observer"):
+        entry = _step(s, scheme)
+        if entry:
+            ax.plot(*entry["series"], lw=1.6, label=SCHEMES[scheme]["name"], **styles[scheme])
+    draw_marks(ax, top=max(_step(s, k)["peak"] for k in ("pid", "observer") if _step(s, k)))
+    ax.set_yscale("log")
+    plain_log_axis(ax.yaxis)
+    ax.set_xlabel("time [s] (the mean wind arrives as a step at 0 s; the slew starts at 5 s)")
+    ax.set_ylabel("pose position error [µm] (log)")
+    ax.set_title(f"telescope_slew: a gust front of {BOUND_SPEED:g} m/s onto the calm loop", fontsize=10)
+    ax.grid(which="major", alpha=0.3)
+    ax.legend(fontsize=9, frameon=False)
+    save(fig, path)
+    return ax
+
+
 def bound_table(s):
     rows = ["| observer bandwidth [Hz] | " + " | ".join(f"`{scene}` peak [µm]" for scene in SCENES) + " |",
             "|---|" + "---|" * len(SCENES)]
@@ -296,12 +389,15 @@ def report(s, charts=True):
     name = "wind_rejection_speed.png"
     if charts:
         speed_chart(s, DOCS / "figures" / name)
+        step_chart(s, DOCS / "figures" / STEP_CHART)
     lines = [
         "# Wind rejection: under 10 µm in gusty wind", "",
         "Generated by `python -m studies.wind_rejection --docs` from `docs/wind_rejection.json`. The realistic "
         "loop of [realistic_loop.md](realistic_loop.md) (every effect on; moving-base feedforward on the exact base "
-        "motion; shipped PID gains), pose position error after settling (from 5 s in both "
-        "scenes). `telescope_slew` is the shipped 60 s run; `keyhole_tracking` the 30 s cut with the transit at "
+        "motion; shipped PID gains), every run from its operating point (the mean wind load held by the "
+        "plant, the controller's integral or observer, the load cells; studies/realistic_loop.py "
+        f"OPERATING_POINT), pose position error from {FROM} in both scenes, as the shipped scenes count. "
+        "`telescope_slew` is the shipped 60 s run; `keyhole_tracking` the 30 s cut with the transit at "
         "16 s. 0 m/s is calm air (no wind FMU). Scenario files: `out/wind_rejection/scenarios/`; shipped: "
         "`telescope_slew_observer`, `keyhole_tracking_observer`.", "",
         "## The disturbance observer", "",
@@ -342,10 +438,14 @@ def report(s, charts=True):
         f"{_ratio(s, 'keyhole_tracking', 15.0)}, to {fmt(_peak(s, 'telescope_slew', 'observer', 15.0))} and "
         f"{fmt(_peak(s, 'keyhole_tracking', 'observer', 15.0))} µm. Calm air: the keyhole track's peak is "
         f"{fmt(_peak(s, 'keyhole_tracking', 'observer', 0.0))} µm with the observer against "
-        f"{fmt(_peak(s, 'keyhole_tracking', 'pid', 0.0))} µm without. Both scenes count from 5 s, when the "
-        "realistic loop's start (sensor filters, force lag, friction, the integrators taking up the load) has "
-        "rung down: counted from the shipped keyhole scene's 2 s, made for the ideal loop, that ring (10.6 µm "
-        "at 2.3 s) was the keyhole's calm peak.", "",
+        f"{fmt(_peak(s, 'keyhole_tracking', 'pid', 0.0))} µm without.", "",
+        f"## Gusts it was not tuned on ({BOUND_SPEED:g} and 15 m/s)", "",
+        f"The shipped configuration (the observer at {OBSERVER_BANDWIDTH:g} Hz, mass {OBSERVER_MASS:.0f} kg; "
+        f"tuned on gust seed 1) on seeds {GUST_SEEDS[0]}-{GUST_SEEDS[-1]} at turbulence intensity "
+        + " and ".join(f"{ti:g}" for ti in INTENSITIES) + f", both motions, from their operating point, "
+        f"counted from {FROM}: peak pose error [µm].", "", gust_table(s), "", gust_verdict(s), "",
+        "## A load that arrives as a step", "", step_text(s), "",
+        f"![a gust front onto the calm slew](figures/{STEP_CHART})", "",
         "## In the telescope's units", "", pointing(s), ""]
     REPORT.write_text("\n".join(lines))
 
@@ -365,10 +465,12 @@ def main(argv=None):
     print(table(s))
     print(goals(s))
     print(bound_table(s))
+    print(gust_table(s))
+    print(step_text(s))
     if args.docs:
         STORE.write_text(json.dumps(s, indent=1) + "\n")
         report(s)
-        print(f"wrote {REPORT.relative_to(ROOT)} and docs/figures/wind_rejection_speed.png")
+        print(f"wrote {REPORT.relative_to(ROOT)}, docs/figures/wind_rejection_speed.png and {STEP_CHART}")
 
 
 if __name__ == "__main__":

@@ -13,7 +13,10 @@ a scenario's the smallest over its loops. It is predicted for every run at its o
 values (runner.pre_run_flags: every sweep value; campaign: every case), each distinct
 loop once. A step beyond it is refused (ScenarioError naming the runs and their limits)
 unless the run is asked for anyway; then exactly the runs beyond their limit are flagged.
-The model is linear and leaves out gravity stiffness, Coulomb friction and saturation.
+The model is linear and leaves out gravity stiffness, Coulomb friction and saturation; a
+refusal says when the plant's Coulomb friction, linearised about rest (a damper of slope
+coulomb / friction_velocity), would hold the loop: the run may then stay clean, and still
+the loop is unstable without it.
 
 During (``Watch``, fed each recorded row by the master): what a prediction cannot see.
 Kinds of Flag:

@@ -58,7 +58,7 @@ def settled(tmp_path_factory):
     return op, rest
 
 
-@pytest.mark.parametrize("label", ["0 Hz", "8 Hz"])
+@pytest.mark.parametrize("label", ["0 Hz", "20 Hz"])
 @pytest.mark.parametrize("state", STATES)
 def test_the_operating_point_is_where_a_run_from_rest_settles(settled, label, state):
     """Each state at t = 0 of the operating-point run within 3 standard deviations (the
@@ -73,25 +73,25 @@ def test_the_operating_point_is_where_a_run_from_rest_settles(settled, label, st
              "plant.pose": 1e-12}[state]
     assert np.all(np.abs(before - mean) <= 3 * spread + floor), (before, mean, spread)
     if state == "plant.leg_force_actual" or (state, label) in (("controller.integral", "0 Hz"),
-                                                                ("controller.disturbance_estimate", "8 Hz")):
+                                                                ("controller.disturbance_estimate", "20 Hz")):
         off = np.abs(after[0] - mean).max() / max(spread.max(), floor)
         assert off > 100, off
 
 
 @pytest.mark.parametrize("name", ["telescope_slew_observer", "keyhole_tracking_observer"])
 def test_no_run_rings_at_its_start(tmp_path, name):
-    """From its operating point, in gusts (seed 1, intensity 0.15), a run's peak pose error
-    counted from 0 s is the one counted from 1 s: its start is no ring above its steady
-    peak. Started at rest, the first second holds a peak several times higher."""
-    for rest, above in ((False, 1.0), (True, 3.0)):
+    """A start ring is what the start adds, so it is looked for in the mean wind alone (no
+    gusts: what is left is the sensors' noise and the motion). From its operating point, a
+    run's peak pose error counted from 0 s is within 1.5x of the one counted from 1 s (a
+    ring would be tens of times it); started at rest, the first second holds a peak over
+    10x the rest's."""
+    for rest, bound in ((False, 1.5), (True, 10.0)):
         peaks = [{label: run.metrics["pose error"]["peak"] for label, run in
-                  _runs(tmp_path, _scene(tmp_path, name, "3 s", rest=rest, start=start)).items()}
+                  _runs(tmp_path, _scene(tmp_path, name, "3 s", rest=rest, intensity=0.0, start=start)).items()}
                  for start in ("0 s", "1 s")]
-        for label in peaks[0]:
-            if rest:
-                assert peaks[0][label] > above * peaks[1][label], (label, peaks)
-            else:
-                assert peaks[0][label] == peaks[1][label], (label, peaks)
+        for label, first in peaks[0].items():
+            ratio = first / peaks[1][label]
+            assert (ratio > bound) if rest else (ratio <= bound), (label, peaks)
 
 
 @pytest.mark.parametrize("name", REALISTIC)
