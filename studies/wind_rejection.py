@@ -323,8 +323,8 @@ def step_text(s):
             f"observer, {fmt(b['peak'])} µm with it ({a['peak'] / b['peak']:.1f}x less), against steady peaks from "
             f"the operating point of {fmt(steady['pid'])} and {fmt(steady['observer'])} µm "
             f"({steady['pid'] / steady['observer']:.1f}x). A step holds every frequency: the observer rejects the "
-            "part below its bandwidth, and the first tens of milliseconds (before its estimate has risen) reach the "
-            "PID alone. Such a load is a different case from the gusts and has its own figure and its own "
+            "part below its bandwidth, and what is faster, the load's first instants before its estimate has "
+            "risen, reaches the PID alone. Such a load is a different case from the gusts and has its own figure and its own "
             "shipped scene, `telescope_slew_gust_front`; the other wind scenes start at their operating point, so "
             "that no start step is counted as wind. The observer switching on mid-run (its estimate rising from 0 "
             "while the integral still holds the load) is not simulated: its bandwidth is a parameter, fixed for "
@@ -379,7 +379,7 @@ def speed_chart(s, path):
         ax.set_xlabel("mean wind speed [m/s] (Kaimal gusts, 15 % turbulence)")
         ax.set_title(f"{scene}", fontsize=10)
         ax.grid(which="major", alpha=0.3)
-    axes[0].set_ylabel("peak pose error after settling [µm] (log)")
+    axes[0].set_ylabel(f"peak pose error from {FROM} [µm] (log)")
     fig.suptitle("Realistic loop: peak pose error against wind speed, per rejection scheme", fontsize=11)
     fig.legend(*axes[0].get_legend_handles_labels(), fontsize=9, loc="outside lower center", ncol=2, frameon=False,
                handlelength=4)
@@ -412,8 +412,8 @@ def report(s, charts=True):
         "d = Q[f_model(ref) + M_o (l - l_ref)'' - f_measured], u = u_PID + f_model - d "
         "(controller/c/observer.c). Load cells, ASSUMED: "
         + ", ".join(f"`{k} = {v}`" for k, v in LOAD_CELL.items())
-        + f"; observer mass M_o = {OBSERVER_MASS:.0f} kg (the mean diagonal of the leg-space mass at home plus "
-        "the 758 kg reflected).", "",
+        + f"; observer mass M_o = {OBSERVER_MASS:.0f} kg (one scalar for every leg-space mode, their masses "
+        "1352-4178 kg with the 758 kg reflected; the design below says why this one).", "",
         f"Design (controller.design.design_observer, on the realistic plant of `REALISTIC` with the load cell, "
         "python-control). Issue 29's design (phase margin >= 25 deg, gain margin >= 5 dB on every leg-space "
         "mode, observer mass 2606 kg, the mean diagonal) gave 8 Hz: under 10 µm on the one gust seed it was "
