@@ -326,9 +326,9 @@ def step_text(s):
             "part below its bandwidth, and what is faster, the load's first instants before its estimate has "
             "risen, reaches the PID alone. Such a load is a different case from the gusts and has its own figure "
             "and its own shipped scene, `telescope_slew_gust_front`; the other wind scenes start at their "
-            "operating point, so that no start step is counted as wind. The observer switching on mid-run (its estimate rising from 0 "
-            "while the integral still holds the load) is not simulated: its bandwidth is a parameter, fixed for "
-            "a run.")
+            "operating point, so that no start step is counted as wind. The observer switching on mid-run (its "
+            "estimate rising from 0 while the integral still holds the load) is not simulated: its bandwidth is a "
+            "parameter, fixed for a run.")
 
 
 def step_chart(s, path):
