@@ -78,10 +78,12 @@ BOUND_SPEED = 10.0
 # Counted from 1 s in every run: the loop starts at its operating point (studies/realistic_loop.py
 # OPERATING_POINT), so there is no start to wait out; the shipped scenes count from the same 1 s
 FROM = "1 s"
-# The gusts the shipped configuration was not tuned on (it was on seed 1): 8 seeds at two
+# The gusts the shipped configuration was not tuned on: issue 29 tuned it on seed 1, issue 41
+# chose its 20 Hz on seeds 2-9 at intensity 0.3 (TUNING_SEEDS); the table runs 8 others at two
 # turbulence intensities (0.15: open site; 0.3: gusty sites, the quadripod's wake), at 10 m/s
 # and at 15 m/s, the observer on
-GUST_SEEDS = tuple(range(2, 10))
+TUNING_SEEDS = tuple(range(1, 10))
+GUST_SEEDS = tuple(range(10, 18))
 INTENSITIES = (0.15, 0.3)
 GUST_SPEEDS = (10.0, 15.0)
 # A load that arrives as a step: the slew's loop at its calm-air operating point (the plant's
@@ -89,6 +91,9 @@ GUST_SPEEDS = (10.0, 15.0)
 # controller's integral and observer at rest) meets the whole mean wind at t = 0, a gust
 # front; counted from 0 s over the 5 s hold before the slew
 STEP_STOP = "5 s"
+# The bound against seed: the gustiest case (keyhole track, 10 m/s, intensity 0.3) on the unseen
+# seeds at wider observer bandwidths than the shipped one (what it would take)
+WIDER = (24.0, 32.0)   # Hz
 STEP_CHART = "wind_rejection_step.png"
 
 
@@ -144,6 +149,8 @@ def cases():
             for seed in GUST_SEEDS]
     out += [(("telescope_slew", "step", scheme), "telescope_slew", scheme, BOUND_SPEED, None, {"step": True})
             for scheme in ("pid", "observer")]
+    out += [(("keyhole_tracking", "wider", f"{b:g}", f"{seed}"), "keyhole_tracking", "observer", BOUND_SPEED, b,
+             {"seed": seed, "intensity": INTENSITIES[-1]}) for b in WIDER for seed in GUST_SEEDS]
     return out
 
 
@@ -198,7 +205,9 @@ def bandwidth():
     best = design.design_observer(params, gains, 1e-3, loop, *DESIGN_MARGINS)
     shipped = design.margins(params, gains, 1e-3, replace(loop, observer_bandwidth=OBSERVER_BANDWIDTH))
     limit = design.observer_limit(design.modal_masses(params, loop), gains, 1e-3, loop)
-    return {"design_hz": best.loop.observer_bandwidth, "pm_deg": shipped.modal_phase_margin_deg,
+    wider = {f"{b:g}": [(m := design.margins(params, gains, 1e-3, replace(loop, observer_bandwidth=b)))
+                        .modal_phase_margin_deg, m.modal_gain_margin_db] for b in (OBSERVER_BANDWIDTH, *WIDER)}
+    return {"design_hz": best.loop.observer_bandwidth, "pm_deg": shipped.modal_phase_margin_deg, "wider": wider,
             "gm_db": shipped.modal_gain_margin_db, "crossover_hz": shipped.crossover_hz, "limit_hz": limit,
             "without_pm_deg": design.margins(params, gains, 1e-3, design.REALISTIC).modal_phase_margin_deg,
             "without_gm_db": design.margins(params, gains, 1e-3, design.REALISTIC).modal_gain_margin_db}
@@ -293,6 +302,43 @@ def gust_table(s):
     return "\n".join(lines)
 
 
+def wider_table(s):
+    """The gustiest case's peaks per unseen seed at the shipped and the WIDER bandwidths."""
+    rows = ["| observer bandwidth | " + " | ".join(f"seed {k}" for k in GUST_SEEDS) + " | largest [µm] |",
+            "|---|" + "---|" * (len(GUST_SEEDS) + 1)]
+    for b in (OBSERVER_BANDWIDTH, *WIDER):
+        peaks = (_gusts(s, "keyhole_tracking", BOUND_SPEED, INTENSITIES[-1]) if b == OBSERVER_BANDWIDTH else
+                 [(s["runs"].get(f"keyhole_tracking/wider/{b:g}/{seed}") or {}).get("peak") for seed in GUST_SEEDS])
+        done = [p for p in peaks if p is not None]
+        rows.append(f"| {b:g} Hz{' (shipped)' if b == OBSERVER_BANDWIDTH else ''} | "
+                    + " | ".join("failed" if p is None else fmt(p) for p in peaks)
+                    + f" | {fmt(max(done)) if done else 'failed'} |")
+    return "\n".join(rows)
+
+
+def wider_verdict(s):
+    """What the gustiest case would take: the least WIDER bandwidth that holds every unseen seed."""
+    shipped = max((p for p in _gusts(s, "keyhole_tracking", BOUND_SPEED, INTENSITIES[-1]) if p is not None),
+                  default=None)
+    enough = next((b for b in WIDER if all((s["runs"].get(f"keyhole_tracking/wider/{b:g}/{seed}") or {}).get(
+        "peak", GOAL) < GOAL for seed in GUST_SEEDS)), None)
+    if shipped is not None and shipped < GOAL:
+        return "The shipped bandwidth holds every unseen seed of the gustiest case."
+    margins = s["design"]["wider"].get(f"{enough:g}") if enough else None
+    return (f"The shipped {OBSERVER_BANDWIDTH:g} Hz misses the goal in the gustiest case ({fmt(shipped)} µm at "
+            "worst): the spec holds at intensity 0.15 on both motions and at 0.3 on the slew, not on every gust at "
+            "0.3 on the keyhole track. "
+            + (f"{enough:g} Hz would hold every unseen seed, at {margins[0]:.1f} deg and {margins[1]:.1f} dB on the "
+               f"linear model: a gain margin below the design's {DESIGN_MARGINS[1]:g} dB, so the bound is the "
+               "loop's margins. To get "
+               "there with margin, the loop needs less phase lag at 20-30 Hz: a force loop wider than 50 Hz, the "
+               "encoders' and load cells' samples read without delay, a shorter step, or an observer mass per "
+               "mode. "
+               if enough else "None of the wider bandwidths holds every seed either. ")
+            + "At 15 m/s the shipped observer holds 10 µm only on the slew at intensity 0.15 (the table above; "
+            "AtLAST budgets 12 µm at 9 m/s).")
+
+
 def gust_verdict(s):
     """What the unseen gusts say of the shipped configuration, per speed."""
     out = []
@@ -305,6 +351,11 @@ def gust_verdict(s):
         out.append(f"- **{u:g} m/s**, the largest peak over the {len(GUST_SEEDS)} unseen seeds: {cells}. "
                    + ("Under 10 µm on both motions at both intensities." if met else "Not under 10 µm everywhere."))
     return "\n".join(out)
+
+
+def margins_text(s):
+    """The worst mode's phase and gain margins at the shipped and WIDER bandwidths (bandwidth())."""
+    return ", ".join(f"{fmt(float(b))} Hz {m[0]:.1f} deg / {m[1]:.1f} dB" for b, m in s["design"]["wider"].items())
 
 
 def _step(s, scheme):
@@ -446,9 +497,14 @@ def report(s, charts=True):
         f"{fmt(_peak(s, 'keyhole_tracking', 'pid', 0.0))} µm without.", "",
         f"## Gusts it was not tuned on ({BOUND_SPEED:g} and 15 m/s)", "",
         f"The shipped configuration (the observer at {OBSERVER_BANDWIDTH:g} Hz, mass {OBSERVER_MASS:.0f} kg; "
-        f"tuned on gust seed 1) on seeds {GUST_SEEDS[0]}-{GUST_SEEDS[-1]} at turbulence intensity "
+        f"tuned on gust seeds {TUNING_SEEDS[0]}-{TUNING_SEEDS[-1]}: issue 29's 8 Hz on seed 1, issue 41's 20 Hz "
+        f"chosen on seeds 2-9 at intensity 0.3) on seeds {GUST_SEEDS[0]}-{GUST_SEEDS[-1]}, which it never met, "
+        "at turbulence intensity "
         + " and ".join(f"{ti:g}" for ti in INTENSITIES) + f", both motions, from their operating point, "
         f"counted from {FROM}: peak pose error [µm].", "", gust_table(s), "", gust_verdict(s), "",
+        f"The bound against seed: the gustiest case (`keyhole_tracking`, {BOUND_SPEED:g} m/s, intensity "
+        f"{INTENSITIES[-1]:g}) on the same unseen seeds with the observer wider than shipped. The linear model's "
+        f"margins at those bandwidths: {margins_text(s)}.", "", wider_table(s), "", wider_verdict(s), "",
         "## A load that arrives as a step", "", step_text(s), "",
         f"![a gust front onto the calm slew](figures/{STEP_CHART})", "",
         "## In the telescope's units", "", pointing(s), ""]
