@@ -106,6 +106,8 @@ class LegController(GuardedSlave):
              "Butterworth) [Hz]; 0: off", (0.0, 1e3)),
             ("observer_mass", "kg", mass, "disturbance observer: leg-space mass of one leg it assumes, the "
              "reflected mass included; default the mean diagonal of M_leg at home, none reflected", (0.0, 1e6)),
+            ("observer_on_time", "s", 0.0, "disturbance observer: the time it switches on (its filter at rest "
+             "until then, nothing subtracted: a switch-on is a step load); 0: on from the start", (0.0, 1e9)),
         ))
         self.force_measured = self.vector("leg_force_measured", 6, INPUT, "leg force from the load cells (for "
                                           "the disturbance observer)", "N", start=STATIC_LEG_FORCES)
@@ -129,7 +131,7 @@ class LegController(GuardedSlave):
         self._update(None)
 
     def step(self, t, h):
-        self._update(h)
+        self._update(h, t)
         saturated = bool(np.any(np.abs(self.forces) >= self.pid.force_limit))
         if saturated and not self.saturated:   # say so once per episode: an unstable loop saturates quietly
             self.log(f"leg forces saturated at +-{self.pid.force_limit:g} N at t={t + h:.6g} s "
@@ -138,8 +140,8 @@ class LegController(GuardedSlave):
                      Fmi2Status.warning, "logStatusWarning")
         self.saturated = saturated
 
-    def _update(self, h):
-        """Forces from the inputs now; the integral advances only on a real step."""
+    def _update(self, h, t=0.0):
+        """Forces from the inputs now (a step from ``t``); the integral advances only on a real step."""
         if not np.isfinite(self.inputs).all():
             bad = [n for n, row in zip(INPUTS, self.inputs) if not np.isfinite(row).all()]
             raise InvalidInputError(f"{', '.join(bad)} input contains NaN or inf")
@@ -153,16 +155,21 @@ class LegController(GuardedSlave):
             if self.start_force.any():
                 self._start_holding(ff)
         else:
-            command = self._observe(ff, lengths - ref_lengths, h) if self.observer["observer_bandwidth"] else ff
+            command = ff
+            if self.observer["observer_bandwidth"] and t >= self.observer["observer_on_time"]:
+                command = self._observe(ff, lengths - ref_lengths, h)
+            elif self.observer["observer_bandwidth"]:   # not on yet: at rest, its length history kept current
+                self.observer_state[:] = observer_start(lengths - ref_lengths)
             self.forces[:], self.integral[:] = pid_update(self.pid, self.integral, ref_lengths - lengths,
                                                           ref_rates - rates, command, h)
         self.feedforward_force[:] = ff
 
     def _start_holding(self, ff):
         """The operating point: start_force commanded, its part beyond the feedforward held by
-        the observer's estimate (on) or the integral (off); controller/c/pid.c clips it."""
+        the observer's estimate (on from the start) or the integral (off, or on later);
+        controller/c/pid.c clips it."""
         hold = self.start_force - ff
-        if self.observer["observer_bandwidth"]:
+        if self.observer["observer_bandwidth"] and self.observer["observer_on_time"] <= 0:
             self.disturbance[:] = -hold
             self.observer_state[0::STATES_PER_LEG] = -hold
             self.integral[:] = 0.0

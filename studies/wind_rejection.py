@@ -95,15 +95,17 @@ STEP_STOP = "5 s"
 # seeds at wider observer bandwidths than the shipped one (what it would take)
 WIDER = (24.0, 32.0)   # Hz
 STEP_CHART = "wind_rejection_step.png"
+SWITCH_ON = 2.0   # s: the observer switched on in the 10 m/s wind, the loop at its operating point without it
 
 
 def scheme_scenario(scene, scheme, speed, bandwidth=None, window=True, seed=1, intensity=0.15, step=False,
-                    mass=None):
+                    mass=None, on_time=None):
     """The scenario dict of ``scene`` in the realistic loop at ``speed`` m/s with ``scheme``
     (a SCHEMES key), from its operating point and counted from FROM (``window`` False: the
     shipped scene's start at rest and its windows, as the error budget's rows); ``bandwidth`` [Hz]
     overrides the observer's bandwidth, ``mass`` [kg] its mass, ``seed`` and ``intensity`` the
-    gusts'; ``step``: the wind as a
+    gusts'; ``on_time`` [s] switches the observer on then (from the operating point, the integral
+    holding the load until then; counted from 0 s, to STEP_STOP); ``step``: the wind as a
     step onto the calm loop at t = 0 (no operating point; counted from 0 s, to STEP_STOP)."""
     effects = rl.EFFECTS if speed > 0 else rl.LOOPS["calm"]
     wind = {"mean_speed": f"{speed:g} m/s", "seed": seed, "turbulence_intensity": intensity}
@@ -111,14 +113,16 @@ def scheme_scenario(scene, scheme, speed, bandwidth=None, window=True, seed=1, i
                       operating_point=window and not step)
     for metric in data["metrics"]:
         if "from" in metric and window:
-            metric["from"] = "0 s" if step else FROM
-    if step:
+            metric["from"] = "0 s" if step or on_time is not None else FROM
+    if step or on_time is not None:
         data["stop_time"] = STEP_STOP
     changes = copy.deepcopy(SCHEMES[scheme])
     if bandwidth is not None:
         changes["parameters"]["controller"]["observer_bandwidth"] = f"{bandwidth:g} Hz"
     if mass is not None:
         changes["parameters"]["controller"]["observer_mass"] = mass
+    if on_time is not None:
+        changes["parameters"]["controller"]["observer_on_time"] = f"{on_time:g} s"
     data["fmus"].update(changes.get("fmus", {}))
     for inst, values in changes.get("parameters", {}).items():
         if inst in data["fmus"]:   # calm air has no wind FMU: its anemometer is not there either
@@ -128,7 +132,7 @@ def scheme_scenario(scene, scheme, speed, bandwidth=None, window=True, seed=1, i
     data["name"] = (f"{scene}-wind_{speed:g}-{scheme}" + (f"_{bandwidth:g}Hz" if bandwidth is not None else "")
                     + (f"_{mass:.0f}kg" if mass is not None else "")
                     + (f"-seed_{seed}-ti_{intensity:g}" if (seed, intensity) != (1, 0.15) else "")
-                    + ("-step" if step else ""))
+                    + ("-step" if step else "") + (f"-on_{on_time:g}s" if on_time is not None else ""))
     data["description"] = (f"{data['name']}: {scene} in the realistic loop, {speed:g} m/s Kaimal wind (seed "
                            f"{seed}, intensity {intensity:g}), {changes['name']}"
                            + (", the wind a step at t = 0 onto the calm loop." if step else
@@ -149,6 +153,8 @@ def cases():
             for seed in GUST_SEEDS]
     out += [(("telescope_slew", "step", scheme), "telescope_slew", scheme, BOUND_SPEED, None, {"step": True})
             for scheme in ("pid", "observer")]
+    out += [(("telescope_slew", "switch_on", "observer"), "telescope_slew", "observer", BOUND_SPEED, None,
+             {"on_time": SWITCH_ON})]
     out += [(("keyhole_tracking", "wider", f"{b:g}", f"{seed}"), "keyhole_tracking", "observer", BOUND_SPEED, b,
              {"seed": seed, "intensity": INTENSITIES[-1]}) for b in WIDER for seed in GUST_SEEDS]
     return out
@@ -185,7 +191,7 @@ def run(out="out", jobs=None, address=None, progress=True, selected=None, window
         m, point = (record["metrics"][rl.METRIC], record["metrics"]["pointing"]) if ok else (None, None)
         results["/".join(key)] = ({"rms": m["rms"], "peak": m["peak"], "pointing_peak": point["peak"],
                                    "loss_q": point[loss_key("Q")], "pointing": point} if m else None)
-        if m and key[1] == "step":   # the step's pose error against time, for its chart
+        if m and key[1] in ("step", "switch_on"):   # the step's pose error against time, for its chart
             t, values = store.series(job.key)[rl.METRIC]
             results["/".join(key)]["series"] = [[round(float(a), 4) for a in t], [float(f"{v:.4g}") for v in values]]
     return results
@@ -377,27 +383,49 @@ def step_text(s):
             "part below its bandwidth, and what is faster, the load's first instants before its estimate has "
             "risen, reaches the PID alone. Such a load is a different case from the gusts and has its own figure "
             "and its own shipped scene, `telescope_slew_gust_front`; the other wind scenes start at their "
-            "operating point, so that no start step is counted as wind. The observer switching on mid-run (its "
-            "estimate rising from 0 while the integral still holds the load) is not simulated: its bandwidth is a "
-            "parameter, fixed for a run.")
+            "operating point, so that no start step is counted as wind. " + switch_on_text(s))
+
+
+def switch_on_text(s):
+    """The observer switching on mid-run, against the same loop with it on from the start."""
+    on = s["runs"].get("telescope_slew/switch_on/observer")
+    steady = _peak(s, "telescope_slew", "observer", BOUND_SPEED)
+    if not (on and steady):
+        return "The switch-on run failed."
+    return (f"The observer switching on at {SWITCH_ON:g} s (`observer_on_time`; the loop at its operating point "
+            "without it until then, the PID's integral holding the wind's load) is a step from the controller's "
+            "side: its estimate rises to the load within its bandwidth while the integral still holds it, so the "
+            f"legs briefly push twice the load, and the integral gives it back at its own pace. Peak "
+            f"{fmt(on['peak'])} µm (from 0 s) against {fmt(steady)} µm with the observer on from the start: "
+            "switching it on in wind needs a bumpless transfer (its estimate started at the integral's hold, as "
+            "start_force does at the start); the shipped scene `telescope_slew_observer_switch_on` is this run.")
 
 
 def step_chart(s, path):
-    """The pose error against time after the wind arrives as a step, with and without the observer."""
-    fig, ax = plt.subplots(figsize=(8, 4.2), layout="constrained")
+    """The pose error against time after a step load: the wind arriving onto the calm loop, with
+    and without the observer (left); the observer switching on in the wind (right)."""
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.4), layout="constrained", sharey=True)
     styles = {"pid": {"color": "tab:blue", "ls": "-"}, "observer": {"color": "tab:green", "ls": (0, (6, 3))}}
     for scheme in ("pid", "observer"):
         entry = _step(s, scheme)
         if entry:
             ax.plot(*entry["series"], lw=1.6, label=SCHEMES[scheme]["name"], **styles[scheme])
-    draw_marks(ax, top=max(_step(s, k)["peak"] for k in ("pid", "observer") if _step(s, k)))
-    ax.set_yscale("log")
-    plain_log_axis(ax.yaxis)
-    ax.set_xlabel("time [s] (the mean wind arrives as a step at 0 s; the slew starts at 5 s)")
+    on = s["runs"].get("telescope_slew/switch_on/observer")
+    if on:
+        bx.plot(*on["series"], lw=1.6, color="tab:purple", label=f"observer switched on at {SWITCH_ON:g} s")
+        bx.axvline(SWITCH_ON, color="0.5", lw=1, ls=":")
+    top = max([_step(s, k)["peak"] for k in ("pid", "observer") if _step(s, k)] + ([on["peak"]] if on else []))
+    for a in (ax, bx):
+        draw_marks(a, top=top)
+        a.set_yscale("log")
+        plain_log_axis(a.yaxis)
+        a.grid(which="major", alpha=0.3)
+        a.legend(fontsize=9, frameon=False, loc="lower left")
+        a.set_xlabel("time [s] (the slew starts at 5 s)")
     ax.set_ylabel("pose position error [µm] (log)")
-    ax.set_title(f"telescope_slew: a gust front of {BOUND_SPEED:g} m/s onto the calm loop", fontsize=10)
-    ax.grid(which="major", alpha=0.3)
-    ax.legend(fontsize=9, frameon=False)
+    ax.set_title(f"a gust front: {BOUND_SPEED:g} m/s arrive at 0 s onto the calm loop", fontsize=10)
+    bx.set_title(f"the observer switching on in {BOUND_SPEED:g} m/s wind", fontsize=10)
+    fig.suptitle("telescope_slew: loads that arrive as a step", fontsize=11)
     save(fig, path)
     return ax
 

@@ -76,7 +76,7 @@ static int start_holding(mb_instance *inst, double *r, const double *ff)
     }
     if (!any) return 0;
     for (int k = 0; k < 6; k++) {
-        if (r[VR_observer_bandwidth] > 0.0) {
+        if (r[VR_observer_bandwidth] > 0.0 && r[VR_observer_on_time] <= 0.0) {
             r[VR_disturbance_estimate + k] = r[VR_observer_state + MB_OBSERVER_STATES * k] = -hold[k];
             r[VR_integral + k] = 0.0;
         } else if (r[VR_ki] > 0.0) {
@@ -91,8 +91,9 @@ static int start_holding(mb_instance *inst, double *r, const double *ff)
     return 0;
 }
 
-/* Forces from the inputs now; the integral advances only on a real step (h > 0 given). */
-static int update(mb_instance *inst, double *r, Model *m, int stepping, double h)
+/* Forces from the inputs now (a step from t); the integral advances only on a real step (h > 0 given);
+   the observer acts from observer_on_time on. */
+static int update(mb_instance *inst, double *r, Model *m, int stepping, double t, double h)
 {
     const double *in = &r[VR_reference_pose];
     char bad[160];
@@ -128,7 +129,13 @@ static int update(mb_instance *inst, double *r, Model *m, int stepping, double h
         }
         double command[6];
         memcpy(command, ff, sizeof ff);
-        if (r[VR_observer_bandwidth] > 0.0 && observe(inst, r, ff, error, h, command)) return 1;
+        if (r[VR_observer_bandwidth] > 0.0 && t >= r[VR_observer_on_time]) {
+            if (observe(inst, r, ff, error, h, command)) return 1;
+        } else if (r[VR_observer_bandwidth] > 0.0) {   /* not on yet: at rest, its length history current */
+            double off[6];
+            for (int k = 0; k < 6; k++) off[k] = -error[k];
+            mb_observer_start(6, off, &r[VR_observer_state]);
+        }
         mb_pid_update(r[VR_kp], r[VR_ki], r[VR_kd], r[VR_force_limit], 6, integral, error, error_rate, command, h,
                       forces, new_integral);
         memcpy(integral, new_integral, sizeof new_integral);
@@ -153,14 +160,14 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     m->legs = FIDELITY_LEGS[fidelity];
     m->feedforward_on = mode != FEEDFORWARD_NONE;
     m->saturated = 0;
-    return update(inst, r, m, 0, 0.0);
+    return update(inst, r, m, 0, 0.0, 0.0);
 }
 
 static int step(mb_instance *inst, double *r, int *i, void *model, double t, double h)
 {
     (void)i;
     Model *m = model;
-    if (update(inst, r, m, 1, h)) return 1;
+    if (update(inst, r, m, 1, t, h)) return 1;
     const double *forces = &r[VR_leg_force], limit = r[VR_force_limit];
     char legs[32] = "";
     size_t used = 0;

@@ -83,3 +83,19 @@ def test_start_force_without_integral_or_observer_is_refused(native):
     inst, status = opened(native["leg_controller_fmu"], ki=0.0, **{"start_force[1]": 1e4})
     assert status != OK
     assert any("start_force needs an integral gain ki > 0" in line for line in inst.log)
+
+
+def test_an_observer_switched_on_later_is_at_rest_until_then(native):
+    """observer_on_time 0.02 s: no estimate and nothing subtracted over the first 20 steps
+    (the start's hold in the integral), the estimate moving from the 21st."""
+    inst, status = opened(native["leg_controller_fmu"], observer_bandwidth=20.0, observer_on_time=0.02,
+                          **{f"start_force[{i}]": f for i, f in enumerate(START, 1)})
+    assert status == OK
+    assert inst.get_real("integral[3]") != 0.0 and inst.get_real("disturbance_estimate[3]") == 0.0
+    estimates = []
+    for k in range(30):
+        for i in range(1, 7):
+            inst.set(f"leg_force_measured[{i}]", START[i - 1])
+        assert step(inst, k * 1e-3, 1e-3) == OK
+        estimates.append(inst.get_real("disturbance_estimate[3]"))
+    assert estimates[:20] == [0.0] * 20 and estimates[-1] != 0.0
