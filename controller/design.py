@@ -149,14 +149,17 @@ class LoopModel:
     u_k + (u_k - u_k-1) / 2, a lead of about half a step that doubles the gain at Nyquist);
     ``gauss_seidel``: the master steps the FMUs one after the other, so of the loop's
     connections only the one into the FMU that steps first is stale (its source has not
-    stepped yet: one step of delay, and the only input extrapolated); Jacobi: all stale.
+    stepped yet: one step of delay, and the only input extrapolated): the plant, which
+    scenarios.cosim.master.step_order steps first on the loop's cycles (the load cell's path
+    then fresh as the leg sensor's); Jacobi: all stale.
     ``gravity_rate`` [1/s^2]: the largest destabilising eigenvalue of the plant's
     acceleration per displacement under gravity at rest (the 3T mechanism's sliders: a
     real open-loop pole at sqrt of it), given every mode as a negative stiffness
     (conservative: gravity's mode shapes are not the mass's); the hexapod's is left out
     (its modal limit is the full linearised plant's). Coulomb friction is left out
     (nonlinear: below its smoothing velocity it is a stiff damper, above it a constant
-    force, a disturbance), and so are quantisation and noise.
+    force, a disturbance; the guard checks the loop with that damper's slope added to say
+    when the friction hides an instability), and so are quantisation and noise.
 
     The disturbance observer (controller/c/observer.c; ``observer_bandwidth`` [Hz] > 0):
     the controller also subtracts Q_d(z) [M_o (z - 1)^2 / (z^2 h^2) l_meas - F_meas] from
@@ -576,19 +579,34 @@ def step_limit(masses, gains, loop=IDEAL, low=1e-5, high=0.2, rtol=1e-3):
     return limit
 
 
-def observer_limit(masses, gains, comm_step, loop, high_hz=1000.0, rtol=1e-2):
+def modes_stable(masses, gains, comm_step, loop):
+    """Whether the closed loop of every mode of ``masses`` [kg] is stable at ``comm_step``."""
+    return all(_radius(m, gains, comm_step, loop) < 1 for m in _distinct(np.sort(np.asarray(masses, dtype=float))))
+
+
+def observer_limit(masses, gains, comm_step, loop, high_hz=1000.0, rtol=1e-2, low_hz=0.25, factor=1.5):
     """The observer bandwidth [Hz] (loop.observer_bandwidth's limit) above which a mode of
-    ``masses`` goes unstable at ``comm_step``: bisected to ``rtol`` between 0 and
-    ``high_hz`` (inf if stable up to it), taken to be stable below and unstable above it."""
-    masses = _distinct(np.sort(np.asarray(masses, dtype=float)))
-    stable = lambda hz: all(_radius(m, gains, comm_step, replace(loop, observer_bandwidth=hz)) < 1 for m in masses)
-    if stable(high_hz):
+    ``masses`` goes unstable at ``comm_step``: the first unstable bandwidth of a geometric
+    scan (``factor``) from ``low_hz`` up to ``high_hz``, bisected to ``rtol`` against the
+    stable one before it (0.0 if unstable already at ``low_hz``, inf if stable all the way).
+    Scanned up, not bisected down from ``high_hz``: the boundary need not be monotonic, as
+    with load cells samples late under Gauss-Seidel, where a loop unstable at 260 Hz is
+    stable again at 1 kHz (the observer's Q then passes the delay's phase whole)."""
+    stable = lambda hz: modes_stable(masses, gains, comm_step, replace(loop, observer_bandwidth=hz))
+    if not stable(low_hz):
+        return 0.0
+    good, bad = low_hz, None
+    for hz in np.geomspace(low_hz, high_hz, int(np.ceil(np.log(high_hz / low_hz) / np.log(factor))) + 1)[1:]:
+        if not stable(hz):
+            bad = hz
+            break
+        good = hz
+    if bad is None:
         return float("inf")
-    good, bad = 0.0, high_hz
     while bad - good > rtol * bad:
         mid = 0.5 * (good + bad)
         good, bad = (mid, bad) if stable(mid) else (good, mid)
-    return good
+    return float(good)
 
 
 def _step_limit(masses, gains, loop, low, high, rtol):

@@ -111,6 +111,8 @@ FEEDTHROUGH = {
     "slider_controller": {"slider_force": ("slider_position", "slider_rate")},
     "wind": {"platform_wrench": ("base_pose",)},
     "hexapod_plant": {"leg_force_actual": ("leg_force",)},
+    # its filter's new value and a delay of 0 reach the output in the step: it starts at the plant's force
+    "load_cell": {"measured_force": ("leg_force",)},
 }
 OPTIONAL_INPUTS = {f.key: f.optional_inputs for f in FMUS if f.optional_inputs}
 

@@ -11,6 +11,10 @@ appears in the leg at once, as before. Its defaults are 0 (off), not a real scre
 values; the realistic scenario (scenarios/files/telescope_slew_realistic.toml) sets them,
 with their sources. With a bandwidth the six motor forces are states, saved with the FMU
 state; they start at the commanded force at initialization (no start transient).
+With ``start_equilibrium`` 1 the leg_force input is first set to the forces that hold the
+platform still at its initial pose against its inputs at initialization (the base's motion,
+the platform wrench: the mean wind load of a run that has been going on), so a loop whose
+controller also starts there (leg_controller ``start_force``) begins at its operating point.
 
 The inputs start at the kit's operating point (fmu_src/operating_point.py): the base at
 the telescope's default start pointing, at rest, and the leg forces that hold the
@@ -21,6 +25,7 @@ import numpy as np
 
 from fmu_src.operating_point import BASE_POSE, STATIC_LEG_FORCES
 from fmu_src.slave import INPUT, OUTPUT, PARAMETER, POSE_UNITS, POSITIVE_TIME, GuardedSlave, acc_units, rate_units
+from plant.hexapod import kernel as kane
 from plant.hexapod.model import FIDELITIES, HOME_POSE, StewartParams, check_body
 from plant.hexapod.ode import Actuator, HexapodODE
 from plant.integrators import INTEGRATORS
@@ -46,6 +51,21 @@ PAYLOAD_INERTIA_RANGE = [(-0.5 * i, 0.5 * i) for i in _PAPER.platform_inertia]
 PAYLOAD_COM_RANGE = [(-0.5, 0.5)] * 3
 
 
+def holding_forces(params, base_mode, legs, pose, inputs):
+    """The leg forces [N] (6,) that hold the platform still at ``pose`` on the base motion
+    and against the wrench of ``inputs`` (4, 6): base pose, rate, acc, platform wrench
+    (plant/c/hexapod.h mb_hexapod_kane_ext, inverse dynamics at zero pose rate and
+    acceleration; the native FMU makes the same call)."""
+    one = lambda a: np.ascontiguousarray(np.reshape(a, (1, 6)), dtype=float)
+    zero = np.zeros((1, 6))
+    M, J = np.empty((1, 6, 6)), np.empty((1, 6, 6))
+    h, ldot, length, out = (np.empty((1, 6)) for _ in range(4))
+    kane.kane(params.base_joints, params.platform_joints, params.kernel_data, one(pose), zero, zero, one(inputs[0]),
+              one(inputs[1]), one(inputs[2]), base_mode, legs, False, kane.ID, M, h, J, ldot, length, out,
+              np.empty(1), wrench=one(inputs[3]))
+    return out[0]
+
+
 class HexapodPlant(GuardedSlave):
     description = "6-UPS subreflector hexapod (Yao et al. 2018), Kane dynamics, fixed or moving base"
 
@@ -54,6 +74,9 @@ class HexapodPlant(GuardedSlave):
         self.integer("moving_base", "1: the base moves as the base_* inputs say; 0: fixed base (inputs ignored)", 1,
                      (0, 1))
         self.enumeration("fidelity", "model fidelity", FIDELITIES, 0)
+        self.integer("start_equilibrium", "1: the leg_force input (and the motor forces) start at the forces "
+                     "that hold the platform still at initial_pose against the base motion and platform wrench "
+                     "given at initialization (the operating point); 0: at the leg_force input", 0, (0, 1))
         self.enumeration("integrator", "integrator", INTEGRATORS, 0)
         self.max_step = 1e-3
         self.stroke = 0.15
@@ -132,6 +155,9 @@ class HexapodPlant(GuardedSlave):
                               INTEGRATORS[self.integrator], self.max_step, self.inputs, self.outputs, actuator,
                               self.tolerance)
         self.x[12:] = 0.0   # motor forces of an earlier evaluation in initialization mode: gone, as native
+        if self.start_equilibrium:
+            self.inputs[0] = holding_forces(params, self.ode.base_mode, self.ode.legs, self.initial_pose,
+                                            self.inputs[1:5])
         self.state = self.x[:12 + actuator.states]   # the ODE's state: a view of x
         self.state[:] = self.ode.initial_state(self.initial_pose)
         self.ode.advance(self.state, 0.0)

@@ -11,6 +11,13 @@ which leaves every result bit for bit as it was): from the load cells' ``leg_for
 it estimates the force the legs get from elsewhere (the wind) and subtracts it from the command.
 Its model force is the feedforward's (with feedforward none: 0, so it estimates the whole
 load); its state is the ``observer_state`` output, saved with the FMU state.
+
+The operating point (``start_force``, all 0 by default: off): the leg forces the plant holds
+at the start (a link "@plant.leg_force_actual" to a plant that starts at its equilibrium,
+hexapod_plant ``start_equilibrium``). The controller starts commanding them, as a loop that
+has been running long would: what its model's feedforward lacks (the mean wind load, the
+static load without feedforward) is held by the observer's estimate when it is on, else by
+the PID's integral, so neither has to wind up after a start step.
 """
 import json
 import pathlib
@@ -23,7 +30,7 @@ from controller.feedforward import FEEDFORWARD_MODES, Feedforward
 from controller.observer import STATES_PER_LEG, observer_start, observer_update
 from controller.pid import PIDGains, pid_update
 from fmu_src.operating_point import BASE_POSE, STATIC_LEG_FORCES
-from fmu_src.slave import INPUT, OUTPUT, POSE_UNITS, GuardedSlave, acc_units, rate_units
+from fmu_src.slave import INPUT, OUTPUT, PARAMETER, POSE_UNITS, GuardedSlave, acc_units, rate_units
 from fmu_src.wind_fmu import DEFAULTS as WIND
 from plant._kernel import ffi, lib
 from plant.errors import InvalidInputError
@@ -63,6 +70,10 @@ class LegController(GuardedSlave):
             self.vector(name, 6, INPUT, desc, units, values=self.inputs[row])
         self.forces = self.vector("leg_force", 6, OUTPUT, "commanded actuator force, + extends", "N")
         self.integral = self.vector("integral", 6, OUTPUT, "integral of the leg-length error", "m.s")
+        self.start_force = self.vector("start_force", 6, PARAMETER, "leg force the plant holds at the start "
+                                       "(the operating point: the integral or the observer starts holding what the "
+                                       "feedforward lacks); all 0: off, both start at rest", "N",
+                                       valid=(-1e6, 1e6))
         self.feedforward_force = self.vector("feedforward_force", 6, OUTPUT, "model feedforward part of leg_force", "N")
         self._wind_variables()
         self._observer_variables()
@@ -95,6 +106,8 @@ class LegController(GuardedSlave):
              "Butterworth) [Hz]; 0: off", (0.0, 1e3)),
             ("observer_mass", "kg", mass, "disturbance observer: leg-space mass of one leg it assumes, the "
              "reflected mass included; default the mean diagonal of M_leg at home, none reflected", (0.0, 1e6)),
+            ("observer_on_time", "s", 0.0, "disturbance observer: the time it switches on (its filter at rest "
+             "until then, nothing subtracted: a switch-on is a step load); 0: on from the start", (0.0, 1e9)),
         ))
         self.force_measured = self.vector("leg_force_measured", 6, INPUT, "leg force from the load cells (for "
                                           "the disturbance observer)", "N", start=STATIC_LEG_FORCES)
@@ -118,7 +131,7 @@ class LegController(GuardedSlave):
         self._update(None)
 
     def step(self, t, h):
-        self._update(h)
+        self._update(h, t)
         saturated = bool(np.any(np.abs(self.forces) >= self.pid.force_limit))
         if saturated and not self.saturated:   # say so once per episode: an unstable loop saturates quietly
             self.log(f"leg forces saturated at +-{self.pid.force_limit:g} N at t={t + h:.6g} s "
@@ -127,8 +140,8 @@ class LegController(GuardedSlave):
                      Fmi2Status.warning, "logStatusWarning")
         self.saturated = saturated
 
-    def _update(self, h):
-        """Forces from the inputs now; the integral advances only on a real step."""
+    def _update(self, h, t=0.0):
+        """Forces from the inputs now (a step from ``t``); the integral advances only on a real step."""
         if not np.isfinite(self.inputs).all():
             bad = [n for n, row in zip(INPUTS, self.inputs) if not np.isfinite(row).all()]
             raise InvalidInputError(f"{', '.join(bad)} input contains NaN or inf")
@@ -136,14 +149,36 @@ class LegController(GuardedSlave):
         ff, ref_lengths, ref_rates = self.feedforward_model(ref, ref_rate, ref_acc, *base)
         if self.wind["wind_feedforward"]:
             ff = ff + self._wind_forces(ref, base[0], h)
-        if h is None:   # initialization: the feedforward alone, integral untouched
+        if h is None:   # initialization: the feedforward alone, integral untouched, or the operating point
             self.forces[:] = ff
             self.observer_state[:] = observer_start(lengths - ref_lengths)
+            if self.start_force.any():
+                self._start_holding(ff)
         else:
-            command = self._observe(ff, lengths - ref_lengths, h) if self.observer["observer_bandwidth"] else ff
+            command = ff
+            if self.observer["observer_bandwidth"] and t >= self.observer["observer_on_time"]:
+                command = self._observe(ff, lengths - ref_lengths, h)
+            elif self.observer["observer_bandwidth"]:   # not on yet: at rest, its length history kept current
+                self.observer_state[:] = observer_start(lengths - ref_lengths)
             self.forces[:], self.integral[:] = pid_update(self.pid, self.integral, ref_lengths - lengths,
                                                           ref_rates - rates, command, h)
         self.feedforward_force[:] = ff
+
+    def _start_holding(self, ff):
+        """The operating point: start_force commanded, its part beyond the feedforward held by
+        the observer's estimate (on from the start) or the integral (off, or on later);
+        controller/c/pid.c clips it."""
+        hold = self.start_force - ff
+        if self.observer["observer_bandwidth"] and self.observer["observer_on_time"] <= 0:
+            self.disturbance[:] = -hold
+            self.observer_state[0::STATES_PER_LEG] = -hold
+            self.integral[:] = 0.0
+        elif self.pid.ki > 0:
+            self.integral[:] = hold / self.pid.ki
+        else:
+            raise InvalidInputError("start_force needs an integral gain ki > 0 (or the observer) to hold "
+                                    f"{np.abs(hold).max():.6g} N beyond the feedforward; ki is 0")
+        self.forces[:] = np.clip(self.start_force, -self.pid.force_limit, self.pid.force_limit)
 
     def _wind_forces(self, ref, base_pose, h):
         if not np.isfinite(self.wind_speed):

@@ -42,13 +42,20 @@ SCENES = rl.SCENES
 SPEEDS = (0.0, 5.0, 10.0, 15.0)   # m/s
 GOAL = 10.0                        # µm, peak pose position error
 TODAY = {"telescope_slew": {0.0: 5.53, 10.0: 41.9}, "keyhole_tracking": {10.0: 76.0}}   # docs/realistic_loop.md
-OBSERVER_MASS = 2605.6747045735265   # kg: mean diagonal of M_leg at home (1848 kg) + the 758 kg reflected
+# kg: between the lightest leg-space modes (1352-1554 kg with the 758 kg reflected) and their mean
+# diagonal (2606 kg, issue 29's choice): at 20 Hz it keeps the widest margins (1800 kg: 11.9 deg /
+# 2.7 dB, 2000: 14.9 / 2.7, 2200: 11.3 / 2.0, 2606: 4.1 / 0.7; controller.design.margins)
+OBSERVER_MASS = 2000.0
 # The legs' load cells (LoadCell): none of these is public for this hexapod; ASSUMED from
 # strain-gauge cells of a 25 kN range (the actuator's force limit): 0.02 % of range RMS
 # noise, a 24-bit converter's step far below it (0.5 N), 200 Hz amplifier low-pass
 # (anti-aliasing below the 500 Hz Nyquist of the 1 ms step), no extra delay.
 LOAD_CELL = {"resolution": "0.5 N", "noise": "5 N", "bandwidth": "200 Hz", "delay_steps": 0, "seed": 2}
-OBSERVER_BANDWIDTH = 8.0   # Hz: controller.design.design_observer, PM >= 25 deg and GM >= 5 dB (bandwidth())
+# Hz: controller.design.design_observer at DESIGN_MARGINS (bandwidth()): 20.6 Hz. Issue 29's 8 Hz
+# (25 deg, 5 dB at 2606 kg) held 10 µm on its one gust seed only; at turbulence 0.3 the unseen seeds
+# gave up to 13 µm, and 16 Hz up to 10.5 (issue 41)
+OBSERVER_BANDWIDTH = 20.0
+DESIGN_MARGINS = (12.0, 2.5)   # deg, dB on every leg-space mode
 SCHEMES: dict[str, dict] = {
     "pid": {"name": "PID + moving-base feedforward (today)"},
     "observer": {
@@ -66,38 +73,90 @@ SCHEMES["anemometer"] = {
     "parameters": {"controller": {"wind_feedforward": 1.0, "wind_cutoff": "0.1 Hz"},
                    "wind": {"anemometer_distance": "3.25 m", "anemometer_time_constant": "0.25 s"}},
     "connections": [{"from": "wind.anemometer_speed", "to": "controller.wind_speed"}]}
-BOUND_BANDWIDTHS = (2.0, 4.0, 8.0, 12.0, 16.0, 24.0)   # Hz, at 10 m/s
+BOUND_BANDWIDTHS = (2.0, 4.0, 8.0, 12.0, 16.0, 20.0, 24.0, 32.0)   # Hz, at 10 m/s
 BOUND_SPEED = 10.0
+# Counted from 1 s in every run: the loop starts at its operating point (studies/realistic_loop.py
+# OPERATING_POINT), so there is no start to wait out; the shipped scenes count from the same 1 s
+FROM = "1 s"
+# The gusts the shipped configuration was not tuned on: issue 29 tuned it on seed 1, issue 41
+# chose its 20 Hz on seeds 2-9 at intensity 0.3 (TUNING_SEEDS); the table runs 8 others at two
+# turbulence intensities (0.15: open site; 0.3: gusty sites, the quadripod's wake), at 10 m/s
+# and at 15 m/s, the observer on
+TUNING_SEEDS = tuple(range(1, 10))
+GUST_SEEDS = tuple(range(10, 18))
+INTENSITIES = (0.15, 0.3)
+GUST_SPEEDS = (10.0, 15.0)
+# A load that arrives as a step: the slew's loop at its calm-air operating point (the plant's
+# leg_force start is the static load at the start pointing, fmu_src/operating_point.py; the
+# controller's integral and observer at rest) meets the whole mean wind at t = 0, a gust
+# front; counted from 0 s over the 5 s hold before the slew
+STEP_STOP = "5 s"
+# The bound against seed: the gustiest case (keyhole track, 10 m/s, intensity 0.3) on the unseen
+# seeds at wider observer bandwidths than the shipped one (what it would take)
+WIDER = (24.0, 32.0)   # Hz
+STEP_CHART = "wind_rejection_step.png"
+SWITCH_ON = 2.0   # s: the observer switched on in the 10 m/s wind, the loop at its operating point without it
 
 
-def scheme_scenario(scene, scheme, speed, bandwidth=None, window=True):
+def scheme_scenario(scene, scheme, speed, bandwidth=None, window=True, seed=1, intensity=0.15, step=False,
+                    mass=None, on_time=None):
     """The scenario dict of ``scene`` in the realistic loop at ``speed`` m/s with ``scheme``
-    (a SCHEMES key); ``bandwidth`` [Hz] overrides the observer's."""
+    (a SCHEMES key), from its operating point and counted from FROM (``window`` False: the
+    shipped scene's start at rest and its windows, as the error budget's rows); ``bandwidth`` [Hz]
+    overrides the observer's bandwidth, ``mass`` [kg] its mass, ``seed`` and ``intensity`` the
+    gusts'; ``on_time`` [s] switches the observer on then (from the operating point, the integral
+    holding the load until then; counted from 0 s, to STEP_STOP); ``step``: the wind as a
+    step onto the calm loop at t = 0 (no operating point; counted from 0 s, to STEP_STOP)."""
     effects = rl.EFFECTS if speed > 0 else rl.LOOPS["calm"]
-    data = rl.variant(scene, effects, "exact", ("moving_base",), {"wind": {"mean_speed": f"{speed:g} m/s"}},
-                      window=window)
+    wind = {"mean_speed": f"{speed:g} m/s", "seed": seed, "turbulence_intensity": intensity}
+    data = rl.variant(scene, effects, "exact", ("moving_base",), {"wind": wind}, window=window,
+                      operating_point=window and not step)
+    for metric in data["metrics"]:
+        if "from" in metric and window:
+            metric["from"] = "0 s" if step or on_time is not None else FROM
+    if step or on_time is not None:
+        data["stop_time"] = STEP_STOP
     changes = copy.deepcopy(SCHEMES[scheme])
     if bandwidth is not None:
         changes["parameters"]["controller"]["observer_bandwidth"] = f"{bandwidth:g} Hz"
+    if mass is not None:
+        changes["parameters"]["controller"]["observer_mass"] = mass
+    if on_time is not None:
+        changes["parameters"]["controller"]["observer_on_time"] = f"{on_time:g} s"
     data["fmus"].update(changes.get("fmus", {}))
     for inst, values in changes.get("parameters", {}).items():
         if inst in data["fmus"]:   # calm air has no wind FMU: its anemometer is not there either
             data["fmus"][inst].setdefault("parameters", {}).update(values)
     data["connections"] += [c for c in changes.get("connections", [])
                             if c["from"].split(".")[0] in data["fmus"]]
-    data["name"] = f"{scene}-wind_{speed:g}-{scheme}" + (f"_{bandwidth:g}Hz" if bandwidth is not None else "")
-    data["description"] = (f"{data['name']}: {scene} in the realistic loop, {speed:g} m/s Kaimal wind, "
-                           f"{changes['name']}.")
+    data["name"] = (f"{scene}-wind_{speed:g}-{scheme}" + (f"_{bandwidth:g}Hz" if bandwidth is not None else "")
+                    + (f"_{mass:.0f}kg" if mass is not None else "")
+                    + (f"-seed_{seed}-ti_{intensity:g}" if (seed, intensity) != (1, 0.15) else "")
+                    + ("-step" if step else "") + (f"-on_{on_time:g}s" if on_time is not None else ""))
+    data["description"] = (f"{data['name']}: {scene} in the realistic loop, {speed:g} m/s Kaimal wind (seed "
+                           f"{seed}, intensity {intensity:g}), {changes['name']}"
+                           + (", the wind a step at t = 0 onto the calm loop." if step else
+                              ", from its operating point."))
     return data
 
 
 def cases():
-    """(key, scene, scheme, speed, bandwidth) of every run: the schemes over the speeds, and
-    the observer's bandwidth at 10 m/s."""
-    out = [((scene, scheme, f"{u:g}"), scene, scheme, u, None) for scene in SCENES for scheme in SCHEMES
+    """(key, scene, scheme, speed, bandwidth, {seed, intensity, step}) of every run: the
+    schemes over the speeds, the observer's bandwidth at 10 m/s, the observer over the unseen
+    gusts, and the wind as a step onto the calm slew."""
+    out = [((scene, scheme, f"{u:g}"), scene, scheme, u, None, {}) for scene in SCENES for scheme in SCHEMES
            for u in SPEEDS]
-    out += [((scene, "bandwidth", f"{b:g}"), scene, "observer", BOUND_SPEED, b) for scene in SCENES
+    out += [((scene, "bandwidth", f"{b:g}"), scene, "observer", BOUND_SPEED, b, {}) for scene in SCENES
             for b in BOUND_BANDWIDTHS]
+    out += [((scene, "gusts", f"{u:g}", f"{ti:g}", f"{seed}"), scene, "observer", u, None,
+             {"seed": seed, "intensity": ti}) for scene in SCENES for u in GUST_SPEEDS for ti in INTENSITIES
+            for seed in GUST_SEEDS]
+    out += [(("telescope_slew", "step", scheme), "telescope_slew", scheme, BOUND_SPEED, None, {"step": True})
+            for scheme in ("pid", "observer")]
+    out += [(("telescope_slew", "switch_on", "observer"), "telescope_slew", "observer", BOUND_SPEED, None,
+             {"on_time": SWITCH_ON})]
+    out += [(("keyhole_tracking", "wider", f"{b:g}", f"{seed}"), "keyhole_tracking", "observer", BOUND_SPEED, b,
+             {"seed": seed, "intensity": INTENSITIES[-1]}) for b in WIDER for seed in GUST_SEEDS]
     return out
 
 
@@ -110,8 +169,8 @@ def run(out="out", jobs=None, address=None, progress=True, selected=None, window
     texts.mkdir(parents=True, exist_ok=True)
     store = engine.Store(folder / "runs")
     everything, files, index = [], {}, []
-    for key, scene, scheme, speed, bandwidth in selected or cases():
-        data = scheme_scenario(scene, scheme, speed, bandwidth, window)
+    for key, scene, scheme, speed, bandwidth, *more in selected or cases():
+        data = scheme_scenario(scene, scheme, speed, bandwidth, window, **(more[0] if more else {}))
         path = texts / f"{data['name']}.toml"
         path.write_text(rl.toml_text(data))
         scenario, paths, descriptions, values = runner.prepare(path, ci)
@@ -132,13 +191,16 @@ def run(out="out", jobs=None, address=None, progress=True, selected=None, window
         m, point = (record["metrics"][rl.METRIC], record["metrics"]["pointing"]) if ok else (None, None)
         results["/".join(key)] = ({"rms": m["rms"], "peak": m["peak"], "pointing_peak": point["peak"],
                                    "loss_q": point[loss_key("Q")], "pointing": point} if m else None)
+        if m and key[1] in ("step", "switch_on"):   # the step's pose error against time, for its chart
+            t, values = store.series(job.key)[rl.METRIC]
+            results["/".join(key)]["series"] = [[round(float(a), 4) for a in t], [float(f"{v:.4g}") for v in values]]
     return results
 
 
 def bandwidth():
     """The observer's design on the realistic plant (controller.design): the highest
-    bandwidth with PM >= 25 deg and GM >= 5 dB on every mode, its margins at the shipped
-    bandwidth and the guard's predicted limit of the bandwidth at the 1 ms step."""
+    bandwidth with DESIGN_MARGINS on every mode, its margins at the shipped bandwidth and
+    the guard's predicted limit of the bandwidth at the 1 ms step."""
     from dataclasses import replace
 
     from controller import design
@@ -146,10 +208,12 @@ def bandwidth():
     params, gains = StewartParams.paper(), design.default_gains(StewartParams.paper())
     loop = replace(design.REALISTIC, observer_bandwidth=1.0, observer_mass=OBSERVER_MASS, load_cell=True,
                    load_cell_bandwidth=200.0)
-    best = design.design_observer(params, gains, 1e-3, loop, 25.0, 5.0)
+    best = design.design_observer(params, gains, 1e-3, loop, *DESIGN_MARGINS)
     shipped = design.margins(params, gains, 1e-3, replace(loop, observer_bandwidth=OBSERVER_BANDWIDTH))
     limit = design.observer_limit(design.modal_masses(params, loop), gains, 1e-3, loop)
-    return {"design_hz": best.loop.observer_bandwidth, "pm_deg": shipped.modal_phase_margin_deg,
+    wider = {f"{b:g}": [(m := design.margins(params, gains, 1e-3, replace(loop, observer_bandwidth=b)))
+                        .modal_phase_margin_deg, m.modal_gain_margin_db] for b in (OBSERVER_BANDWIDTH, *WIDER)}
+    return {"design_hz": best.loop.observer_bandwidth, "pm_deg": shipped.modal_phase_margin_deg, "wider": wider,
             "gm_db": shipped.modal_gain_margin_db, "crossover_hz": shipped.crossover_hz, "limit_hz": limit,
             "without_pm_deg": design.margins(params, gains, 1e-3, design.REALISTIC).modal_phase_margin_deg,
             "without_gm_db": design.margins(params, gains, 1e-3, design.REALISTIC).modal_gain_margin_db}
@@ -222,6 +286,150 @@ def pointing(s):
             + "\n".join(lines))
 
 
+def _gusts(s, scene, speed, intensity):
+    """The peaks [µm] of the unseen gust seeds (None: failed or not run)."""
+    return [(s["runs"].get(f"{scene}/gusts/{speed:g}/{intensity:g}/{seed}") or {}).get("peak") for seed in GUST_SEEDS]
+
+
+def gust_table(s):
+    """Per scene, speed and turbulence intensity: the observer's peak pose error over the
+    seeds it was not tuned on, the largest, and whether all are under the goal."""
+    lines = ["| scene | mean wind | intensity | " + " | ".join(f"seed {k}" for k in GUST_SEEDS)
+             + " | largest [µm] | all under 10 µm |", "|---|---|---|" + "---|" * (len(GUST_SEEDS) + 2)]
+    for scene in SCENES:
+        for u in GUST_SPEEDS:
+            for ti in INTENSITIES:
+                peaks = _gusts(s, scene, u, ti)
+                done = [p for p in peaks if p is not None]
+                top = max(done) if done else None
+                lines.append(f"| `{scene}` | {u:g} m/s | {ti:g} | " + " | ".join(
+                    "failed" if p is None else fmt(p) for p in peaks) + f" | {fmt(top) if top else 'failed'} | "
+                    + ("yes" if len(done) == len(peaks) and top < GOAL else "no") + " |")
+    return "\n".join(lines)
+
+
+def wider_table(s):
+    """The gustiest case's peaks per unseen seed at the shipped and the WIDER bandwidths."""
+    rows = ["| observer bandwidth | " + " | ".join(f"seed {k}" for k in GUST_SEEDS) + " | largest [µm] |",
+            "|---|" + "---|" * (len(GUST_SEEDS) + 1)]
+    for b in (OBSERVER_BANDWIDTH, *WIDER):
+        peaks = (_gusts(s, "keyhole_tracking", BOUND_SPEED, INTENSITIES[-1]) if b == OBSERVER_BANDWIDTH else
+                 [(s["runs"].get(f"keyhole_tracking/wider/{b:g}/{seed}") or {}).get("peak") for seed in GUST_SEEDS])
+        done = [p for p in peaks if p is not None]
+        rows.append(f"| {b:g} Hz{' (shipped)' if b == OBSERVER_BANDWIDTH else ''} | "
+                    + " | ".join("failed" if p is None else fmt(p) for p in peaks)
+                    + f" | {fmt(max(done)) if done else 'failed'} |")
+    return "\n".join(rows)
+
+
+def wider_verdict(s):
+    """What the gustiest case would take: the least WIDER bandwidth that holds every unseen seed."""
+    shipped = max((p for p in _gusts(s, "keyhole_tracking", BOUND_SPEED, INTENSITIES[-1]) if p is not None),
+                  default=None)
+    enough = next((b for b in WIDER if all((s["runs"].get(f"keyhole_tracking/wider/{b:g}/{seed}") or {}).get(
+        "peak", GOAL) < GOAL for seed in GUST_SEEDS)), None)
+    if shipped is not None and shipped < GOAL:
+        return "The shipped bandwidth holds every unseen seed of the gustiest case."
+    margins = s["design"]["wider"].get(f"{enough:g}") if enough else None
+    return (f"The shipped {OBSERVER_BANDWIDTH:g} Hz misses the goal in the gustiest case ({fmt(shipped)} µm at "
+            "worst): the spec holds at intensity 0.15 on both motions and at 0.3 on the slew, not on every gust at "
+            "0.3 on the keyhole track. "
+            + (f"{enough:g} Hz would hold every unseen seed, at {margins[0]:.1f} deg and {margins[1]:.1f} dB on the "
+               f"linear model: a gain margin below the design's {DESIGN_MARGINS[1]:g} dB, so the bound is the "
+               "loop's margins. To get "
+               "there with margin, the loop needs less phase lag at 20-30 Hz: a force loop wider than 50 Hz, the "
+               "encoders' and load cells' samples read without delay, a shorter step, or an observer mass per "
+               "mode. "
+               if enough else "None of the wider bandwidths holds every seed either. ")
+            + "At 15 m/s the shipped observer holds 10 µm only on the slew at intensity 0.15 (the table above; "
+            "AtLAST budgets 12 µm at 9 m/s).")
+
+
+def gust_verdict(s):
+    """What the unseen gusts say of the shipped configuration, per speed."""
+    out = []
+    for u in GUST_SPEEDS:
+        tops = {(scene, ti): max((p for p in _gusts(s, scene, u, ti) if p is not None), default=None)
+                for scene in SCENES for ti in INTENSITIES}
+        cells = ", ".join(f"`{scene}` at {ti:g}: {fmt(top) if top else 'failed'} µm"
+                          for (scene, ti), top in tops.items())
+        met = all(top is not None and top < GOAL for top in tops.values())
+        out.append(f"- **{u:g} m/s**, the largest peak over the {len(GUST_SEEDS)} unseen seeds: {cells}. "
+                   + ("Under 10 µm on both motions at both intensities." if met else "Not under 10 µm everywhere."))
+    return "\n".join(out)
+
+
+def margins_text(s):
+    """The worst mode's phase and gain margins at the shipped and WIDER bandwidths (bandwidth())."""
+    return ", ".join(f"{fmt(float(b))} Hz {m[0]:.1f} deg / {m[1]:.1f} dB" for b, m in s["design"]["wider"].items())
+
+
+def _step(s, scheme):
+    return s["runs"].get(f"telescope_slew/step/{scheme}")
+
+
+def step_text(s):
+    """The wind as a step (a gust front) onto the calm slew: the start's peak with and without
+    the observer, against the same loop's steady peak from its operating point."""
+    a, b = _step(s, "pid"), _step(s, "observer")
+    steady = {k: _peak(s, "telescope_slew", k, BOUND_SPEED) for k in ("pid", "observer")}
+    if not (a and b and all(steady.values())):
+        return "The step runs failed."
+    return (f"The whole mean wind of {BOUND_SPEED:g} m/s arriving at once onto the slew's loop at its calm-air "
+            f"operating point (the 5 s hold, counted from 0 s): peak pose error {fmt(a['peak'])} µm without the "
+            f"observer, {fmt(b['peak'])} µm with it ({a['peak'] / b['peak']:.1f}x less), against steady peaks from "
+            f"the operating point of {fmt(steady['pid'])} and {fmt(steady['observer'])} µm "
+            f"({steady['pid'] / steady['observer']:.1f}x). A step holds every frequency: the observer rejects the "
+            "part below its bandwidth, and what is faster, the load's first instants before its estimate has "
+            "risen, reaches the PID alone. Such a load is a different case from the gusts and has its own figure "
+            "and its own shipped scene, `telescope_slew_gust_front`; the other wind scenes start at their "
+            "operating point, so that no start step is counted as wind. " + switch_on_text(s))
+
+
+def switch_on_text(s):
+    """The observer switching on mid-run, against the same loop with it on from the start."""
+    on = s["runs"].get("telescope_slew/switch_on/observer")
+    steady = _peak(s, "telescope_slew", "observer", BOUND_SPEED)
+    if not (on and steady):
+        return "The switch-on run failed."
+    return (f"The observer switching on at {SWITCH_ON:g} s (`observer_on_time`; the loop at its operating point "
+            "without it until then, the PID's integral holding the wind's load) is a step from the controller's "
+            "side: its estimate rises to the load within its bandwidth while the integral still holds it, so the "
+            f"legs briefly push twice the load, and the integral gives it back at its own pace. Peak "
+            f"{fmt(on['peak'])} µm (from 0 s) against {fmt(steady)} µm with the observer on from the start: "
+            "switching it on in wind needs a bumpless transfer (its estimate started at the integral's hold, as "
+            "start_force does at the start); the shipped scene `telescope_slew_observer_switch_on` is this run.")
+
+
+def step_chart(s, path):
+    """The pose error against time after a step load: the wind arriving onto the calm loop, with
+    and without the observer (left); the observer switching on in the wind (right)."""
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.4), layout="constrained", sharey=True)
+    styles = {"pid": {"color": "tab:blue", "ls": "-"}, "observer": {"color": "tab:green", "ls": (0, (6, 3))}}
+    for scheme in ("pid", "observer"):
+        entry = _step(s, scheme)
+        if entry:
+            ax.plot(*entry["series"], lw=1.6, label=SCHEMES[scheme]["name"], **styles[scheme])
+    on = s["runs"].get("telescope_slew/switch_on/observer")
+    if on:
+        bx.plot(*on["series"], lw=1.6, color="tab:purple", label=f"observer switched on at {SWITCH_ON:g} s")
+        bx.axvline(SWITCH_ON, color="0.5", lw=1, ls=":")
+    top = max([_step(s, k)["peak"] for k in ("pid", "observer") if _step(s, k)] + ([on["peak"]] if on else []))
+    for a in (ax, bx):
+        draw_marks(a, top=top)
+        a.set_yscale("log")
+        plain_log_axis(a.yaxis)
+        a.grid(which="major", alpha=0.3)
+        a.legend(fontsize=9, frameon=False, loc="lower left")
+        a.set_xlabel("time [s] (the slew starts at 5 s)")
+    ax.set_ylabel("pose position error [µm] (log)")
+    ax.set_title(f"a gust front: {BOUND_SPEED:g} m/s arrive at 0 s onto the calm loop", fontsize=10)
+    bx.set_title(f"the observer switching on in {BOUND_SPEED:g} m/s wind", fontsize=10)
+    fig.suptitle("telescope_slew: loads that arrive as a step", fontsize=11)
+    save(fig, path)
+    return ax
+
+
 def bound_table(s):
     rows = ["| observer bandwidth [Hz] | " + " | ".join(f"`{scene}` peak [µm]" for scene in SCENES) + " |",
             "|---|" + "---|" * len(SCENES)]
@@ -250,7 +458,7 @@ def speed_chart(s, path):
         ax.set_xlabel("mean wind speed [m/s] (Kaimal gusts, 15 % turbulence)")
         ax.set_title(f"{scene}", fontsize=10)
         ax.grid(which="major", alpha=0.3)
-    axes[0].set_ylabel("peak pose error after settling [µm] (log)")
+    axes[0].set_ylabel(f"peak pose error from {FROM} [µm] (log)")
     fig.suptitle("Realistic loop: peak pose error against wind speed, per rejection scheme", fontsize=11)
     fig.legend(*axes[0].get_legend_handles_labels(), fontsize=9, loc="outside lower center", ncol=2, frameon=False,
                handlelength=4)
@@ -264,12 +472,15 @@ def report(s, charts=True):
     name = "wind_rejection_speed.png"
     if charts:
         speed_chart(s, DOCS / "figures" / name)
+        step_chart(s, DOCS / "figures" / STEP_CHART)
     lines = [
         "# Wind rejection: under 10 µm in gusty wind", "",
         "Generated by `python -m studies.wind_rejection --docs` from `docs/wind_rejection.json`. The realistic "
         "loop of [realistic_loop.md](realistic_loop.md) (every effect on; moving-base feedforward on the exact base "
-        "motion; shipped PID gains), pose position error after settling (from 5 s in both "
-        "scenes). `telescope_slew` is the shipped 60 s run; `keyhole_tracking` the 30 s cut with the transit at "
+        "motion; shipped PID gains), every run from its operating point (the mean wind load held by the "
+        "plant, the controller's integral or observer, the load cells; studies/realistic_loop.py "
+        f"OPERATING_POINT), pose position error from {FROM} in both scenes, as the shipped scenes count. "
+        "`telescope_slew` is the shipped 60 s run; `keyhole_tracking` the 30 s cut with the transit at "
         "16 s. 0 m/s is calm air (no wind FMU). Scenario files: `out/wind_rejection/scenarios/`; shipped: "
         "`telescope_slew_observer`, `keyhole_tracking_observer`.", "",
         "## The disturbance observer", "",
@@ -280,40 +491,50 @@ def report(s, charts=True):
         "d = Q[f_model(ref) + M_o (l - l_ref)'' - f_measured], u = u_PID + f_model - d "
         "(controller/c/observer.c). Load cells, ASSUMED: "
         + ", ".join(f"`{k} = {v}`" for k, v in LOAD_CELL.items())
-        + f"; observer mass M_o = {OBSERVER_MASS:.0f} kg (the mean diagonal of the leg-space mass at home plus "
-        "the 758 kg reflected).", "",
+        + f"; observer mass M_o = {OBSERVER_MASS:.0f} kg (one scalar for every leg-space mode, their masses "
+        "1352-4178 kg with the 758 kg reflected; the design below says why this one).", "",
         f"Design (controller.design.design_observer, on the realistic plant of `REALISTIC` with the load cell, "
-        f"python-control): the highest bandwidth keeping phase margin >= 25 deg and gain margin >= 5 dB on every "
-        f"leg-space mode is {d['design_hz']:.2f} Hz; shipped {OBSERVER_BANDWIDTH:g} Hz, where the worst mode keeps "
-        f"{d['pm_deg']:.1f} deg and {d['gm_db']:.1f} dB (without the observer: {d['without_pm_deg']:.1f} deg, "
-        f"{d['without_gm_db']:.1f} dB), crossing at {d['crossover_hz']:.2f} Hz. The guard predicts the loop "
-        f"unstable above {d['limit_hz']:.3g} Hz at the 1 ms step (the lightest mode: the observer's mass is 1.9x "
-        "its mass, so the force it feeds back over-compensates) and refuses such a scene before it runs. "
-        "Co-simulation confirms it without the screws' Coulomb friction (which the prediction leaves out): at "
-        "1.15x the limit the leg forces oscillate up to kN, at 0.85x they do not "
-        "(tests/scenarios/runs/test_observer_guard.py). With the friction the real loop is better damped than "
-        "predicted: trial runs of the slew at 40 and 80 Hz stayed bounded.", "",
+        "python-control). Issue 29's design (phase margin >= 25 deg, gain margin >= 5 dB on every leg-space "
+        "mode, observer mass 2606 kg, the mean diagonal) gave 8 Hz: under 10 µm on the one gust seed it was "
+        "tuned on, up to 13 µm on unseen seeds at turbulence intensity 0.3. Re-tuned (issue 41): observer mass "
+        f"{OBSERVER_MASS:.0f} kg, between the lightest modes (1352-1554 kg) and the mean, where the margins at "
+        f"20 Hz are widest; the highest bandwidth keeping phase margin >= {DESIGN_MARGINS[0]:g} deg and gain "
+        f"margin >= {DESIGN_MARGINS[1]:g} dB on every mode is {d['design_hz']:.2f} Hz; shipped "
+        f"{OBSERVER_BANDWIDTH:g} Hz, where the worst mode keeps {d['pm_deg']:.1f} deg and {d['gm_db']:.1f} dB "
+        f"(without the observer: {d['without_pm_deg']:.1f} deg, {d['without_gm_db']:.1f} dB), crossing at "
+        f"{d['crossover_hz']:.2f} Hz. The guard predicts the loop unstable above {d['limit_hz']:.3g} Hz at the "
+        "1 ms step and refuses such a scene before it runs. The margins are thin on the linear model (the screws' "
+        "Coulomb friction, which it leaves out, damps the real loop more): that is what the gusty case costs, "
+        "and the bound below.", "",
         "## Peak and RMS pose error per scheme and wind speed", "", table(s), "",
         f"![peak error against wind speed](figures/{name})", "",
         "## The goals, against today's figures", "", goals(s), "",
         f"## The bound: peak error at {BOUND_SPEED:g} m/s against the observer's bandwidth", "", bound_table(s), "",
-        "From the shipped bandwidth up, the slew's peak stays at its calm-air figure: what is left in wind "
-        "is the calm loop's own error (servo, sensors, friction of the realistic loop), not the wind. The "
-        "keyhole track keeps gaining with the bandwidth ("
+        "The slew's peak falls with the bandwidth to its calm-air figure (the calm loop's own error: servo, "
+        "sensors, friction), the keyhole track's keeps falling ("
         + ", ".join(f"{fmt(_bound(s, 'keyhole_tracking', b))} µm at {b:g} Hz" for b in BOUND_BANDWIDTHS[2:])
-        + "). The bound is the loop's margins, not the load cells: the guard "
-        f"refuses a scene above {d['limit_hz']:.3g} Hz (the study's runs go through the engine without the "
-        "guard; the 24 Hz run stays stable only through the Coulomb friction the prediction leaves out). "
-        "Higher would need a wider force loop or less delay (a faster step), or an observer mass per mode "
-        "(the full leg-space mass matrix instead of one scalar, which sets the lightest mode's limit). "
+        + "). The bound is the loop's margins, not the load cells: the wind's share halves with each doubling "
+        f"of the bandwidth, while the margins fall (at {OBSERVER_BANDWIDTH:g} Hz {d['pm_deg']:.1f} deg and "
+        f"{d['gm_db']:.1f} dB are left). More rejection would need a wider force loop or less delay (a faster "
+        "step, load cells and encoders read in the same sample), or an observer mass per mode (the full "
+        "leg-space mass matrix instead of one scalar, which sets the lightest mode's margin). "
         f"At 15 m/s the observer cuts the peak {_ratio(s, 'telescope_slew', 15.0)} and "
         f"{_ratio(s, 'keyhole_tracking', 15.0)}, to {fmt(_peak(s, 'telescope_slew', 'observer', 15.0))} and "
         f"{fmt(_peak(s, 'keyhole_tracking', 'observer', 15.0))} µm. Calm air: the keyhole track's peak is "
         f"{fmt(_peak(s, 'keyhole_tracking', 'observer', 0.0))} µm with the observer against "
-        f"{fmt(_peak(s, 'keyhole_tracking', 'pid', 0.0))} µm without. Both scenes count from 5 s, when the "
-        "realistic loop's start (sensor filters, force lag, friction, the integrators taking up the load) has "
-        "rung down: counted from the shipped keyhole scene's 2 s, made for the ideal loop, that ring (10.6 µm "
-        "at 2.3 s) was the keyhole's calm peak.", "",
+        f"{fmt(_peak(s, 'keyhole_tracking', 'pid', 0.0))} µm without.", "",
+        f"## Gusts it was not tuned on ({BOUND_SPEED:g} and 15 m/s)", "",
+        f"The shipped configuration (the observer at {OBSERVER_BANDWIDTH:g} Hz, mass {OBSERVER_MASS:.0f} kg; "
+        f"tuned on gust seeds {TUNING_SEEDS[0]}-{TUNING_SEEDS[-1]}: issue 29's 8 Hz on seed 1, issue 41's 20 Hz "
+        f"chosen on seeds 2-9 at intensity 0.3) on seeds {GUST_SEEDS[0]}-{GUST_SEEDS[-1]}, which it never met, "
+        "at turbulence intensity "
+        + " and ".join(f"{ti:g}" for ti in INTENSITIES) + f", both motions, from their operating point, "
+        f"counted from {FROM}: peak pose error [µm].", "", gust_table(s), "", gust_verdict(s), "",
+        f"The bound against seed: the gustiest case (`keyhole_tracking`, {BOUND_SPEED:g} m/s, intensity "
+        f"{INTENSITIES[-1]:g}) on the same unseen seeds with the observer wider than shipped. The linear model's "
+        f"margins at those bandwidths: {margins_text(s)}.", "", wider_table(s), "", wider_verdict(s), "",
+        "## A load that arrives as a step", "", step_text(s), "",
+        f"![a gust front onto the calm slew](figures/{STEP_CHART})", "",
         "## In the telescope's units", "", pointing(s), ""]
     REPORT.write_text("\n".join(lines))
 
@@ -333,10 +554,12 @@ def main(argv=None):
     print(table(s))
     print(goals(s))
     print(bound_table(s))
+    print(gust_table(s))
+    print(step_text(s))
     if args.docs:
         STORE.write_text(json.dumps(s, indent=1) + "\n")
         report(s)
-        print(f"wrote {REPORT.relative_to(ROOT)} and docs/figures/wind_rejection_speed.png")
+        print(f"wrote {REPORT.relative_to(ROOT)}, docs/figures/wind_rejection_speed.png and {STEP_CHART}")
 
 
 if __name__ == "__main__":

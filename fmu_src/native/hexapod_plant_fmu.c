@@ -4,7 +4,9 @@
    base_acc, platform_wrench) and the outputs (leg_length, leg_rate, pose_rate,
    leg_force_actual) are consecutive value references, so the kernel reads and writes the
    variable array in place. Radau needs scipy: the native plant refuses it at
-   initialization. With an actuator bandwidth the six motor forces are x[12..17]. */
+   initialization. With an actuator bandwidth the six motor forces are x[12..17].
+   start_equilibrium: the leg_force input starts at the forces that hold the platform still
+   (as the Python FMU's holding_forces). */
 #include <math.h>
 #include <string.h>
 
@@ -136,6 +138,13 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     }
     memcpy(m->x, &r[VR_initial_pose], 6 * sizeof(double));
     memset(m->x + 6, 0, 12 * sizeof(double));
+    if (i[VR_start_equilibrium]) {   /* holding_forces of the Python FMU: the same kernel call */
+        static const double zero[6] = {0.0};
+        double M[36], h[6], J[36], ldot[6], length[6], det;
+        mb_hexapod_kane_ext(BASE_JOINTS, PLATFORM_JOINTS, m->data, 1, m->x, zero, zero, &r[VR_base_pose],
+                            &r[VR_base_rate], &r[VR_base_acc], m->base_mode, m->legs, 0, MB_HEXAPOD_ID, 0.0,
+                            &r[VR_platform_wrench], M, h, J, ldot, length, &r[VR_leg_force], &det);
+    }
     if (bw > 0)   /* HexapodODE.initial_state: the motor forces start at the held, limited command */
         for (int leg = 0; leg < 6; leg++) {
             double f = r[VR_leg_force + leg], limit = m->act[MB_ACT_FORCE_LIMIT];

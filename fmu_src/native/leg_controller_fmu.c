@@ -62,8 +62,38 @@ static int observe(mb_instance *inst, double *r, const double *ff, const double 
     return 0;
 }
 
-/* Forces from the inputs now; the integral advances only on a real step (h > 0 given). */
-static int update(mb_instance *inst, double *r, Model *m, int stepping, double h)
+/* The operating point (start_force not all 0; the Python FMU's _start_holding): start_force
+   commanded, its part beyond the feedforward held by the observer's estimate or the integral. */
+static int start_holding(mb_instance *inst, double *r, const double *ff)
+{
+    const double *start = &r[VR_start_force], limit = r[VR_force_limit];
+    double hold[6], largest = 0.0;
+    int any = 0;
+    for (int k = 0; k < 6; k++) {
+        any |= start[k] != 0.0;
+        hold[k] = start[k] - ff[k];
+        largest = fabs(hold[k]) > largest ? fabs(hold[k]) : largest;
+    }
+    if (!any) return 0;
+    for (int k = 0; k < 6; k++) {
+        if (r[VR_observer_bandwidth] > 0.0 && r[VR_observer_on_time] <= 0.0) {
+            r[VR_disturbance_estimate + k] = r[VR_observer_state + MB_OBSERVER_STATES * k] = -hold[k];
+            r[VR_integral + k] = 0.0;
+        } else if (r[VR_ki] > 0.0) {
+            r[VR_integral + k] = hold[k] / r[VR_ki];
+        } else {
+            mb_error(inst, "InvalidInputError", "start_force needs an integral gain ki > 0 (or the observer) to "
+                     "hold %.6g N beyond the feedforward; ki is 0", largest);
+            return 1;
+        }
+        r[VR_leg_force + k] = start[k] < -limit ? -limit : (start[k] > limit ? limit : start[k]);
+    }
+    return 0;
+}
+
+/* Forces from the inputs now (a step from t); the integral advances only on a real step (h > 0 given);
+   the observer acts from observer_on_time on. */
+static int update(mb_instance *inst, double *r, Model *m, int stepping, double t, double h)
 {
     const double *in = &r[VR_reference_pose];
     char bad[160];
@@ -90,6 +120,7 @@ static int update(mb_instance *inst, double *r, Model *m, int stepping, double h
         for (int k = 0; k < 6; k++) off[k] = lengths[k] - ref_lengths[k];
         memcpy(forces, ff, sizeof ff);
         mb_observer_start(6, off, &r[VR_observer_state]);
+        if (start_holding(inst, r, ff)) return 1;
     } else {
         double error[6], error_rate[6], new_integral[6];
         for (int k = 0; k < 6; k++) {
@@ -98,7 +129,13 @@ static int update(mb_instance *inst, double *r, Model *m, int stepping, double h
         }
         double command[6];
         memcpy(command, ff, sizeof ff);
-        if (r[VR_observer_bandwidth] > 0.0 && observe(inst, r, ff, error, h, command)) return 1;
+        if (r[VR_observer_bandwidth] > 0.0 && t >= r[VR_observer_on_time]) {
+            if (observe(inst, r, ff, error, h, command)) return 1;
+        } else if (r[VR_observer_bandwidth] > 0.0) {   /* not on yet: at rest, its length history current */
+            double off[6];
+            for (int k = 0; k < 6; k++) off[k] = -error[k];
+            mb_observer_start(6, off, &r[VR_observer_state]);
+        }
         mb_pid_update(r[VR_kp], r[VR_ki], r[VR_kd], r[VR_force_limit], 6, integral, error, error_rate, command, h,
                       forces, new_integral);
         memcpy(integral, new_integral, sizeof new_integral);
@@ -123,14 +160,14 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     m->legs = FIDELITY_LEGS[fidelity];
     m->feedforward_on = mode != FEEDFORWARD_NONE;
     m->saturated = 0;
-    return update(inst, r, m, 0, 0.0);
+    return update(inst, r, m, 0, 0.0, 0.0);
 }
 
 static int step(mb_instance *inst, double *r, int *i, void *model, double t, double h)
 {
     (void)i;
     Model *m = model;
-    if (update(inst, r, m, 1, h)) return 1;
+    if (update(inst, r, m, 1, t, h)) return 1;
     const double *forces = &r[VR_leg_force], limit = r[VR_force_limit];
     char legs[32] = "";
     size_t used = 0;

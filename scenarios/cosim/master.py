@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fmu_src.catalogue import FEEDTHROUGH
+from fmu_src.catalogue import CONTROL_LOOPS, FEEDTHROUGH
 from scenarios.cosim._cosim import ffi, lib
 from scenarios.cosim.fmi import _LABELS, FmuError, Instance, Instance3, RealPort
 from scenarios.cosim.records import Records
@@ -73,13 +73,19 @@ def failure_line(error, instances):
     return f"{head}: {errors[0]}" if errors else head
 
 
+LOOP_PLANTS = {entry["plant"] for entry in CONTROL_LOOPS.values()}
+
+
 def step_order(scenario, parameters=None):
     """Gauss-Seidel and initialization order: topological over the connection graph (and
     parameter links). A cycle is broken at an FMU on it whose connected outputs hold a
     state between them and its inputs (no FEEDTHROUGH: a plant), the first declared such:
     its outputs at t need no input of t, also at initialization. Broken at a sensor or a
     controller, that FMU would start from its inputs' defaults (a leg sensor listed first:
-    12.9 mm off, a 13-16 kN kick), so the file's listing order would change the numbers."""
+    12.9 mm off, a 13-16 kN kick), so the file's listing order would change the numbers.
+    On a cycle whose every FMU feeds an output through (a plant whose delivered force is read
+    by a load cell), the loop's plant is first: its motion outputs hold its state, and the
+    guard's loop model (controller.design, Gauss-Seidel) steps it first."""
     deps = {inst: set() for inst in scenario.fmus}
     for inst, values in (parameters or {}).items():
         deps[inst] |= {v.instance for v in values.values() if isinstance(v, Link)}
@@ -106,7 +112,8 @@ def step_order(scenario, parameters=None):
     while remaining:
         ready = [i for i in remaining if not (deps[i] & set(remaining))]
         cycle = [] if ready else [i for i in remaining if on_cycle(i, set(remaining))]
-        pick = ready[0] if ready else next((i for i in cycle if not feeds[i]), cycle[0])
+        plants = [i for i in cycle if scenario.fmus[i] in LOOP_PLANTS]
+        pick = ready[0] if ready else next((i for i in cycle if not feeds[i]), (plants or cycle)[0])
         order.append(pick)
         remaining.remove(pick)
     return order

@@ -13,7 +13,10 @@ a scenario's the smallest over its loops. It is predicted for every run at its o
 values (runner.pre_run_flags: every sweep value; campaign: every case), each distinct
 loop once. A step beyond it is refused (ScenarioError naming the runs and their limits)
 unless the run is asked for anyway; then exactly the runs beyond their limit are flagged.
-The model is linear and leaves out gravity stiffness, Coulomb friction and saturation.
+The model is linear and leaves out gravity stiffness, Coulomb friction and saturation; a
+refusal says when the plant's Coulomb friction, linearised about rest (a damper of slope
+coulomb / friction_velocity), would hold the loop: the run may then stay clean, and still
+the loop is unstable without it.
 
 During (``Watch``, fed each recorded row by the master): what a prediction cannot see.
 Kinds of Flag:
@@ -113,6 +116,7 @@ class Prediction:
     masses: np.ndarray
     flags: tuple = ()
     controller: str = "controller"
+    coulomb: tuple = (0.0, 1.0)   # the plant's Coulomb friction [N] and its smoothing velocity [m/s]
 
     @property
     def beyond(self):
@@ -334,12 +338,35 @@ def predict(scenario, paths, descriptions, values, ci=False, cache=None):
                                            motion_end(scenario, values, descriptions, telescope))
                                ) if telescope else ()
             cache[key] = (Prediction(design.step_limit(masses, loop.gains, loop.model), scenario.step, loop.model,
-                                     loop.gains, masses, unfinished, loop.controller))
+                                     loop.gains, masses, unfinished, loop.controller,
+                                     _coulomb(values, descriptions, loop)))
         found.append(cache[key])
     if not found:
         return None
     best = min(found, key=lambda p: p.limit)
     return replace(best, flags=() if ci else tuple(f for p in found for f in p.flags))
+
+
+def _coulomb(values, descriptions, loop):
+    """(Coulomb friction [N], its smoothing velocity [m/s]) of the loop's plant, if it has
+    them (the hexapod's screws), else (0, 1)."""
+    names = {v.name for v in descriptions[loop.plant].modelVariables}
+    if not {"coulomb_friction", "friction_velocity"} <= names:
+        return (0.0, 1.0)
+    return tuple(float(_value(values, descriptions, loop.plant, n)) for n in ("coulomb_friction", "friction_velocity"))
+
+
+def _friction_hides(scenario, prediction):
+    """Whether the plant's Coulomb friction holds the loop the linear model calls unstable:
+    about rest it is a damper of slope coulomb / friction_velocity (tanh's), so the loop
+    linearised there, that slope added to the viscous friction, is predicted stable at the
+    scene's step and observer bandwidth. Then a run may stay clean while its oscillations
+    stay below the friction velocity; without the friction (or above that speed) it grows."""
+    force, velocity = prediction.coulomb
+    if force <= 0:
+        return False
+    loop = replace(prediction.loop, viscous_friction=prediction.loop.viscous_friction + force / velocity)
+    return design.modes_stable(prediction.masses, prediction.gains, scenario.step, loop)
 
 
 def motion_flags(scenario, paths, descriptions, values):
@@ -469,6 +496,12 @@ def check(scenario, prediction, allow_unstable=False):
                  f"limit {observer:.3g} Hz at this step" if observer < prediction.loop.observer_bandwidth else
                  f"; with its disturbance observer at {prediction.loop.observer_bandwidth:g} Hz")
         hint += f" or an observer_bandwidth below {observer:.3g} Hz" if observer > 0 else ""
+    if _friction_hides(scenario, prediction):
+        force, velocity = prediction.coulomb
+        text += (f". The linear loop is unstable, and the plant's {force:g} N Coulomb friction hides it: about rest "
+                 f"it damps like {force / velocity:.3g} N s/m (below {velocity * 1e3:g} mm/s), with which the loop "
+                 "is predicted stable, so this run may stay clean; with the friction at 0, or once a disturbance "
+                 "moves the legs faster, it grows")
     if not allow_unstable:
         if others:
             hint += " or " + " or ".join(others)

@@ -25,6 +25,9 @@ def _run(path, values, inputs, watch, n=60):
     ("leg_controller_fmu", {"observer_bandwidth": 20.0, "observer_mass": 2600.0},
      {"leg_length[2]": 3.0, "leg_force_measured[2]": 5e3, "leg_force_measured[5]": -2e3},
      ["leg_force[2]", "leg_force[5]", "disturbance_estimate[2]", "disturbance_estimate[5]", "observer_state[5]"]),
+    ("leg_controller_fmu", {"observer_bandwidth": 20.0, "observer_mass": 2000.0, "observer_on_time": 0.03},
+     {"leg_length[2]": 3.0, "leg_force_measured[2]": 5e3, "leg_force_measured[5]": -2e3},
+     ["leg_force[5]", "disturbance_estimate[2]", "disturbance_estimate[5]", "observer_state[5]"]),
     ("load_cell_fmu", {"noise": 5.0, "resolution": 0.5, "bandwidth": 200.0, "delay_steps": 1},
      {"leg_force[1]": 5e3, "leg_force[6]": -1e3}, ["measured_force[1]", "measured_force[6]"]),
 ])

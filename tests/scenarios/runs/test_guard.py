@@ -22,8 +22,8 @@ def realistic(tmp_path, step="1.6 ms", interval="9.6 ms", sweep=(KP, KP4), stop=
     """The realistic slew at ``step`` with fixed-base feedforward, swept over controller.kp."""
     text = REALISTIC.read_text().replace('step = "1 ms"', f'step = "{step}"').replace(
         'interval = "10 ms"', f'interval = "{interval}"').replace(
-        '[fmus.controller]\nfmu = "leg_controller"',
-        '[fmus.controller]\nfmu = "leg_controller"\nparameters = { feedforward = "fixed_base" }').replace(
+        'parameters = { start_force = "@plant.leg_force_actual" }',
+        'parameters = { start_force = "@plant.leg_force_actual", feedforward = "fixed_base" }').replace(
         'parameter = "controller.feedforward"\nvalues = ["none", "fixed_base", "moving_base"]',
         f'parameter = "controller.kp"\nvalues = [{", ".join(map(repr, sweep))}]')
     if stop:

@@ -21,9 +21,9 @@ def _scene(tmp_path, bandwidth, stop, coulomb=True):
     """The shipped observer slew at ``bandwidth`` Hz, one run to ``stop``; ``coulomb``
     False: without the screws' Coulomb friction."""
     text = runner.resolve("telescope_slew_observer").read_text()
-    text = text.replace('observer_bandwidth = "8 Hz"', f'observer_bandwidth = "{bandwidth:g} Hz"')
-    text = text.replace('values = ["0 Hz", "8 Hz"]', f'values = ["{bandwidth:g} Hz"]')
-    text = text.replace('stop_time = "60 s"', f'stop_time = "{stop}"').replace('from = "5 s"', 'from = "1 s"')
+    text = re.sub(r'observer_bandwidth = "[0-9.]+ Hz"', f'observer_bandwidth = "{bandwidth:g} Hz"', text)
+    text = re.sub(r'values = \["0 Hz", "[0-9.]+ Hz"\]', f'values = ["{bandwidth:g} Hz"]', text)
+    text = text.replace('stop_time = "60 s"', f'stop_time = "{stop}"')
     if not coulomb:
         text = text.replace('coulomb_friction = "200 N"', 'coulomb_friction = "0 N"')
     path = tmp_path / f"observer_{bandwidth:g}.toml"
@@ -66,7 +66,7 @@ def test_the_observer_loop_without_observer_is_the_pid_loop():
 
 def test_the_shipped_bandwidth_is_within_its_predicted_limit(prediction):
     loop, limit = prediction
-    assert 2 * loop.model.observer_bandwidth < limit < 40.0
+    assert 10 * loop.model.observer_bandwidth < limit < 300.0
 
 
 @pytest.mark.parametrize("name", SHIPPED)
@@ -106,3 +106,92 @@ def test_cosimulation_confirms_the_limit(prediction, tmp_path):
     beyond, within = _jitter(tmp_path, 1.15 * limit), _jitter(tmp_path, 0.85 * limit)
     assert beyond > 1e3 and beyond > 20 * within, (beyond, within)
 
+
+
+# ------------------------------------------------------------------ issue 41: the loop as wired
+ISSUE_MASS = 2605.6747045735265   # kg: the observer mass the issue's factors are of (shipped before issue 41)
+
+
+def _issue_scene(tmp_path, kind, bandwidth, coulomb=True, stop=None):
+    """The two keyhole scenes of issue 41, goal 6: Gauss-Seidel, load cells 2 samples late;
+    "A": linear extrapolation, 1 ms, observer mass x1.53; "B": derivatives (FMI 3 telescope),
+    4.3 ms, observer mass x0.41. One run at ``bandwidth`` Hz; ``stop``: its stop time."""
+    text = runner.resolve("keyhole_tracking_observer").read_text()
+    text = text.replace('master = "jacobi"', 'master = "gauss-seidel"').replace("delay_steps = 0, seed = 2",
+                                                                              "delay_steps = 2, seed = 2")
+    mass = (1.53 if kind == "A" else 0.41) * ISSUE_MASS
+    if kind == "B":
+        text = text.replace('extrapolation = "linear"', 'extrapolation = "derivatives"')
+        text = text.replace('step = "1 ms"', 'step = "4.3 ms"').replace('stop_time = "30 s"', 'stop_time = "30.0011 s"')
+        text = text.replace('stop_time = "1.5 s"', 'stop_time = "1.5007 s"').replace('"20 ms"', '"21.5 ms"')
+        text = text.replace('[fmus.base]\nfmu = "telescope"', '[fmus.base]\nfmu = "telescope"\nfmi_version = 3')
+    text = re.sub(r"observer_mass = [0-9.]+", f"observer_mass = {mass!r}", text)
+    text = re.sub(r'observer_bandwidth = "[0-9.]+ Hz"', f'observer_bandwidth = "{bandwidth:g} Hz"', text)
+    text = re.sub(r'values = \["0 Hz", "[0-9.]+ Hz"\]', f'values = ["{bandwidth:g} Hz"]', text)
+    text = re.sub(r'values = \["[0-9.]+ Hz"\]', f'values = ["{bandwidth:g} Hz"]', text)
+    if stop:
+        text = re.sub(r'\nstop_time = "[^"]*"', f'\nstop_time = "{stop}"', text, count=1)
+    if not coulomb:
+        text = text.replace('coulomb_friction = "200 N"', 'coulomb_friction = "0 N"')
+    path = tmp_path / f"issue_{kind}_{bandwidth:g}{'' if coulomb else '_no_friction'}.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("kind, bandwidth", [("A", 259.5), ("B", 24.6)])
+def test_the_issue_scenes_are_refused_saying_friction_hides_it(tmp_path, kind, bandwidth):
+    """Both scenes are refused (their step is beyond the limit the observer leaves), and the
+    refusal says the linear loop is unstable while the screws' Coulomb friction hides it;
+    without that friction the refusal does not say so."""
+    with pytest.raises(spec.ScenarioError) as refused:
+        runner.pre_run_flags(*runner.prepare(_issue_scene(tmp_path, kind, bandwidth)))
+    message = str(refused.value)
+    assert "is beyond the predicted stability limit" in message
+    assert "The linear loop is unstable, and the plant's 200 N Coulomb friction hides it" in message
+    assert "2e+06 N s/m (below 0.1 mm/s)" in message
+    with pytest.raises(spec.ScenarioError) as bare:
+        runner.pre_run_flags(*runner.prepare(_issue_scene(tmp_path, kind, bandwidth, coulomb=False)))
+    assert "friction hides it" not in str(bare.value)
+
+
+def test_the_observer_limit_is_scanned_up_not_bisected_down(tmp_path):
+    """Scene A's loop (Gauss-Seidel, 1 ms, load cells 2 samples late, mass x1.53) is stable
+    at 1 kHz of observer bandwidth but not at 259.5 Hz: a bisection down from 1 kHz (the
+    guard before issue 41) found no limit. Scanned up, the limit is 23.1 Hz; the modes at
+    0.95x of it stable, at 1.05x not."""
+    scenario, paths, descriptions, values = runner.prepare(_issue_scene(tmp_path, "A", 259.5))
+    (loop,) = flags.loops(scenario, descriptions, values)
+    masses = design.modal_masses(PARAMS, loop.model)
+    at = lambda hz: design.modes_stable(masses, loop.gains, 1e-3,
+                                        dataclasses.replace(loop.model, observer_bandwidth=hz))
+    assert at(1000.0) and not at(259.5)
+    limit = design.observer_limit(masses, loop.gains, 1e-3, loop.model)
+    assert limit == pytest.approx(23.1, rel=0.02)
+    assert at(0.95 * limit) and not at(1.05 * limit)
+
+
+def test_the_plant_steps_first_on_a_loop_whose_every_fmu_feeds_through(tmp_path):
+    """With load cells on the plant's delivered force (a feedthrough) the loop's plant is
+    still the first of its cycle to step, whatever the file's order: the order the guard's
+    Gauss-Seidel model assumes (only the command into the plant stale)."""
+    from scenarios.cosim import master
+    path = _issue_scene(tmp_path, "A", 8.0)
+    text = path.read_text()
+    plant = re.search(r"\[fmus\.plant\]\n[^\[]*", text)[0]
+    path.write_text(text.replace(plant, "") + "\n" + plant)   # the plant declared last
+    scenario, paths, descriptions, values = runner.prepare(path)
+    order = master.step_order(scenario, values)
+    assert order.index("plant") < min(order.index(i) for i in ("leg_sensor", "load_cell", "controller"))
+
+
+@pytest.mark.slow
+def test_cosimulation_confirms_scene_a_and_its_friction(tmp_path):
+    """Scene A at 259.5 Hz for 4 s: without the Coulomb friction the loop the guard calls
+    unstable saturates the 25 kN actuators; with it the run stays within 10 kN."""
+    peaks = []
+    for coulomb in (False, True):
+        path = _issue_scene(tmp_path, "A", 259.5, coulomb, stop="4 s")
+        _, (run,), _ = runner.run_scenario(path, tmp_path / "out", progress=False, allow_unstable=True,
+                                           charts="none")
+        peaks.append(np.abs([run.records[f"controller.leg_force[{i}]"] for i in range(1, 7)]).max())
+    assert peaks[0] >= 25e3 and peaks[1] < 10e3, peaks
