@@ -12,7 +12,6 @@ from scenarios.runs import runner
 from studies import realistic_loop as study
 
 
-
 @pytest.fixture(scope="module")
 def ci(tmp_path_factory):
     """The whole [ci] study, plus the cases the direction checks need, on 2 workers."""
