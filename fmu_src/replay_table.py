@@ -1,0 +1,63 @@
+"""Prepared replay tables: a pointing log smoothed once, in Python (scipy), and written as
+the spline the Telescope FMUs evaluate (plant/telescope/replay.py prepared_bytes), so that the
+native FMUs, which read it in C, replay the same coefficients as the pythonfmu one.
+
+    python -m fmu_src.replay_table LOG [-o FILE] [--smoothing H]
+
+checks and smooths LOG with the Tianma drives' limits and writes FILE (default: LOG with
+the suffix .mbreplay). A scenario replaying a log gets it prepared by prepared() into a
+cache keyed by the log's bytes and the settings (scenarios/spec/checks.py).
+"""
+import argparse
+import hashlib
+import pathlib
+import tempfile
+
+from fmu_src import atomic
+from plant.errors import InvalidInputError
+from plant.telescope import model as telescope
+from plant.telescope import replay
+
+CACHE = pathlib.Path(tempfile.gettempdir()) / "movingbase-replay"
+
+
+def write(log, out, params, smoothing_time=replay.SMOOTHING_TIME):
+    """The prepared table of the log (or prepared table) ``log`` written whole to ``out``; its path."""
+    return atomic.write_bytes(out, replay.prepared_bytes(replay.load(log, params, smoothing_time=smoothing_time)))
+
+
+def prepared(log, params, smoothing_time=replay.SMOOTHING_TIME, cache=CACHE):
+    """A prepared table of ``log`` for ``params`` (the drives' limits it is checked against)
+    and ``smoothing_time``: ``log`` itself if it is one (checked), else a file in ``cache``
+    named by the hash of the log's bytes and the settings, made when missing."""
+    log = pathlib.Path(log)
+    if not log.is_file():
+        raise InvalidInputError(f"replay table {str(log)!r} does not exist")
+    if replay.is_prepared(log):
+        replay.read_prepared(log, float(smoothing_time))
+        return log
+    key = hashlib.sha256(log.read_bytes() + repr((params, float(smoothing_time))).encode()).hexdigest()[:24]
+    out = pathlib.Path(cache) / f"{log.stem}-{key}{replay.PREPARED_SUFFIX}"
+    if not out.is_file():
+        out.parent.mkdir(parents=True, exist_ok=True)
+        write(log, out, params, smoothing_time)
+    return out
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m fmu_src.replay_table", description=__doc__.split("\n\n")[0])
+    parser.add_argument("log", help="a CSV or npz table of time, azimuth, elevation (units in brackets)")
+    parser.add_argument("-o", "--out", help="the prepared table (default: LOG with the suffix .mbreplay)")
+    parser.add_argument("--smoothing", type=float, default=replay.SMOOTHING_TIME,
+                        help="smoothing time h [s] (the FMU's replay_smoothing must equal it)")
+    args = parser.parse_args(argv)
+    out = pathlib.Path(args.out or pathlib.Path(args.log).with_suffix(replay.PREPARED_SUFFIX))
+    try:
+        write(args.log, out, telescope.TelescopeParams.tianma(), args.smoothing)
+    except InvalidInputError as exc:
+        parser.exit(2, f"{exc}\n")
+    print(out)
+
+
+if __name__ == "__main__":
+    main()
