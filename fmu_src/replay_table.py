@@ -9,6 +9,7 @@ the suffix .mbreplay). A scenario replaying a log gets it prepared by prepared()
 cache keyed by the log's bytes and the settings (scenarios/spec/checks.py).
 """
 import argparse
+import dataclasses
 import hashlib
 import pathlib
 import tempfile
@@ -19,6 +20,7 @@ from plant.telescope import model as telescope
 from plant.telescope import replay
 
 CACHE = pathlib.Path(tempfile.gettempdir()) / "movingbase-replay"
+_LOGS: dict = {}   # a prepared table made here -> its log (a sweep of the smoothing prepares that log again)
 
 
 def write(log, out, params, smoothing_time=replay.SMOOTHING_TIME):
@@ -26,11 +28,18 @@ def write(log, out, params, smoothing_time=replay.SMOOTHING_TIME):
     return atomic.write_bytes(out, replay.prepared_bytes(replay.load(log, params, smoothing_time=smoothing_time)))
 
 
+def params_of(values):
+    """The TelescopeParams a Telescope FMU with these parameter values (name -> SI value)
+    checks its table against: its drives' limits, Tianma's (the FMU's defaults) where unset."""
+    limits = ("lever_arm", "latitude", "longitude", "az_rate_max", "az_acc_max", "el_rate_max", "el_acc_max")
+    return dataclasses.replace(telescope.TelescopeParams.tianma(), **{n: values[n] for n in limits if n in values})
+
+
 def prepared(log, params, smoothing_time=replay.SMOOTHING_TIME, cache=CACHE):
     """A prepared table of ``log`` for ``params`` (the drives' limits it is checked against)
     and ``smoothing_time``: ``log`` itself if it is one (checked), else a file in ``cache``
     named by the hash of the log's bytes and the settings, made when missing."""
-    log = pathlib.Path(log)
+    log = pathlib.Path(_LOGS.get(str(log), log))
     if not log.is_file():
         raise InvalidInputError(f"replay table {str(log)!r} does not exist")
     if replay.is_prepared(log):
@@ -41,6 +50,7 @@ def prepared(log, params, smoothing_time=replay.SMOOTHING_TIME, cache=CACHE):
     if not out.is_file():
         out.parent.mkdir(parents=True, exist_ok=True)
         write(log, out, params, smoothing_time)
+    _LOGS[str(out)] = log
     return out
 
 

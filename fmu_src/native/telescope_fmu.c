@@ -85,15 +85,15 @@ static int load_table(mb_instance *inst, const char *name, double smoothing)
     if (!ok) {
         fclose(f);
         mb_error(inst, "InvalidInputError", "replay table '%s' is not a prepared replay table (no MBREPLAY header): "
-                 "make one with python -m plant.telescope.replay prepare", path);
+                 "make one with python -m fmu_src.replay_table", path);
         return 1;
     }
     if (version != PREPARED_VERSION || n < 2 || n > PREPARED_MAX_KNOTS ||
         size != PREPARED_HEADER + 8 * (long)n + 64 * (long)(n - 1)) {
         fclose(f);
-        mb_error(inst, "InvalidInputError", "replay table '%s': version %u (this FMU reads %u), %u knots (2..%u) in "
-                 "%ld bytes (%ld expected): truncated or damaged", path, version, PREPARED_VERSION, n,
-                 PREPARED_MAX_KNOTS, size, n >= 2 ? PREPARED_HEADER + 8 * (long)n + 64 * (long)(n - 1) : -1L);
+        mb_error(inst, "InvalidInputError", "replay table '%s': version %u (read: %u), %u knots (2..%u) in %ld bytes "
+                 "(%ld expected): truncated or damaged", path, version, PREPARED_VERSION, n, PREPARED_MAX_KNOTS, size,
+                 n >= 2 ? PREPARED_HEADER + 8 * (long)n + 64 * (long)(n - 1) : -1L);
         return 1;
     }
     if (!(h == smoothing)) {

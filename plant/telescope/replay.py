@@ -265,8 +265,8 @@ def read_prepared(path, smoothing_time=None):
     n = int(head["n"])
     expected = PREPARED_HEADER.itemsize + 8 * (n + 8 * (n - 1))
     if int(head["version"]) != PREPARED_VERSION or n < 2 or len(data) != expected:
-        raise InvalidInputError(f"{source}: version {int(head['version'])} (read: {PREPARED_VERSION}), {n} knots in "
-                                f"{len(data)} bytes ({expected} expected): truncated or damaged")
+        raise InvalidInputError(f"{source}: version {int(head['version'])} (read: {PREPARED_VERSION}), {n} knots (2..) "
+                                f"in {len(data)} bytes ({expected} expected): truncated or damaged")
     body = np.frombuffer(data, dtype="<f8", offset=PREPARED_HEADER.itemsize).astype(float)
     t, coef = body[:n], body[n:].reshape(n - 1, 8)
     bad = np.flatnonzero(~np.isfinite(t) | np.r_[False, ~(np.diff(t) > 0)] | np.r_[~np.isfinite(coef).all(1), False])
