@@ -11,15 +11,13 @@ import numpy as np
 import pytest
 
 import movingbase
-from fmu_src import catalogue
-from plant.telescope import model as tm
-from scenarios import spec, ssp
-from scenarios.cosim.fmi import FmuError
+from fmu_src import catalogue, native_build, replay_table
 from plant.errors import InvalidInputError
-from scenarios.runs import single
-from fmu_src import native_build, replay_table
+from plant.telescope import model as tm
 from plant.telescope import replay
-from tests.fmu_helpers import free_all, opened
+from scenarios import spec, ssp
+from scenarios.runs import single
+from tests.fmu_helpers import opened
 from tests.scenario_helpers import SLEW, edited
 from tests.ssp_helpers import RECORD, START_DELAY, columns, configure, run_columns
 
@@ -149,9 +147,9 @@ def test_native_scene_replays_as_the_pythonfmu_one(tmp_path):
         results.append(movingbase.run(scene, ci=True, progress=False)[0])
     python, native = results
     assert python.ok and native.ok
-    for name in ("base.base_acc[1]", "base.base_acc[2]", "base.axis[1]", "base.axis_rate[2]", "hexapod.leg_force[1]"):
+    for name in ("base.base_acc[1]", "base.base_acc[2]", "base.axis[1]", "base.axis_rate[2]", "controller.leg_force[1]"):
         np.testing.assert_array_equal(native[name], python[name], err_msg=name)
-    assert np.ptp(native["base.axis[1]"]) > 0.3   # rad: the replayed 20 deg slew moved it
+    assert np.ptp(native["base.axis[1]"]) > 0.01   # rad: the replayed slew moved it (1 deg in the CI run's 3 s)
 
 
 SHORT = np.arange(0.0, 6.0, 0.05)
