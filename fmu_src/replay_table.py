@@ -37,14 +37,19 @@ def params_of(values):
 
 def prepared(log, params, smoothing_time=replay.SMOOTHING_TIME, cache=CACHE):
     """A prepared table of ``log`` for ``params`` (the drives' limits it is checked against)
-    and ``smoothing_time``: ``log`` itself if it is one (checked), else a file in ``cache``
-    named by the hash of the log's bytes and the settings, made when missing."""
-    log = pathlib.Path(_LOGS.get(str(log), log))
+    and ``smoothing_time``: ``log`` itself if it is one of that smoothing time (checked), else
+    a file in ``cache`` named by the hash of the log's bytes and the settings, made when
+    missing; a prepared table made here, asked for with another smoothing time (a sweep of
+    replay_smoothing over a scene the check prepared), is prepared again from its log."""
+    log = pathlib.Path(log)
+    if log.is_file() and replay.is_prepared(log):
+        made_from = _LOGS.get(str(log))
+        if made_from is None or replay.read_prepared(log).smoothing_time == float(smoothing_time):
+            replay.read_prepared(log, float(smoothing_time))   # checked; another h is refused
+            return log
+        log = made_from
     if not log.is_file():
         raise InvalidInputError(f"replay table {str(log)!r} does not exist")
-    if replay.is_prepared(log):
-        replay.read_prepared(log, float(smoothing_time))
-        return log
     key = hashlib.sha256(log.read_bytes() + repr((params, float(smoothing_time))).encode()).hexdigest()[:24]
     out = pathlib.Path(cache) / f"{log.stem}-{key}{replay.PREPARED_SUFFIX}"
     if not out.is_file():
