@@ -6,7 +6,8 @@ native FMUs, which read it in C, replay the same coefficients as the pythonfmu o
 
 checks and smooths LOG with the Tianma drives' limits and writes FILE (default: LOG with
 the suffix .mbreplay). A scenario replaying a log gets it prepared by prepared() into a
-cache keyed by the log's bytes and the settings (scenarios/spec/checks.py).
+cache keyed by the log's bytes and the settings: the scenario check prepares it
+(scenarios/spec/checks.py), and the master gives it to the instance (for_fmu).
 """
 import argparse
 import dataclasses
@@ -20,6 +21,7 @@ from plant.telescope import model as telescope
 from plant.telescope import replay
 
 CACHE = pathlib.Path(tempfile.gettempdir()) / "movingbase-replay"
+DRIVE_LIMITS = ("az_rate_max", "az_acc_max", "el_rate_max", "el_acc_max")   # what a table is checked against
 _LOGS: dict = {}   # a prepared table made here -> its log (a sweep of the smoothing prepares that log again)
 
 
@@ -50,13 +52,27 @@ def prepared(log, params, smoothing_time=replay.SMOOTHING_TIME, cache=CACHE):
         log = made_from
     if not log.is_file():
         raise InvalidInputError(f"replay table {str(log)!r} does not exist")
-    key = hashlib.sha256(log.read_bytes() + repr((params, float(smoothing_time))).encode()).hexdigest()[:24]
+    settings = [float(getattr(params, n)) for n in DRIVE_LIMITS] + [float(smoothing_time)]
+    key = hashlib.sha256(log.read_bytes() + repr(settings).encode()).hexdigest()[:24]
     out = pathlib.Path(cache) / f"{log.stem}-{key}{replay.PREPARED_SUFFIX}"
     if not out.is_file():
         out.parent.mkdir(parents=True, exist_ok=True)
         write(log, out, params, smoothing_time)
     _LOGS[str(out)] = log
     return out
+
+
+def for_fmu(values):
+    """A Telescope instance's parameter values (name -> value) as it is given them: with
+    profile replay, replay_table (a log, or a prepared table) replaced by its prepared table
+    for the instance's drives' limits and replay_smoothing (prepared()), which the native
+    and the pythonfmu Telescope read alike. Other values are returned as they are."""
+    table = values.get("replay_table")
+    if not (isinstance(table, (str, pathlib.Path)) and str(table)
+            and values.get("profile") == telescope.PROFILE_KINDS.index("replay")):
+        return values
+    smoothing = values.get("replay_smoothing", replay.SMOOTHING_TIME)
+    return {**values, "replay_table": str(prepared(table, params_of(values), smoothing))}
 
 
 def main(argv=None):

@@ -300,9 +300,8 @@ def _check_telescope(src, key, scenario, inst, md_variables, values, written):
             telescope.sidereal_track(params, setting("right_ascension"), setting("declination"), utc, times)
         elif profile == "paper":
             telescope.paper_manoeuvre(times, setting("paper_duration"))
-        elif profile == "replay":   # read, checked and smoothed before the run; both FMUs get it prepared
-            values["replay_table"] = str(replay_table.prepared(setting("replay_table"), params,
-                                                               setting("replay_smoothing")))
+        elif profile == "replay":   # read, checked, smoothed and prepared before the run (the FMUs get it: for_fmu)
+            replay_table.prepared(setting("replay_table"), params, setting("replay_smoothing"))
     except (InvalidInputError, OverflowError, OSError, ValueError) as exc:
         raise ScenarioError(src, where, f"profile {profile!r} with {shown(names)}: plant.telescope refuses it: "
                             f"{exc}") from None

@@ -54,3 +54,16 @@ def test_command_writes_the_table(log, tmp_path, capsys):
     assert replay.read_prepared(tmp_path / "out.mbreplay").smoothing_time == 0.3
     with pytest.raises(SystemExit):
         replay_table.main([str(tmp_path / "missing.csv")])
+
+
+def test_an_instance_is_given_the_prepared_table_of_its_settings(log, tmp_path):
+    """for_fmu: profile replay with a log -> the prepared table of the instance's
+    replay_smoothing and drives' limits; another profile, or no table: the values as given."""
+    replay_index = tm.PROFILE_KINDS.index("replay")
+    given = {"profile": replay_index, "replay_table": str(log), "replay_smoothing": 0.5, "az_acc_max": 0.01}
+    values = replay_table.for_fmu(given)
+    assert set(values) == set(given) and values["az_acc_max"] == 0.01
+    assert replay.read_prepared(values["replay_table"]).smoothing_time == 0.5
+    assert values["replay_table"] == str(replay_table.prepared(log, replay_table.params_of(given), 0.5))
+    for unchanged in ({"profile": 0, "replay_table": str(log)}, {"profile": replay_index, "replay_table": ""}):
+        assert replay_table.for_fmu(unchanged) == unchanged

@@ -620,7 +620,7 @@ def test_telescope_replays_a_prepared_table_from_its_resources(extracted):
     answers = run(fmu, "inst", "-", "-", "setup", 0.0, "enter", "sets", table, "resource:misuse_replay.mbreplay",
                   "sets", table, "NULL", "gets", table, "seti", ("vr", "profile"), 3, "exit", "save",
                   "step", 0.0, 2.0, "getr", ("vr", "axis[1]"), "restore", "step", 0.0, 2.0, "getr", ("vr", "axis[1]"),
-                  "free")
+                  "drop", "free")
     answers.check_log_states_status()
     assert answers.statuses("fmi2SetString") == ["OK", "Error"]
     assert "fmi2SetString: the value of replay_table is NULL" in answers.logs[0], answers.logs
