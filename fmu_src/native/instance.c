@@ -25,6 +25,9 @@
    - Work bound: a model integrating on substeps asks mb_substeps (model.h), which
      refuses a step needing more than MB_MAX_SUBSTEPS substeps (Discard, a line saying
      how many it would need) instead of overflowing an int or running for hours.
+   - Strings (the Telescope's replay_table) are copies the instance owns, apart from the
+     FMU-state block: a NULL value is refused, freeInstance frees them, reset sets them
+     to "", and a state neither saves nor restores them (nor what a model keeps, mb_keep).
    - A refused call changes nothing (every value reference is checked before any value
      is set; a NULL array with a count is refused), and what a read returns is a
      function of the values set, never of earlier reads: tests/c_host/fuzz.c replays the
