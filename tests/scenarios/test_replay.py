@@ -16,8 +16,9 @@ from plant.errors import InvalidInputError
 from plant.telescope import model as tm
 from plant.telescope import replay
 from scenarios import spec, ssp
+from scenarios.cosim.fmi import FmuError
 from scenarios.runs import single
-from tests.fmu_helpers import opened
+from tests.fmu_helpers import open_fmu, opened
 from tests.scenario_helpers import SLEW, edited
 from tests.ssp_helpers import RECORD, START_DELAY, columns, configure, run_columns
 
@@ -176,14 +177,19 @@ def _run(path, table, names, steps=400, h=0.01):
     return np.array(rows)
 
 
-def test_native_fmi2_and_fmi3_replay_as_the_pythonfmu_fmu_bit_for_bit(fmus, native_fmus, table, tmp_path):
+@pytest.fixture(scope="module")
+def fmi3(native_fmus, tmp_path_factory):
+    """The native FMI 3.0 Telescope."""
+    return native_build.build_native3(native_fmus[catalogue.BY_KEY["telescope"].script], tmp_path_factory.mktemp("n3"))
+
+
+def test_native_fmi2_and_fmi3_replay_as_the_pythonfmu_fmu_bit_for_bit(fmus, native_fmus, fmi3, table):
     """The pythonfmu Telescope on the log (smoothed by scipy in the FMU), and on the
     prepared table; the native FMI 2.0 and FMI 3.0 ones on the prepared table: the same
     numbers bit for bit, and the motion is the slew's (axis within the docs' smoothing
     bound 0.322 J h^2 of the analytic slew)."""
     script = catalogue.BY_KEY["telescope"].script
     log, prepared = table
-    fmi3 = native_build.build_native3(native_fmus[script], tmp_path)
     names = ["axis[1]", "axis[2]", "axis_rate[1]", "axis_acc[2]", "base_acc[4]", "reference_pose[3]"]
     python = _run(fmus[script], log, names)
     for path, source in ((fmus[script], prepared), (native_fmus[script], prepared), (fmi3, prepared)):
@@ -253,3 +259,10 @@ def test_native_telescope_refuses_a_null_string(native_fmus):
     value = (ctypes.c_char_p * 1)()
     assert inst.raw("fmi2GetString")(inst.fmu.component, vr, 1, value) == 0
     assert value[0] == b"kept.mbreplay"
+
+
+def test_native_fmi3_telescope_refuses_a_missing_table_with_a_line(fmi3, tmp_path):
+    """The FMI 3.0 build: fmi3ExitInitializationMode answers fmi3Error with the same line."""
+    with pytest.raises(FmuError, match=r"failed in exitInitializationMode(.|\n)*replay table '.*none\.mbreplay' "
+                                       r"cannot be opened"):
+        open_fmu(fmi3, profile=tm.PROFILE_KINDS.index("replay"), replay_table=str(tmp_path / "none.mbreplay"))
