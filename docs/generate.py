@@ -134,8 +134,7 @@ def _signature(md):
 def fmu_reference():
     lines = ["# FMU reference", "", GENERATED, "",
              "Read from each FMU's `modelDescription.xml` (co-simulation, built by `python build.py`; "
-             "`movingbase.fmus()` gives the files). Every FMU comes three times with the same variables (but for the "
-             "String parameters, the pythonfmu FMU's alone: the native core has none): native C "
+             "`movingbase.fmus()` gives the files). Every FMU comes three times with the same variables: native C "
              "as FMI 2.0 (`build/fmu/native/`, the default `implementation`) and as FMI 3.0 "
              "(`build/fmu/native3/`, `fmi_version = 3`), and pythonfmu as FMI 2.0 (`build/fmu/`). "
         "A vector is the scalars `name[1]` ... `name[n]`: "
@@ -144,8 +143,7 @@ def fmu_reference():
              "on parameter values.", ""]
     for fmu, script in ((f.key, f.script) for f in catalogue.FMUS):
         native, python = (read_model_description(str(p)) for p in _fmus()[script])
-        strings = [v for v in python.modelVariables if v.type == "String"]   # the pythonfmu FMU's alone, last
-        if _signature(native) + _signature(python)[len(python.modelVariables) - len(strings):] != _signature(python):
+        if _signature(native) != _signature(python):
             raise SystemExit(f"{fmu}: the native and pythonfmu FMUs declare different variables")
         lines += [f"## {native.modelName}", "",
                   f"`fmu = \"{fmu}\"` in a scenario; files `{_fmus()[script][0].name}`. "
@@ -153,7 +151,7 @@ def fmu_reference():
                   "| variable | causality | type | unit | start | min | max | description |",
                   "|---|---|---|---|---|---|---|---|"]
         order = {"parameter": 0, "input": 1, "output": 2}
-        for name, v in sorted(_rows(native.modelVariables) + [(v.name, v) for v in strings],
+        for name, v in sorted(_rows(native.modelVariables),
                               key=lambda row: order.get(row[1].causality, 3)):
             lines.append(f"| `{name}` | {v.causality} | {v.type} | {v.unit or ''} | {_value(v.start)} | "
                          f"{_value(v.min)} | {_value(v.max)} | {_cell(v.description or '')} |")

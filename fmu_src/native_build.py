@@ -129,21 +129,24 @@ def _c_name(name):
     return name.split("[", 1)[0]
 
 
-def _numeric(slave):
-    """The slave's variables the native FMU has: all but Strings (the native core has none;
-    slave.strings registers them last, so no other variable's index moves)."""
+def _variables(slave):
+    """The slave's variables the native FMU has: all of them, Strings too (registered last
+    by slave.strings, so the numeric ones keep their indices); a String must start empty
+    (the native core starts every String at "")."""
     from pythonfmu.variables import String
-    kept = {vr: var for vr, var in slave.vars.items() if not isinstance(var, String)}
-    if any(vr > min((v for v in slave.vars if v not in kept), default=vr) for vr in kept):
-        raise RuntimeError("a String variable comes before a numeric one: register Strings last (slave.strings)")
-    return kept
+    for var in slave.vars.values():
+        if isinstance(var, String) and var.getter():
+            raise RuntimeError(f"String {var.name} starts at {var.getter()!r}: the native FMUs start Strings at \"\"")
+    return dict(slave.vars)
 
 
 def starts(slave):
-    """value reference -> start value of the slave instance's numeric variables, exactly."""
-    from pythonfmu.variables import Real
-    return {vr: (slave.get_real([vr]) if isinstance(var, Real) else slave.get_integer([vr]))[0]
-            for vr, var in _numeric(slave).items()}
+    """value reference -> start value of the slave instance's numeric variables, exactly
+    (a String's: 0.0, unused; it starts at "")."""
+    from pythonfmu.variables import Real, String
+    return {vr: 0.0 if isinstance(var, String) else
+            (slave.get_real([vr]) if isinstance(var, Real) else slave.get_integer([vr]))[0]
+            for vr, var in _variables(slave).items()}
 
 
 def vars_header(identifier, guid, slave, root):
@@ -153,13 +156,13 @@ def vars_header(identifier, guid, slave, root):
     exact = starts(slave)
     allowed = slave.allowed   # Integers whose range has gaps (slave.py)
     rows, enums, seen = [], [], {}
-    for vr, var in sorted(_numeric(slave).items()):
+    for vr, var in sorted(_variables(slave).items()):
         element = xml_vars[var.name]
         kind = element[0]
-        is_real = kind.tag == "Real"
+        type_ = {"Real": "MB_REAL", "String": "MB_STRING"}.get(kind.tag, "MB_INTEGER")
         start = exact[vr]
         limits = [(1, _c_literal(kind.get(k))) if kind.get(k) is not None else (0, "0.0") for k in ("min", "max")]
-        rows.append(f'    {{"{var.name}", "{kind.get("unit", "")}", {"MB_REAL" if is_real else "MB_INTEGER"}, '
+        rows.append(f'    {{"{var.name}", "{kind.get("unit", "")}", {type_}, '
                     f'{_CAUSALITY[element.get("causality", "local")]}, {_c_literal(start)}, '
                     f"{limits[0][0]}, {limits[1][0]}, {limits[0][1]}, {limits[1][1]}, "
                     f"{len(allowed.get(var.name, ()))}, {{{', '.join(map(str, allowed.get(var.name, ()))) or '0'}}}}},")
@@ -183,10 +186,6 @@ def model_description(xml_text, guid, sources, exact):
     SourceFiles; Real starts (``exact``: by value reference) written to round-trip
     (pythonfmu rounds them to 16 digits)."""
     root = ET.fromstring(xml_text)
-    variables = root.find("ModelVariables")
-    for var in list(variables):
-        if var.find("String") is not None:   # the last ones (slave.strings): no output index moves
-            variables.remove(var)
     for var in root.iter("ScalarVariable"):
         real = var.find("Real")
         if real is not None and real.get("start") is not None:
@@ -350,7 +349,7 @@ def _ensure(version, python, out):
 # kernels, the generated <id>_vars.h and the instance core), with fmi3_layer.c in place of
 # fmi2_layer.c, and a modelDescription translated from the native FMI 2.0 one, so names,
 # units, ranges, starts, enumerations and the default experiment have one source.
-_FMI3_KIND = {"Real": "Float64", "Integer": "Int32", "Enumeration": "Enumeration"}
+_FMI3_KIND = {"Real": "Float64", "Integer": "Int32", "Enumeration": "Enumeration", "String": "String"}
 _FMI3_ATTRIBUTES = ("declaredType", "unit", "displayUnit", "min", "max", "nominal")
 
 
@@ -420,7 +419,10 @@ def _fmi3_variable(parent, name, elements):
     if var.get("unit") is not None:   # the unit through a Float64Type (see _unit_types)
         var.set("declaredType", _unit_type_name(var.attrib.pop("unit"), var.attrib.pop("displayUnit", None)))
     starts = [e[0].get("start") for e in elements]
-    if all(s is not None for s in starts):
+    if kind.tag == "String":   # FMI 3: a String's start is a child element
+        for start in starts:
+            ET.SubElement(var, "Start", value=start or "")
+    elif all(s is not None for s in starts):
         var.set("start", " ".join(starts))
     if first.get("name") != name:
         ET.SubElement(var, "Dimension", start=str(len(elements)))
@@ -514,7 +516,7 @@ def fmi3_variables_header(root2):
     a later element of an array), as model_description3 declares them, and the output
     that is its time derivative (its catalogue row's output_derivatives)."""
     variables = list(root2.iter("ScalarVariable"))
-    kinds = {"Real": "K_FLOAT64", "Integer": "K_INT32", "Enumeration": "K_ENUM"}
+    kinds = {"Real": "K_FLOAT64", "Integer": "K_INT32", "Enumeration": "K_ENUM", "String": "K_STRING"}
     counts, kind = [0] * len(variables), ["K_NONE"] * len(variables)
     for _, elements in _groups(root2):
         vr = int(elements[0].get("valueReference"))
@@ -523,7 +525,7 @@ def fmi3_variables_header(root2):
     return "\n".join([
         "/* Generated by fmu_src/native_build.py from the FMI 2.0 modelDescription: do not edit. */",
         "#ifndef MB3_VARIABLES_H", "#define MB3_VARIABLES_H", f"#define MB3_NVARS {len(variables)}",
-        "enum { K_NONE = 0, K_FLOAT64, K_INT32, K_ENUM };",
+        "enum { K_NONE = 0, K_FLOAT64, K_INT32, K_ENUM, K_STRING };",
         f"static const int MB3_COUNT[MB3_NVARS] = {{{', '.join(map(str, counts))}}};",
         f"static const unsigned char MB3_KIND[MB3_NVARS] = {{{', '.join(kind)}}};",
         "/* the value reference of the output that is the time derivative of the one here, or -1 */",

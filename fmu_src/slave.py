@@ -347,10 +347,10 @@ class GuardedSlave(Fmi2Slave):
         return store
 
     def strings(self, rows):
-        """String parameters (name, default, description) backed by a dict, returned. The
-        native FMUs have no String variables (fmu_src/native_build.py leaves them out), so
-        a slave registers these after every other variable: the others' indices in the
-        modelDescription stay the native FMU's."""
+        """String parameters (name, default, description) backed by a dict, returned. A
+        slave registers these after every other variable (the native FMUs' core keeps
+        Strings apart from the numeric variables; fmu_src/native_build.py), and their
+        default is "" (the native core starts every String there)."""
         store = {}
         for name, default, text in rows:
             store[name] = default

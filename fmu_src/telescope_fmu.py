@@ -109,11 +109,12 @@ class Telescope(GuardedSlave):
         )):
             self.vector(name, size, OUTPUT, desc, units, values=self.now[start:start + size])
         self._support_variables(tianma)
-        self.text = self.strings((   # last: the native FMUs have no Strings (slave.strings)
-            ("replay_table", "", "profile replay: the table of az/el samples it follows, a CSV or npz file "
-             "(plant/telescope/replay.py: columns and units, checks, smoothing); an absolute path, relative "
-             "to the working directory (a scenario file's parameter: to its folder), or resource:<name> in the "
-             "FMU's resources folder (an SSP export puts it there). The pythonfmu FMU's alone"),))
+        self.text = self.strings((   # last (slave.strings)
+            ("replay_table", "", "profile replay: the table of az/el samples it follows, a prepared replay table "
+             "(python -m fmu_src.replay_table LOG; the native FMUs read only these) or, the pythonfmu FMU, a CSV or "
+             "npz file (plant/telescope/replay.py: columns and units, checks, smoothing); an absolute path, "
+             "relative to the working directory (a scenario file's parameter: to its folder), or resource:<name> "
+             "in the FMU's resources folder (an SSP export puts it there)"),))
 
     def _support_variables(self, tianma):
         """The flexible feed support's parameters, its load input and its sway output."""

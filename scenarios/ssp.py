@@ -25,9 +25,10 @@ it, tests/hosts/test_libcosim.py; the pythonfmu FMUs too, with Python in the too
   written as their numbers;
 - the FMUs under resources/ with their Enumeration parameters declared as Integers
   (``integer_choices``: the SSP hosts set no FMI 2 Enumeration), everything else as built;
-- a replayed table (the telescope's replay_table) inside that instance's own copy of the
-  FMU, under its resources/, the parameter written as "resource:<file name>"
-  (``carried_table``);
+- a replayed table (the telescope's replay_table) prepared (fmu_src/replay_table.py: the
+  smoothing spline both the native and the pythonfmu Telescope read) inside that
+  instance's own copy of the FMU, under its resources/ as <log's name>.mbreplay, the
+  parameter written as "resource:<that name>" (``carried_table``);
 - Units from the FMUs' unit definitions, DefaultExperiment start/stop, and an
   annotation with our master settings (algorithm, step, extrapolation).
 
@@ -70,8 +71,8 @@ import zipfile
 
 import numpy as np
 
-from fmu_src import atomic
-from plant.telescope.replay import RESOURCE
+from fmu_src import atomic, replay_table
+from plant.telescope.replay import PREPARED_SUFFIX, RESOURCE, SMOOTHING_TIME
 from scenarios import spec
 from scenarios.cosim.fmi import element_count, unpack
 from scenarios.cosim.master import start, step_order
@@ -290,16 +291,23 @@ def export_ssp(scenario, fmu_paths, parameters, path):
     Component), which SSP tools apply; fmpy.ssp.simulate_ssp ignores them: run the file
     with ``simulate_exported``, which passes them to fmpy as ``parameter_set``."""
     path = pathlib.Path(path)
-    files, sources, tables = {}, {}, {}
+    files, sources, tables, prepared = {}, {}, {}, {}
+    parameters = dict(parameters)
+    for inst, given in parameters.items():   # prepared before the FMUs start (resolve_links): the native read it
+        table = given.get("replay_table")
+        if table and not isinstance(table, Link):
+            smoothing = given.get("replay_smoothing", SMOOTHING_TIME)
+            prepared[inst] = (pathlib.Path(table).stem + PREPARED_SUFFIX,
+                              replay_table.prepared(table, replay_table.params_of(given), smoothing))
+            parameters[inst] = {**given, "replay_table": str(prepared[inst][1])}
     values = resolve_links(scenario, fmu_paths, parameters)
     for inst in scenario.fmus:
         fmu = pathlib.Path(fmu_paths[inst]).resolve()
         name = f"resources/{fmu.name}"
-        table = values.get(inst, {}).get("replay_table")
-        if table:   # the table goes into this instance's own copy of the FMU (carried_table)
-            values[inst] = {**values[inst], "replay_table": RESOURCE + pathlib.Path(table).name}
+        if inst in prepared:   # the prepared table goes into this instance's own copy of the FMU (carried_table)
+            values[inst] = {**values[inst], "replay_table": RESOURCE + prepared[inst][0]}
             name = f"resources/{inst}_{fmu.name}"
-            tables[name] = pathlib.Path(table)
+            tables[name] = prepared[inst]
         if files.get(name, fmu) != fmu:   # another FMU file of the same name
             name = f"resources/{inst}_{fmu.name}"
         files[name] = fmu
@@ -313,20 +321,20 @@ def export_ssp(scenario, fmu_paths, parameters, path):
         for name, fmu in files.items():
             data = integer_choices(fmu) if unpack(fmu)[0].fmiVersion.startswith("2") else fmu.read_bytes()
             if name in tables:
-                data = carried_table(data, tables[name])
+                data = carried_table(data, *tables[name])
             z.writestr(name, data, compress_type=zipfile.ZIP_STORED)   # an FMU is a zip already
     return path
 
 
-def carried_table(fmu_bytes, table):
-    """The FMU's bytes with the replay table added as resources/<its name>: the SSP carries
-    the file, and the telescope reads it as replay_table = "resource:<its name>" wherever the
+def carried_table(fmu_bytes, name, table):
+    """The FMU's bytes with the file ``table`` added as resources/<name>: the SSP carries
+    the file, and the telescope reads it as replay_table = "resource:<name>" wherever the
     importing tool unpacks the FMU (a path of the exporting machine would mean nothing there)."""
     out = io.BytesIO()
     with zipfile.ZipFile(io.BytesIO(fmu_bytes)) as source, zipfile.ZipFile(out, "w") as z:
         for info in source.infolist():
             z.writestr(info, source.read(info))
-        z.writestr(f"resources/{table.name}", table.read_bytes(), compress_type=zipfile.ZIP_DEFLATED)
+        z.writestr(f"resources/{name}", pathlib.Path(table).read_bytes(), compress_type=zipfile.ZIP_DEFLATED)
     return out.getvalue()
 
 

@@ -11,6 +11,7 @@
      conversion; a ctypes logger reading it as text sees it unchanged unless it held a '%');
    - the status functions, and the model-exchange functions this co-simulation FMU refuses. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -93,11 +94,38 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
     return fmi2OK;
 }
 
+/* fmuResourceLocation (a URI: file:///path/resources, file:/path, percent-encoded) as the
+   folder path the model reads resources from; another scheme gives none (a model needing
+   one says so when it needs it). 1 when out of memory. */
+static int resource_folder(mb_instance *inst, const char *uri)
+{
+    if (!uri || strncmp(uri, "file:", 5) != 0) return mbi_set_resources(inst, NULL);
+    const char *p = uri + 5;
+    if (strncmp(p, "///", 3) == 0) p += 2;   /* file:///path -> /path */
+    else if (strncmp(p, "//localhost/", 12) == 0) p += 11;
+    char *path = malloc(strlen(p) + 1);
+    if (!path) return 1;
+    size_t n = 0;
+    for (; *p; p++) {
+        unsigned hex;
+        if (p[0] == '%' && p[1] && p[2] && sscanf(p + 1, "%2x", &hex) == 1) {
+            path[n++] = (char)hex;
+            p += 2;
+        } else {
+            path[n++] = *p;
+        }
+    }
+    path[n] = '\0';
+    int failed = mbi_set_resources(inst, path);
+    free(path);
+    return failed;
+}
+
 fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
                               fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
                               fmi2Boolean visible, fmi2Boolean loggingOn)
 {
-    (void)fmuResourceLocation, (void)visible;
+    (void)visible;
     fmi2CallbackFunctions cb;
     memset(&cb, 0, sizeof cb);
     if (functions) cb = *functions;
@@ -112,7 +140,12 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                      fmuGUID ? fmuGUID : "(null)", MB_MODEL.guid);
         return NULL;
     }
-    return mbi_instantiate(instanceName, logger2, &cb, sizeof cb, loggingOn);
+    mb_instance *inst = mbi_instantiate(instanceName, logger2, &cb, sizeof cb, loggingOn);
+    if (inst && resource_folder(inst, fmuResourceLocation)) {
+        mbi_free_instance(inst);
+        return NULL;
+    }
+    return inst;
 }
 
 void fmi2FreeInstance(fmi2Component c) { mbi_free_instance(c); }
@@ -203,14 +236,15 @@ fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[])
 {
-    (void)vr, (void)value;
-    return no_variables(c, "fmi2GetString", nvr, "String", READABLE);
+    INSTANCE("fmi2GetString", READABLE)
+    return (fmi2Status)mbi_get_string(inst, "fmi2GetString", vr, nvr, value);
 }
 
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[])
 {
-    (void)vr, (void)value;
-    return no_variables(c, "fmi2SetString", nvr, "String", SETTABLE);
+    INSTANCE("fmi2SetString", SETTABLE)
+    if (!unfailed(inst, "fmi2SetString")) return fmi2Error;
+    return (fmi2Status)mbi_set_string(inst, "fmi2SetString", vr, nvr, value);
 }
 
 /* ---------------------------------------------------------------------- stepping */

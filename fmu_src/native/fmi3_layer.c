@@ -123,7 +123,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
                                          fmi3LogMessageCallback logMessage,
                                          fmi3IntermediateUpdateCallback intermediateUpdate)
 {
-    (void)resourcePath, (void)visible, (void)earlyReturnAllowed, (void)requiredIntermediateVariables;
+    (void)visible, (void)earlyReturnAllowed, (void)requiredIntermediateVariables;
     (void)intermediateUpdate;
     host3 host = {instanceEnvironment, logMessage};
     if (MB_MODEL.nvars != MB3_NVARS) {
@@ -150,6 +150,10 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     instance3 *inst = calloc(1, sizeof *inst);
     if (!inst) return NULL;
     inst->core = mbi_instantiate(instanceName, logger3, &host, sizeof host, loggingOn);
+    if (inst->core && mbi_set_resources(inst->core, resourcePath)) {   /* the folder the model reads files from */
+        mbi_free_instance(inst->core);
+        inst->core = NULL;
+    }
     if (!inst->core) {
         free(inst);
         return NULL;
@@ -426,7 +430,42 @@ NONE_OF(UInt16, fmi3UInt16, fmi3UInt16)
 NONE_OF(UInt32, fmi3UInt32, fmi3UInt32)
 NONE_OF(UInt64, fmi3UInt64, fmi3UInt64)
 NONE_OF(Boolean, fmi3Boolean, fmi3Boolean)
-NONE_OF(String, fmi3String, fmi3String)
+
+/* Strings (scalars here: one value per value reference). */
+static int string_refs(instance3 *inst, const char *function, const fmi3ValueReference vr[], size_t nvr,
+                       const void *values, size_t nValues)
+{
+    if (nvr && (!vr || !values)) {
+        SAY(inst, "%s: %s is NULL for %zu values", function, vr ? "values" : "the value reference array", nvr);
+        return 0;
+    }
+    for (size_t k = 0; k < nvr; k++)
+        if (vr[k] >= VR_TIME || MB3_KIND[vr[k]] != K_STRING) {
+            SAY(inst, "%s: no String variable has value reference %u", function, (unsigned)vr[k]);
+            return 0;
+        }
+    if (nvr != nValues) {
+        SAY(inst, "%s: the value references cover %zu values, nValues is %zu", function, nvr, nValues);
+        return 0;
+    }
+    return 1;
+}
+
+fmi3Status fmi3GetString(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3String values[],
+                         size_t nValues)
+{
+    INSTANCE("fmi3GetString", GETTABLE)
+    if (!string_refs(inst, "fmi3GetString", vr, nvr, values, nValues)) return fmi3Error;
+    return (fmi3Status)mbi_get_string(inst->core, "fmi3GetString", vr, nvr, values);
+}
+
+fmi3Status fmi3SetString(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, const fmi3String values[],
+                         size_t nValues)
+{
+    INSTANCE("fmi3SetString", SETTABLE)
+    if (!string_refs(inst, "fmi3SetString", vr, nvr, values, nValues)) return fmi3Error;
+    return (fmi3Status)mbi_set_string(inst->core, "fmi3SetString", vr, nvr, values);
+}
 
 fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, size_t valueSizes[],
                          fmi3Binary values[], size_t nValues)

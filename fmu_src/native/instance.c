@@ -25,6 +25,9 @@
    - Work bound: a model integrating on substeps asks mb_substeps (model.h), which
      refuses a step needing more than MB_MAX_SUBSTEPS substeps (Discard, a line saying
      how many it would need) instead of overflowing an int or running for hours.
+   - Strings (the Telescope's replay_table) are copies the instance owns, apart from the
+     FMU-state block: a NULL value is refused, freeInstance frees them, reset sets them
+     to "", and a state neither saves nor restores them (nor what a model keeps, mb_keep).
    - A refused call changes nothing (every value reference is checked before any value
      is set; a NULL array with a count is refused), and what a read returns is a
      function of the values set, never of earlier reads: tests/c_host/fuzz.c replays the
@@ -55,6 +58,9 @@ struct mb_instance {
     unsigned char *access;    /* per value reference: enum access bits, from the variable table */
     int *output_runs;         /* the Real outputs as runs of consecutive value references: first, count, ... */
     int n_output_runs;
+    char **strings;           /* per value reference: a String's value (instance-owned), else NULL */
+    char *resources;          /* the resources folder, ending in '/', or NULL */
+    void *kept;               /* what the model keeps outside the FMU state (mb_keep) */
     char kind[64];
     char message[896];
 };
@@ -274,9 +280,25 @@ static void load_starts(mb_instance *inst)
     }
 }
 
+/* Every String back to "" (instantiation, reset): 1 when out of memory. */
+static int clear_strings(mb_instance *inst)
+{
+    for (int vr = 0; vr < MB_MODEL.nvars; vr++) {
+        if (MB_MODEL.vars[vr].type != MB_STRING) continue;
+        free(inst->strings[vr]);
+        inst->strings[vr] = calloc(1, 1);
+        if (!inst->strings[vr]) return 1;
+    }
+    return 0;
+}
+
 void mbi_free_instance(mb_instance *inst)
 {
     if (!inst) return;
+    for (int vr = 0; inst->strings && vr < MB_MODEL.nvars; vr++) free(inst->strings[vr]);
+    free(inst->strings);
+    free(inst->resources);
+    free(inst->kept);
     free(inst->block);
     free(inst->backup);
     free(inst->access);
@@ -303,7 +325,9 @@ mb_instance *mbi_instantiate(const char *instance_name, mbi_logger logger, const
     inst->backup = calloc(1, inst->size - inst->r_off);
     inst->access = calloc((size_t)MB_MODEL.nvars + 1, 1);
     inst->output_runs = calloc(2 * (size_t)MB_MODEL.nvars + 1, sizeof(int));
-    if (!inst->name || !inst->log_env || !inst->block || !inst->backup || !inst->access || !inst->output_runs) {
+    inst->strings = calloc((size_t)MB_MODEL.nvars + 1, sizeof(char *));
+    if (!inst->name || !inst->log_env || !inst->block || !inst->backup || !inst->access || !inst->output_runs ||
+        !inst->strings || clear_strings(inst)) {
         mbi_free_instance(inst);
         return NULL;
     }
@@ -327,6 +351,29 @@ mb_instance *mbi_instantiate(const char *instance_name, mbi_logger logger, const
     mbi_set_logging(inst, -1, logging_on);
     load_starts(inst);
     return inst;
+}
+
+int mbi_set_resources(mb_instance *inst, const char *path)
+{
+    free(inst->resources);
+    inst->resources = NULL;
+    if (!path || !*path) return 0;
+    size_t n = strlen(path);
+    inst->resources = malloc(n + 2);
+    if (!inst->resources) return 1;
+    memcpy(inst->resources, path, n + 1);
+    if (path[n - 1] != '/') strcpy(inst->resources + n, "/");
+    return 0;
+}
+
+const char *mb_resources(const mb_instance *inst) { return inst->resources; }
+const char *mb_string(const mb_instance *inst, int vr) { return inst->strings[vr] ? inst->strings[vr] : ""; }
+void *mb_kept(const mb_instance *inst) { return inst->kept; }
+
+void mb_keep(mb_instance *inst, void *memory)
+{
+    if (memory != inst->kept) free(inst->kept);
+    inst->kept = memory;
 }
 
 const mbi_core_state *mbi_core(const mb_instance *inst) { return CORE(inst); }
@@ -450,7 +497,11 @@ mbi_status mbi_exit_initialization(mb_instance *inst)
 
 void mbi_terminate(mb_instance *inst) { PHASE(inst) = MBI_TERMINATED; }
 
-void mbi_reset(mb_instance *inst) { load_starts(inst); }
+void mbi_reset(mb_instance *inst)
+{
+    load_starts(inst);
+    if (clear_strings(inst)) mbi_logf(inst, MBI_ERROR, "reset: out of memory for the String variables");
+}
 
 /* ---------------------------------------------------------------------- stepping */
 /* A model's init and step write r, i and its own struct, never the core's state (its
@@ -518,7 +569,7 @@ static int valid_vr(mb_instance *inst, const char *function, mbi_vr vr, int type
 {
     if (vr >= (mbi_vr)MB_MODEL.nvars || MB_MODEL.vars[vr].type != type) {
         mbi_logf(inst, MBI_ERROR, "%s: no %s variable has value reference %u", function,
-                 type == MB_REAL ? "Real" : "Integer", (unsigned)vr);
+                 type == MB_REAL ? "Real" : type == MB_STRING ? "String" : "Integer", (unsigned)vr);
         return 0;
     }
     return 1;
@@ -618,6 +669,52 @@ mbi_status mbi_set_integer(mb_instance *inst, const char *function, const mbi_vr
         return MBI_ERROR;
     int *iv = INTS(inst);
     for (size_t k = 0; k < nvr; k++) iv[vr[k]] = value[k];
+    inst->dirty = 1;
+    return MBI_OK;
+}
+
+mbi_status mbi_get_string(mb_instance *inst, const char *function, const mbi_vr vr[], size_t nvr,
+                          const char *value[])
+{
+    if (!arrays_given(inst, function, nvr, vr, value)) return MBI_ERROR;
+    for (size_t k = 0; k < nvr; k++)
+        if (!valid_vr(inst, function, vr[k], MB_STRING)) return MBI_ERROR;
+    for (size_t k = 0; k < nvr; k++) value[k] = mb_string(inst, (int)vr[k]);
+    return MBI_OK;
+}
+
+mbi_status mbi_set_string(mb_instance *inst, const char *function, const mbi_vr vr[], size_t nvr,
+                          const char *const value[])
+{
+    if (!arrays_given(inst, function, nvr, vr, value)) return MBI_ERROR;
+    for (size_t k = 0; k < nvr; k++) {
+        if (!valid_vr(inst, function, vr[k], MB_STRING) || !settable(inst, function, vr[k])) return MBI_ERROR;
+        if (!value[k]) {
+            mbi_logf(inst, MBI_ERROR, "%s: the value of %s is NULL (a String is text, \"\" when empty)", function,
+                     MB_MODEL.vars[vr[k]].name);
+            return MBI_ERROR;
+        }
+    }
+    char **copies = calloc(nvr + 1, sizeof *copies);   /* all copied before any is set */
+    for (size_t k = 0; copies && k < nvr; k++) {
+        copies[k] = malloc(strlen(value[k]) + 1);
+        if (!copies[k]) {
+            while (k) free(copies[--k]);
+            free(copies);
+            copies = NULL;
+        } else {
+            strcpy(copies[k], value[k]);
+        }
+    }
+    if (!copies) {
+        mbi_logf(inst, MBI_ERROR, "%s: out of memory for %zu strings", function, nvr);
+        return MBI_ERROR;
+    }
+    for (size_t k = 0; k < nvr; k++) {
+        free(inst->strings[vr[k]]);
+        inst->strings[vr[k]] = copies[k];
+    }
+    free(copies);
     inst->dirty = 1;
     return MBI_OK;
 }

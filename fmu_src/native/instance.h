@@ -51,6 +51,9 @@ void mbi_set_logging(mb_instance *inst, int category, int on);
 mb_instance *mbi_instantiate(const char *instance_name, mbi_logger logger, const void *env, size_t env_size,
                              int logging_on);
 void mbi_free_instance(mb_instance *inst);
+/* The resources folder a model reads files from (mb_resources): a path ending in '/', or
+   NULL; 1 when out of memory. */
+int mbi_set_resources(mb_instance *inst, const char *path);
 
 /* The instance's own state, which an FMU state holds with the variables and the model. */
 typedef struct {
@@ -97,14 +100,23 @@ mbi_status mbi_set_real(mb_instance *inst, const char *function, const mbi_vr vr
                         const double value[]);
 mbi_status mbi_set_integer(mb_instance *inst, const char *function, const mbi_vr vr[], size_t nvr,
                            const int value[]);
+/* Strings: the instance's own copies (mbi_set_string copies each value; a NULL value is
+   refused). What mbi_get_string returns stays valid until the variable is set again or
+   the instance is freed. Strings are parameters: not part of an FMU state. */
+mbi_status mbi_get_string(mb_instance *inst, const char *function, const mbi_vr vr[], size_t nvr,
+                          const char *value[]);
+mbi_status mbi_set_string(mb_instance *inst, const char *function, const mbi_vr vr[], size_t nvr,
+                          const char *const value[]);
 /* The setters' checks alone: 1 when mbi_set_* would accept the value references, else
    0 with the line (a layer setting several runs checks them all before setting any). */
 int mbi_settable_real(mb_instance *inst, const char *function, const mbi_vr vr[], size_t nvr);
 int mbi_settable_integer(mb_instance *inst, const char *function, const mbi_vr vr[], size_t nvr);
 
 /* ---------------------------------------------------------------- FMU states */
-/* A state holds the whole instance (its state, time, stopTime, failure, variables and
-   model) as bytes. mbi_get_state fills *state (allocating it when NULL); the others
+/* A state holds the whole instance (its state, time, stopTime, failure, numeric variables
+   and model) as bytes; not its Strings nor what the model keeps (mb_keep: the telescope's
+   replay table), which are the instance's: restoring a state into an instance given
+   another table is the host's business (the model evaluates the table it holds). mbi_get_state fills *state (allocating it when NULL); the others
    refuse a state of another FMU. Serialised: a header (magic, size, model identifier,
    CRC-32 of the block) and the block; mbi_deserialize refuses any other bytes. */
 typedef struct mbi_state mbi_state;

@@ -8,12 +8,15 @@
    elements name[1..n] have consecutive vrs, so a model passes &r[VR_name] to a kernel.
    The variable table (names, types, causalities, starts, ranges) is generated from the
    pythonfmu FMU at build time (fmu_src/native_build.py) into <modelIdentifier>_vars.h.
-   The model keeps its own state in a plain struct (no pointers) of model_size bytes, so
-   the core saves, restores and serialises an FMU state as bytes. */
+   String parameters (the telescope's replay_table) live apart, in memory the core owns per
+   instance (mb_string), outside the FMU state, as what a model reads from them (the
+   replay table: mb_keep). The model keeps its own state in a plain struct of model_size
+   bytes, so the core saves, restores and serialises an FMU state as bytes; a pointer in it
+   (the telescope's to its table) is set again from mb_kept at every init and step. */
 #include <math.h>
 #include <stddef.h>
 
-enum mb_type { MB_REAL = 0, MB_INTEGER = 1 };
+enum mb_type { MB_REAL = 0, MB_INTEGER = 1, MB_STRING = 2 };   /* a String starts at "" */
 enum mb_causality { MB_PARAMETER = 0, MB_INPUT = 1, MB_OUTPUT = 2, MB_LOCAL = 3 };
 
 typedef struct {
@@ -57,6 +60,17 @@ void mb_error(mb_instance *inst, const char *kind, const char *fmt, ...);
    a 1e6 s step at max_step 1e-3 s would otherwise run 1e9 substeps for hours, and
    their count overflows an int, so the plant would integrate nothing and answer OK. */
 #define MB_MAX_SUBSTEPS 1000000
+/* A String variable's value (never NULL; "" until set). Valid until it is set again. */
+const char *mb_string(const mb_instance *inst, int vr);
+/* The FMU's resources folder as a file system path ending in '/' (FMI 2.0's
+   fmuResourceLocation file URI decoded, FMI 3.0's resourcePath), or NULL when the host
+   gave none. */
+const char *mb_resources(const mb_instance *inst);
+/* Memory the model keeps per instance outside the FMU state (malloc'd; the core frees
+   the one kept before, and the last in freeInstance), and the one kept now (or NULL). */
+void mb_keep(mb_instance *inst, void *memory);
+void *mb_kept(const mb_instance *inst);
+
 /* A warning log line (category logStatusWarning). */
 void mb_warning(mb_instance *inst, const char *fmt, ...);
 

@@ -2,8 +2,18 @@
    kernel (plant/c/telescope.h, mb_tel_fmu_rows). The 40 outputs at a communication point
    are the kernel's row at that time; the time is formed as the Python FMU forms it
    (block start + h * index over blocks of BLOCK points, a new block off the grid), so the
-   two agree bit for bit. */
+   two agree bit for bit.
+
+   Profile replay reads its table from replay_table (a path, or resource:<name> in the
+   FMU's resources folder): a prepared replay table (plant/telescope/replay.py
+   write_prepared: the smoothing spline the kit made from a log, checked there against the
+   drives' limits), read at initialization, checked (magic, version, size, finite,
+   increasing knots, its smoothing time equal to replay_smoothing) and kept per instance
+   outside the FMU state (mb_keep); the profile's pointers to it are set again at every
+   init and step, so a restored state evaluates this instance's table. */
+#include <stdint.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "Telescope_vars.h"
@@ -25,6 +35,108 @@ typedef struct {
     int support_on;          /* a mode's frequency > 0 */
     double support_state[6];
 } Model;
+
+/* A prepared replay table (plant/telescope/replay.py PREPARED_*): "MBREPLAY", version,
+   knot count n, smoothing time, then n knots and (n - 1) x 8 coefficients, little-endian
+   doubles. Kept as one block: this header, then the arrays. */
+#define PREPARED_VERSION 1u
+#define PREPARED_HEADER 24
+#define PREPARED_MAX_KNOTS 100000000u
+typedef struct {
+    int n;
+    double smoothing;
+    double *t, *coef;
+} Table;
+
+/* replay_table's file read and checked into a kept Table: 0, or 1 after mb_error. */
+static int load_table(mb_instance *inst, const char *name, double smoothing)
+{
+    const char *resource = "resource:";
+    char path[4096], buf[32], hb[32];
+    if (!*name) {
+        mb_error(inst, "InvalidInputError", "the replay profile needs a table: replay_table is empty");
+        return 1;
+    }
+    if (strncmp(name, resource, strlen(resource)) == 0) {
+        if (!mb_resources(inst)) {
+            mb_error(inst, "InvalidInputError", "replay_table %s: the host gave no resources folder", name);
+            return 1;
+        }
+        snprintf(path, sizeof path, "%s%s", mb_resources(inst), name + strlen(resource));
+    } else {
+        snprintf(path, sizeof path, "%s", name);
+    }
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        mb_error(inst, "InvalidInputError", "replay table '%s' cannot be opened (missing or unreadable)", path);
+        return 1;
+    }
+    unsigned char head[PREPARED_HEADER];
+    uint32_t version = 0, n = 0;
+    double h = 0.0;
+    long size = -1;
+    int ok = fread(head, 1, sizeof head, f) == sizeof head && memcmp(head, "MBREPLAY", 8) == 0;
+    if (ok) {
+        memcpy(&version, head + 8, 4);
+        memcpy(&n, head + 12, 4);
+        memcpy(&h, head + 16, 8);
+        if (fseek(f, 0, SEEK_END) == 0) size = ftell(f);
+    }
+    if (!ok) {
+        fclose(f);
+        mb_error(inst, "InvalidInputError", "replay table '%s' is not a prepared replay table (no MBREPLAY header): "
+                 "make one with python -m fmu_src.replay_table", path);
+        return 1;
+    }
+    if (version != PREPARED_VERSION || n < 2 || n > PREPARED_MAX_KNOTS ||
+        size != PREPARED_HEADER + 8 * (long)n + 64 * (long)(n - 1)) {
+        fclose(f);
+        mb_error(inst, "InvalidInputError", "replay table '%s': version %u (read: %u), %u knots (2..%u) in %ld bytes "
+                 "(%ld expected): truncated or damaged", path, version, PREPARED_VERSION, n, PREPARED_MAX_KNOTS, size,
+                 n >= 2 ? PREPARED_HEADER + 8 * (long)n + 64 * (long)(n - 1) : -1L);
+        return 1;
+    }
+    if (!(h == smoothing)) {
+        fclose(f);
+        mb_error(inst, "InvalidInputError", "replay table '%s' was smoothed over %s s, replay_smoothing is %s s: "
+                 "prepare it with this smoothing time or set it to the table's", path, mb_repr(h, buf),
+                 mb_repr(smoothing, hb));
+        return 1;
+    }
+    Table *table = malloc(sizeof *table + 8 * ((size_t)n + 8 * ((size_t)n - 1)));
+    if (!table) {
+        fclose(f);
+        mb_error(inst, "MemoryError", "replay table '%s': out of memory for %u knots", path, n);
+        return 1;
+    }
+    table->n = (int)n;
+    table->smoothing = h;
+    table->t = (double *)(table + 1);
+    table->coef = table->t + n;
+    ok = fseek(f, PREPARED_HEADER, SEEK_SET) == 0 && fread(table->t, 8, n, f) == n &&
+         fread(table->coef, 8, 8 * ((size_t)n - 1), f) == 8 * ((size_t)n - 1);
+    fclose(f);
+    int first_bad = -1;
+    if (!ok || mb_tel_replay_check(table->n, table->t, table->coef, &first_bad)) {
+        free(table);
+        if (!ok) mb_error(inst, "InvalidInputError", "replay table '%s' could not be read whole", path);
+        else mb_error(inst, "InvalidInputError", "replay table '%s': knot %d (0-based) is not finite or does not "
+                      "follow the one before (%s)", path, first_bad, mb_tel_status_text(MB_TEL_REPLAY_TABLE));
+        return 1;
+    }
+    mb_keep(inst, table);
+    return 0;
+}
+
+/* The profile's replay arrays: this instance's kept table (none: n = 0, which the
+   kernel refuses), whatever a restored state's bytes hold. */
+static void attach(const mb_instance *inst, Model *m)
+{
+    const Table *table = mb_kept(inst);
+    m->profile.replay_n = table ? table->n : 0;
+    m->profile.replay_t = table ? table->t : NULL;
+    m->profile.replay_coef = table ? table->coef : NULL;
+}
 
 /* slave.py's message for a kernel status (plant/telescope/model.py _status_error). */
 static void fail_status(mb_instance *inst, const Model *m, int status, double t)
@@ -133,11 +245,8 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
                  N_PROFILE_NAMES - 1);
         return 1;
     }
-    if (kind == PROFILE_REPLAY) {
-        mb_error(inst, "InvalidInputError", "profile replay reads its table (replay_table, a String) in Python: "
-                 "use the pythonfmu Telescope; the native FMUs have no String variables");
-        return 1;
-    }
+    mb_keep(inst, NULL);
+    if (kind == PROFILE_REPLAY && load_table(inst, mb_string(inst, VR_replay_table), r[VR_replay_smoothing])) return 1;
     mb_tel_params *p = &m->params;
     p->latitude = r[VR_latitude];
     p->longitude = r[VR_longitude];
@@ -152,7 +261,8 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     p->c_z = TIANMA_C_Z;
     memcpy(p->home, TIANMA_HOME, sizeof p->home);
     mb_tel_profile *f = &m->profile;
-    f->kind = kind == PROFILE_SLEW ? MB_TEL_SLEW : kind == PROFILE_SIDEREAL ? MB_TEL_SIDEREAL : MB_TEL_PAPER;
+    f->kind = kind == PROFILE_SLEW ? MB_TEL_SLEW : kind == PROFILE_SIDEREAL ? MB_TEL_SIDEREAL
+            : kind == PROFILE_PAPER ? MB_TEL_PAPER : MB_TEL_REPLAY;
     f->start_az = r[VR_start_azimuth];
     f->start_el = r[VR_start_elevation];
     f->target_az = r[VR_target_azimuth];
@@ -164,6 +274,7 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     f->start_delay = r[VR_start_delay];
     memcpy(f->ref_start, HOME_POSE, sizeof f->ref_start);
     memcpy(f->ref_stop, S_BAND_POSE, sizeof f->ref_stop);
+    attach(inst, m);
     int status = mb_tel_check_params(p);
     if (status) {
         mb_error(inst, "InvalidInputError", "%s", mb_tel_status_text(status));
@@ -195,6 +306,7 @@ static int step(mb_instance *inst, double *r, int *i, void *model, double t, dou
 {
     (void)i;
     Model *m = model;
+    attach(inst, m);
     if (m->servo) {
         double command[6];
         int substeps;   /* the count mb_tel_servo_advance takes: w h / SERVO_MAX_WH (plant/c/telescope.c) */

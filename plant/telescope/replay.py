@@ -17,6 +17,13 @@ rate or acceleration pulse at a drive's limit is passed by at most 6.7 % (LIMIT_
 A table: columns ``time [s]``, ``azimuth [deg|rad]`` (astronomical, north through east),
 ``elevation [deg|rad]``, the unit in brackets in the header (CSV, '#' lines ignored) or in
 the array names (npz). Its first time is the profile's t = 0.
+
+A prepared replay table is a Replay as bytes (prepared_bytes; scenarios/replay_tables.py
+writes them, ``python -m scenarios.replay_tables LOG -o FILE``): what the native Telescope FMUs read, in C,
+without scipy. Its layout (PREPARED_*): b"MBREPLAY", version (uint32), knot count n
+(uint32), smoothing time [s] (float64), the n knots, the (n - 1, 8) coefficients, all
+little-endian. load() takes a prepared table as it takes a log, so both FMUs evaluate the
+same coefficients, bit for bit. The drives' limits are checked when it is prepared.
 """
 import csv
 import math
@@ -43,6 +50,10 @@ LIMIT_MARGIN = 0.08      # the spline's rate and acceleration may pass a drive l
 #                          lobe's area, 1.067), plus 1.3 % for noise and the table's ends
 MIN_ROWS = 4
 SHOWN_PROBLEMS = 10      # problems listed in one error; the rest counted
+PREPARED_MAGIC = b"MBREPLAY"
+PREPARED_VERSION = 1
+PREPARED_HEADER = np.dtype([("magic", "S8"), ("version", "<u4"), ("n", "<u4"), ("smoothing", "<f8")])
+PREPARED_SUFFIX = ".mbreplay"
 RESOURCE = "resource:"   # a Telescope FMU's replay_table "resource:<name>": a file in its resources folder
 
 
@@ -227,13 +238,57 @@ def replay_table(table, params, max_gap=MAX_GAP, smoothing_time=SMOOTHING_TIME):
                   float(smoothing_time), tuple(int(r) for r in wraps), table.source)
 
 
+def prepared_bytes(result):
+    """A Replay as a prepared replay table (the module's docstring gives the layout)."""
+    n = result.breakpoints.size
+    head = np.array([(PREPARED_MAGIC, PREPARED_VERSION, n, result.smoothing_time)], dtype=PREPARED_HEADER)
+    return b"".join(np.ascontiguousarray(a).tobytes() for a in (
+        head, result.breakpoints.astype("<f8"), result.coefficients.astype("<f8")))
+
+
+def is_prepared(path):
+    """Does the file start as a prepared replay table?"""
+    path = pathlib.Path(path)
+    with path.open("rb") as f:
+        return f.read(len(PREPARED_MAGIC)) == PREPARED_MAGIC
+
+
+def read_prepared(path, smoothing_time=None):
+    """The Replay a prepared replay table holds, checked as the native FMU checks it
+    (version, size, finite and increasing knots; its smoothing time ``smoothing_time`` if
+    given); InvalidInputError naming the problem."""
+    source = str(path)
+    data = pathlib.Path(path).read_bytes()
+    if len(data) < PREPARED_HEADER.itemsize or not data.startswith(PREPARED_MAGIC):
+        raise InvalidInputError(f"{source}: not a prepared replay table (no {PREPARED_MAGIC.decode()} header)")
+    head = np.frombuffer(data[:PREPARED_HEADER.itemsize], dtype=PREPARED_HEADER)[0]
+    n = int(head["n"])
+    expected = PREPARED_HEADER.itemsize + 8 * (n + 8 * (n - 1))
+    if int(head["version"]) != PREPARED_VERSION or n < 2 or len(data) != expected:
+        raise InvalidInputError(f"{source}: version {int(head['version'])} (read: {PREPARED_VERSION}), {n} knots (2..) "
+                                f"in {len(data)} bytes ({expected} expected): truncated or damaged")
+    body = np.frombuffer(data, dtype="<f8", offset=PREPARED_HEADER.itemsize).astype(float)
+    t, coef = body[:n], body[n:].reshape(n - 1, 8)
+    bad = np.flatnonzero(~np.isfinite(t) | np.r_[False, ~(np.diff(t) > 0)] | np.r_[~np.isfinite(coef).all(1), False])
+    if bad.size:
+        raise InvalidInputError(f"{source}: knot {bad[0]} (0-based) is not finite or does not follow the one before")
+    h = float(head["smoothing"])
+    if smoothing_time is not None and h != smoothing_time:
+        raise InvalidInputError(f"{source} was smoothed over {h!r} s, replay_smoothing is {smoothing_time!r} s: "
+                                "prepare it with this smoothing time or set it to the table's")
+    return Replay(t, coef, h, (), source)
+
+
 def load(path, params, max_gap=MAX_GAP, smoothing_time=SMOOTHING_TIME):
-    """read_table then replay_table: the Replay of a file. The last few are kept, keyed by
-    the file's path, size and modification time and the settings: the scenario check and
-    the FMU read a night's table (720,000 rows: ~45 s to smooth) once between them."""
+    """read_table then replay_table: the Replay of a file (a prepared one: read_prepared,
+    its smoothing time ``smoothing_time``). The last few are kept, keyed by the file's
+    path, size and modification time and the settings: the scenario check and the FMU read
+    a night's table (720,000 rows: ~45 s to smooth) once between them."""
     if not str(path):
         raise InvalidInputError("the replay profile needs a table: replay_table is empty")
     path = pathlib.Path(path)
+    if path.is_file() and is_prepared(path):
+        return read_prepared(path, float(smoothing_time))
     stat = path.stat() if path.is_file() else None
     if stat is None:
         return replay_table(read_table(path), params, max_gap, smoothing_time)

@@ -277,7 +277,7 @@ class RealPort:
 # leg_force, each element's value reference the array's plus its offset, as
 # native_build numbers them), so the checks and the exchange are the same code for
 # both; its ports (RealPort3) and the C stepping loop make the FMI 3.0 calls.
-_TYPES3 = {"Float64": "Real", "Int32": "Integer", "Enumeration": "Enumeration"}
+_TYPES3 = {"Float64": "Real", "Int32": "Integer", "Enumeration": "Enumeration", "String": "String"}
 _GET3 = CFUNCTYPE(c_int, c_void_p, POINTER(c_uint), c_size_t, POINTER(c_double), c_size_t)
 _DERIVATIVES3 = CFUNCTYPE(c_int, c_void_p, POINTER(c_uint), c_size_t, POINTER(c_int32), POINTER(c_double), c_size_t)
 _DO_STEP3 = CFUNCTYPE(c_int, c_void_p, c_double, c_double, c_int, POINTER(c_bool), POINTER(c_bool),
@@ -301,7 +301,7 @@ def _elements(md3):
             raise FmuError(f"{md3.modelName}: variable {var.name} is an FMI 3 {var.type}, which the master does not "
                            "exchange")
         count = element_count(var)
-        starts = var.start.split() if var.start is not None else [None] * count
+        starts = [var.start] if var.type == "String" else var.start.split() if var.start is not None else [None] * count
         for k in range(count):
             element = copy.copy(var)
             element.name = f"{var.name}[{k + 1}]" if var.dimensions else var.name
@@ -399,6 +399,8 @@ class Instance3(Instance):
             self.call("setInt32", [var.valueReference], [int(value)])
         elif var.type == "Enumeration":
             self.call("setInt64", [var.valueReference], [int(value)])
+        elif var.type == "String":
+            self.call("setString", [var.valueReference], [str(value)])
         else:
             RealPort3(self, [name]).write([float(value)])
 

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fmu_src import replay_table
 from fmu_src.catalogue import CONTROL_LOOPS, FEEDTHROUGH
 from scenarios.cosim._cosim import ffi, lib
 from scenarios.cosim.fmi import _LABELS, FmuError, Instance, Instance3, RealPort
@@ -378,8 +379,8 @@ def start(scenario, fmu_paths, parameters, instances):
     exchange = Exchange(scenario, instances)
     ready, resolved = set(), {}
     for inst in step_order(scenario, parameters):
-        resolved[inst] = {name: instances[v.instance].get_real(v.variable) if isinstance(v, Link) else v
-                          for name, v in parameters.get(inst, {}).items()}
+        resolved[inst] = replay_table.for_fmu({name: instances[v.instance].get_real(v.variable) if isinstance(v, Link)
+                                               else v for name, v in parameters.get(inst, {}).items()})
         instances[inst].initialize(scenario.start_time, {**resolved[inst], **exchange.initial_inputs(inst, ready)})
         ready.add(inst)
     return exchange, resolved

@@ -13,6 +13,7 @@ at ~8.3 µs; ties go to the level that models less), so the choice is determinis
 """
 import numpy as np
 
+from fmu_src import replay_table
 from plant.hexapod.model import FIDELITIES, StewartParams, inverse_dynamics
 from scenarios.cosim.fmi import Instance, RealPort
 
@@ -32,7 +33,7 @@ def scene_motion(scenario, fmu_paths, values, telescope, axes=False):
     names = ["reference_pose", "reference_rate", "reference_acc", "base_pose", "base_rate", "base_acc"]
     port = RealPort(instance, [v for n in names for v in _vector(n)] + (["axis_rate[1]", "axis_rate[2]"] * axes))
     try:
-        instance.initialize(scenario.start_time, values.get(telescope, {}))
+        instance.initialize(scenario.start_time, replay_table.for_fmu(values.get(telescope, {})))
         h = (scenario.stop_time - scenario.start_time) / SAMPLES
         rows = [port.read().copy()]
         for k in range(SAMPLES):

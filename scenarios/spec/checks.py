@@ -8,12 +8,12 @@ from datetime import datetime, timezone
 
 import numpy as np
 
+from fmu_src import replay_table
 from fmu_src.catalogue import ALL, CONTROL_LOOPS, FEEDTHROUGH, LOOP_SENSORS
 from plant.errors import InvalidInputError
 from plant.hexapod.model import StewartParams, body_problems
 from plant.mechanism3t import model as mechanism3t
 from plant.telescope import model as telescope
-from plant.telescope import replay
 from scenarios.spec.keys import (
     CHECK_POINTS,
     METRIC_RESULT_UNITS,
@@ -418,10 +418,6 @@ def _check_telescope(src, key, scenario, inst, md_variables, values, written):
              "sidereal": ("right_ascension", "declination", "utc_start", "latitude", "longitude"),
              "paper": ("paper_duration",), "replay": ("replay_table", "replay_smoothing")}.get(profile, ())
     where = f"fmus.{inst}.parameters" if key == "fmus" else key
-    if profile == "replay" and "replay_table" not in md_variables:
-        raise ScenarioError(src, where, "profile 'replay' reads its table (replay_table, a String parameter) in the "
-                            "pythonfmu telescope: set implementation = \"python\" for it (the native FMUs have no "
-                            "String variables)")
     limits = ("lever_arm", "latitude", "longitude", "az_rate_max", "az_acc_max", "el_rate_max", "el_acc_max")
     try:
         params = dataclasses.replace(telescope.TelescopeParams.tianma(), **{n: setting(n) for n in limits})
@@ -440,8 +436,8 @@ def _check_telescope(src, key, scenario, inst, md_variables, values, written):
             telescope.sidereal_track(params, setting("right_ascension"), setting("declination"), utc, times)
         elif profile == "paper":
             telescope.paper_manoeuvre(times, setting("paper_duration"))
-        elif profile == "replay":   # read, checked and smoothed as the FMU will, before the run
-            replay.load(setting("replay_table"), params, smoothing_time=setting("replay_smoothing"))
+        elif profile == "replay":   # read, checked, smoothed and prepared before the run (the FMUs get it: for_fmu)
+            replay_table.prepared(setting("replay_table"), params, setting("replay_smoothing"))
     except (InvalidInputError, OverflowError, OSError, ValueError) as exc:
         raise ScenarioError(src, where, f"profile {profile!r} with {shown(names)}: plant.telescope refuses it: "
                             f"{exc}") from None

@@ -70,7 +70,9 @@ def test_description_is_the_fmi2_one_in_fmi3_terms(pairs, script):
             (v2.valueReference, v2.type, v2.unit, v2.displayUnit, v2.causality, v2.description), v2.name
         assert getattr(e.declaredType, "name", None) == getattr(v2.declaredType, "name", None), v2.name
         assert (e.min, e.max) == (v2.min, v2.max), v2.name
-        if v2.start is not None:
+        if v2.type == "String":   # the telescope's replay_table, <Start value=""/> in FMI 3
+            assert e.start == v2.start == "", v2.name
+        elif v2.start is not None:
             assert float(e.start) == float(v2.start), v2.name
     def base(unit):
         fields = ("kg", "m", "s", "A", "K", "mol", "cd", "rad", "factor", "offset")

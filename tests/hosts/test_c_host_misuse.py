@@ -593,3 +593,42 @@ def test_a_guid_that_is_a_prefix_an_extension_or_empty_makes_no_instance(impleme
     right.instantiate()      # the whole GUID: an instance
     right.freeInstance()
     right.freeLibrary()
+
+
+# ------------------------------------------------------------- the telescope's replay table
+def test_telescope_replays_a_prepared_table_from_its_resources(extracted):
+    """The native Telescope under a C host: a NULL string is refused with a line and changes
+    nothing; replay_table "resource:<name>" is read from the folder the file:// URI
+    fmuResourceLocation names; after a state restore the instance's table is evaluated (the
+    state holds none): both steps to t = 2 s give the azimuth plant.telescope's replay_track
+    gives, bit for bit. A table that is not there: fmi2Error with a line, no crash."""
+    import numpy as np
+
+    from fmu_src import replay_table
+    from plant.telescope import model as tm
+    from plant.telescope import replay
+    fmu = extracted["Telescope"]
+    p, deg, t = tm.TelescopeParams.tianma(), np.pi / 180, np.arange(0.0, 6.0, 0.05)
+    axes = tm.slew(p, (0.0, 30 * deg), (20 * deg, 45 * deg), t - 1.0)
+    resources = fmu.folder / "resources"
+    resources.mkdir(exist_ok=True)
+    log = resources / "misuse_replay.csv"
+    np.savetxt(log, np.column_stack([t, np.degrees(axes.azimuth), np.degrees(axes.E)]), delimiter=",",
+               header="time [s],azimuth [deg],elevation [deg]", comments="", fmt="%.17g")
+    replay_table.write(log, resources / "misuse_replay.mbreplay", p)
+    table = ("vr", "replay_table")
+    answers = run(fmu, "inst", "-", "-", "setup", 0.0, "enter", "sets", table, "resource:misuse_replay.mbreplay",
+                  "sets", table, "NULL", "gets", table, "seti", ("vr", "profile"), 3, "exit", "save",
+                  "step", 0.0, 2.0, "getr", ("vr", "axis[1]"), "restore", "step", 0.0, 2.0, "getr", ("vr", "axis[1]"),
+                  "drop", "free")
+    answers.check_log_states_status()
+    assert answers.statuses("fmi2SetString") == ["OK", "Error"]
+    assert "fmi2SetString: the value of replay_table is NULL" in answers.logs[0], answers.logs
+    assert f"string {fmu.vr('replay_table')} 'resource:misuse_replay.mbreplay'" in answers.lines
+    assert answers.statuses("fmi2ExitInitializationMode") == ["OK"]
+    truth = tm.replay_track(p, replay.load(log, p), [2.0]).azimuth[0]
+    assert answers.vectors == [[truth], [truth]]
+    answers = run(fmu, "inst", "-", "-", "setup", 0.0, "enter", "sets", table, "resource:none.mbreplay",
+                  "seti", ("vr", "profile"), 3, "exit", "free")
+    assert answers.statuses("fmi2ExitInitializationMode") == ["Error"]
+    assert "replay table '" in answers.logs[-1] and "resources/none.mbreplay' cannot be opened" in answers.logs[-1]

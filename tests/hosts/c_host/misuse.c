@@ -57,7 +57,7 @@ static char resources[4200];   /* file://UNZIPDIR/resources */
 F(Instantiate) F(FreeInstance) F(SetDebugLogging) F(SetupExperiment)
 F(EnterInitializationMode) F(ExitInitializationMode) F(Terminate) F(Reset) F(DoStep)
 F(SetReal) F(GetReal) F(SetInteger) F(GetInteger) F(GetFMUstate) F(SetFMUstate)
-F(FreeFMUstate) F(SerializedFMUstateSize) F(SerializeFMUstate) F(GetRealStatus)
+F(FreeFMUstate) F(SerializedFMUstateSize) F(SerializeFMUstate) F(GetRealStatus) F(SetString) F(GetString)
 #undef F
 
 static void *sym(const char *name)
@@ -132,7 +132,7 @@ int main(int argc, char **argv)
     F(Instantiate) F(FreeInstance) F(SetDebugLogging) F(SetupExperiment)
     F(EnterInitializationMode) F(ExitInitializationMode) F(Terminate) F(Reset) F(DoStep)
     F(SetReal) F(GetReal) F(SetInteger) F(GetInteger) F(GetFMUstate) F(SetFMUstate)
-    F(FreeFMUstate) F(SerializedFMUstateSize) F(SerializeFMUstate) F(GetRealStatus)
+    F(FreeFMUstate) F(SerializedFMUstateSize) F(SerializeFMUstate) F(GetRealStatus) F(SetString) F(GetString)
 #undef F
     fmi2Component c = NULL;
     fmi2FMUstate state = NULL;
@@ -179,6 +179,16 @@ int main(int argc, char **argv)
                 said("fmi2SetInteger", SetInteger(c, &vr, 1, &x));
             }
             i += 2;
+        } else if (!strcmp(cmd, "sets")) {   /* sets VR TEXT: TEXT "NULL" passes a NULL string */
+            fmi2ValueReference vr = (fmi2ValueReference)strtoul(ARG(1), NULL, 10);
+            fmi2String text = strcmp(ARG(2), "NULL") ? ARG(2) : NULL;
+            said("fmi2SetString", SetString(c, &vr, 1, &text));
+            i += 2;
+        } else if (!strcmp(cmd, "gets")) {
+            fmi2ValueReference vr = (fmi2ValueReference)strtoul(ARG(1), NULL, 10);
+            fmi2String text = NULL;
+            if (said("fmi2GetString", GetString(c, &vr, 1, &text)) == fmi2OK) printf("string %u '%s'\n", (unsigned)vr, text);
+            i++;
         } else if (!strcmp(cmd, "getr") || !strcmp(cmd, "geti")) {
             fmi2ValueReference vr = (fmi2ValueReference)strtoul(ARG(1), NULL, 10);
             double x = 0;
