@@ -10,6 +10,7 @@ scenario may leave unconnected, the outputs that follow an input within a step, 
 loop a controller closes (which the guard, ``scenarios.runs.flags``, reads).
 """
 from dataclasses import dataclass, field
+from typing import Any
 
 
 @dataclass(frozen=True)
@@ -69,7 +70,7 @@ SCRIPTS = tuple(f.script for f in FMUS)
 # and the LoopModel fields (controller.design) its parameters give; a disturbance observer's
 # LoopModel fields from the controller's parameters (``observer``) and its force input
 # (``force_measured``), fed by a sensor of LOAD_CELLS.
-CONTROL_LOOPS = {
+CONTROL_LOOPS: dict[str, dict[str, Any]] = {
     "leg_controller": {
         "plant": "hexapod_plant", "force": "leg_force", "plant_force": "leg_force",
         "measured": "leg_length", "plant_measured": "leg_length", "gains": ("kp", "ki", "kd"),

@@ -172,7 +172,8 @@ def _c_params(params):
     return c
 
 
-_REPLAY_ARRAYS = weakref.WeakKeyDictionary()   # profile -> the arrays its replay_* pointers point into
+# profile -> the arrays its replay_* pointers point into
+_REPLAY_ARRAYS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def motion_profile(kind, start_az_el=(0.0, 0.0), target_az_el=(0.0, 0.0), ra=0.0, dec=0.0,
