@@ -49,3 +49,27 @@ def test_percentiles_are_read_on_the_percent_scale(tmp_path):
     m = dynamic_budget.analyse(path)["metrics"]["pose error peak"]
     assert m["p50"] == pytest.approx(100.5, abs=1e-12) and m["p95"] == pytest.approx(190.05, abs=1e-12)
     assert m["max"] == 200 and m["mean"] == pytest.approx(100.5)
+
+
+def test_the_scene_is_the_shipped_realistic_slew_in_wind_with_the_observer():
+    """The campaign's scene runs the slew, plant, controller, wind and load cells of
+    scenarios/files/telescope_slew_observer.toml's 20 Hz run (issue 41), parameter for
+    parameter, with an IMU and encoders in place of the ideal base input and leg sensor, and
+    each sample draws the gusts (wind.seed) beside the sensors' noise."""
+    import tomllib
+
+    from scenarios.runs import campaign as campaigns
+    scene = tomllib.loads((campaigns.SHIPPED / "scenes" / "dynamic_budget.toml").read_text())
+    shipped = tomllib.loads((campaigns.SHIPPED.parent / "files" / "telescope_slew_observer.toml").read_text())
+    params = lambda table, inst: table["fmus"][inst]["parameters"]   # noqa: E731
+    for inst in ("plant", "controller", "wind", "load_cell"):
+        assert params(scene, inst) == params(shipped, inst), inst
+    assert params(shipped, "controller")["observer_bandwidth"] == "20 Hz" and "20 Hz" in shipped["sweep"]["values"]
+    assert {k: v for k, v in params(scene, "base").items() if k != "start_delay"} == \
+        {k: v for k, v in params(shipped, "base").items() if k != "start_delay"}
+    assert params(scene, "encoders") == params(shipped, "leg_sensor")
+    assert (scene["step"], scene["master"], scene["extrapolation"]) == \
+        (shipped["step"], shipped["master"], shipped["extrapolation"])
+    sample = campaigns.load("dynamic_budget").sample
+    assert sample.samples == 256
+    assert {key for key, *_ in sample.seeds} == {"imu.seed", "encoders.seed", "load_cell.seed", "wind.seed"}

@@ -397,7 +397,7 @@ def test_a_swaying_support_is_no_unfinished_slew(tmp_path):
 
 
 def test_the_dynamic_budget_scene_is_not_cut_mid_slew():
-    # the sampled campaign's scene: a short slew complete within the run, so none of its
+    # the sampled campaign's scene: the full slew, complete within the run, so none of its
     # samples is flagged motion_unfinished (it was 2 s of a 51 s slew, every run flagged)
     path = runner.SHIPPED.parent / "campaigns" / "scenes" / "dynamic_budget.toml"
     found = runner.pre_run_flags(*runner.prepare(path))
