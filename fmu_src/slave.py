@@ -172,6 +172,7 @@ class GuardedSlave(Fmi2Slave):
         self.enumerations = {}   # parameter name -> item names, values 0..n-1 (FMI Enumerations, builder.py)
         self.input_names = []
         self._step_saves = []   # (root of output arrays, its copy before the step): put back on Discard
+        self._set_saves = []    # (root of input and parameter arrays, its copy): kept by an evaluation
         self.failure = ""
         self.arrays = {}   # name -> numpy array saved with the FMU state
         self.slots = {}    # value reference -> (array, index) of vector elements
@@ -209,6 +210,8 @@ class GuardedSlave(Fmi2Slave):
         self.arrays[name] = values
         if causality == OUTPUT and not any(r is _root(values) for r, _ in self._step_saves):
             self._step_saves.append((_root(values), _root(values).copy()))
+        if causality != OUTPUT and not any(r is _root(values) for r, _ in self._set_saves):
+            self._set_saves.append((_root(values), _root(values).copy()))
         units = (units,) * size if isinstance(units, str) else units
         valid = [valid] * size if valid is None or not isinstance(valid[0], (tuple, list)) else valid
         labels = description if isinstance(description, (list, tuple)) else [description] * size
@@ -420,9 +423,13 @@ class GuardedSlave(Fmi2Slave):
 
     def _evaluate_initial(self):
         """The outputs from the parameters and inputs set so far (see the module doc);
-        on a bad start value or a failing initialize(), the outputs as they were."""
+        on a bad start value or a failing initialize(), the outputs as they were. The inputs
+        and parameters read as they were set, whatever initialize() wrote into them
+        (HexapodPlant's start_equilibrium: the leg forces), as the native layer's."""
         self._stale = False
         self._keep_outputs()
+        for root, saved in self._set_saves:
+            np.copyto(saved, root)
         try:
             self.check_start()
             self.initialize()
@@ -430,6 +437,8 @@ class GuardedSlave(Fmi2Slave):
             self.check_outputs()
         except Exception:   # noqa: BLE001 - reported by exit_initialization_mode, see module doc
             self._restore_outputs()
+        for root, saved in self._set_saves:
+            np.copyto(root, saved)
 
     def exit_initialization_mode(self):
         self._initializing = self._stale = False

@@ -548,12 +548,24 @@ static void set_outputs(mb_instance *inst, int start)
    far (as the Reference FMUs do), so that an importer that propagates values during
    initialization (libcosim) starts every FMU from its neighbours' initial outputs. If the
    model cannot compute them yet, they read their start values; exiting initialization
-   reports the problem. */
+   reports the problem. The parameters and inputs read as they were set: a model's init may
+   write an input (HexapodPlant's start_equilibrium, the leg forces that hold the platform),
+   and an evaluation left it written, so a later start_equilibrium 0 or a refused exit kept
+   forces a replay of the same sets without the reads did not have (fuzz.c). */
 static void evaluate_initial(mb_instance *inst)
 {
     if (PHASE(inst) != MBI_INITIALIZATION || !inst->dirty) return;
     inst->dirty = 0;
-    if (MODEL_INIT(inst, CORE(inst)->start_time) || nonfinite_outputs(inst)) set_outputs(inst, 1);
+    save_model(inst);
+    int failed = MODEL_INIT(inst, CORE(inst)->start_time) || nonfinite_outputs(inst);
+    const double *r0 = (const double *)inst->backup;
+    const int *i0 = (const int *)(inst->backup + (inst->i_off - inst->r_off));
+    for (int vr = 0; vr < MB_MODEL.nvars; vr++) {
+        int set = MB_MODEL.vars[vr].causality == MB_PARAMETER || MB_MODEL.vars[vr].causality == MB_INPUT;
+        if (set && MB_MODEL.vars[vr].type == MB_REAL) REALS(inst)[vr] = r0[vr];
+        else if (set) INTS(inst)[vr] = i0[vr];
+    }
+    if (failed) set_outputs(inst, 1);
 }
 
 /* A count of values with no array to hold them (fuzz.c: a NULL array crashed the host): Error. */

@@ -32,7 +32,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.interpolate import make_smoothing_spline
 
 from plant.errors import InvalidInputError
 
@@ -161,6 +160,9 @@ class Replay:
 
 def _spline(t, y, h):
     """Cubic coefficients (n - 1, 4) of the smoothing spline of y(t) on each interval."""
+    # imported here: scenario checking imports this module, and scipy costs a run without
+    # a replay table ~0.3 s (tests/scenarios/output/test_report.py, issue 21)
+    from scipy.interpolate import make_smoothing_spline
     rate = 1.0 / float(np.median(np.diff(t)))
     spline = make_smoothing_spline(t, y, lam=rate * h ** 4)
     mid = 0.5 * (t[1:] + t[:-1])

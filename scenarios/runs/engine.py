@@ -153,7 +153,9 @@ def _package_digest():
 
 
 def run_key(scenario, parameters, fmus):
-    """Hash of what decides a run's numbers; names, descriptions and the file's path do not."""
+    """Hash of what decides a run's numbers; names, descriptions and the file's path do not,
+    nor the requirements: they are judged from a run's metrics after it (never stored with
+    its outcome), so a cached run is judged by the scenario's current requirements."""
     s = scenario
     what = {"code": code_digest(), "time": [s.start_time, s.stop_time, s.step], "master": s.master,
             "extrapolation": s.extrapolation,

@@ -45,12 +45,16 @@ def shipped_names():
 
 def not_found(names):
     """What to say of names that are neither a scenario file nor a shipped scenario: the
-    shipped names, and the nearest one where a name is close ("telescope_slew ")."""
+    shipped names, and the nearest one where a name is close ("telescope_slew "). A name
+    with a folder in it can only be a file (resolve looks for shipped ones by bare name), so
+    the list is left out there: with 14 shipped scenes it made a message with a long path
+    (shortened, shown twice) 725 characters long."""
     shipped = shipped_names()
     near = [difflib.get_close_matches(str(n).strip().lower(), shipped, 1, 0.6) for n in names]
-    hints = "".join(f"; did you mean {m[0]!r} for {n!r}?" for n, m in zip(names, near) if m)
-    return (f"no scenario file or shipped scenario named {', '.join(repr(spec.shown(n)) for n in names)}{hints}; "
-            f"shipped: {', '.join(shipped)}")
+    hints = "".join(f"; did you mean {m[0]!r} for {spec.shown(n)!r}?" for n, m in zip(names, near) if m)
+    bare = any(pathlib.Path(n).parent == pathlib.Path(".") for n in names)
+    return (f"no scenario file or shipped scenario named {', '.join(repr(spec.shown(n)) for n in names)}{hints}"
+            + (f"; shipped: {', '.join(shipped)}" if bare else ""))
 
 
 class OutputError(ValueError):

@@ -10,6 +10,7 @@ from fmpy.validation import validate_fmu
 
 from fmu_src.catalogue import SCRIPTS
 from fmu_src.hexapod_plant_fmu import STROKE_RANGE
+from fmu_src.operating_point import STATIC_LEG_FORCES
 from plant.hexapod.model import HOME_POSE, StewartParams, inverse_dynamics
 from plant.hexapod.ode import HexapodODE
 from plant.telescope import model as telescope
@@ -226,5 +227,35 @@ def test_an_earlier_initialization_mode_evaluation_leaves_no_state_behind(fmus, 
             assert inst.get_real("leg_force_actual[1]") == pytest.approx(forces[0])
             inst.set("actuator_bandwidth", 0.0)
         inst.call("exitInitializationMode")
+        blobs.append(bytes(inst.fmu.serializeFMUstate(inst.fmu.getFMUstate())))
+    assert blobs[0] == blobs[1]
+
+
+@pytest.mark.parametrize("implementation", ["python", "native"])
+def test_an_initialization_mode_evaluation_leaves_the_inputs_as_they_were_set(fmus, native, implementation):
+    """start_equilibrium writes the holding forces into the leg_force input at
+    initialization; a read in initialization mode that evaluated it left them written
+    (fuzz.c, HexapodPlant seed 2: a replay of the same sets without the read read the start
+    forces). Evaluated with start_equilibrium 1 against a wind load (forces hundreds of N
+    off the calm ones), then set back to 0: the input reads the calm start forces it was
+    set to, before and after exit, and the FMU state is, byte for byte, the one of a plant
+    initialized without the detour."""
+    path = (fmus if implementation == "python" else native)["hexapod_plant_fmu"]
+    names = [f"leg_force[{k}]" for k in range(1, 7)]
+    blobs = []
+    for detour in (True, False):
+        inst = Instance(path, f"detour{detour}")
+        OPENED.append(inst)
+        inst.call("setupExperiment", startTime=0.0)
+        inst.call("enterInitializationMode")
+        inst.set("platform_wrench[1]", 1219.0)
+        if detour:
+            inst.set("start_equilibrium", 1)
+            held = inst.get_real("leg_force_actual[1]")
+            assert abs(held - STATIC_LEG_FORCES[0]) > 100.0   # the evaluation held the wind
+            assert [inst.get_real(n) for n in names] == list(STATIC_LEG_FORCES)
+            inst.set("start_equilibrium", 0)
+        inst.call("exitInitializationMode")
+        assert [inst.get_real(n) for n in names] == list(STATIC_LEG_FORCES)
         blobs.append(bytes(inst.fmu.serializeFMUstate(inst.fmu.getFMUstate())))
     assert blobs[0] == blobs[1]

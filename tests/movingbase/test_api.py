@@ -349,6 +349,8 @@ def test_a_campaign_s_bad_worker_count_is_refused_before_anything_runs(jobs, err
 @pytest.mark.parametrize("scenario, problem", [
     ("telescope_slew ", "did you mean 'telescope_slew' for 'telescope_slew '?"),
     ("nope", "no scenario file or shipped scenario named 'nope'; shipped: keyhole_tracking"),
+    # a path can only be a file: no list of the shipped (a long path's message stays short)
+    ("no/such_scene.toml", "no scenario file or shipped scenario named 'no/such_scene.toml'\n"),
     (5, "scenario must be a shipped name, a file path or a Scenario, got int 5"),
     (None, "got NoneType None"),
 ])
@@ -356,7 +358,7 @@ def test_a_scenario_that_is_not_one_is_refused_naming_the_shipped_ones(scenario,
     """A missing name said only "file: does not exist"; an int or None ended in os.fspath's TypeError."""
     with pytest.raises((spec.ScenarioError, TypeError)) as error:
         movingbase.load_scenario(scenario)
-    assert problem in str(error.value), str(error.value)
+    assert problem in str(error.value) + "\n", str(error.value)
 
 
 def test_a_run_that_failed_before_recording_says_so_where_its_series_is_asked():

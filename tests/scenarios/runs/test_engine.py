@@ -271,7 +271,9 @@ _NOT_IN_KEY = {"source": "the file's path", "name": "a label", "description": "a
                "sweep": "each run's parameters hold its value", "ci": "applied to stop_time already",
                "fidelity_tolerance": "the chosen fidelity is in the parameters", "notes": "what the runner said",
                "implementations": "in the FMU digests", "fmi_versions": "in the FMU digests",
-               "short": "decides flags, computed per case by the client"}
+               "short": "decides flags, computed per case by the client",
+               "requirements": "judged after the run from its metrics (runner.write_results, the API, the CLI), "
+                               "never stored with them: a cached run is judged by the current ones"}
 
 
 def test_every_setting_that_decides_the_numbers_changes_the_run_key():
