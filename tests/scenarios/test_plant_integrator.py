@@ -4,8 +4,9 @@ scenes took before issue 41 (RK4 at 0.01 ms, 100x finer than the 1 ms the error 
 may take; it is converged: 0.005 ms agrees with it to 1e-8 µm on every pose metric).
 
 Each scene runs its [ci] version once (its last sweep value: the design the scene
-ships), as shipped (error-controlled substeps, tolerance 0.1 nm) and with the
-reference's plant. The pose metrics (position and rotation, RMS and peak) and the leg
+ships), as shipped (error-controlled substeps, tolerance 0.1 nm; 0.03 nm on the observer
+slew, whose 0.08 µrad rotation peak was 2.3 % off at 0.1 nm) and with the reference's
+plant. The pose metrics (position and rotation, RMS and peak) and the leg
 error agree within 1 % (or 1 nm, 1 nrad): issue 41's equal accuracy. The error each
 scene shows is pinned: the largest relative difference, measured, times 2 (the observer
 scenes' loops amplify a last-bit change of the libm a machine brings: x2 keeps rounding
@@ -20,9 +21,11 @@ from scenarios.runs import metrics, runner, single
 REALISTIC = sorted(p.stem for p in runner.SHIPPED.glob("*.toml")
                    if "coulomb_friction" in p.read_text() or "actuator_bandwidth" in p.read_text())
 # the largest relative error of the compared metrics, measured on the [ci] runs, x2
-# (3.69e-4, 1.54e-4, 5.89e-4, 1.28e-4 on 2026-12-05)
-PINNED = {"keyhole_tracking_observer": 7.4e-4, "telescope_slew_observer": 3.1e-4,
-          "telescope_slew_realistic": 1.2e-3, "telescope_slew_wind_feedforward": 2.6e-4}
+# (1.73e-3, 8.64e-4, 2.75e-3, 1.26e-4, 1.62e-3, 1.60e-4 on 2026-12-05, operating-point starts)
+PINNED = {"keyhole_tracking_observer": 3.5e-3, "telescope_slew_gust_front": 1.7e-3,
+          "telescope_slew_observer": 5.5e-3, "telescope_slew_observer_switch_on": 2.5e-4,
+          "telescope_slew_realistic": 3.2e-3, "telescope_slew_wind_feedforward": 3.2e-4}
+TOLERANCE = {"telescope_slew_observer": 3e-11}   # m or rad; the others 1e-10
 COMPARED = {"pose error": ("rms", "peak", "rotation_rms", "rotation_peak"), "leg error": ("rms", "peak")}
 REFERENCE = {"tolerance": 0.0, "max_step": 1e-5}
 
@@ -46,7 +49,8 @@ def test_every_realistic_scene_is_pinned():
 @pytest.mark.parametrize("name", REALISTIC)
 def test_the_plant_integrator_error_against_a_finer_reference(name, tmp_path):
     shipped_metrics, shipped = _metrics(name, tmp_path)
-    assert shipped["tolerance"] == pytest.approx(1e-10) and shipped["max_step"] == pytest.approx(1e-3)
+    assert shipped["tolerance"] == pytest.approx(TOLERANCE.get(name, 1e-10))
+    assert shipped["max_step"] == pytest.approx(1e-3)
     reference, _ = _metrics(name, tmp_path, REFERENCE)
     worst = 0.0
     for metric, keys in COMPARED.items():

@@ -17,10 +17,19 @@ PARAMS = StewartParams.paper()
 SHIPPED = ("telescope_slew_observer", "keyhole_tracking_observer")
 
 
+def _without_requirements(text):
+    """A scene's text without its [requirements] table. Its runs name the shipped sweep's
+    values, and a file whose own sweep lacks a run its requirement names is refused
+    (scenarios/spec/parsing.py): the tests that rewrite the sweep drop the table with it."""
+    dropped = re.sub(r"\n\[requirements\].*?(?=\n\[|\Z)", "", text, flags=re.S)
+    assert dropped != text and "[requirements]" not in dropped
+    return dropped
+
+
 def _scene(tmp_path, bandwidth, stop, coulomb=True):
     """The shipped observer slew at ``bandwidth`` Hz, one run to ``stop``; ``coulomb``
     False: without the screws' Coulomb friction."""
-    text = runner.resolve("telescope_slew_observer").read_text()
+    text = _without_requirements(runner.resolve("telescope_slew_observer").read_text())
     text = re.sub(r'observer_bandwidth = "[0-9.]+ Hz"', f'observer_bandwidth = "{bandwidth:g} Hz"', text)
     text = re.sub(r'values = \["0 Hz", "[0-9.]+ Hz"\]', f'values = ["{bandwidth:g} Hz"]', text)
     text = text.replace('stop_time = "60 s"', f'stop_time = "{stop}"')
@@ -116,7 +125,7 @@ def _issue_scene(tmp_path, kind, bandwidth, coulomb=True, stop=None):
     """The two keyhole scenes of issue 41, goal 6: Gauss-Seidel, load cells 2 samples late;
     "A": linear extrapolation, 1 ms, observer mass x1.53; "B": derivatives (FMI 3 telescope),
     4.3 ms, observer mass x0.41. One run at ``bandwidth`` Hz; ``stop``: its stop time."""
-    text = runner.resolve("keyhole_tracking_observer").read_text()
+    text = _without_requirements(runner.resolve("keyhole_tracking_observer").read_text())
     text = text.replace('master = "jacobi"', 'master = "gauss-seidel"').replace("delay_steps = 0, seed = 2",
                                                                               "delay_steps = 2, seed = 2")
     mass = (1.53 if kind == "A" else 0.41) * ISSUE_MASS
