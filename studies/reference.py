@@ -63,11 +63,13 @@ ATOL = np.r_[np.full(6, 1e-12), np.full(6, 1e-11), np.full(6, 1e-15)]
 
 
 def _defaults(description):
-    """{name: start value} of an FMU's parameters from its model description."""
+    """{name: start value} of an FMU's parameters from its model description (a String
+    parameter, such as the Telescope's replay_table, as its text)."""
     out = {}
     for v in description.modelVariables:
         if v.causality == "parameter" and v.start is not None:
-            out[v.name] = int(v.start) if v.type in ("Integer", "Enumeration") else float(v.start)
+            out[v.name] = (int(v.start) if v.type in ("Integer", "Enumeration") else
+                           v.start if v.type == "String" else float(v.start))
     return out
 
 

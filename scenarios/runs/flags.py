@@ -140,8 +140,10 @@ def _value(values, descriptions, inst, name):
     elements = [v.name for v in descriptions[inst].modelVariables if v.name.startswith(name + "[")]
     if elements:   # a vector: its elements' values
         return [_value(values, descriptions, inst, n) for n in elements]
-    start = next(v.start for v in descriptions[inst].modelVariables if v.name == name)
-    return float(start) if name != "fidelity" else int(start)
+    variable = next(v for v in descriptions[inst].modelVariables if v.name == name)
+    if variable.type == "String":   # the Telescope's replay_table: a path, as set or its start
+        return given if isinstance(given, str) else variable.start
+    return float(variable.start) if name != "fidelity" else int(variable.start)
 
 
 @dataclass(frozen=True)

@@ -105,13 +105,15 @@ def test_a_cycle_is_broken_at_its_own_plant_not_at_one_it_feeds():
 def _other(variable, now):
     """Another valid value of a parameter (now: its value in the run): an enumeration's next
     item, an integer one up (or down at its maximum), a real 1.25 times (or within its range)."""
-    low = -np.inf if variable.min is None else float(variable.min)
+    low = -np.inf if variable.min is None else float(variable.min)   # (Strings have none)
     high = np.inf if variable.max is None else float(variable.max)
     if variable.type == "Enumeration":
         items = [int(i.value) for i in variable.declaredType.items]
         return items[(items.index(int(now)) + 1) % len(items)]
     if variable.type in ("Integer", "Boolean"):
         return int(now) + 1 if int(now) + 1 <= high else int(now) - 1
+    if variable.type == "String":
+        return f"{now}other.csv"
     other = 1.25 * now if now else (0.5 * high if np.isfinite(high) else 1.0)
     return other if low <= other <= high else (0.5 * (now + high) if np.isfinite(high) else 0.5 * (now + low))
 
