@@ -69,6 +69,7 @@ def test_held_slew(scene_regression):
 '''
 
 
+@pytest.mark.slow   # 8 s: three pytest sessions over a scene (.ci/run runs it)
 def test_the_pytest_fixture_stores_then_holds_then_catches(tmp_path):
     (tmp_path / "held_slew.toml").write_text(_blocks("toml")[0], encoding="utf-8")
     (tmp_path / "test_scenes.py").write_text(USER_TEST)

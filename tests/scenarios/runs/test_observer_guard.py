@@ -147,7 +147,7 @@ def _issue_scene(tmp_path, kind, bandwidth, coulomb=True, stop=None):
     return path
 
 
-@pytest.mark.parametrize("kind, bandwidth", [("A", 259.5), ("B", 24.6)])
+@pytest.mark.parametrize("kind, bandwidth", [("A", 259.5), pytest.param("B", 24.6, marks=pytest.mark.slow)])
 def test_the_issue_scenes_are_refused_saying_friction_hides_it(tmp_path, kind, bandwidth):
     """Both scenes are refused (their step is beyond the limit the observer leaves), and the
     refusal says the linear loop is unstable while the screws' Coulomb friction hides it;
