@@ -186,8 +186,9 @@ def confirm(scene):
         longer = _longer(scene, seconds)
         if judge(longer, _anyway(longer))[0] == "bad":
             return "longer"
-    if scene.kind == "hexapod":
-        slick = _longer(scene, 6.0, **{"plant.coulomb_friction": "0 N"})
+    if scene.kind == "hexapod":   # from rest: at the operating point (issue 41) only the sensors' noise
+        # excites the unstable mode, and 20 s do not show it (seed 60, 1.28x the limit); the start's step does
+        slick = _longer(scene, 6.0, **{"plant.coulomb_friction": "0 N", "plant.start_equilibrium": 0})
         if judge(slick, _anyway(slick), _anyway(dataclasses.replace(slick, step=FINE)))[0] == "bad":
             return "stiction"
     return None
