@@ -26,3 +26,18 @@ def refused(text, key, *parts, descriptions=None, overrides=None):
     for part in parts:
         assert part in message, (part, message)
     return message
+
+
+def interrupt_the_second_run(monkeypatch):
+    """Ctrl-C as it lands during the second run of a sweep: scenarios.runs.single.run raises
+    KeyboardInterrupt on its second call (a timed key press would race 0.1 s runs);
+    monkeypatch.undo() puts the real one back."""
+    from scenarios.runs import single
+    real, calls = single.run, []
+
+    def interrupted_at_the_second(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+    monkeypatch.setattr(single, "run", interrupted_at_the_second)

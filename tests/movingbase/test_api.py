@@ -15,6 +15,7 @@ from fmu_src import catalogue
 from scenarios import spec
 from scenarios.cosim.records import read_records
 from scenarios.runs import flags, runner
+from tests.scenario_helpers import interrupt_the_second_run
 
 NAME = "paper_manoeuvre"      # [ci]: 3 runs of 4 s at 1 ms, the shortest shipped scene with a sweep
 
@@ -615,15 +616,7 @@ def test_an_interrupted_sweep_keeps_the_runs_that_finished(tmp_path, monkeypatch
     """Ctrl-C during the second run of a three-run sweep: the first run's records, metrics
     and a report marked interrupted are on disk, the lock file is gone, and the message
     says what was kept and how to run the rest (it was an empty KeyboardInterrupt)."""
-    from scenarios.runs import single
-    real, calls = single.run, []
-
-    def interrupted_at_the_second(*args, **kwargs):
-        calls.append(args[4])
-        if len(calls) == 2:
-            raise KeyboardInterrupt
-        return real(*args, **kwargs)
-    monkeypatch.setattr(single, "run", interrupted_at_the_second)
+    interrupt_the_second_run(monkeypatch)
     with pytest.raises(KeyboardInterrupt) as stopped:
         movingbase.run(NAME, ci=True, progress=False, out=tmp_path)
     folder = tmp_path / NAME
@@ -640,7 +633,7 @@ def test_an_interrupted_sweep_keeps_the_runs_that_finished(tmp_path, monkeypatch
     kept = stopped.value.result          # in Python too: a Result of the runs that finished
     assert list(kept.runs) == ["none"] and kept.report_path == folder / "report.md"
     # the kept run is the one an uninterrupted sweep gives (its first run), bit for bit
-    monkeypatch.setattr(single, "run", real)
+    monkeypatch.undo()
     whole = movingbase.run(NAME, ci=True, progress=False, set={"sweep": {"parameter": "controller.feedforward",
                                                                           "values": ["none"]}})
     assert metrics["none"]["metrics"] == json.loads(json.dumps(whole["none"].metrics, default=float))

@@ -4,6 +4,7 @@ its --help is not the help of `run`."""
 import pytest
 
 from movingbase import cli
+from tests.scenario_helpers import interrupt_the_second_run
 
 
 def test_a_mistyped_command_is_told_as_one(capsys):
@@ -33,15 +34,7 @@ def test_a_scenario_name_is_still_a_run_and_a_near_one_says_which(capsys):
 def test_ctrl_c_in_a_sweep_keeps_the_finished_runs_and_says_how_to_run_the_rest(tmp_path, monkeypatch):
     """The command's Ctrl-C: the first run's results kept, the lock file gone, and the
     rest said in the command line's words (the Python call's: tests/movingbase/test_api.py)."""
-    from scenarios.runs import single
-    real, calls = single.run, []
-
-    def interrupted_at_the_second(*args, **kwargs):
-        calls.append(args[4])
-        if len(calls) == 2:
-            raise KeyboardInterrupt
-        return real(*args, **kwargs)
-    monkeypatch.setattr(single, "run", interrupted_at_the_second)
+    interrupt_the_second_run(monkeypatch)
     with pytest.raises(SystemExit) as done:
         cli.main(["run", "paper_manoeuvre", "--ci", "--quiet", "--charts", "none", "--out", str(tmp_path)])
     folder = tmp_path / "paper_manoeuvre"
