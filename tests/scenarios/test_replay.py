@@ -39,60 +39,86 @@ def write_log(path, t, axes):
                header="time [s],azimuth [deg],elevation [deg]", comments="", fmt="%.17g")
 
 
+RUN_RECORD = ('variables = ["base.axis", "base.axis_rate", "plant.pose", "plant.leg_length", "controller.leg_force"]',
+              'variables = ["base.axis", "base.axis_rate", "base.base_acc", "plant.pose", "plant.leg_length", '
+              '"controller.leg_force"]')
+SLEW_BASE = ('profile = "slew", start_azimuth = "0 deg", start_elevation = "30 deg", target_azimuth = "20 deg", '
+             'target_elevation = "45 deg", lever_arm = "25 m", start_delay = "5 s"')
+J, H, STEP = 0.25 * DEG, 0.25, 1e-3                 # the drives' acceleration, the smoothing, the scene's step
+STEP_ERROR = 3.81       # µm of pose error peak per (deg/s^2 of an acceleration step x ms of communication step)
+
+
 def runs(tmp_path, truth_base):
     """(truth, replay) results of the slew scene's CI version (8 s) with the base as given
-    and replaying tmp_path/log.csv."""
+    (tmp_path/truth.toml) and replaying tmp_path/log.csv, the base's acceleration recorded."""
     truth = tmp_path / "truth.toml"
-    truth.write_text(edited(SLEW, ONE_RUN, (BASE, truth_base)))
-    replay = tmp_path / "replay.toml"
-    replay.write_text(edited(SLEW, ONE_RUN, (BASE, REPLAY)))
-    return [movingbase.run(f, ci=True, progress=False)[0] for f in (truth, replay)]
+    truth.write_text(edited(SLEW, ONE_RUN, (BASE, truth_base), RUN_RECORD))
+    replayed = tmp_path / "replay.toml"
+    replayed.write_text(edited(SLEW, ONE_RUN, (BASE, REPLAY), RUN_RECORD))
+    return [movingbase.run(f, ci=True, progress=False)[0] for f in (truth, replayed)]
 
 
-def test_replayed_slew_gives_the_slews_loads(tmp_path):
-    """The slew's log replayed: the axes within the docs' smoothing bound (two corners of
-    one pulse, J = 0.25 deg/s^2, h = 0.25 s: 0.322 J h^2, 0.427 J h); the legs' forces and
-    the base's effect on them within 0.1 % (they follow the base's acceleration averaged
-    over the run). The tracking error is not among them: the analytic slew's corners have
-    infinite jerk, which kicks the hexapod and sets its peak error; the replay's
-    acceleration is continuous (a 20 Hz log cannot carry a sharper corner), so its error
-    is smaller, by the size of that kick (measured ~50x here)."""
-    t = np.arange(0.0, 70.0, 0.05)
-    write_log(tmp_path / "log.csv", t, tm.slew(P, (0.0, 30 * DEG), (20 * DEG, 45 * DEG), t - 5.0))
-    truth, replay = runs(tmp_path, BASE)
-    assert truth.ok and replay.ok
-    J, H = 0.25 * DEG, 0.25
-    for name, bound in (("base.axis[1]", 0.322 * J * H ** 2), ("base.axis[2]", 0.322 * J * H ** 2),
-                        ("base.axis_rate[1]", 0.427 * J * H), ("base.axis_rate[2]", 0.427 * J * H)):
-        error = np.abs(replay[name] - truth[name]).max()
-        assert 0.3 * bound < error <= bound, (name, error / bound)
-    m, n = truth.metrics, replay.metrics
-    for metric, field in (("leg force", "rms"), ("leg force", "peak"), ("base effect", "rms")):
-        assert n[metric][field] == pytest.approx(m[metric][field], rel=1e-3), (metric, field)
-    assert n["pose error"]["peak"] < 0.1 * m["pose error"]["peak"]
+def sidereal(ra, dec, utc):
+    """(the base's parameters, the axes at t) of a sidereal track from utc [s since 1970]."""
+    base = BASE.replace(SLEW_BASE, f'profile = "sidereal", right_ascension = {ra}, declination = {dec}, '
+                                   f'utc_start = {utc}, lever_arm = "25 m"')
+    return base, lambda t: tm.sidereal_track(P, ra, dec, datetime.fromtimestamp(utc, tz=timezone.utc), t)
 
 
-def test_replayed_sidereal_track_is_the_sidereal_profile(tmp_path):
-    """A smooth motion is replayed to h^4 |x''''| (below 1e-9 rad): every metric of the
-    loop agrees with the sidereal profile's run (a source at dec 50 deg) to what that leaves."""
-    ra, dec = 1.0, 50 * DEG
+# The smoothing error per metric the docs state for a track (docs/conventions/telescope.md,
+# "What the smoothing costs in the loop"): (metric, field) -> bound, relative to the analytic
+# motion's figure ("rel") or absolute in the metric's unit.
+TRACK = {("leg force", "rms"): (1e-9, "rel"), ("leg force", "peak"): (1e-9, "rel"),
+         ("base effect", "rms"): (1e-5, "rel"), ("base effect", "peak"): (1e-3, "rel"),
+         ("pose error", "rms"): (1e-9, "µm"), ("pose error", "peak"): (1e-9, "µm"),
+         ("pointing", "peak"): (1e-11, "arcsec")}
+MOTIONS = {
+    "slew": (BASE, lambda t: tm.slew(P, (0.0, 30 * DEG), (20 * DEG, 45 * DEG), t - 5.0)),
+    "sidereal": sidereal(1.0, 50 * DEG, UTC),                                    # dec 50 deg, el ~60 deg
+    "keyhole": sidereal(222.32311789485317 * DEG, 30.89 * DEG, 1767225600.0),  # keyhole_tracking's: el 89.5 deg
+}
+
+
+@pytest.mark.parametrize("motion", MOTIONS)
+def test_replayed_motion_within_the_stated_smoothing_error(tmp_path, motion):
+    """A motion sampled at 20 Hz and replayed gives the analytic motion's metrics within the
+    smoothing error the docs state, per metric. A track (continuous acceleration): every
+    metric to what h^4 |x''''| leaves (TRACK). A slew (acceleration steps J): the axes within
+    0.322 J h^2 and 0.427 J h (two corners of one pulse), the base's acceleration within L J
+    (linear) and J (angular), each reached to a few %; the legs' forces within 0.1 %; the
+    pose error smaller by the analytic run's co-simulation error at its steps, STEP_ERROR J
+    dt, which halves with the communication step (the replay, without steps, has no such error)."""
+    base, axes = MOTIONS[motion]
     t = np.arange(0.0, 20.0, 0.05)
-    axes = tm.sidereal_track(P, ra, dec, datetime.fromtimestamp(UTC, tz=timezone.utc), t)
-    write_log(tmp_path / "log.csv", t, axes)
-    sidereal = BASE.replace('profile = "slew", start_azimuth = "0 deg", start_elevation = "30 deg", target_azimuth = '
-                            '"20 deg", target_elevation = "45 deg", lever_arm = "25 m", start_delay = "5 s"',
-                            f'profile = "sidereal", right_ascension = {ra}, declination = {dec}, lever_arm = "25 m"')
-    truth, replay = runs(tmp_path, sidereal)
-    assert truth.ok and replay.ok
-    assert np.abs(replay["base.axis[2]"] - truth["base.axis[2]"])[1:-1].max() < 1e-9
-    m, n = truth.metrics, replay.metrics
-    # the forces follow the base's acceleration: to 1e-9 (measured 5e-12); the pose error of
-    # a track is nm (the spline's natural end conditions at t = 0 leave 0.4 nm of it)
-    for field in ("rms", "peak"):
-        assert n["leg force"][field] == pytest.approx(m["leg force"][field], rel=1e-9)
-        assert abs(n["pose error"][field] - m["pose error"][field]) < 1e-9
-        assert abs(n["pointing"][field] - m["pointing"][field]) < 1e-11
-    assert m["pose error"]["peak"] < 2e-8
+    write_log(tmp_path / "log.csv", t, axes(t))
+    truth, replayed = runs(tmp_path, base)
+    assert truth.ok and replayed.ok
+    m, n = truth.metrics, replayed.metrics
+    inner = truth.time > 3 * H          # the spline's natural end conditions rule the table's first 3 h
+    acc = [np.abs(replayed[f"base.base_acc[{i}]"] - truth[f"base.base_acc[{i}]"])[inner].max() for i in range(1, 7)]
+    if motion != "slew":
+        for (metric, field), (bound, unit) in TRACK.items():
+            error = abs(n[metric][field] - m[metric][field]) / (abs(m[metric][field]) if unit == "rel" else 1.0)
+            assert error <= bound, (metric, field, error)
+        assert max(acc) < 1e-4 * P.lever_arm * J      # m/s^2 and rad/s^2: the track's h^4 |a''''|
+        return
+    # the bound's share reached (measured 0.50, 0.58; 0.82, 0.85 on the 10 ms record): h = 0.2 s fails it
+    for name, bound, share in (("base.axis[1]", 0.322 * J * H ** 2, 0.45), ("base.axis[2]", 0.322 * J * H ** 2, 0.45),
+                               ("base.axis_rate[1]", 0.427 * J * H, 0.75), ("base.axis_rate[2]", 0.427 * J * H, 0.75)):
+        error = np.abs(replayed[name] - truth[name]).max()
+        assert share * bound < error <= bound, (name, error / bound)
+    linear, angular = max(acc[:3]) / (P.lever_arm * J), max(acc[3:]) / J
+    assert 0.4 < linear <= 1.0 and 0.5 < angular <= 1.0, (linear, angular)     # measured 0.447, 0.516
+    for metric, field in (("leg force", "rms"), ("leg force", "peak"), ("base effect", "rms"),
+                          ("base effect", "peak")):
+        assert n[metric][field] == pytest.approx(m[metric][field], rel=1e-3), (metric, field)
+    stated = STEP_ERROR * np.degrees(J) * STEP * 1e3          # µm: 0.953
+    gap = m["pose error"]["peak"] - n["pose error"]["peak"]
+    assert 0.95 * stated < gap <= stated, gap / stated       # measured 0.979
+    assert n["pose error"]["peak"] < 0.03 * m["pose error"]["peak"]
+    halved = movingbase.run(tmp_path / "truth.toml", ci=True, progress=False, set={"step": "0.5 ms"})[0]
+    halved = halved.metrics["pose error"]["peak"]
+    assert halved == pytest.approx(m["pose error"]["peak"] / 2, rel=0.02)   # the analytic's kick is the step's
 
 
 def test_a_bad_log_is_refused_before_the_run(tmp_path):
