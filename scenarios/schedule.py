@@ -56,6 +56,8 @@ ELEVATION_LIMIT = math.radians(15.0)   # default lowest elevation of a scan (ass
 KEYHOLE = math.radians(80.0)           # default highest elevation of a scan (assumed)
 STUDY_KEYS = ("requirements", "wind")   # tables a night file holds for studies/night.py, not read here
 SLEW_ITERATIONS = 4       # slew target = the source at arrival: fixed-point iterations (converge to < 1e-9 s)
+MAX_SPAN = 24 * 3600.0    # s: the longest schedule, first scan's start to last scan's end (a day at 20 Hz is
+#                           the longest table the replay takes: plant/telescope/replay.py MAX_ROWS)
 
 
 @dataclass(frozen=True)
@@ -103,14 +105,24 @@ def altaz(params, target, utc_start, t):
     name) at t [s] after utc_start, from astropy (no refraction)."""
     times = Time(utc_start) + np.atleast_1d(t) * u.s
     frame = AltAz(obstime=times, location=site(params), pressure=0 * u.hPa)
-    end = iers.IERS_Auto.open()["MJD"][-1].value
+    first, end = _iers_range()
     if times.mjd.max() > end:   # astropy would go on with the last value, up to 0.9 s of UT1: 13 arcsec
         raise InvalidInputError(f"{times[times.mjd.argmax()].isot[:19]} UTC is past the end of the IERS table "
                                 f"bundled with astropy ({Time(end, format='mjd').isot[:10]}): the Earth's "
                                 "orientation is not known offline that far ahead")
+    if times.mjd.min() < first:
+        raise InvalidInputError(f"{times[times.mjd.argmin()].isot[:19]} UTC is before the start of the IERS table "
+                                f"bundled with astropy ({Time(first, format='mjd').isot[:10]}): the Earth's "
+                                "orientation is not known offline that far back")
     coord = get_body(target, times, site(params)) if isinstance(target, str) else target
     position = coord.transform_to(frame)
     return np.asarray(position.az.rad, dtype=float), np.asarray(position.alt.rad, dtype=float)
+
+
+def _iers_range():
+    """(first, last) MJD of the bundled IERS table: the times whose Earth orientation is known offline."""
+    mjd = iers.IERS_Auto.open()["MJD"]
+    return mjd[0].value, mjd[-1].value
 
 
 def _utc(source, key, text):
@@ -147,6 +159,8 @@ def _target(source, key, scan):
         except (ValueError, TypeError, u.UnitsError):
             raise ScenarioError(source, f"{key}.{name}", f"{scan[name]!r} is not an angle such as \"12h56m11.17s\" "
                                 "or \"194.05 deg\"") from None
+    if not 0 <= angles[0].deg < 360:
+        raise ScenarioError(source, f"{key}.ra", f"{scan['ra']!r} is outside [0h, 24h) (0 to 360 deg)")
     if abs(angles[1].deg) > 90:
         raise ScenarioError(source, f"{key}.dec", f"{scan['dec']!r} is outside [-90, 90] deg")
     return SkyCoord(ra=angles[0], dec=angles[1], frame="icrs")
@@ -192,8 +206,16 @@ def _scan_track(params, target, utc_start, t0, duration, near, low, high, refuse
     bad = np.flatnonzero((el < low) | (el > high))
     if bad.size:
         when = (Time(utc_start) + check[bad[0]] * u.s).isot[:19]
-        refuse(f"its elevation is {math.degrees(el[bad[0]]):.2f} deg at {when} UTC, outside "
-               f"[{math.degrees(low):g}, {math.degrees(high):g}] deg (elevation_limit, keyhole)")
+        never = ""
+        if not isinstance(target, str):   # a fixed source culminates at 90 deg - |latitude - dec| (to arcmin)
+            top = 90.0 - abs(math.degrees(params.latitude) - target.dec.deg)
+            never = (f"; at the site's latitude {math.degrees(params.latitude):.2f} deg it culminates at {top:.2f} "
+                     "deg: it is never above the elevation limit" if top < math.degrees(low) else "")
+        limits = f"[{math.degrees(low):g}, {math.degrees(high):g}] deg (elevation_limit, keyhole)"
+        if bad[0] > 0:   # it set or entered the keyhole during the scan
+            refuse(f"its elevation leaves {limits} at {when} UTC, {(check[bad[0]] - t0) / 60:.1f} min into the "
+                   f"scan of {duration / 60:.1f} min")
+        refuse(f"its elevation is {math.degrees(el[bad[0]]):.2f} deg at {when} UTC, outside {limits}{never}")
     rate = np.abs(az_spline(check, 1)).max()
     if rate > params.az_rate_max:
         refuse(f"its azimuth rate reaches {math.degrees(rate):.3g} deg/s, beyond the drive's "
@@ -218,6 +240,11 @@ def plan(path, params=None):
         raise ScenarioError(source, sorted(unknown)[0], "unknown key (start, elevation_limit, keyhole, scans, name, "
                             f"description; {', '.join(STUDY_KEYS)} for studies/night.py)")
     utc_start = _utc(source, "start", data.get("start"))
+    first, end = (Time(mjd, format="mjd").to_datetime(timezone=timezone.utc) for mjd in _iers_range())
+    if not first <= utc_start <= end:
+        raise ScenarioError(source, "start", f"{utc_start.isoformat()[:19]} UTC is outside the IERS table bundled "
+                            f"with astropy ({first.isoformat()[:10]} to {end.isoformat()[:10]}): the Earth's "
+                            "orientation is not known offline then")
     low = parse_quantity(source, "elevation_limit", data.get("elevation_limit", ELEVATION_LIMIT), "rad")
     high = parse_quantity(source, "keyhole", data.get("keyhole", KEYHOLE), "rad")
     if not replay.ELEVATION_LIMITS[0] <= low < high <= replay.ELEVATION_LIMITS[1]:
@@ -248,6 +275,12 @@ def plan(path, params=None):
         if at is not None and at < t:
             _refuse(source, key, name, f"its start {scan['start']} is before " + (
                 f"the last scan ends ({t:.1f} s after the schedule's start)" if done else "the schedule's start"))
+        first_start = done[0].start if done else (at or 0.0)
+        ends = (t if at is None else at) + duration
+        if ends - first_start > MAX_SPAN:
+            _refuse(source, key, name, f"it would end {(ends - first_start) / 3600:.4g} h after the first scan's "
+                    f"start, beyond the {MAX_SPAN / 3600:g} h a schedule may span (the longest table the "
+                    "replay takes: a day at 20 Hz)")
 
         def refuse(why, key=key, name=name):
             _refuse(source, key, name, why)
@@ -256,6 +289,9 @@ def plan(path, params=None):
                                      pieces, done, refuse)
         except InvalidInputError as exc:
             raise ScenarioError(source, key, f"{name}: {exc}") from None
+        if t - done[0].start > MAX_SPAN:   # the slew before it counted
+            refuse(f"it would end {(t - done[0].start) / 3600:.4g} h after the first scan's start, beyond the "
+                   f"{MAX_SPAN / 3600:g} h a schedule may span (the longest table the replay takes: a day at 20 Hz)")
     return _sample(params, utc_start, pieces, done)
 
 

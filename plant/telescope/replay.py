@@ -48,7 +48,8 @@ LIMIT_MARGIN = 0.08      # the spline's rate and acceleration may pass a drive l
 #                          the kernel overshoots a pulse at the limit by up to 6.7 % (its positive
 #                          lobe's area, 1.067), plus 1.3 % for noise and the table's ends
 MIN_ROWS = 4
-MAX_ROWS = 1_728_000     # a day at 20 Hz: a longer table is refused before it is smoothed (~45 s per 720,000 rows)
+MAX_ROWS = 1_728_001     # a day at 20 Hz, both ends: a longer table is refused before it is smoothed (~45 s
+#                          per 720,000 rows)
 MAX_BYTES = 256 << 20    # a CSV or npz file larger than this is refused before it is read (a day at 20 Hz: ~60 MiB)
 SHOWN_PROBLEMS = 10      # problems listed in one error; the rest counted
 PREPARED_MAGIC = b"MBREPLAY"

@@ -165,7 +165,7 @@ def test_a_folder_a_missing_file_and_a_huge_one_are_refused(tmp_path, monkeypatc
         rp.load(tmp_path / "none.csv", P)
     path = tmp_path / "log.csv"
     path.write_text(csv_text(T, AZ, EL))
-    assert rp.MAX_ROWS == 24 * 3600 * 20 and rp.MAX_BYTES == 256 << 20
+    assert rp.MAX_ROWS == 24 * 3600 * 20 + 1 and rp.MAX_BYTES == 256 << 20
     monkeypatch.setattr(rp, "MAX_ROWS", T.size - 1)
     with pytest.raises(InvalidInputError, match=rf"{T.size} rows, more than the {T.size - 1} \(a day at 20 Hz\)"):
         rp.read_table(path)
