@@ -34,9 +34,27 @@ REPLAY = '[fmus.base]\nfmu = "telescope"\nimplementation = "python"\nparameters 
          'replay_table = "log.csv", lever_arm = "25 m" }'
 
 
-def write_log(path, t, axes):
-    np.savetxt(path, np.column_stack([t, np.degrees(axes.azimuth), np.degrees(axes.E)]), delimiter=",",
+def write_log(path, t, axes, low=None):
+    """A CSV log of the axes [deg]; with ``low`` [deg], the azimuth written modulo 360 deg in [low, low + 360)."""
+    azimuth = np.degrees(axes.azimuth) if low is None else np.mod(np.degrees(axes.azimuth) - low, 360.0) + low
+    np.savetxt(path, np.column_stack([t, azimuth, np.degrees(axes.E)]), delimiter=",",
                header="time [s],azimuth [deg],elevation [deg]", comments="", fmt="%.17g")
+
+
+# Slews logged as written (wrap-aware), across north in [0, 360), and down across south in
+# [-180, 180) (the log reads -179 .. 180 .. 179 deg; the kit puts it on the turn inside the
+# cable wrap): (start, target) [deg], the log's lower end of its 360 deg, the wraps, the turns.
+LOGS = {"slew": ((0.0, 30.0), (20.0, 45.0), None, 0, 0),
+        "across north": ((359.99, 30.0), (379.99, 45.0), 0.0, 1, 0),        # the wrap 0.28 s into the slew
+        "across south, a turn": ((180.01, 30.0), (160.01, 45.0), -180.0, 1, 1)}
+
+
+def logged(path, t, delay, log):
+    """LOGS[log] sampled at t [s], its slew starting after delay [s], written to path; the analytic axes."""
+    start, target, low, _, _ = LOGS[log]
+    axes = tm.slew(P, tuple(np.radians(start)), tuple(np.radians(target)), t - delay)
+    write_log(path, t, axes, low)
+    return axes
 
 
 RUN_RECORD = ('variables = ["base.axis", "base.axis_rate", "plant.pose", "plant.leg_length", "controller.leg_force"]',
@@ -132,18 +150,22 @@ def test_a_bad_log_is_refused_before_the_run(tmp_path):
         movingbase.run(scene, ci=True, progress=False)
 
 
-@pytest.mark.parametrize("implementation", ["python", "native"])
-def test_ssp_export_carries_the_table(fmus, native_fmus, tmp_path, implementation):
+@pytest.mark.parametrize("implementation, log", [("python", "slew"), ("native", "slew"),
+                                                 ("python", "across south, a turn"), ("native", "across north")])
+def test_ssp_export_carries_the_table(fmus, native_fmus, tmp_path, implementation, log):
     """The exported SSP holds the prepared table inside the telescope's FMU (the parameter
     reads "resource:log.mbreplay"), so fmpy's SSP master replays it with the original file
     gone, with the pythonfmu or the native Telescope, and its run equals ours (as
-    tests/scenarios/test_ssp.py compares the analytic slew)."""
+    tests/scenarios/test_ssp.py compares the analytic slew); a log wrapped at 360 deg too."""
     script = catalogue.BY_KEY["telescope"].script
     scenario, paths, descriptions, params = configure(
         {**fmus, script: (fmus if implementation == "python" else native_fmus)[script]})
     t = np.arange(0.0, 5.0, 0.05)
-    log = tmp_path / "log.csv"
-    write_log(log, t, tm.slew(P, (0.0, 30 * DEG), (20 * DEG, 45 * DEG), t - START_DELAY))
+    path = tmp_path / "log.csv"
+    logged(path, t, START_DELAY, log)
+    wraps = replay.load(path, P).wraps
+    assert len(wraps) == LOGS[log][3] and all(t[row - 1] < START_DELAY + 0.5 for row in wraps)   # inside the run
+    log = path
     params["base"].update(profile=tm.PROFILE_KINDS.index("replay"), replay_table=str(log), start_delay=0.0)
     ours = run_columns(single.run(scenario, paths, params, tmp_path, "ours"))   # the master prepares the log
     path = ssp.export_ssp(scenario, paths, params, tmp_path / "replay.ssp")
@@ -159,12 +181,17 @@ def test_ssp_export_carries_the_table(fmus, native_fmus, tmp_path, implementatio
     assert np.ptp(ours["base.base_pose[2]"]) > 1e-4      # the replayed slew moves the base
 
 
-def test_native_scene_replays_as_the_pythonfmu_one(tmp_path):
+@pytest.mark.parametrize("log", LOGS)
+def test_native_scene_replays_as_the_pythonfmu_one(tmp_path, log):
     """The same replay scene with the native Telescope (the kit prepares the log for it) and
     the pythonfmu one: the base's motion and a leg's force equal bit for bit (one C spline, the same
-    coefficients, the same communication points)."""
+    coefficients, the same communication points); a log wrapped at 360 deg, in [0, 360) or
+    [-180, 180), replays as the continuous slew (the wrap inside the CI run's 8 s)."""
     t = np.arange(0.0, 20.0, 0.05)
-    write_log(tmp_path / "log.csv", t, tm.slew(P, (0.0, 30 * DEG), (20 * DEG, 45 * DEG), t - 5.0))
+    logged(tmp_path / "log.csv", t, 5.0, log)
+    loaded = replay.load(tmp_path / "log.csv", P)
+    assert (len(loaded.wraps), loaded.turns) == LOGS[log][3:]
+    assert not LOGS[log][3] or 5.0 < t[loaded.wraps[0] - 1] < 8.0
     results = []
     for label, base in (("python", REPLAY), ("native", REPLAY.replace('implementation = "python"', 'implementation = '
                                                                        '"native"'))):
@@ -177,17 +204,20 @@ def test_native_scene_replays_as_the_pythonfmu_one(tmp_path):
                  "controller.leg_force[1]"):
         np.testing.assert_array_equal(native[name], python[name], err_msg=name)
     assert np.ptp(native["base.axis[1]"]) > 0.01   # rad: the replayed slew moved it (1 deg in the CI run's 3 s)
+    truth = tm.slew(P, tuple(np.radians(LOGS[log][0])), tuple(np.radians(LOGS[log][1])), native.time - 5.0)
+    error = (native["base.axis[1]"] - truth.azimuth + np.pi) % (2 * np.pi) - np.pi   # on any turn
+    assert np.abs(error).max() <= 0.322 * J * H ** 2
 
 
 SHORT = np.arange(0.0, 6.0, 0.05)
 
 
-@pytest.fixture(scope="module")
-def table(tmp_path_factory):
-    """(log, its prepared table) of a short slew."""
+@pytest.fixture(scope="module", params=LOGS)
+def table(request, tmp_path_factory):
+    """(log, its prepared table, LOGS key) of a short slew (from 1 s: the wraps at ~3.5 s)."""
     folder = tmp_path_factory.mktemp("replay")
-    write_log(folder / "log.csv", SHORT, tm.slew(P, (0.0, 30 * DEG), (20 * DEG, 45 * DEG), SHORT - 1.0))
-    return folder / "log.csv", replay_table.write(folder / "log.csv", folder / "log.mbreplay", P)
+    logged(folder / "log.csv", SHORT, 1.0, request.param)
+    return folder / "log.csv", replay_table.write(folder / "log.csv", folder / "log.mbreplay", P), request.param
 
 
 def _run(path, table, names, steps=400, h=0.01):
@@ -213,17 +243,18 @@ def test_native_fmi2_and_fmi3_replay_as_the_pythonfmu_fmu_bit_for_bit(fmus, nati
     """The pythonfmu Telescope on the log (smoothed by scipy in the FMU), and on the
     prepared table; the native FMI 2.0 and FMI 3.0 ones on the prepared table: the same
     numbers bit for bit, and the motion is the slew's (axis within the docs' smoothing
-    bound 0.322 J h^2 of the analytic slew)."""
+    bound 0.322 J h^2 of the analytic slew, on any turn); logs wrapped at 360 deg too."""
     script = catalogue.BY_KEY["telescope"].script
-    log, prepared = table
+    log, prepared, key = table
     names = ["axis[1]", "axis[2]", "axis_rate[1]", "axis_acc[2]", "base_acc[4]", "reference_pose[3]"]
     python = _run(fmus[script], log, names)
     for path, source in ((fmus[script], prepared), (native_fmus[script], prepared), (fmi3, prepared)):
         np.testing.assert_array_equal(_run(path, source, names), python, err_msg=str(path))
     times = 0.01 * np.arange(1, 401)
-    truth = tm.slew(P, (0.0, 30 * DEG), (20 * DEG, 45 * DEG), times - 1.0)
-    error = np.abs(python[:, 0] - truth.azimuth).max()
+    truth = tm.slew(P, tuple(np.radians(LOGS[key][0])), tuple(np.radians(LOGS[key][1])), times - 1.0)
+    error = np.abs((python[:, 0] - truth.azimuth + np.pi) % (2 * np.pi) - np.pi).max()
     assert 1e-6 < error <= 0.322 * 0.25 * DEG * 0.25 ** 2
+    assert np.abs(np.diff(python[:, 0])).max() < 1e-4     # rad per 10 ms: continuous through the wrap
 
 
 def _damaged(path, what):
