@@ -14,12 +14,14 @@ table") follow from that kernel: at an acceleration step J, 0.161 J h^2 in angle
 0.515, 0.297 and 0.297 sigma / sqrt(r h^(1, 3, 5)) in angle, rate and acceleration; a
 rate or acceleration pulse at a drive's limit is passed by at most 6.7 % (LIMIT_MARGIN).
 
-A table: columns ``time [s]``, ``azimuth [deg|rad]`` (astronomical, north through east),
-``elevation [deg|rad]``, the unit in brackets in the header (CSV, '#' lines ignored) or in
-the array names (npz). Its first time is the profile's t = 0.
+A table: columns ``time [s|ms]``, ``azimuth [deg|rad|arcsec]`` (astronomical, north
+through east), ``elevation [deg|rad|arcsec]``, the unit in brackets in the header (CSV,
+'#' lines ignored) or in the array names (npz). Its first time is the profile's t = 0.
+Every defect class is refused with its row and reason or handled as docs/bad-input.md
+says (a wrap at 360 deg, a log written modulo 360 deg, noise, short dropouts).
 
-A prepared replay table is a Replay as bytes (prepared_bytes; scenarios/replay_tables.py
-writes them, ``python -m scenarios.replay_tables LOG -o FILE``): what the native Telescope FMUs read, in C,
+A prepared replay table is a Replay as bytes (prepared_bytes; fmu_src/replay_table.py
+writes them, ``python -m fmu_src.replay_table LOG -o FILE``): what the native Telescope FMUs read, in C,
 without scipy. Its layout (PREPARED_*): b"MBREPLAY", version (uint32), knot count n
 (uint32), smoothing time [s] (float64), the n knots, the (n - 1, 8) coefficients, all
 little-endian. load() takes a prepared table as it takes a log, so both FMUs evaluate the
