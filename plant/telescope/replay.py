@@ -49,7 +49,7 @@ ELEVATION_LIMITS = (math.radians(5.0), math.radians(90.0))
 LIMIT_MARGIN = 0.08      # the spline's rate and acceleration may pass a drive limit by this share:
 #                          the kernel overshoots a pulse at the limit by up to 6.7 % (its positive
 #                          lobe's area, 1.067), plus 1.3 % for noise and the table's ends
-MIN_ROWS = 4
+MIN_ROWS = 5             # scipy's smoothing spline needs 5 samples
 MAX_ROWS = 1_728_001     # a day at 20 Hz, both ends: a longer table is refused before it is smoothed (~45 s
 #                          per 720,000 rows)
 MAX_BYTES = 256 << 20    # a CSV or npz file larger than this is refused before it is read (a day at 20 Hz: ~60 MiB)
@@ -76,7 +76,11 @@ def _column(name, header, source):
     """(column, SI factor, unit) of a header cell 'name [unit]'."""
     text = header.strip()
     key, _, unit = text.partition("[")
-    key, unit = key.strip(), unit.rstrip("]").strip()
+    key, unit = key.strip().lower(), unit.rstrip("]").strip().lower()
+    for separator in (";", "\t"):
+        if separator in text:
+            raise InvalidInputError(f"{source}: the header {text!r} is separated by {separator!r}; a replay table's "
+                                    "columns are separated by commas")
     if key not in COLUMNS:
         raise InvalidInputError(f"{source}: column {text!r} is not one of {', '.join(COLUMNS)} "
                                 "(written 'name [unit]')")
@@ -155,7 +159,7 @@ def _csv_columns(path, source):
                                 f"{', '.join(k for k, _, _ in keys)}")
     values = _numbers(lines[1:], len(keys))
     if values is None:
-        _name_bad_cell([header, *csv.reader(lines[1:])], source)
+        values = _cells([header, *csv.reader(lines[1:])], source)
     return {key: values[:, j] for j, key in enumerate(keys)}
 
 
@@ -170,9 +174,10 @@ def _numbers(lines, width):
     return values if values.shape == (len(lines), width) else None
 
 
-def _name_bad_cell(rows, source):
-    """InvalidInputError naming the first row of the wrong length or cell that is not a number."""
-    header = rows[0]
+def _cells(rows, source):
+    """The data rows (csv.reader's: quoted numbers taken) as an (n, width) float array;
+    InvalidInputError naming the first row of the wrong length or cell that is not a number."""
+    header, values = rows[0], []
     for i, row in enumerate(rows[1:]):
         if len(row) != len(header):
             raise InvalidInputError(f"{source}: row {i + 1} has {len(row)} values, the header {len(header)}")
@@ -180,11 +185,13 @@ def _name_bad_cell(rows, source):
             if not cell.strip():
                 raise InvalidInputError(f"{source}: row {i + 1}, column {header[j].strip()!r}: is empty")
             try:
-                float(cell)
+                if "_" in cell:     # Python's float reads "1_0" as 10; a log means no such thing
+                    raise ValueError(cell)
+                values.append(float(cell))
             except ValueError:
                 raise InvalidInputError(f"{source}: row {i + 1}, column {header[j].strip()!r}: "
                                         f"{cell!r} is not a number") from None
-    raise InvalidInputError(f"{source}: the rows are not all numbers separated by commas")
+    return np.array(values, dtype=float).reshape(len(rows) - 1, len(header))
 
 
 def _unwrap(azimuth):

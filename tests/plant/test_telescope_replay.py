@@ -148,9 +148,9 @@ def test_drive_limits_and_values_are_checked():
     with pytest.raises(InvalidInputError, match="row 8: elevation is nan, not a finite number"):
         rp.replay_table(table, P)
     with pytest.raises(InvalidInputError, match="a gap of 1.05 s"):
-        rp.replay_table(rp.Table(np.r_[0.0, 0.05, 1.1, 1.15], np.zeros(4), np.full(4, 0.5)), P)
+        rp.replay_table(rp.Table(np.r_[0.0, 0.05, 0.1, 1.15, 1.2], np.zeros(5), np.full(5, 0.5)), P)
     with pytest.raises(InvalidInputError, match="azimuth 451 deg"):
-        rp.replay_table(rp.Table(np.arange(4.0), np.full(4, 451 * DEG), np.full(4, 0.5)), P)
+        rp.replay_table(rp.Table(np.arange(5.0), np.full(5, 451 * DEG), np.full(5, 0.5)), P)
 
 
 def test_csv_and_npz_read_the_same(tmp_path):

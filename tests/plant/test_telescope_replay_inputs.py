@@ -120,8 +120,14 @@ REFUSED = [
     ("an empty file", ".csv", "",
      r"empty: no header line \(time \[s\],azimuth \[deg\],elevation \[deg\]\) and no rows"),
     ("comments only", ".csv", "# a log\n\n# nothing\n", r"empty: no header line"),
-    ("a header without rows", ".csv", HEADER + "\n", r"1 problem\(s\): 0 rows: a replay needs at least 4$"),
-    ("one row", ".csv", HEADER + "\n0,10,30\n", r"1 row: a replay needs at least 4$"),
+    ("a header without rows", ".csv", HEADER + "\n", r"1 problem\(s\): 0 rows: a replay needs at least 5$"),
+    ("one row", ".csv", HEADER + "\n0,10,30\n", r"1 row: a replay needs at least 5$"),
+    ("four rows (scipy's spline needs five)", ".csv", HEADER + "\n" + "".join(f"{k / 20},10,30\n" for k in range(4)),
+     r"4 rows: a replay needs at least 5$"),
+    ("columns separated by semicolons", ".csv", csv_text(T, AZ, EL).replace(",", ";"),
+     r"the header 'time \[s\];azimuth \[deg\];elevation \[deg\]' is separated by ';'; a replay table's columns "
+     r"are separated by commas$"),
+    ("a digit separator", ".csv", with_cell(4, 1, "1_0"), r"row 4, column 'azimuth \[deg\]': '1_0' is not a number$"),
     ("a binary file", ".csv", b"\x00\x01MBREPLAY?", r"a binary file \(NUL byte at offset 0\), not a CSV table"),
     ("a file not UTF-8", ".csv", (HEADER + "\n0,10\xb0,30\n").encode("latin-1"),
      r"not UTF-8 text \(byte 0xb0 at offset 43\)"),
@@ -225,14 +231,17 @@ def test_a_wrap_aware_log_past_the_wrap_is_not_moved(tmp_path):
 
 def test_units_comments_and_epoch_times_replay_as_the_plain_log(tmp_path):
     """The same slew written in arcsec, rad, ms, with '#' lines and blank lines between its
-    rows, with times from a Unix epoch (1.7e9 s), or as npz: the same motion as the plain log."""
+    rows, with quoted cells, a header in capitals and CRLF line ends, or with times from a
+    Unix epoch (1.7e9 s): the same motion as the plain log."""
     plain = axes_of(replayed(csv_text(T, AZ, EL), tmp_path, "plain.csv"))
     arcsec = csv_text(T * 1e3, AZ, EL, header="time [ms],azimuth [arcsec],elevation [rad]",
                       scale=(1.0, 648000 / np.pi, 1.0))
     lines = csv_text(T, AZ, EL).splitlines()
     commented = "# encoder log\n\n" + "\n".join(line + ("\n# a note\n" if k % 50 == 0 else "")
                                                for k, line in enumerate(lines)) + "\n"
-    for name, text in (("arcsec.csv", arcsec), ("commented.csv", commented)):
+    quoted = "\r\n".join(",".join(f'"{cell}"' for cell in line.split(",")) for line in lines).replace(
+        "time [s]", "Time [S]") + "\r\n"        # quoted cells, a header in other case, CRLF line ends
+    for name, text in (("arcsec.csv", arcsec), ("commented.csv", commented), ("quoted.csv", quoted)):
         got = axes_of(replayed(text, tmp_path, name))
         np.testing.assert_allclose(got.azimuth, plain.azimuth, rtol=0, atol=1e-12, err_msg=name)
         np.testing.assert_allclose(got.E_ddot, plain.E_ddot, rtol=0, atol=1e-11, err_msg=name)
