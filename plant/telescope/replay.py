@@ -332,10 +332,13 @@ def _runs(indices):
 
 def replay_table(table, params, max_gap=MAX_GAP, smoothing_time=SMOOTHING_TIME):
     """A checked Table as a Replay for ``params`` (a TelescopeParams: the drives' limits).
-    InvalidInputError listing every problem with its row: a value not a number, times not
-    strictly increasing, a gap beyond ``max_gap`` [s], an axis outside its range, a smoothed
-    rate or acceleration beyond the drive's limit. Handled, not refused: a 360 deg azimuth
-    wrap (unwrapped), noise (smoothed over ``smoothing_time`` [s]), gaps up to max_gap."""
+    InvalidInputError listing every problem with its row: fewer than MIN_ROWS or more than
+    MAX_ROWS rows, a value not finite, a time out of order or repeated, a gap beyond
+    ``max_gap`` [s], an axis outside its range (or every elevation, when another unit
+    explains it), a smoothed rate or acceleration beyond the drive's limit (runs of rows).
+    Handled, not refused: a 360 deg azimuth wrap either way (unwrapped), a log written
+    modulo 360 deg (put on the turn inside the cable wrap), noise (smoothed over
+    ``smoothing_time`` [s]), gaps up to max_gap."""
     if not (np.isfinite(smoothing_time) and smoothing_time > 0):
         raise InvalidInputError(f"smoothing_time must be finite and > 0, got {smoothing_time!r}")
     if not (np.isfinite(max_gap) and max_gap > 0):
