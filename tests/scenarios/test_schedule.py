@@ -125,7 +125,10 @@ def test_a_track_across_north_is_unwrapped(tmp_path):
     ((OJ287[0] + 'duration = "5 min"\n', C4_39[0] + 'duration = "5 min"\nstart = "2024-03-01T11:35:30"\n'), "",
      r"scans\[1\]: 4C 39.25 cannot be observed: its start 2024-03-01T11:35:30 is before the slew from the last "
      r"scan can arrive"),
-    (('body = "vulcan"\nduration = "5 min"\n',), "", "body 'vulcan' is not a solar-system body"),
+    (('body = "vulcan"\nduration = "5 min"\n',), "", r"scans\[0\]: body 'vulcan' is not a solar-system body the "
+     r"telescope can point at \(sun, moon, mercury, venus, mars, jupiter, saturn, uranus, neptune\)$"),
+    (('body = "earth"\nduration = "5 min"\n',), "", r"scans\[0\]: body 'earth' is not a solar-system body the "
+     r"telescope can point at"),
     (('source = "x"\nra = "12h"\nduration = "5 min"\n',), "", r"scans\[0\]: a scan needs ra and dec"),
     (('source = "x"\nra = "12h"\ndec = "95 deg"\nduration = "5 min"\n',), "", r"scans\[0\]\.dec: '95 deg' is "
      r"outside \[-90, 90\] deg"),
