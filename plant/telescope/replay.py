@@ -309,6 +309,10 @@ def _problems(table, params, max_gap, smoothing_time):
         return problems, None
     t = t - t[0]      # the first time is t = 0: fitted from there (a log's Unix times keep their resolution)
     coef = np.concatenate([_spline(t, az, smoothing_time), _spline(t, el, smoothing_time)], axis=1)
+    unfit = np.flatnonzero(~np.isfinite(coef).all(axis=1))
+    if unfit.size:   # not seen (times 1e-12 s apart fit); the C would refuse the spline without its row
+        return [f"rows {i + 1}-{i + 2}: the smoothing spline is not finite there (times too close?)"
+                for i in unfit[:1]], None
     for axis, col, limits in (("azimuth", 0, (params.az_rate_max, params.az_acc_max)),
                               ("elevation", 4, (params.el_rate_max, params.el_acc_max))):
         for what, values, limit, unit in zip(("rate", "acceleration"), _derivatives(t, coef[:, col:col + 4]), limits,

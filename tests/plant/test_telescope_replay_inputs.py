@@ -264,3 +264,17 @@ def test_small_noise_and_a_short_dropout_are_handled(tmp_path):
     got, truth = axes_of(replayed(text, tmp_path), t), slew(P, (10 * DEG, 30 * DEG), (40 * DEG, 50 * DEG), t - 5.0)
     assert np.abs(got.azimuth - truth.azimuth).max() <= 0.322 * J * H ** 2 + 4 * 0.515 * sigma / np.sqrt(20 * H)
     assert np.abs(got.A_ddot - truth.A_ddot).max() <= 1.0 * J + 4 * 0.297 * sigma / np.sqrt(20 * H ** 5)
+
+
+def test_a_spline_that_is_not_finite_is_refused_by_its_rows(monkeypatch):
+    """A guard, not a seen case (times 1e-12 s apart still fit): were scipy's spline not
+    finite on an interval, the rows are named here rather than the C refusing the spline."""
+    real = rp._spline
+
+    def broken(t, y, h):
+        coef = real(t, y, h)
+        coef[41, 2] = np.nan
+        return coef
+    monkeypatch.setattr(rp, "_spline", broken)
+    with pytest.raises(InvalidInputError, match=r"1 problem\(s\): rows 42-43: the smoothing spline is not finite"):
+        rp.replay_table(rp.Table(T, AZ, EL), P)
