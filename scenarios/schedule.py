@@ -238,7 +238,9 @@ def plan(path, params=None):
     if unknown:
         raise ScenarioError(source, sorted(unknown)[0], "unknown key (start, elevation_limit, keyhole, scans, name, "
                             f"description; {', '.join(STUDY_KEYS)} for studies/night.py)")
-    utc_start = _utc(source, "start", data.get("start"))
+    if "start" not in data:
+        raise ScenarioError(source, "start", "missing: a schedule needs its UTC start, such as \"2024-03-01T12:00:00\"")
+    utc_start = _utc(source, "start", data["start"])
     first, end = (Time(mjd, format="mjd").to_datetime(timezone=timezone.utc) for mjd in _iers_range())
     if not first <= utc_start <= end:
         raise ScenarioError(source, "start", f"{utc_start.isoformat()[:19]} UTC is outside the IERS table bundled "

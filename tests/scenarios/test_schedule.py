@@ -199,6 +199,22 @@ def test_a_bad_schedule_start_is_refused(tmp_path, start, match):
         schedule.plan(write(tmp_path, start, OJ287[0] + 'duration = "2 min"\n'))
 
 
+@pytest.mark.parametrize("text, match", [
+    ("", r"night\.toml: start: missing: a schedule needs its UTC start"),
+    ('start = "2024-03-01T11:30:00"\n', r"night\.toml: scans: a schedule needs at least one \[\[scans\]\] table"),
+    ('start = "2024-03-01T11:30:00"\nscans = []\n', r"night\.toml: scans: a schedule needs at least one"),
+    ('start = "2024-03-01T11:30:00"\nkeyhole = "10 deg"\n[[scans]]\nbody = "moon"\nduration = "1 min"\n',
+     r"night\.toml: elevation_limit: elevation_limit 15 deg and keyhole 10 deg must rise within the axis range"),
+    ('start = "2024-03-01T11:30:00"\nsite = "Effelsberg"\n', r"night\.toml: site: unknown key"),
+    ('start = "2024-03-01T11:30:00"\n[[scans]]\nbody = "moon"\ntime = "1 min"\n', r"scans\[0\]\.time: unknown key"),
+])
+def test_a_bad_schedule_file_is_refused_by_key(tmp_path, text, match):
+    path = tmp_path / "night.toml"
+    path.write_text(text)
+    with pytest.raises(ScenarioError, match=match):
+        schedule.plan(path)
+
+
 def test_a_start_with_an_offset_is_that_utc_time(tmp_path):
     """"2024-03-01T19:30:00+08:00" (Beijing time) is 11:30 UTC: the same table."""
     utc = schedule.plan(write(tmp_path, "2024-03-01T11:30:00", OJ287[0] + 'duration = "1 min"\n'))
