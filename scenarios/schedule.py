@@ -29,6 +29,7 @@ unknown body) is refused with the reason, before anything is written.
 """
 import math
 import pathlib
+import re
 from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
 
@@ -56,6 +57,7 @@ ELEVATION_LIMIT = math.radians(15.0)   # default lowest elevation of a scan (ass
 KEYHOLE = math.radians(80.0)           # default highest elevation of a scan (assumed)
 BODIES = ("sun", "moon", "mercury", "venus", "mars", "jupiter", "saturn", "uranus", "neptune")   # astropy's get_body
 STUDY_KEYS = ("requirements", "wind")   # tables a night file holds for studies/night.py, not read here
+HANDOVER_WINDOW = 10.0    # s either side of a slew's start and end checked as the replay checks a table
 SLEW_ITERATIONS = 4       # slew target = the source at arrival: fixed-point iterations (converge to < 1e-9 s)
 MAX_SPAN = 24 * 3600.0    # s: the longest schedule, first scan's start to last scan's end (a day at 20 Hz is
 #                           the longest table the replay takes: plant/telescope/replay.py MAX_ROWS)
@@ -215,10 +217,13 @@ def _scan_track(params, target, utc_start, t0, duration, near, low, high, refuse
             refuse(f"its elevation leaves {limits} at {when} UTC, {(check[bad[0]] - t0) / 60:.1f} min into the "
                    f"scan of {duration / 60:.1f} min")
         refuse(f"its elevation is {math.degrees(el[bad[0]]):.2f} deg at {when} UTC, outside {limits}{never}")
-    rate = np.abs(az_spline(check, 1)).max()
-    if rate > params.az_rate_max:
-        refuse(f"its azimuth rate reaches {math.degrees(rate):.3g} deg/s, beyond the drive's "
-               f"{math.degrees(params.az_rate_max):.3g} deg/s (the keyhole near the zenith)")
+    for axis, spline, limits in (("azimuth", az_spline, (params.az_rate_max, params.az_acc_max)),
+                                 ("elevation", el_spline, (params.el_rate_max, params.el_acc_max))):
+        for order, (what, unit), limit in zip((1, 2), (("rate", "deg/s"), ("acceleration", "deg/s2")), limits):
+            worst = np.abs(spline(check, order)).max()
+            if worst > limit:
+                refuse(f"its {axis} {what} reaches {math.degrees(worst):.3g} {unit}, beyond the drive's "
+                       f"{math.degrees(limit):.3g} {unit} (the keyhole near the zenith)")
     wrap_low, wrap_high = replay.AZIMUTH_LIMITS
     nearest = _turn(az[0], near) - az[0]
     for turn in (0.0, 2 * math.pi, -2 * math.pi):
@@ -293,7 +298,34 @@ def plan(path, params=None):
         if t - done[0].start > MAX_SPAN:   # the slew before it counted
             refuse(f"it would end {(t - done[0].start) / 3600:.4g} h after the first scan's start, beyond the "
                    f"{MAX_SPAN / 3600:g} h a schedule may span (the longest table the replay takes: a day at 20 Hz)")
-    return _sample(params, utc_start, pieces, done)
+    night = _sample(params, utc_start, pieces, done)
+    _check_handovers(night, params, source)
+    return night
+
+
+def _check_handovers(night, params, source):
+    """ScenarioError for a scan whose slew hands over to its track (or takes over from the
+    last one) with a rate step the replay's smoothed acceleration cannot pass: the slews
+    start and end at rest, a track moves; near the zenith (a keyhole above ~89 deg) its
+    azimuth rate is tenths of a deg/s. Each handover is checked as the replay checks the
+    table (plant/telescope/replay.py), on the 20 s around it."""
+    for i, scan in enumerate(night.scans[1:], start=1):
+        for what, at in (("leaves the last scan", scan.slew_start), ("starts its track", scan.start)):
+            rows = np.flatnonzero(np.abs(night.time - at) <= HANDOVER_WINDOW)
+            table = replay.Table(night.time[rows], night.azimuth[rows], night.elevation[rows])
+            try:
+                replay.replay_table(table, params)
+            except InvalidInputError as exc:
+                k = int(np.searchsorted(night.time, at))
+                step = [abs(np.diff(a[k - 2:k + 2])).max() / SAMPLE_INTERVAL for a in (night.azimuth, night.elevation)]
+                _refuse(source, f"scans[{i}]", scan.source, f"its slew {what} at rest while the track moves at "
+                        f"{math.degrees(step[0]):.3g} deg/s in azimuth, {math.degrees(step[1]):.3g} deg/s in "
+                        f"elevation: a step the drives cannot make ({_problem(exc)}); lower the keyhole")
+
+
+def _problem(exc):
+    """The first problem of a replay refusal without its rows (they are an excerpt's)."""
+    return re.sub(r"^rows? [\d-]+: ", "", str(exc).split(" problem(s): ", 1)[-1].split("; ")[0])
 
 
 def _plan_scan(params, scan, target, name, duration, at, utc_start, low, high, t, pointing, pieces, done, refuse):

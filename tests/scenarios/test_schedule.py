@@ -189,6 +189,23 @@ def test_a_pass_through_the_keyhole_is_refused(tmp_path, head, match):
         schedule.plan(write(tmp_path, "2025-12-31T23:55:00", ZENITH, head=head))
 
 
+def test_a_handover_the_drives_cannot_make_is_refused(tmp_path):
+    """A slew starts and ends at rest; a track 1.6 deg from the zenith (keyhole raised to
+    90 deg) moves at 0.12 deg/s in azimuth: the step, smoothed, passes the drive's
+    acceleration (the replay would refuse the table at its row); the schedule names the
+    scan and the step. The same schedule with the source 30 deg lower is planned and replays."""
+    near = 'source = "z"\nra = "222.3231 deg"\ndec = "{dec} deg"\nduration = "5 min"\n'
+    then = 'source = "b"\nra = "200.3231 deg"\ndec = "40 deg"\nduration = "2 min"\n'
+    with pytest.raises(ScenarioError, match=r"scans\[1\]: b cannot be observed: its slew leaves the last scan at rest "
+                                            r"while the track moves at 0\.123 deg/s in azimuth, 0\.00625 deg/s in "
+                                            r"elevation: a step the drives cannot make \(the smoothed azimuth "
+                                            r"acceleration up to 0\.27\d* deg/s2 passes the drive's 0\.25 deg/s2 "
+                                            r"\(\+8% allowed\)\); lower the keyhole$"):
+        schedule.plan(write(tmp_path, "2025-12-31T23:58:00", near.format(dec=29.5), then, head='keyhole = "90 deg"\n'))
+    plan = schedule.plan(write(tmp_path, "2025-12-31T23:58:00", near.format(dec=60), then, head='keyhole = "90 deg"\n'))
+    replay.load(plan.write(tmp_path / "night.csv"), P)
+
+
 @pytest.mark.parametrize("start, match", [
     ("yesterday", r"start: 'yesterday' is not a UTC time such as \"2024-03-01T12:00:00\""),
     ("1950-01-01T12:00:00", r"start: 1950-01-01T12:00:00 UTC is outside the IERS table bundled with astropy "
