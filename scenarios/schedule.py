@@ -24,8 +24,10 @@ Between scans the antenna slews at the axis limits (the kit's trapezoidal slew, 
 arrives where the source is at the arrival time), choosing the azimuth turn within the
 cable wrap (plant/telescope/replay.py AZIMUTH_LIMITS) nearest the last one whose scan stays
 inside the wrap; during a scan it tracks. A scan that cannot be observed (below the
-elevation limit, above the keyhole, beyond the wrap, a start before the slew arrives, an
-unknown body) is refused with the reason, before anything is written.
+elevation limit, above the keyhole, beyond the drives' rates or accelerations, beyond the
+wrap, a start before the slew arrives, a handover from or to a slew the drives cannot
+make, past a day from the first scan, an unknown body) is refused with the reason,
+before anything is written (docs/bad-input.md lists each message).
 """
 import math
 import pathlib
