@@ -30,6 +30,7 @@ same coefficients, bit for bit. The drives' limits are checked when it is prepar
 import csv
 import math
 import pathlib
+import zipfile
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -117,7 +118,6 @@ def read_table(path):
 
 def _npz_columns(path, source):
     """{(column, SI factor, unit): values} of an npz file: one 1-D numeric array per column."""
-    import zipfile
     try:
         data = np.load(path, allow_pickle=False)
         if not isinstance(data, np.lib.npyio.NpzFile):
