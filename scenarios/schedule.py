@@ -308,11 +308,11 @@ def plan(path, params=None):
 def _check_handovers(night, params, source):
     """ScenarioError for a scan whose slew hands over to its track (or takes over from the
     last one) with a rate step the replay's smoothed acceleration cannot pass: the slews
-    start and end at rest, a track moves; near the zenith (a keyhole above ~89 deg) its
+    start and end at rest, a track moves; near the zenith (a keyhole above ~88.5 deg) its
     azimuth rate is tenths of a deg/s. Each handover is checked as the replay checks the
     table (plant/telescope/replay.py), on the 20 s around it."""
     for i, scan in enumerate(night.scans[1:], start=1):
-        for what, at in (("leaves the last scan", scan.slew_start), ("starts its track", scan.start)):
+        for what, at in (("leaves the last scan", night.scans[i - 1].end), ("starts its track", scan.start)):
             rows = np.flatnonzero(np.abs(night.time - at) <= HANDOVER_WINDOW)
             table = replay.Table(night.time[rows], night.azimuth[rows], night.elevation[rows])
             try:
