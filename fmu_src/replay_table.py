@@ -22,6 +22,8 @@ from plant.telescope import replay
 
 CACHE = pathlib.Path(tempfile.gettempdir()) / "movingbase-replay"
 DRIVE_LIMITS = ("az_rate_max", "az_acc_max", "el_rate_max", "el_acc_max")   # what a table is checked against
+CACHE_REVISION = 2   # in the cache key: raised when replay.py reads or smooths a log differently (2: the spline
+#                      fitted from the first time, a log written modulo 360 deg put into the cable wrap)
 _LOGS: dict = {}   # a prepared table made here -> its log (a sweep of the smoothing prepares that log again)
 
 
@@ -52,7 +54,7 @@ def prepared(log, params, smoothing_time=replay.SMOOTHING_TIME, cache=CACHE):
         log = made_from
     if not log.is_file():
         raise InvalidInputError(f"replay table {str(log)!r} does not exist")
-    settings = [float(getattr(params, n)) for n in DRIVE_LIMITS] + [float(smoothing_time)]
+    settings = [float(getattr(params, n)) for n in DRIVE_LIMITS] + [float(smoothing_time), CACHE_REVISION]
     key = hashlib.sha256(log.read_bytes() + repr(settings).encode()).hexdigest()[:24]
     out = pathlib.Path(cache) / f"{log.stem}-{key}{replay.PREPARED_SUFFIX}"
     if not out.is_file():

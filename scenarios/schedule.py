@@ -24,11 +24,14 @@ Between scans the antenna slews at the axis limits (the kit's trapezoidal slew, 
 arrives where the source is at the arrival time), choosing the azimuth turn within the
 cable wrap (plant/telescope/replay.py AZIMUTH_LIMITS) nearest the last one whose scan stays
 inside the wrap; during a scan it tracks. A scan that cannot be observed (below the
-elevation limit, above the keyhole, beyond the wrap, a start before the slew arrives, an
-unknown body) is refused with the reason, before anything is written.
+elevation limit, above the keyhole, beyond the drives' rates or accelerations, beyond the
+wrap, a start before the slew arrives, a handover from or to a slew the drives cannot
+make, past a day from the first scan, an unknown body) is refused with the reason,
+before anything is written (docs/bad-input.md lists each message).
 """
 import math
 import pathlib
+import re
 from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
 
@@ -54,8 +57,12 @@ ASTROPY_STEP = 5.0        # s: astropy positions this far apart, cubic-interpola
 #                           below the keyhole: (5/384) step^4 |x''''|; the tests measure it against astropy)
 ELEVATION_LIMIT = math.radians(15.0)   # default lowest elevation of a scan (assumed observing practice)
 KEYHOLE = math.radians(80.0)           # default highest elevation of a scan (assumed)
+BODIES = ("sun", "moon", "mercury", "venus", "mars", "jupiter", "saturn", "uranus", "neptune")   # astropy's get_body
 STUDY_KEYS = ("requirements", "wind")   # tables a night file holds for studies/night.py, not read here
+HANDOVER_WINDOW = 10.0    # s either side of a slew's start and end checked as the replay checks a table
 SLEW_ITERATIONS = 4       # slew target = the source at arrival: fixed-point iterations (converge to < 1e-9 s)
+MAX_SPAN = 24 * 3600.0    # s: the longest schedule, first scan's start to last scan's end (a day at 20 Hz is
+#                           the longest table the replay takes: plant/telescope/replay.py MAX_ROWS)
 
 
 @dataclass(frozen=True)
@@ -103,14 +110,24 @@ def altaz(params, target, utc_start, t):
     name) at t [s] after utc_start, from astropy (no refraction)."""
     times = Time(utc_start) + np.atleast_1d(t) * u.s
     frame = AltAz(obstime=times, location=site(params), pressure=0 * u.hPa)
-    end = iers.IERS_Auto.open()["MJD"][-1].value
+    first, end = _iers_range()
     if times.mjd.max() > end:   # astropy would go on with the last value, up to 0.9 s of UT1: 13 arcsec
         raise InvalidInputError(f"{times[times.mjd.argmax()].isot[:19]} UTC is past the end of the IERS table "
                                 f"bundled with astropy ({Time(end, format='mjd').isot[:10]}): the Earth's "
                                 "orientation is not known offline that far ahead")
+    if times.mjd.min() < first:
+        raise InvalidInputError(f"{times[times.mjd.argmin()].isot[:19]} UTC is before the start of the IERS table "
+                                f"bundled with astropy ({Time(first, format='mjd').isot[:10]}): the Earth's "
+                                "orientation is not known offline that far back")
     coord = get_body(target, times, site(params)) if isinstance(target, str) else target
     position = coord.transform_to(frame)
     return np.asarray(position.az.rad, dtype=float), np.asarray(position.alt.rad, dtype=float)
+
+
+def _iers_range():
+    """(first, last) MJD of the bundled IERS table: the times whose Earth orientation is known offline."""
+    mjd = iers.IERS_Auto.open()["MJD"]
+    return mjd[0].value, mjd[-1].value
 
 
 def _utc(source, key, text):
@@ -132,11 +149,9 @@ def _target(source, key, scan):
         body = scan["body"]
         if "ra" in scan or "dec" in scan:
             raise ScenarioError(source, key, "give either body or ra and dec, not both")
-        try:
-            get_body(str(body), Time("2024-01-01"))
-        except (KeyError, ValueError):
-            raise ScenarioError(source, key, f"body {body!r} is not a solar-system body astropy knows (sun, moon, "
-                                "mercury, venus, mars, jupiter, saturn, uranus, neptune)") from None
+        if str(body).lower() not in BODIES:   # astropy also knows "earth" and its barycentre: not in the sky
+            raise ScenarioError(source, key, f"body {body!r} is not a solar-system body the telescope can point at "
+                                f"({', '.join(BODIES)})")
         return str(body).lower()
     if "ra" not in scan or "dec" not in scan:
         raise ScenarioError(source, key, "a scan needs ra and dec (ICRS) or body")
@@ -147,6 +162,8 @@ def _target(source, key, scan):
         except (ValueError, TypeError, u.UnitsError):
             raise ScenarioError(source, f"{key}.{name}", f"{scan[name]!r} is not an angle such as \"12h56m11.17s\" "
                                 "or \"194.05 deg\"") from None
+    if not 0 <= angles[0].deg < 360:
+        raise ScenarioError(source, f"{key}.ra", f"{scan['ra']!r} is outside [0h, 24h) (0 to 360 deg)")
     if abs(angles[1].deg) > 90:
         raise ScenarioError(source, f"{key}.dec", f"{scan['dec']!r} is outside [-90, 90] deg")
     return SkyCoord(ra=angles[0], dec=angles[1], frame="icrs")
@@ -192,12 +209,23 @@ def _scan_track(params, target, utc_start, t0, duration, near, low, high, refuse
     bad = np.flatnonzero((el < low) | (el > high))
     if bad.size:
         when = (Time(utc_start) + check[bad[0]] * u.s).isot[:19]
-        refuse(f"its elevation is {math.degrees(el[bad[0]]):.2f} deg at {when} UTC, outside "
-               f"[{math.degrees(low):g}, {math.degrees(high):g}] deg (elevation_limit, keyhole)")
-    rate = np.abs(az_spline(check, 1)).max()
-    if rate > params.az_rate_max:
-        refuse(f"its azimuth rate reaches {math.degrees(rate):.3g} deg/s, beyond the drive's "
-               f"{math.degrees(params.az_rate_max):.3g} deg/s (the keyhole near the zenith)")
+        never = ""
+        if not isinstance(target, str):   # a fixed source culminates at 90 deg - |latitude - dec| (to arcmin)
+            top = 90.0 - abs(math.degrees(params.latitude) - target.dec.deg)
+            never = (f"; at the site's latitude {math.degrees(params.latitude):.2f} deg it culminates at {top:.2f} "
+                     "deg: it is never above the elevation limit" if top < math.degrees(low) else "")
+        limits = f"[{math.degrees(low):g}, {math.degrees(high):g}] deg (elevation_limit, keyhole)"
+        if bad[0] > 0:   # it set or entered the keyhole during the scan
+            refuse(f"its elevation leaves {limits} at {when} UTC, {(check[bad[0]] - t0) / 60:.1f} min into the "
+                   f"scan of {duration / 60:.1f} min")
+        refuse(f"its elevation is {math.degrees(el[bad[0]]):.2f} deg at {when} UTC, outside {limits}{never}")
+    for axis, spline, limits in (("azimuth", az_spline, (params.az_rate_max, params.az_acc_max)),
+                                 ("elevation", el_spline, (params.el_rate_max, params.el_acc_max))):
+        for order, (what, unit), limit in zip((1, 2), (("rate", "deg/s"), ("acceleration", "deg/s2")), limits):
+            worst = np.abs(spline(check, order)).max()
+            if worst > limit:
+                refuse(f"its {axis} {what} reaches {math.degrees(worst):.3g} {unit}, beyond the drive's "
+                       f"{math.degrees(limit):.3g} {unit} (the keyhole near the zenith)")
     wrap_low, wrap_high = replay.AZIMUTH_LIMITS
     nearest = _turn(az[0], near) - az[0]
     for turn in (0.0, 2 * math.pi, -2 * math.pi):
@@ -217,7 +245,14 @@ def plan(path, params=None):
     if unknown:
         raise ScenarioError(source, sorted(unknown)[0], "unknown key (start, elevation_limit, keyhole, scans, name, "
                             f"description; {', '.join(STUDY_KEYS)} for studies/night.py)")
-    utc_start = _utc(source, "start", data.get("start"))
+    if "start" not in data:
+        raise ScenarioError(source, "start", "missing: a schedule needs its UTC start, such as \"2024-03-01T12:00:00\"")
+    utc_start = _utc(source, "start", data["start"])
+    first, end = (Time(mjd, format="mjd").to_datetime(timezone=timezone.utc) for mjd in _iers_range())
+    if not first <= utc_start <= end:
+        raise ScenarioError(source, "start", f"{utc_start.isoformat()[:19]} UTC is outside the IERS table bundled "
+                            f"with astropy ({first.isoformat()[:10]} to {end.isoformat()[:10]}): the Earth's "
+                            "orientation is not known offline then")
     low = parse_quantity(source, "elevation_limit", data.get("elevation_limit", ELEVATION_LIMIT), "rad")
     high = parse_quantity(source, "keyhole", data.get("keyhole", KEYHOLE), "rad")
     if not replay.ELEVATION_LIMITS[0] <= low < high <= replay.ELEVATION_LIMITS[1]:
@@ -248,6 +283,12 @@ def plan(path, params=None):
         if at is not None and at < t:
             _refuse(source, key, name, f"its start {scan['start']} is before " + (
                 f"the last scan ends ({t:.1f} s after the schedule's start)" if done else "the schedule's start"))
+        first_start = done[0].start if done else (at or 0.0)
+        ends = (t if at is None else at) + duration
+        if ends - first_start > MAX_SPAN:
+            _refuse(source, key, name, f"it would end {(ends - first_start) / 3600:.4g} h after the first scan's "
+                    f"start, beyond the {MAX_SPAN / 3600:g} h a schedule may span (the longest table the "
+                    "replay takes: a day at 20 Hz)")
 
         def refuse(why, key=key, name=name):
             _refuse(source, key, name, why)
@@ -256,7 +297,37 @@ def plan(path, params=None):
                                      pieces, done, refuse)
         except InvalidInputError as exc:
             raise ScenarioError(source, key, f"{name}: {exc}") from None
-    return _sample(params, utc_start, pieces, done)
+        if t - done[0].start > MAX_SPAN:   # the slew before it counted
+            refuse(f"it would end {(t - done[0].start) / 3600:.4g} h after the first scan's start, beyond the "
+                   f"{MAX_SPAN / 3600:g} h a schedule may span (the longest table the replay takes: a day at 20 Hz)")
+    night = _sample(params, utc_start, pieces, done)
+    _check_handovers(night, params, source)
+    return night
+
+
+def _check_handovers(night, params, source):
+    """ScenarioError for a scan whose slew hands over to its track (or takes over from the
+    last one) with a rate step the replay's smoothed acceleration cannot pass: the slews
+    start and end at rest, a track moves; near the zenith (a keyhole above ~88.5 deg) its
+    azimuth rate is tenths of a deg/s. Each handover is checked as the replay checks the
+    table (plant/telescope/replay.py), on the 20 s around it."""
+    for i, scan in enumerate(night.scans[1:], start=1):
+        for what, at in (("leaves the last scan", night.scans[i - 1].end), ("starts its track", scan.start)):
+            rows = np.flatnonzero(np.abs(night.time - at) <= HANDOVER_WINDOW)
+            table = replay.Table(night.time[rows], night.azimuth[rows], night.elevation[rows])
+            try:
+                replay.replay_table(table, params)
+            except InvalidInputError as exc:
+                k = int(np.searchsorted(night.time, at))
+                step = [abs(np.diff(a[k - 2:k + 2])).max() / SAMPLE_INTERVAL for a in (night.azimuth, night.elevation)]
+                _refuse(source, f"scans[{i}]", scan.source, f"its slew {what} at rest while the track moves at "
+                        f"{math.degrees(step[0]):.3g} deg/s in azimuth, {math.degrees(step[1]):.3g} deg/s in "
+                        f"elevation: a step the drives cannot make ({_problem(exc)}); lower the keyhole")
+
+
+def _problem(exc):
+    """The first problem of a replay refusal without its rows (they are an excerpt's)."""
+    return re.sub(r"^rows? [\d-]+: ", "", str(exc).split(" problem(s): ", 1)[-1].split("; ")[0])
 
 
 def _plan_scan(params, scan, target, name, duration, at, utc_start, low, high, t, pointing, pieces, done, refuse):

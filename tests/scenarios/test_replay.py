@@ -34,65 +34,109 @@ REPLAY = '[fmus.base]\nfmu = "telescope"\nimplementation = "python"\nparameters 
          'replay_table = "log.csv", lever_arm = "25 m" }'
 
 
-def write_log(path, t, axes):
-    np.savetxt(path, np.column_stack([t, np.degrees(axes.azimuth), np.degrees(axes.E)]), delimiter=",",
+def write_log(path, t, axes, low=None):
+    """A CSV log of the axes [deg]; with ``low`` [deg], the azimuth written modulo 360 deg in [low, low + 360)."""
+    azimuth = np.degrees(axes.azimuth) if low is None else np.mod(np.degrees(axes.azimuth) - low, 360.0) + low
+    np.savetxt(path, np.column_stack([t, azimuth, np.degrees(axes.E)]), delimiter=",",
                header="time [s],azimuth [deg],elevation [deg]", comments="", fmt="%.17g")
+
+
+# Slews logged as written (wrap-aware), across north in [0, 360), and down across south in
+# [-180, 180) (the log reads -179 .. 180 .. 179 deg; the kit puts it on the turn inside the
+# cable wrap): (start, target) [deg], the log's lower end of its 360 deg, the wraps, the turns.
+LOGS = {"slew": ((0.0, 30.0), (20.0, 45.0), None, 0, 0),
+        "across north": ((359.99, 30.0), (379.99, 45.0), 0.0, 1, 0),        # the wrap 0.28 s into the slew
+        "across south, a turn": ((180.01, 30.0), (160.01, 45.0), -180.0, 1, 1)}
+
+
+def logged(path, t, delay, log):
+    """LOGS[log] sampled at t [s], its slew starting after delay [s], written to path; the analytic axes."""
+    start, target, low, _, _ = LOGS[log]
+    axes = tm.slew(P, tuple(np.radians(start)), tuple(np.radians(target)), t - delay)
+    write_log(path, t, axes, low)
+    return axes
+
+
+RUN_RECORD = ('variables = ["base.axis", "base.axis_rate", "plant.pose", "plant.leg_length", "controller.leg_force"]',
+              'variables = ["base.axis", "base.axis_rate", "base.base_acc", "plant.pose", "plant.leg_length", '
+              '"controller.leg_force"]')
+SLEW_BASE = ('profile = "slew", start_azimuth = "0 deg", start_elevation = "30 deg", target_azimuth = "20 deg", '
+             'target_elevation = "45 deg", lever_arm = "25 m", start_delay = "5 s"')
+J, H, STEP = 0.25 * DEG, 0.25, 1e-3                 # the drives' acceleration, the smoothing, the scene's step
+STEP_ERROR = 3.81       # µm of pose error peak per (deg/s^2 of an acceleration step x ms of communication step)
 
 
 def runs(tmp_path, truth_base):
     """(truth, replay) results of the slew scene's CI version (8 s) with the base as given
-    and replaying tmp_path/log.csv."""
+    (tmp_path/truth.toml) and replaying tmp_path/log.csv, the base's acceleration recorded."""
     truth = tmp_path / "truth.toml"
-    truth.write_text(edited(SLEW, ONE_RUN, (BASE, truth_base)))
-    replay = tmp_path / "replay.toml"
-    replay.write_text(edited(SLEW, ONE_RUN, (BASE, REPLAY)))
-    return [movingbase.run(f, ci=True, progress=False)[0] for f in (truth, replay)]
+    truth.write_text(edited(SLEW, ONE_RUN, (BASE, truth_base), RUN_RECORD))
+    replayed = tmp_path / "replay.toml"
+    replayed.write_text(edited(SLEW, ONE_RUN, (BASE, REPLAY), RUN_RECORD))
+    return [movingbase.run(f, ci=True, progress=False)[0] for f in (truth, replayed)]
 
 
-def test_replayed_slew_gives_the_slews_loads(tmp_path):
-    """The slew's log replayed: the axes within the docs' smoothing bound (two corners of
-    one pulse, J = 0.25 deg/s^2, h = 0.25 s: 0.322 J h^2, 0.427 J h); the legs' forces and
-    the base's effect on them within 0.1 % (they follow the base's acceleration averaged
-    over the run). The tracking error is not among them: the analytic slew's corners have
-    infinite jerk, which kicks the hexapod and sets its peak error; the replay's
-    acceleration is continuous (a 20 Hz log cannot carry a sharper corner), so its error
-    is smaller, by the size of that kick (measured ~50x here)."""
-    t = np.arange(0.0, 70.0, 0.05)
-    write_log(tmp_path / "log.csv", t, tm.slew(P, (0.0, 30 * DEG), (20 * DEG, 45 * DEG), t - 5.0))
-    truth, replay = runs(tmp_path, BASE)
-    assert truth.ok and replay.ok
-    J, H = 0.25 * DEG, 0.25
-    for name, bound in (("base.axis[1]", 0.322 * J * H ** 2), ("base.axis[2]", 0.322 * J * H ** 2),
-                        ("base.axis_rate[1]", 0.427 * J * H), ("base.axis_rate[2]", 0.427 * J * H)):
-        error = np.abs(replay[name] - truth[name]).max()
-        assert 0.3 * bound < error <= bound, (name, error / bound)
-    m, n = truth.metrics, replay.metrics
-    for metric, field in (("leg force", "rms"), ("leg force", "peak"), ("base effect", "rms")):
-        assert n[metric][field] == pytest.approx(m[metric][field], rel=1e-3), (metric, field)
-    assert n["pose error"]["peak"] < 0.1 * m["pose error"]["peak"]
+def sidereal(ra, dec, utc):
+    """(the base's parameters, the axes at t) of a sidereal track from utc [s since 1970]."""
+    base = BASE.replace(SLEW_BASE, f'profile = "sidereal", right_ascension = {ra}, declination = {dec}, '
+                                   f'utc_start = {utc}, lever_arm = "25 m"')
+    return base, lambda t: tm.sidereal_track(P, ra, dec, datetime.fromtimestamp(utc, tz=timezone.utc), t)
 
 
-def test_replayed_sidereal_track_is_the_sidereal_profile(tmp_path):
-    """A smooth motion is replayed to h^4 |x''''| (below 1e-9 rad): every metric of the
-    loop agrees with the sidereal profile's run (a source at dec 50 deg) to what that leaves."""
-    ra, dec = 1.0, 50 * DEG
+# The smoothing error per metric the docs state for a track (docs/conventions/telescope.md,
+# "What the smoothing costs in the loop"): (metric, field) -> bound, relative to the analytic
+# motion's figure ("rel") or absolute in the metric's unit.
+TRACK = {("leg force", "rms"): (1e-9, "rel"), ("leg force", "peak"): (1e-9, "rel"),
+         ("base effect", "rms"): (1e-5, "rel"), ("base effect", "peak"): (1e-3, "rel"),
+         ("pose error", "rms"): (5e-9, "µm"), ("pose error", "peak"): (5e-9, "µm"),   # a few ulp of 2.7 m
+         ("pointing", "peak"): (1e-11, "arcsec")}
+MOTIONS = {
+    "slew": (BASE, lambda t: tm.slew(P, (0.0, 30 * DEG), (20 * DEG, 45 * DEG), t - 5.0)),
+    "sidereal": sidereal(1.0, 50 * DEG, UTC),                                    # dec 50 deg, el ~60 deg
+    "keyhole": sidereal(222.32311789485317 * DEG, 30.89 * DEG, 1767225600.0),  # keyhole_tracking's: el 89.5 deg
+}
+
+
+@pytest.mark.parametrize("motion", MOTIONS)
+def test_replayed_motion_within_the_stated_smoothing_error(tmp_path, motion):
+    """A motion sampled at 20 Hz and replayed gives the analytic motion's metrics within the
+    smoothing error the docs state, per metric. A track (continuous acceleration): every
+    metric to what h^4 |x''''| leaves (TRACK). A slew (acceleration steps J): the axes within
+    0.322 J h^2 and 0.427 J h (two corners of one pulse), the base's acceleration within L J
+    (linear) and J (angular), each reached to a few %; the legs' forces within 0.1 %; the
+    pose error smaller by the analytic run's co-simulation error at its steps, STEP_ERROR J
+    dt, which halves with the communication step (the replay, without steps, has no such error)."""
+    base, axes = MOTIONS[motion]
     t = np.arange(0.0, 20.0, 0.05)
-    axes = tm.sidereal_track(P, ra, dec, datetime.fromtimestamp(UTC, tz=timezone.utc), t)
-    write_log(tmp_path / "log.csv", t, axes)
-    sidereal = BASE.replace('profile = "slew", start_azimuth = "0 deg", start_elevation = "30 deg", target_azimuth = '
-                            '"20 deg", target_elevation = "45 deg", lever_arm = "25 m", start_delay = "5 s"',
-                            f'profile = "sidereal", right_ascension = {ra}, declination = {dec}, lever_arm = "25 m"')
-    truth, replay = runs(tmp_path, sidereal)
-    assert truth.ok and replay.ok
-    assert np.abs(replay["base.axis[2]"] - truth["base.axis[2]"])[1:-1].max() < 1e-9
-    m, n = truth.metrics, replay.metrics
-    # the forces follow the base's acceleration: to 1e-9 (measured 5e-12); the pose error of
-    # a track is nm (the spline's natural end conditions at t = 0 leave 0.4 nm of it)
-    for field in ("rms", "peak"):
-        assert n["leg force"][field] == pytest.approx(m["leg force"][field], rel=1e-9)
-        assert abs(n["pose error"][field] - m["pose error"][field]) < 1e-9
-        assert abs(n["pointing"][field] - m["pointing"][field]) < 1e-11
-    assert m["pose error"]["peak"] < 2e-8
+    write_log(tmp_path / "log.csv", t, axes(t))
+    truth, replayed = runs(tmp_path, base)
+    assert truth.ok and replayed.ok
+    m, n = truth.metrics, replayed.metrics
+    inner = truth.time > 3 * H          # the spline's natural end conditions rule the table's first 3 h
+    acc = [np.abs(replayed[f"base.base_acc[{i}]"] - truth[f"base.base_acc[{i}]"])[inner].max() for i in range(1, 7)]
+    if motion != "slew":
+        for (metric, field), (bound, unit) in TRACK.items():
+            error = abs(n[metric][field] - m[metric][field]) / (abs(m[metric][field]) if unit == "rel" else 1.0)
+            assert error <= bound, (metric, field, error)
+        assert max(acc) < 1e-4 * P.lever_arm * J      # m/s^2 and rad/s^2: the track's h^4 |a''''|
+        return
+    # the bound's share reached (measured 0.50, 0.58; 0.82, 0.85 on the 10 ms record): h = 0.2 s fails it
+    for name, bound, share in (("base.axis[1]", 0.322 * J * H ** 2, 0.45), ("base.axis[2]", 0.322 * J * H ** 2, 0.45),
+                               ("base.axis_rate[1]", 0.427 * J * H, 0.75), ("base.axis_rate[2]", 0.427 * J * H, 0.75)):
+        error = np.abs(replayed[name] - truth[name]).max()
+        assert share * bound < error <= bound, (name, error / bound)
+    linear, angular = max(acc[:3]) / (P.lever_arm * J), max(acc[3:]) / J
+    assert 0.4 < linear <= 1.0 and 0.5 < angular <= 1.0, (linear, angular)     # measured 0.447, 0.516
+    for metric, field in (("leg force", "rms"), ("leg force", "peak"), ("base effect", "rms"),
+                          ("base effect", "peak")):
+        assert n[metric][field] == pytest.approx(m[metric][field], rel=1e-3), (metric, field)
+    stated = STEP_ERROR * np.degrees(J) * STEP * 1e3          # µm: 0.953
+    gap = m["pose error"]["peak"] - n["pose error"]["peak"]
+    assert 0.95 * stated < gap <= stated, gap / stated       # measured 0.979
+    assert n["pose error"]["peak"] < 0.03 * m["pose error"]["peak"]
+    halved = movingbase.run(tmp_path / "truth.toml", ci=True, progress=False, set={"step": "0.5 ms"})[0]
+    halved = halved.metrics["pose error"]["peak"]
+    assert halved == pytest.approx(m["pose error"]["peak"] / 2, rel=0.02)   # the analytic's kick is the step's
 
 
 def test_a_bad_log_is_refused_before_the_run(tmp_path):
@@ -106,18 +150,22 @@ def test_a_bad_log_is_refused_before_the_run(tmp_path):
         movingbase.run(scene, ci=True, progress=False)
 
 
-@pytest.mark.parametrize("implementation", ["python", "native"])
-def test_ssp_export_carries_the_table(fmus, native_fmus, tmp_path, implementation):
+@pytest.mark.parametrize("implementation, log", [("python", "slew"), ("native", "slew"),
+                                                 ("python", "across south, a turn"), ("native", "across north")])
+def test_ssp_export_carries_the_table(fmus, native_fmus, tmp_path, implementation, log):
     """The exported SSP holds the prepared table inside the telescope's FMU (the parameter
     reads "resource:log.mbreplay"), so fmpy's SSP master replays it with the original file
     gone, with the pythonfmu or the native Telescope, and its run equals ours (as
-    tests/scenarios/test_ssp.py compares the analytic slew)."""
+    tests/scenarios/test_ssp.py compares the analytic slew); a log wrapped at 360 deg too."""
     script = catalogue.BY_KEY["telescope"].script
     scenario, paths, descriptions, params = configure(
         {**fmus, script: (fmus if implementation == "python" else native_fmus)[script]})
     t = np.arange(0.0, 5.0, 0.05)
-    log = tmp_path / "log.csv"
-    write_log(log, t, tm.slew(P, (0.0, 30 * DEG), (20 * DEG, 45 * DEG), t - START_DELAY))
+    path = tmp_path / "log.csv"
+    logged(path, t, START_DELAY, log)
+    wraps = replay.load(path, P).wraps
+    assert len(wraps) == LOGS[log][3] and all(t[row - 1] < START_DELAY + 0.5 for row in wraps)   # inside the run
+    log = path
     params["base"].update(profile=tm.PROFILE_KINDS.index("replay"), replay_table=str(log), start_delay=0.0)
     ours = run_columns(single.run(scenario, paths, params, tmp_path, "ours"))   # the master prepares the log
     path = ssp.export_ssp(scenario, paths, params, tmp_path / "replay.ssp")
@@ -133,12 +181,17 @@ def test_ssp_export_carries_the_table(fmus, native_fmus, tmp_path, implementatio
     assert np.ptp(ours["base.base_pose[2]"]) > 1e-4      # the replayed slew moves the base
 
 
-def test_native_scene_replays_as_the_pythonfmu_one(tmp_path):
+@pytest.mark.parametrize("log", LOGS)
+def test_native_scene_replays_as_the_pythonfmu_one(tmp_path, log):
     """The same replay scene with the native Telescope (the kit prepares the log for it) and
     the pythonfmu one: the base's motion and a leg's force equal bit for bit (one C spline, the same
-    coefficients, the same communication points)."""
+    coefficients, the same communication points); a log wrapped at 360 deg, in [0, 360) or
+    [-180, 180), replays as the continuous slew (the wrap inside the CI run's 8 s)."""
     t = np.arange(0.0, 20.0, 0.05)
-    write_log(tmp_path / "log.csv", t, tm.slew(P, (0.0, 30 * DEG), (20 * DEG, 45 * DEG), t - 5.0))
+    logged(tmp_path / "log.csv", t, 5.0, log)
+    loaded = replay.load(tmp_path / "log.csv", P)
+    assert (len(loaded.wraps), loaded.turns) == LOGS[log][3:]
+    assert not LOGS[log][3] or 5.0 < t[loaded.wraps[0] - 1] < 8.0
     results = []
     for label, base in (("python", REPLAY), ("native", REPLAY.replace('implementation = "python"', 'implementation = '
                                                                        '"native"'))):
@@ -151,17 +204,20 @@ def test_native_scene_replays_as_the_pythonfmu_one(tmp_path):
                  "controller.leg_force[1]"):
         np.testing.assert_array_equal(native[name], python[name], err_msg=name)
     assert np.ptp(native["base.axis[1]"]) > 0.01   # rad: the replayed slew moved it (1 deg in the CI run's 3 s)
+    truth = tm.slew(P, tuple(np.radians(LOGS[log][0])), tuple(np.radians(LOGS[log][1])), native.time - 5.0)
+    error = (native["base.axis[1]"] - truth.azimuth + np.pi) % (2 * np.pi) - np.pi   # on any turn
+    assert np.abs(error).max() <= 0.322 * J * H ** 2
 
 
 SHORT = np.arange(0.0, 6.0, 0.05)
 
 
-@pytest.fixture(scope="module")
-def table(tmp_path_factory):
-    """(log, its prepared table) of a short slew."""
+@pytest.fixture(scope="module", params=LOGS)
+def table(request, tmp_path_factory):
+    """(log, its prepared table, LOGS key) of a short slew (from 1 s: the wraps at ~3.5 s)."""
     folder = tmp_path_factory.mktemp("replay")
-    write_log(folder / "log.csv", SHORT, tm.slew(P, (0.0, 30 * DEG), (20 * DEG, 45 * DEG), SHORT - 1.0))
-    return folder / "log.csv", replay_table.write(folder / "log.csv", folder / "log.mbreplay", P)
+    logged(folder / "log.csv", SHORT, 1.0, request.param)
+    return folder / "log.csv", replay_table.write(folder / "log.csv", folder / "log.mbreplay", P), request.param
 
 
 def _run(path, table, names, steps=400, h=0.01):
@@ -187,17 +243,18 @@ def test_native_fmi2_and_fmi3_replay_as_the_pythonfmu_fmu_bit_for_bit(fmus, nati
     """The pythonfmu Telescope on the log (smoothed by scipy in the FMU), and on the
     prepared table; the native FMI 2.0 and FMI 3.0 ones on the prepared table: the same
     numbers bit for bit, and the motion is the slew's (axis within the docs' smoothing
-    bound 0.322 J h^2 of the analytic slew)."""
+    bound 0.322 J h^2 of the analytic slew, on any turn); logs wrapped at 360 deg too."""
     script = catalogue.BY_KEY["telescope"].script
-    log, prepared = table
+    log, prepared, key = table
     names = ["axis[1]", "axis[2]", "axis_rate[1]", "axis_acc[2]", "base_acc[4]", "reference_pose[3]"]
     python = _run(fmus[script], log, names)
     for path, source in ((fmus[script], prepared), (native_fmus[script], prepared), (fmi3, prepared)):
         np.testing.assert_array_equal(_run(path, source, names), python, err_msg=str(path))
     times = 0.01 * np.arange(1, 401)
-    truth = tm.slew(P, (0.0, 30 * DEG), (20 * DEG, 45 * DEG), times - 1.0)
-    error = np.abs(python[:, 0] - truth.azimuth).max()
+    truth = tm.slew(P, tuple(np.radians(LOGS[key][0])), tuple(np.radians(LOGS[key][1])), times - 1.0)
+    error = np.abs((python[:, 0] - truth.azimuth + np.pi) % (2 * np.pi) - np.pi).max()
     assert 1e-6 < error <= 0.322 * 0.25 * DEG * 0.25 ** 2
+    assert np.abs(np.diff(python[:, 0])).max() < 1e-4     # rad per 10 ms: continuous through the wrap
 
 
 def _damaged(path, what):
