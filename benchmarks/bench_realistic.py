@@ -8,13 +8,18 @@
    at most 1 ms, the lag exact: the scenes now).
 2. CPU time of the master's stepping per macro step (1 ms) of the CI versions of the
    shipped scenes, one run each (the last sweep value: the design the scene ships), native:
-   the ideal loop (telescope_slew, moving-base feedforward) against the realistic ones
-   (telescope_slew_realistic: actuators + LegSensor; telescope_slew_observer and
-   keyhole_tracking_observer: + Wind, LoadCell and the disturbance observer), each with its
-   plant as shipped (error-controlled substeps) and with the 0.1 ms fixed substeps it had;
-   the ratio to the ideal loop is the issue's figure (the observer slew ships 0.03 nm, and
-   also runs at the others' 0.1 nm: what its accuracy costs). The plant's own share is printed
-   beside it: the same run with the actuator's friction and lag off and 1 ms substeps.
+   the ideal loop (telescope_slew, moving-base feedforward) against every realistic one
+   (telescope_slew_realistic: actuators + LegSensor; telescope_slew_observer,
+   keyhole_tracking_observer, telescope_slew_gust_front, telescope_slew_observer_switch_on:
+   + Wind, LoadCell and the disturbance observer; telescope_slew_wind_feedforward: + Wind and
+   the anemometer's feedforward; telescope_slew_support: the ideal plant on a flexible
+   support in wind), each with its plant as shipped (error-controlled substeps) and some
+   with the 0.1 ms fixed substeps they had; the ratio to the ideal loop is the issue's
+   figure (the observer slew ships 0.03 nm, and also runs at the others' 0.1 nm: what its
+   accuracy costs). The plant's own share is printed beside it: the same run with the
+   actuator's friction and lag off and 1 ms substeps. The Wind FMUs turn their gust's
+   phasors per step (plant/c/wind.h, Stepping) since issue 41's second pass: 256 sin/cos a
+   step before.
 Repeats interleave the cases (median), so machine load hits all alike. CPU time of the
 stepping thread (master.Run.cpu_time), not wall time: the machine is shared.
 
@@ -59,7 +64,11 @@ LOOPS = [("ideal loop", "telescope_slew", {}),
          ("slew observer, plant ideal 1 ms", "telescope_slew_observer",
           {"actuator_bandwidth": 0.0, "coulomb_friction": 0.0, "viscous_friction": 0.0, **CONTROLLED}),
          ("keyhole observer, controlled", "keyhole_tracking_observer", {}),
-         ("keyhole observer, fixed 0.1 ms", "keyhole_tracking_observer", FIXED)]
+         ("keyhole observer, fixed 0.1 ms", "keyhole_tracking_observer", FIXED),
+         ("gust front, controlled", "telescope_slew_gust_front", {}),
+         ("observer switch-on, controlled", "telescope_slew_observer_switch_on", {}),
+         ("wind feedforward, controlled", "telescope_slew_wind_feedforward", {}),
+         ("support in wind (ideal plant)", "telescope_slew_support", {})]
 
 
 def prepared(name):

@@ -6,8 +6,9 @@ the aerodynamic admittance of a plate), with the moment of a centre of pressure 
 platform's origin, as the platform_wrench the hexapod plant takes (in {B}, turned from
 {W} with the base pose input). The model is the C kernel's (plant/c/wind.h says its
 equations and simplifications); u(t) is a fixed function of time drawn from the seed at
-initialisation, so the same seed gives the same run byte for byte, and the native twin
-(fmu_src/native/wind.c) calls the same kernel.
+initialisation, stepped by turning phasors (mb_wind_sample_stepped, within ~1e-12 of the
+direct sum; the phasors are the FMU's state), so the same seed gives the same run byte for
+byte, and the native twin (fmu_src/native/wind_fmu.c) calls the same kernel.
 
 Values (assumed, labelled in each description): the subreflector of a 65 m antenna
 ~6.5 m across (a tenth of the primary, as on comparable Cassegrain antennas; Tianma's
@@ -126,14 +127,22 @@ class Wind(GuardedSlave):
 
     def initialize(self):
         self.model = gust_model(self.settings, self.spectrum, self.seed)
+        self.phasors = ffi.new("mb_wind_phasors *")
+        lib.mb_wind_phasors_reset(self.phasors)
         self._pose = ffi.from_buffer("double[]", self.base_pose)
         self._wrench = ffi.from_buffer("double[]", self.out)
         self._speeds = ffi.from_buffer("double[]", self.out[6:])   # gust, anemometer speed, drag speed
-        self._publish(0.0)
+        self._publish(0.0, 0.0)
 
     def step(self, t, h):
-        self._publish(t + h)
+        self._publish(t + h, h)
 
-    def _publish(self, t):
-        if lib.mb_wind_sample(self.model, t, self._pose, self._wrench, self._speeds):
+    def _publish(self, t, h):
+        if lib.mb_wind_sample_stepped(self.model, self.phasors, t, h, self._pose, self._wrench, self._speeds):
             raise InvalidInputError("base pose input contains NaN or inf")
+
+    def extra_state(self):
+        return bytes(ffi.buffer(self.phasors))
+
+    def set_extra_state(self, extra):
+        ffi.buffer(self.phasors)[:] = extra

@@ -1,7 +1,8 @@
 /* Wind, native: the variables of fmu_src/wind_fmu.py over the wind kernel
    (plant/c/wind.h; this file is not wind.c because the kernel's wind.c lands in the same
    flat sources/ folder of the FMU). The gust's components are drawn from the seed at initialization and
-   fixed afterwards: the model struct holds them, so an FMU state carries them too. */
+   fixed afterwards, the phasors the steps turn (mb_wind_sample_stepped) change: the model struct
+   holds both, so an FMU state carries them too. */
 #include <string.h>
 
 #include "Wind_vars.h"
@@ -9,12 +10,13 @@
 
 typedef struct {
     mb_wind wind;
+    mb_wind_phasors phasors;
 } Model;
 
-static int publish(mb_instance *inst, double *r, Model *m, double t)
+static int publish(mb_instance *inst, double *r, Model *m, double t, double h)
 {
     double speeds[3];
-    if (mb_wind_sample(&m->wind, t, &r[VR_base_pose], &r[VR_platform_wrench], speeds)) {
+    if (mb_wind_sample_stepped(&m->wind, &m->phasors, t, h, &r[VR_base_pose], &r[VR_platform_wrench], speeds)) {
         mb_error(inst, "InvalidInputError", "base pose input contains NaN or inf");
         return 1;
     }
@@ -49,13 +51,14 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
         mb_error(inst, "ValueError", "%s", mb_wind_status_text(status));
         return 1;
     }
-    return publish(inst, r, m, 0.0);
+    mb_wind_phasors_reset(&m->phasors);
+    return publish(inst, r, m, 0.0, 0.0);
 }
 
 static int step(mb_instance *inst, double *r, int *i, void *model, double t, double h)
 {
     (void)i;
-    return publish(inst, r, model, t + h);
+    return publish(inst, r, model, t + h, h);
 }
 
 const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), init, step};

@@ -727,7 +727,8 @@ int mb_hexapod_advance_controlled(double tol, double max_step, int max_substeps,
         if (inputs[k] != 0.0) wrench = inputs + 24;
     for (int k = 0; k < (lag ? 18 : 12); k++) x0[k] = x[k];
     for (int j = 0; j < 6; j++) f0[j] = lag ? x[12 + j] : 0.0;
-    double tau = 0.0, dt = h < max_step ? h : max_step, dmin = INFINITY;
+    double tau = 0.0, dt = h < max_step ? h : max_step, dmin = INFINITY, d1 = INFINITY;
+    int have_k1 = 0;   /* k1 holds the rates at (tau, x): a rejected substep's, for its retry */
     base_memo memo;
     memo.valid = 0;
     while (tau < h) {
@@ -740,8 +741,9 @@ int mb_hexapod_advance_controlled(double tol, double max_step, int max_substeps,
         double t = t0 + tau, d, dstep = INFINITY;
         /* classic RK4 over [tau, tau + dt], the lag's forces exact at each stage's time */
         if (lag) lag_forces(act, forces, f0, tau, x + 12);
-        d = rhs(bj, pj, data, act, x, forces, wrench, base0, t0, t, base_mode, legs, k1, NULL, &memo);
-        dstep = d < dstep ? d : dstep;
+        if (!have_k1)
+            d1 = rhs(bj, pj, data, act, x, forces, wrench, base0, t0, t, base_mode, legs, k1, NULL, &memo);
+        dstep = d1 < dstep ? d1 : dstep;
         for (int k = 0; k < 12; k++) xs[k] = x[k] + 0.5 * dt * k1[k];
         if (lag) lag_forces(act, forces, f0, tau + 0.5 * dt, xs + 12);
         d = rhs(bj, pj, data, act, xs, forces, wrench, base0, t0, t + 0.5 * dt, base_mode, legs, k2, NULL, &memo);
@@ -769,8 +771,10 @@ int mb_hexapod_advance_controlled(double tol, double max_step, int max_substeps,
             tau = last ? h : tau + dt;
             dmin = dstep < dmin ? dstep : dmin;
             counts[0]++;
+            have_k1 = 0;
         } else {
             counts[1]++;
+            have_k1 = 1;   /* x and tau stand: the retry starts from the same rates */
         }
         /* the next substep: the usual controller for a local error of order 4, within [0.2, 4] x */
         double grow = err > 0.0 ? 0.9 * pow(err, -0.25) : 4.0;

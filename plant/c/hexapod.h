@@ -160,6 +160,7 @@ int mb_hexapod_advance_actuated(int rk4, int substeps, const double *base_joints
    and 4x, at most max_step), the first one min(h, max_step). The lag's motor forces
    x[12..17] (with a bandwidth) are integrated exactly: the command is held over the step,
    so F(t) = F_cmd + (F(t0) - F_cmd) exp(-2 pi bandwidth (t - t0)) at every stage.
+   A rejected substep's retry starts from the rates it already has (k1 at the same state).
    counts (2) = substeps accepted, rejected. More than max_substeps tries: MB_HEXAPOD_WORK,
    x untouched. Otherwise as mb_hexapod_advance_actuated. */
 int mb_hexapod_advance_controlled(double tol, double max_step, int max_substeps, const double *base_joints,

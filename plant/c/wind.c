@@ -153,17 +153,81 @@ void mb_wind_anemometer(const mb_wind *w, int n, const double *t, double *speed)
     }
 }
 
+/* The wrench and speeds (as mb_wind_sample publishes them) of the gusts u, u_A, u_a. */
+static void publish(const mb_wind *w, double u, double u_area, double u_anemometer, const double *base_pose,
+                    double *wrench, double *speeds)
+{
+    double drag = 0.5 * w->p.air_density * w->p.drag_coefficient * w->p.drag_area;
+    mb_wind_drag(drag, w->p.moment_arm, w->p.direction, w->p.mean_speed + u_area, base_pose, wrench);
+    speeds[0] = u;
+    speeds[1] = w->p.mean_speed + u_anemometer;
+    speeds[2] = w->p.mean_speed + u_area;
+}
+
 int mb_wind_sample(const mb_wind *w, double t, const double *base_pose, double *wrench, double *speeds)
 {
     for (int k = 0; k < 6; k++)
         if (!isfinite(base_pose[k])) return MB_WIND_NONFINITE;
     double u, u_area, u_anemometer;
     gust_and_anemometer(w, t, &u, &u_area, &u_anemometer);
-    double drag = 0.5 * w->p.air_density * w->p.drag_coefficient * w->p.drag_area;
-    mb_wind_drag(drag, w->p.moment_arm, w->p.direction, w->p.mean_speed + u_area, base_pose, wrench);
-    speeds[0] = u;
-    speeds[1] = w->p.mean_speed + u_anemometer;
-    speeds[2] = w->p.mean_speed + u_area;
+    publish(w, u, u_area, u_anemometer, base_pose, wrench, speeds);
+    return MB_WIND_OK;
+}
+
+void mb_wind_phasors_reset(mb_wind_phasors *z)
+{
+    z->anchor_time = z->step = NAN;
+    z->steps = 0;
+}
+
+/* z's phasors at t exactly: cos and sin of omega_k t + phi_k. */
+static void anchor(const mb_wind *w, mb_wind_phasors *z, double t)
+{
+    for (int k = 0; k < N_COMPONENTS; k++) {
+        double x = w->omega[k] * t + w->phase[k];
+        z->c[k] = cos(x);
+        z->s[k] = sin(x);
+    }
+    z->anchor_time = t;
+    z->steps = 0;
+}
+
+int mb_wind_sample_stepped(const mb_wind *w, mb_wind_phasors *z, double t, double h, const double *base_pose,
+                           double *wrench, double *speeds)
+{
+    for (int k = 0; k < 6; k++)
+        if (!isfinite(base_pose[k])) return MB_WIND_NONFINITE;
+    /* where the phasors would stand, turned once more, against t (NaN before an anchor) */
+    double miss = (t - z->anchor_time) - (z->steps + 1) * h;
+    if (h > 0.0 && h == z->step && fabs(miss) <= MB_WIND_TIME_MATCH && z->steps + 1 < MB_WIND_ANCHOR_STEPS) {
+        for (int k = 0; k < N_COMPONENTS; k++) {   /* z_k <- z_k exp(i omega_k h) */
+            double c = z->c[k], s = z->s[k];
+            z->c[k] = c * z->rc[k] - s * z->rs[k];
+            z->s[k] = s * z->rc[k] + c * z->rs[k];
+        }
+        z->steps++;
+    } else {
+        anchor(w, z, t);
+        if (h > 0.0 && h != z->step) {   /* a new step: the rotations it turns by */
+            for (int k = 0; k < N_COMPONENTS; k++) {
+                z->rc[k] = cos(w->omega[k] * h);
+                z->rs[k] = sin(w->omega[k] * h);
+            }
+            z->step = h;
+        }
+        miss = 0.0;
+    }
+    /* the phasors stand at anchor_time + steps h, which the callers' rounded t misses by a few
+       ulp(t): corrected to first order in omega_k miss (|omega_k miss| <= 3e-6, its square
+       below the turns' own error) */
+    double a = 0.0, b = 0.0, g = 0.0;
+    for (int k = 0; k < N_COMPONENTS; k++) {
+        double wm = w->omega[k] * miss, c = z->c[k] - z->s[k] * wm, s = z->s[k] + z->c[k] * wm;
+        a += w->amplitude[k] * c;
+        b += w->area_amplitude[k] * c;
+        g += w->anemometer_cos[k] * c - w->anemometer_sin[k] * s;
+    }
+    publish(w, a, b, g, base_pose, wrench, speeds);
     return MB_WIND_OK;
 }
 

@@ -10,10 +10,25 @@
    over log-spaced bins of [1/600 Hz, 50 Hz]; a_k = sqrt(2 * (variance of the target
    spectrum in bin k)), the frequency drawn uniformly inside its bin and the phase
    uniformly in [0, 2 pi) from the seeded generator (plant/c/random.h), both at
-   initialisation. u(t) is then a fixed function of t: no state evolves while stepping,
-   a run is the same whatever the step, and the time-averaged variance is the target's
-   over the band exactly. Below 1/600 Hz lies the 10-minute mean (the mean speed's
-   convention); 50 Hz is far above the hexapod loop's 8 Hz crossover.
+   initialisation. u(t) is then a fixed function of t, the same whatever the step, and
+   the time-averaged variance is the target's over the band exactly. Below 1/600 Hz lies
+   the 10-minute mean (the mean speed's convention); 50 Hz is far above the hexapod loop's
+   8 Hz crossover.
+
+   Stepping (mb_wind_sample_stepped, what the Wind FMUs call): 256 sin/cos a sample cost as
+   much as the hexapod loop's other FMUs together, so the FMUs turn each component's phasor
+   z_k = exp(i (omega_k t + phi_k)) by exp(i omega_k h) per step h instead (4 multiplies) and
+   evaluate it exactly (an anchor) every MB_WIND_ANCHOR_STEPS samples, at the first sample,
+   whenever h changes and whenever t is not where the turned phasors stand (within
+   MB_WIND_TIME_MATCH: time went back, a state from elsewhere). The phasors stand at
+   anchor + n h, which the callers' rounded t misses by a few ulp(t); the sum corrects that
+   to first order. Bound: each turn adds at most a few epsilon (2.2e-16) to a phasor's
+   error, so between anchors it stays below MB_WIND_ANCHOR_STEPS * 4 epsilon ~ 1e-12 of
+   each amplitude; a gust differs from the direct sum by at most ~1e-12 of the sum of its
+   amplitudes, plus the direct sum's own rounding of its angles (an ulp of omega_k t + phi_k
+   each: 4e-11 of the sum at 10 h, more than the turns add; tests/plant/test_wind.py holds
+   it at the start and at 10 h). The phasors are state (mb_wind_phasors): the FMUs save
+   them with their FMU state, and one sequence of calls gives the same bits in every FMU.
 
    Target one-sided spectra, sigma_u = turbulence_intensity * mean_speed, n = f L / U:
      Kaimal (IEC 61400-1 form)  S(f) = sigma_u^2 (4 L / U) / (1 + 6 n)^(5/3)
@@ -88,6 +103,17 @@ typedef struct {
     double anemometer_sin[256]; /* m/s, m_k sin(theta_k - phi_k) */
 } mb_wind;
 
+/* What mb_wind_sample_stepped keeps between samples (see Stepping above). */
+#define MB_WIND_ANCHOR_STEPS 1024   /* samples from one exact evaluation to the next */
+#define MB_WIND_TIME_MATCH 1e-8     /* s: t this close to where the turned phasors stand is theirs */
+typedef struct {
+    double anchor_time;  /* s, the last exact evaluation's (NaN: none yet) */
+    double step;         /* s, the step h the rotations turn by (NaN: none yet) */
+    int steps;           /* turns since the anchor */
+    double c[256], s[256];   /* cos, sin of omega_k (anchor_time + steps * step) + phi_k */
+    double rc[256], rs[256]; /* cos, sin of omega_k step */
+} mb_wind_phasors;
+
 /* A sentence naming the problem of a status. */
 const char *mb_wind_status_text(int status);
 
@@ -119,6 +145,15 @@ void mb_wind_anemometer(const mb_wind *w, int n, const double *t, double *speed)
    anemometer's reading U + u_a and the speed the drag sees U + u_A (m/s): what the Wind
    FMUs publish each step. */
 int mb_wind_sample(const mb_wind *w, double t, const double *base_pose, double *wrench, double *speeds);
+
+/* Forget the phasors: the next sample evaluates them exactly. */
+void mb_wind_phasors_reset(mb_wind_phasors *z);
+
+/* mb_wind_sample at t, reached by a step h (s; 0: none) from the last sample, from the
+   phasors z (see Stepping above); within ~1e-12 of mb_wind_sample's sums. A NaN or inf base
+   pose leaves z as it was. */
+int mb_wind_sample_stepped(const mb_wind *w, mb_wind_phasors *z, double t, double h, const double *base_pose,
+                           double *wrench, double *speeds);
 
 /* The quasi-steady drag wrench (as mb_wind_wrench's, in {B}) of the air speed `speed`
    (m/s) with drag = 0.5 rho Cd A (kg/m), the moment arm (m) and the wind's azimuth
