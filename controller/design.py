@@ -226,15 +226,7 @@ def mode_loop(mass, gains, comm_step, loop=IDEAL):
     and rate, the PID of controller.pid, one step of delay."""
     import control
     h = comm_step
-    w_a = 2 * np.pi * loop.actuator_bandwidth
-    g = loop.gravity_rate
-    c = loop.viscous_friction
-    if w_a > 0:   # states (F, l, dl/dt), input F_cmd; outputs l, dl/dt, the delivered force F - c dl/dt
-        A = [[-w_a, 0, 0], [0, 0, 1], [1 / mass, g, -c / mass]]
-        B, C, D = [[w_a], [0], [0]], [[0, 1, 0], [0, 0, 1], [1, 0, -c]], [[0], [0], [0]]
-    else:
-        A, B, C, D = [[0, 1], [g, -c / mass]], [[0], [1 / mass]], [[1, 0], [0, 1], [0, -c]], [[0], [0], [1]]
-    full = control.c2d(control.ss(A, B, C, D), h, "zoh")
+    full = control.c2d(control.ss(*_mode_plant(mass, loop)), h, "zoh")
     plant = full[:2, 0]   # outputs: length, exact rate
     pid = control.ss([[1.0]], [[h, 0.0]], [[gains.ki]], [[gains.kp + gains.ki * h, gains.kd]], h)
     z = control.tf([1, 0], [1], h)
@@ -257,14 +249,33 @@ def mode_loop(mass, gains, comm_step, loop=IDEAL):
     return control.ss(outer) * pid * feedback
 
 
+def _mode_plant(mass, loop):
+    """(A, B, C, D) of one mode's plant in continuous time: the force command in; out the
+    length, its rate and the delivered force F - c dl/dt (with the actuator's lag, states
+    (F, l, dl/dt); without, (l, dl/dt) and the command delivered at once)."""
+    w_a, g, c = 2 * np.pi * loop.actuator_bandwidth, loop.gravity_rate, loop.viscous_friction
+    if w_a > 0:
+        A = [[-w_a, 0, 0], [0, 0, 1], [1 / mass, g, -c / mass]]
+        B, C, D = [[w_a], [0], [0]], [[0, 1, 0], [0, 0, 1], [1, 0, -c]], [[0], [0], [0]]
+    else:
+        A, B, C, D = [[0, 1], [g, -c / mass]], [[0], [1 / mass]], [[1, 0], [0, 1], [0, -c]], [[0], [0], [1]]
+    return tuple(np.array(m, dtype=float) for m in (A, B, C, D))
+
+
+def _observer_filter(loop):
+    """(A, B, C) of the observer's Q in continuous time: a 2nd-order Butterworth low-pass at
+    its bandwidth (controller/c/observer.c)."""
+    w = 2 * np.pi * loop.observer_bandwidth
+    return np.array([[0, 1], [-w * w, -np.sqrt(2) * w]]), np.array([[0], [w * w]]), np.array([[1.0, 0]])
+
+
 def _observer(loop, h, z, length, force):
     """The observer's part of the command (controller/c/observer.c) from the plant's
     outputs (l, dl/dt, F): Q_d [M_o (z - 1)^2 / (z h)^2 l_meas - F_meas], ``length``
     picking l_meas as the PID reads it, ``force`` the delivered force, F_meas through the
     load cell (without one, the held force input adds nothing)."""
     import control
-    w = 2 * np.pi * loop.observer_bandwidth
-    q = control.c2d(control.ss([[0, 1], [-w * w, -np.sqrt(2) * w]], [[0], [w * w]], [[1, 0]], 0), h, "zoh")
+    q = control.c2d(control.ss(*_observer_filter(loop), 0), h, "zoh")
     acc = control.ss(loop.observer_mass * (z - 1) ** 2 / (z * z * h * h)) * length
     if not loop.load_cell:
         return q * acc
@@ -538,12 +549,107 @@ def closed_loop_polynomial(mass, gains, comm_step, loop=IDEAL):
     return _add(den, num)
 
 
+# ------------------------------- the observer's loop as plain matrices (the guard's cost)
+# mode_loop's python-control objects cost ~0.1 s a loop, and the step-limit search before a
+# run evaluates ~30 of them: the same loop is built here from numpy arrays, (A, B, C, D) of a
+# discrete state space, block by block as mode_loop composes it (~0.5 ms).
+def _ss_tf(num, den):
+    """(A, B, C, D) of the proper discrete transfer function num(z) / den(z) (highest power
+    first): the controllable canonical form."""
+    num, den = np.asarray(num, dtype=float), np.asarray(den, dtype=float)
+    num, den = num / den[0], den / den[0]
+    n = len(den) - 1
+    num = np.r_[np.zeros(n + 1 - len(num)), num]
+    A = np.zeros((n, n))
+    if n:
+        A[0], A[1:, :-1] = -den[1:], np.eye(n - 1)
+    return A, np.eye(n, 1), (num[1:] - num[0] * den[1:])[None, :], np.array([[num[0]]])
+
+
+def _ss_gain(gain):
+    gain = np.atleast_2d(np.asarray(gain, dtype=float))
+    return np.zeros((0, 0)), np.zeros((0, gain.shape[1])), np.zeros((gain.shape[0], 0)), gain
+
+
+def _ss_series(after, first):
+    """``first``'s outputs into ``after``'s inputs (python-control's after * first)."""
+    (A2, B2, C2, D2), (A1, B1, C1, D1) = after, first
+    n1, n2 = len(A1), len(A2)
+    A = np.zeros((n1 + n2, n1 + n2))
+    A[:n1, :n1], A[n1:, :n1], A[n1:, n1:] = A1, B2 @ C1, A2
+    return A, np.vstack([B1, B2 @ D1]), np.hstack([D2 @ C1, C2]), D2 @ D1
+
+
+def _ss_sum(one, other, sign=1.0):
+    """One input into both, their outputs added (``sign`` -1: subtracted)."""
+    (A1, B1, C1, D1), (A2, B2, C2, D2) = one, other
+    n1, n2 = len(A1), len(A2)
+    A = np.zeros((n1 + n2, n1 + n2))
+    A[:n1, :n1], A[n1:, n1:] = A1, A2
+    return A, np.vstack([B1, B2]), np.hstack([C1, sign * C2]), D1 + sign * D2
+
+
+def _ss_stack(top, bottom):
+    """One input into both, their outputs stacked (python-control's append * split)."""
+    (A1, B1, C1, D1), (A2, B2, C2, D2) = top, bottom
+    n1, n2, p1 = len(A1), len(A2), len(C1)
+    A, C = np.zeros((n1 + n2, n1 + n2)), np.zeros((p1 + len(C2), n1 + n2))
+    A[:n1, :n1], A[n1:, n1:], C[:p1, :n1], C[p1:, n1:] = A1, A2, C1, C2
+    return A, np.vstack([B1, B2]), C, np.vstack([D1, D2])
+
+
+def _zoh(A, B, h):
+    """(Ad, Bd) of dx/dt = A x + B u with u held over h (_expm of the augmented matrix)."""
+    n = len(A)
+    block = np.zeros((n + 1, n + 1))
+    block[:n, :n], block[:n, n] = A * h, B[:, 0] * h
+    zoh = _expm(block)
+    return zoh[:n, :n], zoh[:n, n:]
+
+
+def _observer_loop_poles(mass, gains, comm_step, loop):
+    """The closed-loop poles of mode_loop with the observer (its feedback's), from numpy's
+    state space of the same blocks in the same order (tests hold the two together)."""
+    h = comm_step
+    A, B, C, D = _mode_plant(mass, loop)
+    full = (*_zoh(A, B, h), C, D)
+    pid = (np.ones((1, 1)), np.array([[h, 0.0]]), np.array([[gains.ki]]),
+           np.array([[gains.kp + gains.ki * h, gains.kd]]))
+    stale = _stale_connections(loop)
+    delay = lambda k: np.r_[1.0, np.zeros(k)]                              # z^k, as a polynomial
+    lead = [1.0]
+    for _ in range(stale if loop.extrapolate else 0):    # (1.5 z - 0.5) / z per stale connection
+        lead = np.convolve(lead, [1.5, -0.5])
+    outer = _ss_tf(lead, delay(len(lead) - 1 + (1 if stale > 1 else 0)))
+    pick = lambda *rows: _ss_gain(np.eye(3)[list(rows)])
+    if loop.leg_sensor:
+        a = 1 - np.exp(-2 * np.pi * loop.rate_cutoff * h) if loop.rate_cutoff > 0 else 1.0
+        k = stale - 2 + loop.delay_steps if stale > 1 else loop.delay_steps
+        late = _ss_tf([1.0], delay(k))
+        rate = _ss_tf(np.array([a, -a]) / h, np.convolve(delay(k), [1.0, -(1 - a)]))
+        reads, length = _ss_series(_ss_stack(late, rate), pick(0)), _ss_series(late, pick(0))
+    else:
+        reads, length = pick(0, 1), pick(0)
+    A, B, C = _observer_filter(loop)
+    q = (*_zoh(A, B, h), C, np.zeros((1, 1)))
+    acc = _ss_series(_ss_tf(loop.observer_mass * np.array([1.0, -2, 1]) / (h * h), delay(2)), length)
+    if loop.load_cell:
+        b = 1 - np.exp(-2 * np.pi * loop.load_cell_bandwidth * h) if loop.load_cell_bandwidth > 0 else 1.0
+        num, den = [b, 0.0], np.convolve([1.0, -(1 - b)], delay(loop.load_cell_delay_steps
+                                                                  + (0 if loop.gauss_seidel else 1)))
+        if not loop.gauss_seidel and not loop.leg_sensor and loop.extrapolate:
+            num, den = np.convolve(num, [1.5, -0.5]), np.convolve(den, delay(1))
+        acc = _ss_sum(acc, _ss_series(_ss_tf(num, den), pick(2)), sign=-1.0)
+    command = _ss_series(outer, _ss_sum(_ss_series(pid, reads), _ss_series(q, acc)))
+    A, B, C, D = _ss_series(command, full)
+    return np.linalg.eigvals(A - B @ C / (1 + D[0, 0]))
+
+
 def _poles(mass, gains, comm_step, loop):
     """The closed loop's poles in z: from closed_loop_polynomial, or with the observer (no
-    closed-form polynomial) python-control's."""
+    closed-form polynomial) from _observer_loop_poles, mode_loop's state space in numpy."""
     if loop.observer_bandwidth > 0:
-        import control
-        return control.feedback(mode_loop(mass, gains, comm_step, loop)).poles()
+        return _observer_loop_poles(mass, gains, comm_step, loop)
     return 1 + comm_step * np.roots(closed_loop_polynomial(mass, gains, comm_step, loop))
 
 

@@ -139,7 +139,7 @@ without ({fmt(off['peak'] / res[best]['peak'])}x).
 **What bounds it: the measurement, not the loop.** Fed the speed whose drag the platform
 takes (the oracle: the Wind FMU's `drag_speed` U + u_A, which no instrument reads), the same
 feedforward brings the peak to {peak(ORACLE)} µm ({fmt(off['peak'] / res[ORACLE]['peak'])}x; RMS
-{fmt(res[ORACLE]['rms'])} µm; in calm air the realistic loop gives 5.3 / 0.855 µm, realistic_loop.md): with the drag
+{fmt(res[ORACLE]['rms'])} µm; in calm air the realistic loop gives 5.3 / 0.826 µm, realistic_loop.md): with the drag
 model exact, the loop's delays and the actuator's lag do not limit it. The anemometer does.
 At the disc's centre without lag it reads the point gust u, which carries the high-frequency
 force the 6.5 m disc averages out (Vickery's admittance, 0.5 at 0.87 Hz at 10 m/s):

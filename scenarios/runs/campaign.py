@@ -635,7 +635,7 @@ class CampaignJobs:
                     spec.check_models(source, "run", scenario, variables, params, written)
                     seen[marker] = ""
                     motion[marker] = () if self.campaign.ci else tuple(
-                        flags.motion_flags(scenario, paths, descriptions, params))
+                        flags.motion_flags(scenario, paths, descriptions, params, predicted))
                 except spec.ScenarioError as exc:
                     seen[marker] = "; ".join(p for _, _, p in exc.problems)
             if seen[marker]:            # the model refuses it: no motion to predict along

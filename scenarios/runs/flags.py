@@ -323,7 +323,9 @@ def _key(scenario, values, loop, telescope):
 def predict(scenario, paths, descriptions, values, ci=False, cache=None):
     """The Prediction for a scenario at ``values`` (one run's: a sweep value applied): of
     its loop with the lowest limit (None if it has no loop to predict). ``cache`` (a dict
-    kept over the runs of a sweep or campaign) predicts each distinct loop once."""
+    kept over the runs of a sweep or campaign) predicts each distinct loop once, and within
+    it the telescope's motion and the step limit once per distinct input of theirs: the runs
+    of a sampled campaign differ in what neither reads (seeds, a payload's errors)."""
     cache = {} if cache is None else cache
     found = []
     for loop in loops(scenario, descriptions, values):
@@ -333,15 +335,16 @@ def predict(scenario, paths, descriptions, values, ci=False, cache=None):
         telescope = _telescope(scenario, loop)
         key = _key(scenario, values, loop, telescope)
         if key not in cache:
-            motion, axis_rate = (auto_fidelity.scene_motion(scenario, paths, values, telescope, axes=True)
-                                 if telescope else (None, None))
+            motion, axis_rate = _motion(scenario, paths, values, telescope, cache) if telescope else (None, None)
             masses = _merge(masses_of(scenario, paths, descriptions, values, loop, motion))
             unfinished = tuple(_unfinished(scenario, telescope, axis_rate, _delay(values, descriptions, telescope),
                                            motion_end(scenario, values, descriptions, telescope))
                                ) if telescope else ()
-            cache[key] = (Prediction(design.step_limit(masses, loop.gains, loop.model), scenario.step, loop.model,
-                                     loop.gains, masses, unfinished, loop.controller,
-                                     _coulomb(values, descriptions, loop)))
+            limit = ("step limit", masses.tobytes(), repr(loop.gains), repr(loop.model))   # all step_limit reads
+            if limit not in cache:
+                cache[limit] = design.step_limit(masses, loop.gains, loop.model)
+            cache[key] = (Prediction(cache[limit], scenario.step, loop.model, loop.gains, masses, unfinished,
+                                     loop.controller, _coulomb(values, descriptions, loop)))
         found.append(cache[key])
     if not found:
         return None
@@ -371,18 +374,28 @@ def _friction_hides(scenario, prediction):
     return design.modes_stable(prediction.masses, prediction.gains, scenario.step, loop)
 
 
-def motion_flags(scenario, paths, descriptions, values):
+def motion_flags(scenario, paths, descriptions, values, cache=None):
     """The flags of the scene's motion alone (a slew unfinished at the stop time): what
-    ``predict`` flags per scenario, for each run of a campaign."""
+    ``predict`` flags per scenario, for each run of a campaign (``cache``: predict's)."""
     out = []
     for loop in loops(scenario, descriptions, values):
         telescope = _telescope(scenario, loop)
         if telescope:
-            out += _unfinished(scenario, telescope,
-                               auto_fidelity.scene_motion(scenario, paths, values, telescope, axes=True)[1],
+            out += _unfinished(scenario, telescope, _motion(scenario, paths, values, telescope, cache)[1],
                                _delay(values, descriptions, telescope),
                                motion_end(scenario, values, descriptions, telescope))
     return out
+
+
+def _motion(scenario, paths, values, telescope, cache=None):
+    """auto_fidelity.scene_motion of the telescope with its axes' rates, once per what it
+    reads (its FMU, its parameters, the run's start and stop time) in ``cache``."""
+    cache = {} if cache is None else cache
+    key = ("motion", str(paths[telescope]), scenario.start_time, scenario.stop_time,
+           repr(sorted(values.get(telescope, {}).items())))
+    if key not in cache:
+        cache[key] = auto_fidelity.scene_motion(scenario, paths, values, telescope, axes=True)
+    return cache[key]
 
 
 def _telescope(scenario, loop):

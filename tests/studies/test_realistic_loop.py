@@ -160,3 +160,31 @@ def test_gain_cases_are_distinct_scenarios_that_carry_their_gains_and_wind():
         assert speed == (overrides or {}).get("wind", {}).get("mean_speed", study.WIND["mean_speed"])
         assert loop.startswith("realistic") if speed == "10 m/s" else loop.startswith(f"wind {speed.split()[0]} m/s")
     assert len(names) == len(study.gain_cases(stored["designs"]))
+
+
+def test_the_full_runs_start_at_the_operating_point_with_the_shipped_plant(tmp_path):
+    """The study's full runs (issue 41) start as the shipped realistic scenes do (the plant in
+    equilibrium against its start inputs, the controller's integral holding its start forces),
+    step the plant as they do (error-controlled substeps, their tolerance) and count from 1 s:
+    a full run of the slew's ideal loop, written and run by study.run, against the shipped
+    telescope_slew_realistic.toml and against the peak docs/realistic_loop.json stores (the
+    same run; rel 1e-9: the last digits a processor's rounding may move)."""
+    import tomllib
+    shipped = tomllib.loads(runner.resolve("telescope_slew_realistic").read_text())["fmus"]
+    results = study.run(tmp_path, jobs=1, progress=False,
+                        selected=[("telescope_slew", "ideal", "exact", (), ("moving_base",))])
+    data = tomllib.loads((tmp_path / "realistic_loop" / "full" / "scenarios" / "telescope_slew-ideal.toml")
+                         .read_text())
+    assert data["fmus"]["plant"]["parameters"]["start_equilibrium"] == shipped["plant"]["parameters"][
+        "start_equilibrium"] == 1
+    assert data["fmus"]["controller"]["parameters"]["start_force"] == shipped["controller"]["parameters"][
+        "start_force"]
+    assert {m["from"] for m in data["metrics"] if "from" in m} == {"1 s"}
+    for scene in study.SCENES:   # the realistic loop's plant, in both scenes
+        plant = study.variant(scene, study.EFFECTS, window=True, operating_point=True)["fmus"]["plant"]["parameters"]
+        assert (plant["max_step"], plant["tolerance"]) == (shipped["plant"]["parameters"]["max_step"],
+                                                           shipped["plant"]["parameters"]["tolerance"])
+    stored = json.loads(study.STORE.read_text())["telescope_slew"]["ideal"]["exact"]["moving_base"]
+    ran = study.summary(results)["telescope_slew"]["ideal"]["exact"]["moving_base"]
+    for key in ("peak", "rms"):
+        assert ran[key] == pytest.approx(stored[key], rel=1e-9), key

@@ -73,6 +73,57 @@ def test_the_observer_loop_without_observer_is_the_pid_loop():
     assert rest == pytest.approx(sorted(p for p in np.abs(plain) if p > 1e-4), abs=1e-6)
 
 
+@pytest.mark.parametrize("master_", ["jacobi", "gauss-seidel"])
+@pytest.mark.parametrize("extrapolate", [False, True], ids=["none", "linear"])
+@pytest.mark.parametrize("wiring", ["sensor+cell late", "sensor", "cell", "plant", "no lag"])
+def test_the_guards_observer_loop_has_python_controls_poles(master_, extrapolate, wiring):
+    """The guard takes the observer loop's poles from numpy's state space of mode_loop's blocks
+    (design._observer_loop_poles, issue 41: ~50x cheaper); python-control's feedback of
+    mode_loop, the second method, has as many poles, and every one off the delays' cluster at
+    0 agrees within 1e-9 (two realisations' rounding: measured 6e-11 at most on these)."""
+    import control
+    sensor, cell = "sensor" in wiring or wiring == "no lag", "cell" in wiring or wiring == "no lag"
+    loop = dataclasses.replace(
+        design.REALISTIC, gauss_seidel=master_ == "gauss-seidel", extrapolate=extrapolate, leg_sensor=sensor,
+        rate_cutoff=100.0 * sensor, delay_steps=(2 if "late" in wiring else 1) * sensor, observer_bandwidth=20.0,
+        observer_mass=2000.0, load_cell=cell, load_cell_bandwidth=200.0 * cell,
+        load_cell_delay_steps=2 * ("late" in wiring), actuator_bandwidth=0.0 if wiring == "no lag" else 50.0)
+    gains, (light, *_, heavy) = design.default_gains(PARAMS), design.modal_masses(PARAMS, loop)
+    for mass, h in ((light, 2e-4), (heavy, 1e-3), (light, 4e-3)):
+        want = np.sort(np.abs(control.feedback(design.mode_loop(mass, gains, h, loop)).poles()))[::-1]
+        got = np.sort(np.abs(design._observer_loop_poles(mass, gains, h, loop)))[::-1]
+        assert len(got) == len(want)
+        assert got[want > 1e-2] == pytest.approx(want[want > 1e-2], abs=1e-9, rel=0)
+
+
+def test_the_prediction_reuses_what_a_sample_does_not_change(monkeypatch):
+    """A sampled campaign's runs differ in seeds and the payload's errors, which neither the
+    telescope's motion nor the step limit reads (issue 41: each sample's miss cost 0.9 s):
+    with one cache they are simulated and searched once, and give the limit a fresh
+    prediction gives; a loop parameter (the reflected mass) is searched anew and moves it."""
+    from scenarios.runs import auto_fidelity
+    calls = {"limit": 0, "motion": 0}
+
+    def counted(name, function):
+        def call(*args, **kwargs):
+            calls[name] += 1
+            return function(*args, **kwargs)
+        return call
+    monkeypatch.setattr(design, "step_limit", counted("limit", design.step_limit))
+    monkeypatch.setattr(auto_fidelity, "scene_motion", counted("motion", auto_fidelity.scene_motion))
+    scenario, paths, descriptions, values = runner.prepare(runner.resolve("telescope_slew_observer"), ci=True)
+    drawn = lambda **plant: {**values, "plant": {**values["plant"], **plant},
+                             "wind": {**values["wind"], "seed": 7}, "load_cell": {**values["load_cell"], "seed": 9}}
+    cache = {}
+    first = flags.predict(scenario, paths, descriptions, values, cache=cache)
+    other = flags.predict(scenario, paths, descriptions, drawn(payload_mass_error=43.0), cache=cache)
+    assert len(cache) == 4 and calls == {"limit": 1, "motion": 1}   # two predictions, one motion, one limit
+    alone = flags.predict(scenario, paths, descriptions, drawn(payload_mass_error=43.0))
+    assert other.limit == first.limit == alone.limit == pytest.approx(1.409e-3, rel=1e-3)
+    heavier = flags.predict(scenario, paths, descriptions, drawn(reflected_mass=1500.0), cache=cache)
+    assert calls == {"limit": 3, "motion": 2} and heavier.limit != first.limit
+
+
 def test_the_shipped_bandwidth_is_within_its_predicted_limit(prediction):
     loop, limit = prediction
     assert 10 * loop.model.observer_bandwidth < limit < 300.0
