@@ -51,12 +51,33 @@ def prediction():
 
 def test_the_guard_reads_the_observer_and_its_load_cell(prediction):
     """Every field of the LoopModel from the scene: the study's REALISTIC loop plus the
-    observer of its scheme table (the two are written once each)."""
+    observer of its scheme table (the two are written once each), its mass per mode the
+    model's M_leg shifted from its mean diagonal (observer_model leg_space)."""
     loop, _ = prediction
+    mean = np.trace(design.leg_mass_matrix(PARAMS)) / 6
     expected = dataclasses.replace(design.REALISTIC, observer_bandwidth=wind_rejection.OBSERVER_BANDWIDTH,
-                                   observer_mass=wind_rejection.OBSERVER_MASS, load_cell=True,
-                                   load_cell_bandwidth=200.0, load_cell_delay_steps=0)
+                                   observer_mass=wind_rejection.OBSERVER_MASS, observer_leg_space=True,
+                                   observer_model_mean=mean, load_cell=True, load_cell_bandwidth=200.0,
+                                   load_cell_delay_steps=0)
     assert loop.model == expected
+    assert mean == pytest.approx(1847.67, abs=0.01)   # + 758 kg reflected: the shipped 2605.67
+
+
+def test_the_leg_space_observer_meets_each_mode_with_its_own_mass():
+    """observer_model leg_space in the loop model: each mode's loop is the scalar observer's
+    with that mode's own mass (the two matrices share their mode shapes), shifted by the
+    error of the mean diagonal; one scalar gives every mode the same."""
+    masses = design.modal_masses(PARAMS, design.REALISTIC)
+    gains = design.default_gains(PARAMS)
+    mean = np.trace(design.leg_mass_matrix(PARAMS)) / 6
+    base = dataclasses.replace(design.REALISTIC, observer_bandwidth=32.0, load_cell=True, load_cell_bandwidth=200.0)
+    shifted = dataclasses.replace(base, observer_mass=mean + 758.0 + 100.0, observer_leg_space=True,
+                                  observer_model_mean=mean)
+    for m in (masses[0], masses[-1]):
+        scalar = dataclasses.replace(base, observer_mass=m + 100.0)
+        z = np.exp(2j * np.pi * np.array([3.0, 30.0, 200.0]) * 1e-3)
+        assert np.allclose(design.mode_loop(m, gains, 1e-3, shifted)(z), design.mode_loop(m, gains, 1e-3, scalar)(z),
+                           rtol=1e-9)
 
 
 def test_the_observer_loop_without_observer_is_the_pid_loop():
@@ -74,8 +95,11 @@ def test_the_observer_loop_without_observer_is_the_pid_loop():
 
 
 def test_the_shipped_bandwidth_is_within_its_predicted_limit(prediction):
+    """The leg-space observer's limit at 1 ms (340 Hz; the scalar 2000 kg's was 253 Hz): ten
+    times the shipped bandwidth."""
     loop, limit = prediction
-    assert 10 * loop.model.observer_bandwidth < limit < 300.0
+    assert 10 * loop.model.observer_bandwidth < limit
+    assert limit == pytest.approx(340.5, rel=0.02)
 
 
 @pytest.mark.parametrize("name", SHIPPED)
@@ -134,6 +158,7 @@ def _issue_scene(tmp_path, kind, bandwidth, coulomb=True, stop=None):
         text = text.replace('step = "1 ms"', 'step = "4.3 ms"').replace('stop_time = "30 s"', 'stop_time = "30.0011 s"')
         text = text.replace('stop_time = "1.5 s"', 'stop_time = "1.5007 s"').replace('"20 ms"', '"21.5 ms"')
         text = text.replace('[fmus.base]\nfmu = "telescope"', '[fmus.base]\nfmu = "telescope"\nfmi_version = 3')
+    text = text.replace('observer_model = "leg_space", ', "")   # the issue's scenes: one scalar mass
     text = re.sub(r"observer_mass = [0-9.]+", f"observer_mass = {mass!r}", text)
     text = re.sub(r'observer_bandwidth = "[0-9.]+ Hz"', f'observer_bandwidth = "{bandwidth:g} Hz"', text)
     text = re.sub(r'values = \["0 Hz", "[0-9.]+ Hz"\]', f'values = ["{bandwidth:g} Hz"]', text)
