@@ -379,8 +379,8 @@ def variant_verdict(s):
             f"({s['design']['variants'][next(iter(VARIANTS))][0]:.1f} deg / "
             f"{s['design']['variants'][next(iter(VARIANTS))][1]:.1f} dB for the scalar at {SCALAR_BANDWIDTH:g} Hz, "
             f"{s['design']['pm_deg']:.1f} deg / {s['design']['gm_db']:.1f} dB for the shipped "
-            f"{OBSERVER_BANDWIDTH:g} Hz). The wind's share falls as the bandwidth's square root here; what is left "
-            "at a wider observer (the last row) costs margin: the bound is the loop's delay (the load cells read "
+            f"{OBSERVER_BANDWIDTH:g} Hz). The peak falls roughly as the bandwidth's square root here; what a "
+            "wider observer would still take off (the last row) costs margin: the bound is the loop's delay (the load cells read "
             "one step late under Jacobi, the encoders' sample of delay, the 50 Hz force loop), which sets "
             "how far the observer's band can reach before the margins go. AtLAST budgets 12 µm at 9 m/s.")
 
