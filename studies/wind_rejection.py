@@ -93,6 +93,8 @@ FROM = "1 s"
 # and at 15 m/s, the observer on
 TUNING_SEEDS = tuple(range(1, 10))
 GUST_SEEDS = tuple(range(10, 26))
+# and the gustiest case (keyhole track, 10 m/s, intensity 0.3) on 15 more, for its tail
+MORE_SEEDS = tuple(range(26, 41))
 INTENSITIES = (0.15, 0.3)
 GUST_SPEEDS = (10.0, 15.0)
 # A load that arrives as a step: the slew's loop at its calm-air operating point (the plant's
@@ -169,6 +171,8 @@ def cases():
     out += [(("keyhole_tracking", "variant", label, f"{seed}"), "keyhole_tracking", "observer", BOUND_SPEED, b,
              {"seed": seed, "intensity": INTENSITIES[-1], "controller": given})
             for label, (b, given) in VARIANTS.items() for seed in GUST_SEEDS]
+    out += [(("keyhole_tracking", "more", f"{seed}"), "keyhole_tracking", "observer", BOUND_SPEED, None,
+             {"seed": seed, "intensity": INTENSITIES[-1]}) for seed in MORE_SEEDS]
     return out
 
 
@@ -365,6 +369,23 @@ def _largest(peaks):
     return max(done) if len(done) == len(peaks) else None
 
 
+def more_seeds_text(s):
+    """The gustiest case's tail: its peaks on MORE_SEEDS."""
+    peaks = [(s["runs"].get(f"keyhole_tracking/more/{seed}") or {}).get("peak") for seed in MORE_SEEDS]
+    if None in peaks:
+        return "Some of the runs on more seeds failed."
+    worst = max(range(len(peaks)), key=peaks.__getitem__)
+    seen = [p for p in _gusts(s, "keyhole_tracking", BOUND_SPEED, INTENSITIES[-1]) if p is not None]
+    over = sum(p > 8.0 for p in peaks)
+    return (f"The tail: the gustiest case on {len(MORE_SEEDS)} more seeds ({MORE_SEEDS[0]}-{MORE_SEEDS[-1]}), "
+            f"peaks {', '.join(fmt(p) for p in peaks)} µm: the largest {fmt(peaks[worst])} µm (seed "
+            f"{MORE_SEEDS[worst]}), {over} of them above 8 µm; "
+            + (f"under {GOAL:g} µm on all {len(GUST_SEEDS) + len(MORE_SEEDS)} unseen seeds, with "
+               f"{fmt(GOAL - max(peaks + seen))} µm to spare on the worst of them" if max(peaks + seen) < GOAL
+               else f"not under {GOAL:g} µm on every unseen seed")
+            + ": the spread of the gusts' peaks, not their mean, is what the margin has to cover.")
+
+
 def variant_verdict(s):
     """The shipped observer against the scalar one before it, in the gustiest case."""
     shipped = _largest(_gusts(s, "keyhole_tracking", BOUND_SPEED, INTENSITIES[-1]))
@@ -380,9 +401,9 @@ def variant_verdict(s):
             f"{s['design']['variants'][next(iter(VARIANTS))][1]:.1f} dB for the scalar at {SCALAR_BANDWIDTH:g} Hz, "
             f"{s['design']['pm_deg']:.1f} deg / {s['design']['gm_db']:.1f} dB for the shipped "
             f"{OBSERVER_BANDWIDTH:g} Hz). The peak falls roughly as the bandwidth's square root here; what a "
-            "wider observer would still take off (the last row) costs margin: the bound is the loop's delay (the load cells read "
-            "one step late under Jacobi, the encoders' sample of delay, the 50 Hz force loop), which sets "
-            "how far the observer's band can reach before the margins go. AtLAST budgets 12 µm at 9 m/s.")
+            "wider observer would still take off (the last row) costs margin: the bound is the loop's delay (the "
+            "load cells read one step late under Jacobi, the encoders' sample of delay, the 50 Hz force loop), "
+            "which sets how far the observer's band can reach before the margins go. AtLAST budgets 12 µm at 9 m/s.")
 
 
 def gust_verdict(s):
@@ -578,6 +599,7 @@ def report(s, charts=True):
         f"{BOUND_SPEED:g} m/s, intensity {INTENSITIES[-1]:g}) on the same unseen seeds with the scalar observer "
         "shipped before, the leg-space one at its bandwidth, and a wider one; each with the worst mode's phase "
         "and gain margin on the linear model.", "", variant_table(s), "", variant_verdict(s), "",
+        more_seeds_text(s), "",
         "## A load that arrives as a step", "", step_text(s), "",
         f"![a gust front onto the calm slew](figures/{STEP_CHART})", "",
         "## In the telescope's units", "", pointing(s), ""]
