@@ -38,3 +38,16 @@ def test_native_and_python_agree_bit_for_bit(fmus, native, script, values, input
     python, c = (_run(paths[script], values, inputs, watch) for paths in (fmus, native))
     assert np.array_equal(python, c)
     assert np.ptp(python, axis=0).min() > 0   # every watched output moves
+
+
+def test_the_leg_space_matrix_couples_the_legs_in_the_fmu(native):
+    """observer_model set in initialization mode reaches the kernel: a length wobble on leg 2
+    alone moves leg 1's estimate through the model matrix's off-diagonal term with leg_space,
+    and not with one scalar (the same mean diagonal); leg 2's own estimates differ too."""
+    values = {"observer_bandwidth": 32.0, "observer_mass": 2606.0}
+    inputs = {"leg_length[2]": 3.0}
+    watch = ["disturbance_estimate[1]", "disturbance_estimate[2]"]
+    scalar = _run(native["leg_controller_fmu"], values, inputs, watch)
+    matrix = _run(native["leg_controller_fmu"], {**values, "observer_model": 1}, inputs, watch)
+    assert np.ptp(scalar[:, 0]) == 0 and np.ptp(matrix[:, 0]) > 0
+    assert not np.array_equal(scalar[:, 1], matrix[:, 1])
