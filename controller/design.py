@@ -172,7 +172,8 @@ class LoopModel:
     modes of M_leg and of the model's shifted matrix share their shapes, so each stays one
     SISO loop; along a motion the model keeps its home matrix, which this leaves out: the
     modal masses move about 0.5 % per cm of heave from home, 1.6 % at 3 cm). F_meas: the
-    force the plant delivers (its lag state less the viscous friction) through the LoadCell FMU (``load_cell``: its first-order low-pass
+    force the plant delivers (its lag state less the viscous friction) through the LoadCell
+    FMU (``load_cell``: its first-order low-pass
     ``load_cell_bandwidth`` [Hz], ``load_cell_delay_steps`` samples late, one communication
     step later under Jacobi as a sensor FMU is); without a load cell the observer's force
     input is held (no force path). Its poles are found with python-control (no
