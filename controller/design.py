@@ -165,8 +165,15 @@ class LoopModel:
     the controller also subtracts Q_d(z) [M_o (z - 1)^2 / (z^2 h^2) l_meas - F_meas] from
     its command (Q_d: the observer's zero-order-hold Q, its output the state before the
     step; M_o = ``observer_mass`` [kg], the one leg-space mass it assumes, against each
-    mode's own mass). F_meas: the force the plant delivers (its lag state less the viscous
-    friction) through the LoadCell FMU (``load_cell``: its first-order low-pass
+    mode's own mass; ``observer_leg_space``: its matrix is the controller's model M_leg at
+    home shifted to the mean diagonal ``observer_mass`` (observer_model leg_space), so a mode of
+    mass m (m_r included) meets m - m_r + observer_mass - ``observer_model_mean`` (the
+    model's mean diagonal): its own mass when observer_mass is that mean plus m_r; the
+    modes of M_leg and of the model's shifted matrix share their shapes, so each stays one
+    SISO loop; along a motion the model keeps its home matrix, which this leaves out: the
+    modal masses move about 0.5 % per cm of heave from home, 1.6 % at 3 cm). F_meas: the
+    force the plant delivers (its lag state less the viscous friction) through the LoadCell
+    FMU (``load_cell``: its first-order low-pass
     ``load_cell_bandwidth`` [Hz], ``load_cell_delay_steps`` samples late, one communication
     step later under Jacobi as a sensor FMU is); without a load cell the observer's force
     input is held (no force path). Its poles are found with python-control (no
@@ -183,13 +190,15 @@ class LoopModel:
     gravity_rate: float = 0.0
     observer_bandwidth: float = 0.0
     observer_mass: float = 0.0
+    observer_leg_space: bool = False
+    observer_model_mean: float = 0.0
     load_cell: bool = False
     load_cell_bandwidth: float = 0.0
     load_cell_delay_steps: int = 0
 
     def __post_init__(self):
         for name in ("reflected_mass", "actuator_bandwidth", "viscous_friction", "rate_cutoff", "gravity_rate",
-                     "observer_bandwidth", "observer_mass", "load_cell_bandwidth"):
+                     "observer_bandwidth", "observer_mass", "observer_model_mean", "load_cell_bandwidth"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"loop model {name} must be finite and >= 0, got {value}")
@@ -197,6 +206,8 @@ class LoopModel:
             raise ValueError(f"loop model delay_steps must be an integer >= 0, got {self.delay_steps}")
         if not self.leg_sensor and (self.rate_cutoff or self.delay_steps):
             raise ValueError("rate_cutoff and delay_steps belong to the leg sensor: set leg_sensor=True")
+        if self.observer_leg_space and not self.observer_model_mean > 0:
+            raise ValueError("observer_leg_space needs the model's mean diagonal observer_model_mean > 0")
         if not self.load_cell and (self.load_cell_bandwidth or self.load_cell_delay_steps):
             raise ValueError("load_cell_bandwidth and load_cell_delay_steps belong to the load cell: "
                              "set load_cell=True")
@@ -245,7 +256,8 @@ def mode_loop(mass, gains, comm_step, loop=IDEAL):
         feedback, reads, length = plant, pick(0, 1), pick(0)
     outer = 1 / z * lead if stale > 1 else lead * control.tf([1], [1], h)
     if loop.observer_bandwidth > 0:   # the plant once, read by the PID and the observer
-        return control.ss(outer) * (pid * reads + _observer(loop, h, z, length, pick(2))) * full
+        return control.ss(outer) * (pid * reads + _observer(loop, observer_mode_mass(mass, loop), h, z, length,
+                                                            pick(2))) * full
     return control.ss(outer) * pid * feedback
 
 
@@ -269,14 +281,30 @@ def _observer_filter(loop):
     return np.array([[0, 1], [-w * w, -np.sqrt(2) * w]]), np.array([[0], [w * w]]), np.array([[1.0, 0]])
 
 
-def _observer(loop, h, z, length, force):
+def observer_mode_mass(mass, loop):
+    """The mass [kg] the observer of ``loop`` assumes for the leg-space mode of ``mass`` (its
+    reflected mass included): loop.observer_mass, or with observer_leg_space the model's
+    mode shifted as its matrix is."""
+    if loop.observer_leg_space:
+        return mass - loop.reflected_mass + loop.observer_mass - loop.observer_model_mean
+    return loop.observer_mass
+
+
+def model_mean_leg_mass(params):
+    """The mean diagonal [kg] of the leg-space mass matrix at home (the controller's model,
+    observer_model leg_space, shifts it to observer_mass)."""
+    return float(np.trace(leg_mass_matrix(params))) / 6
+
+
+def _observer(loop, observer_mass, h, z, length, force):
     """The observer's part of the command (controller/c/observer.c) from the plant's
-    outputs (l, dl/dt, F): Q_d [M_o (z - 1)^2 / (z h)^2 l_meas - F_meas], ``length``
+    outputs (l, dl/dt, F): Q_d [M_o (z - 1)^2 / (z h)^2 l_meas - F_meas] (M_o: the mode's
+    ``observer_mass``), ``length``
     picking l_meas as the PID reads it, ``force`` the delivered force, F_meas through the
     load cell (without one, the held force input adds nothing)."""
     import control
     q = control.c2d(control.ss(*_observer_filter(loop), 0), h, "zoh")
-    acc = control.ss(loop.observer_mass * (z - 1) ** 2 / (z * z * h * h)) * length
+    acc = control.ss(observer_mass * (z - 1) ** 2 / (z * z * h * h)) * length
     if not loop.load_cell:
         return q * acc
     b = 1 - np.exp(-2 * np.pi * loop.load_cell_bandwidth * h) if loop.load_cell_bandwidth > 0 else 1.0
@@ -632,7 +660,7 @@ def _observer_loop_poles(mass, gains, comm_step, loop):
         reads, length = pick(0, 1), pick(0)
     A, B, C = _observer_filter(loop)
     q = (*_zoh(A, B, h), C, np.zeros((1, 1)))
-    acc = _ss_series(_ss_tf(loop.observer_mass * np.array([1.0, -2, 1]) / (h * h), delay(2)), length)
+    acc = _ss_series(_ss_tf(observer_mode_mass(mass, loop) * np.array([1.0, -2, 1]) / (h * h), delay(2)), length)
     if loop.load_cell:
         b = 1 - np.exp(-2 * np.pi * loop.load_cell_bandwidth * h) if loop.load_cell_bandwidth > 0 else 1.0
         num, den = [b, 0.0], np.convolve([1.0, -(1 - b)], delay(loop.load_cell_delay_steps

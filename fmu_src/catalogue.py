@@ -78,7 +78,8 @@ CONTROL_LOOPS: dict[str, dict[str, Any]] = {
         "plant_limit": "actuator_force_limit", "stroke": "stroke",
         "loop_model": {"reflected_mass": "reflected_mass", "actuator_bandwidth": "actuator_bandwidth",
                        "viscous_friction": "viscous_friction"},
-        "observer": {"observer_bandwidth": "observer_bandwidth", "observer_mass": "observer_mass"},
+        "observer": {"observer_bandwidth": "observer_bandwidth", "observer_mass": "observer_mass",
+                     "observer_leg_space": "observer_model"},
         "force_measured": "leg_force_measured"},
     "slider_controller": {
         "plant": "mechanism3t_plant", "force": "slider_force", "plant_force": "slider_force",

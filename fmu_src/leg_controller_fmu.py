@@ -10,7 +10,11 @@ Disturbance observer (controller/observer.py; off at ``observer_bandwidth`` 0, t
 which leaves every result bit for bit as it was): from the load cells' ``leg_force_measured``
 it estimates the force the legs get from elsewhere (the wind) and subtracts it from the command.
 Its model force is the feedforward's (with feedforward none: 0, so it estimates the whole
-load); its state is the ``observer_state`` output, saved with the FMU state.
+load); its state is the ``observer_state`` output, saved with the FMU state. Its mass:
+``observer_model`` scalar (the default) one ``observer_mass`` for every leg-space mode;
+leg_space the model's own leg-space mass matrix at home, shifted to the mean diagonal
+``observer_mass`` (with the plant's reflected mass added, the plant's matrix: every mode then
+meets its own mass, and the bandwidth is no longer held by the lightest mode's mismatch).
 
 The operating point (``start_force``, all 0 by default: off): the leg forces the plant holds
 at the start (a link "@plant.leg_force_actual" to a plant that starts at its equilibrium,
@@ -27,7 +31,7 @@ from pythonfmu.enums import Fmi2Status
 
 from controller.design import leg_mass_matrix
 from controller.feedforward import FEEDFORWARD_MODES, Feedforward
-from controller.observer import STATES_PER_LEG, observer_start, observer_update
+from controller.observer import STATES_PER_LEG, observer_mass_matrix, observer_start, observer_update
 from controller.pid import PIDGains, pid_update
 from fmu_src.operating_point import BASE_POSE, STATIC_LEG_FORCES
 from fmu_src.slave import INPUT, OUTPUT, PARAMETER, POSE_UNITS, GuardedSlave, acc_units, rate_units
@@ -37,6 +41,7 @@ from plant.errors import InvalidInputError
 from plant.hexapod.model import StewartParams
 
 POSE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
+OBSERVER_MODELS = ("scalar", "leg_space")   # observer_model: controller/c/observer.h mb_observer_mass
 DEFAULTS_FILE = "leg_controller_defaults.json"
 INPUTS = ("reference_pose", "reference_rate", "reference_acc", "leg_length", "leg_rate", "base_pose",
           "base_rate", "base_acc")
@@ -100,12 +105,19 @@ class LegController(GuardedSlave):
 
     def _observer_variables(self):
         """The disturbance observer's parameters, input and outputs (controller/observer.py)."""
-        mass = float(np.trace(leg_mass_matrix(StewartParams.paper()))) / 6
+        self.leg_mass = leg_mass_matrix(StewartParams.paper())   # the model's, at home (native: LEG_MASS_HOME)
+        mass = float(np.trace(self.leg_mass)) / 6
+        self.enumeration("observer_model", "disturbance observer: its leg-space mass matrix M_o (the mean diagonal "
+                         "observer_mass): scalar = observer_mass I, one mass for every mode (the default, as it "
+                         "always was); leg_space = the model's M_leg at home + (observer_mass - its mean "
+                         "diagonal) I, every mode its own mass", OBSERVER_MODELS, 0)
         self.observer = self.parameters((
             ("observer_bandwidth", "1/s", 0.0, "disturbance observer: bandwidth of its Q filter (2nd order "
              "Butterworth) [Hz]; 0: off", (0.0, 1e3)),
             ("observer_mass", "kg", mass, "disturbance observer: leg-space mass of one leg it assumes, the "
-             "reflected mass included; default the mean diagonal of M_leg at home, none reflected", (0.0, 1e6)),
+             "reflected mass included (observer_model leg_space: the mean diagonal of its matrix; M_leg's own "
+             "plus the reflected mass is the plant's); default the mean diagonal of M_leg at home, none reflected",
+             (0.0, 1e6)),
             ("observer_on_time", "s", 0.0, "disturbance observer: the time it switches on (its filter at rest "
              "until then, nothing subtracted: a switch-on is a step load); 0: on from the start", (0.0, 1e9)),
         ))
@@ -123,6 +135,8 @@ class LegController(GuardedSlave):
         self.params = StewartParams.paper()
         self.pid = PIDGains(**self.gains)
         self.feedforward_model = Feedforward(self.params, FEEDFORWARD_MODES[self.feedforward])
+        self.observer_matrix = observer_mass_matrix(self.observer["observer_mass"], self.leg_mass,
+                                                    self.observer_model)
         self.saturated = False
         self._kernel = self.params.kernel.params
         self._wind_out = np.zeros(12)   # predicted wrench, leg forces
@@ -206,5 +220,6 @@ class LegController(GuardedSlave):
             raise InvalidInputError("leg_force_measured input contains NaN or inf")
         o = self.observer
         self.disturbance[:], self.observer_state[:] = observer_update(
-            o["observer_bandwidth"], o["observer_mass"], self.observer_state, ff - self.force_measured, length_error, h)
+            o["observer_bandwidth"], self.observer_matrix, self.observer_state, ff - self.force_measured, length_error,
+            h)
         return ff - self.disturbance

@@ -90,11 +90,14 @@ def _leg_sensor():
 
 
 def _leg_controller():
+    from controller.design import leg_mass_matrix
     from controller.feedforward import FEEDFORWARD_MODES, model_fidelity
-    from plant.hexapod.model import FIDELITIES
+    from fmu_src.leg_controller_fmu import OBSERVER_MODELS
+    from plant.hexapod.model import FIDELITIES, StewartParams
     fid = [FIDELITIES.index(model_fidelity(m)) for m in FEEDFORWARD_MODES]
     return _stewart_constants() + [
-        _strings("FEEDFORWARD_NAMES", FEEDFORWARD_MODES),
+        _strings("FEEDFORWARD_NAMES", FEEDFORWARD_MODES), _strings("OBSERVER_MODEL_NAMES", OBSERVER_MODELS),
+        _array("LEG_MASS_HOME", leg_mass_matrix(StewartParams.paper())),   # the Python FMU's leg_mass
         f"static const int FEEDFORWARD_FIDELITY[{len(fid)}] = {{{', '.join(map(str, fid))}}};",
         f"enum {{ FEEDFORWARD_NONE = {FEEDFORWARD_MODES.index('none')} }};"]
 

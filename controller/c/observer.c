@@ -2,7 +2,8 @@
 
    The controller's model says the leg force f_model(reference) makes the platform follow
    the reference. A leg that moves off it by e = l_measured - l_reference needs M e'' more
-   (M: the leg-space mass of one leg, reflected mass included, one scalar: ``mass``). What
+   (M: the leg-space mass matrix, reflected mass included: ``mass``, n x n; mb_observer_mass
+   forms it, one scalar on the diagonal or the model's matrix). What
    the leg really pushes with is f_measured (the load cell). So the force the leg got from
    elsewhere (wind, friction the model lacks; leg space, + extends) is
        d = f_model(ref) + M e'' - f_measured,
@@ -11,6 +12,8 @@
    step h, with the second difference for e'' (centred one step back; a held e through
    Q s^2 would add a false damping M w^2 h / 2 to the leg):
        u_k = g_k + M (e_k - 2 e_{k-1} + e_{k-2}) / h^2,   g = f_model(ref) - f_measured (``force_gap``)
+   (with M the plant's own matrix, M e'' + f_model - f_measured is the external leg force exactly,
+   every mode's; a scalar M leaves (M - M_plant) e'' in it, which sets the lightest mode's margin)
        x' = [[0, 1], [-w^2, -2 zeta w]] x + [0, w^2] u,   d_hat = x1,
    with u held over the step (zero-order hold, exact: the exponential in closed form for the
    complex poles). The estimate of step k is the state before it: u_k acts from the next
@@ -27,7 +30,17 @@ void mb_observer_start(int n, const double *length_error, double *state)
     }
 }
 
-void mb_observer_update(int n, double bandwidth, double mass, double h, const double *state, const double *force_gap,
+void mb_observer_mass(int n, int leg_space, double mass, const double *model, double *out)
+{
+    double mean = 0.0;
+    for (int i = 0; i < n; i++) mean += model[i * n + i];
+    mean /= n;
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++)
+            out[i * n + j] = leg_space ? model[i * n + j] + (i == j ? mass - mean : 0.0) : (i == j ? mass : 0.0);
+}
+
+void mb_observer_update(int n, double bandwidth, const double *mass, double h, const double *state, const double *force_gap,
                         const double *length_error, double *estimate, double *new_state)
 {
     const double zeta = 0.7071067811865476, w = 6.283185307179586 * bandwidth, w2 = w * w;
@@ -39,16 +52,18 @@ void mb_observer_update(int n, double bandwidth, double mass, double h, const do
     /* Bd = A^-1 (Ad - I) (0, w^2), A^-1 = [[-2 zeta / w, -1 / w^2], [1, 0]] */
     double v1 = a12 * w2, v2 = (a22 - 1.0) * w2;
     double b1 = -2.0 * zeta * v1 / w - v2 / w2, b2 = v1;
-    double mh = mass / (h * h);
+    double h2 = h * h, acc[n];   /* every leg's second difference first: each leg's u reads them all */
+    for (int j = 0; j < n; j++) acc[j] = length_error[j] - 2.0 * state[4 * j + 2] + state[4 * j + 3];
     for (int i = 0; i < n; i++) {
         const double *x = state + 4 * i;
         double *y = new_state + 4 * i;
-        double e = length_error[i];
-        double u = force_gap[i] + mh * (e - 2.0 * x[2] + x[3]);
+        double u = 0.0;   /* a diagonal M: mass / h^2 times the leg's own, as one scalar gives it */
+        for (int j = 0; j < n; j++) u += mass[i * n + j] / h2 * acc[j];
+        u = force_gap[i] + u;
         estimate[i] = x[0];
         y[0] = a11 * x[0] + a12 * x[1] + b1 * u;
         y[1] = a21 * x[0] + a22 * x[1] + b2 * u;
         y[3] = x[2];
-        y[2] = e;
+        y[2] = length_error[i];
     }
 }

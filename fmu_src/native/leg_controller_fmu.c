@@ -17,6 +17,7 @@
 typedef struct {
     int base_mode, legs, feedforward_on, saturated;
     double wind_filtered;   /* the wind speed filter's state */
+    double observer_mass[36];   /* the observer's leg-space mass matrix (mb_observer_mass) */
 } Model;
 
 static const char *const INPUT_NAMES[8] = {"reference_pose", "reference_rate", "reference_acc", "leg_length",
@@ -41,7 +42,8 @@ static int wind_forces(mb_instance *inst, const double *r, Model *m, const doubl
 
 /* The disturbance observer: command = ff - its estimate; advances its state. error is
    reference - measured length, the observer takes measured - reference. */
-static int observe(mb_instance *inst, double *r, const double *ff, const double *error, double h, double *command)
+static int observe(mb_instance *inst, double *r, const Model *m, const double *ff, const double *error, double h,
+                   double *command)
 {
     static const char *const name[1] = {"leg_force_measured"};
     const double *measured = &r[VR_leg_force_measured];
@@ -56,7 +58,7 @@ static int observe(mb_instance *inst, double *r, const double *ff, const double 
         off[k] = -error[k];
     }
     memcpy(state, &r[VR_observer_state], sizeof state);
-    mb_observer_update(6, r[VR_observer_bandwidth], r[VR_observer_mass], h, state, gap, off, &r[VR_disturbance_estimate],
+    mb_observer_update(6, r[VR_observer_bandwidth], m->observer_mass, h, state, gap, off, &r[VR_disturbance_estimate],
                        &r[VR_observer_state]);
     for (int k = 0; k < 6; k++) command[k] -= r[VR_disturbance_estimate + k];
     return 0;
@@ -130,7 +132,7 @@ static int update(mb_instance *inst, double *r, Model *m, int stepping, double t
         double command[6];
         memcpy(command, ff, sizeof ff);
         if (r[VR_observer_bandwidth] > 0.0 && t >= r[VR_observer_on_time]) {
-            if (observe(inst, r, ff, error, h, command)) return 1;
+            if (observe(inst, r, m, ff, error, h, command)) return 1;
         } else if (r[VR_observer_bandwidth] > 0.0) {   /* not on yet: at rest, its length history current */
             double off[6];
             for (int k = 0; k < 6; k++) off[k] = -error[k];
@@ -155,6 +157,12 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
     }
     if (mb_check_pid_gains(inst, r[VR_kp], r[VR_ki], r[VR_kd], r[VR_force_limit]))
         return 1;
+    int observer_model = i[VR_observer_model];
+    if (observer_model < 0 || observer_model >= N_OBSERVER_MODEL_NAMES) {
+        mb_error(inst, "IndexError", "observer_model %d is not one of 0..%d", observer_model, N_OBSERVER_MODEL_NAMES - 1);
+        return 1;
+    }
+    mb_observer_mass(6, observer_model, r[VR_observer_mass], LEG_MASS_HOME, m->observer_mass);
     int fidelity = FEEDFORWARD_FIDELITY[mode];
     m->base_mode = FIDELITY_BASE_MODE[fidelity];
     m->legs = FIDELITY_LEGS[fidelity];

@@ -211,6 +211,10 @@ def _observer_fields(scenario, controller, entry, get):
     fields = {field: float(get(controller, name)) for field, name in entry.get("observer", {}).items()}
     if not fields.get("observer_bandwidth"):
         return {}
+    if "observer_leg_space" in fields:   # observer_model: 0 scalar, 1 leg_space (the model's matrix, at home)
+        fields["observer_leg_space"] = bool(fields["observer_leg_space"])
+        if fields["observer_leg_space"]:
+            fields["observer_model_mean"] = design.model_mean_leg_mass(StewartParams.paper())
     feeds = _sources(scenario, f"{controller}.{entry['force_measured']}")
     cell = next((s for s in feeds if scenario.fmus[s] in catalogue.LOAD_CELLS), None)
     if cell:

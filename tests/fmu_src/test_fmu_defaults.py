@@ -24,7 +24,8 @@ NAMES = {"hexapod_plant_fmu": "HexapodPlant", "telescope_fmu": "Telescope", "leg
 CHOICES = {"HexapodPlant": {"fidelity": ("full", "massless_legs", "base_gravity", "no_base"),
                             "integrator": ("rk4", "euler", "radau")},
            "Telescope": {"profile": ("slew", "sidereal", "paper", "replay")},
-           "LegController": {"feedforward": ("none", "fixed_base", "moving_base")},
+           "LegController": {"feedforward": ("none", "fixed_base", "moving_base"),
+                             "observer_model": ("scalar", "leg_space")},
            "Mechanism3TPlant": {"integrator": ("rk4", "euler", "radau")},
            "SliderController": {"feedforward": ("off", "on")},
            "BaseSensor": {"source": ("encoders", "imu")}, "Wind": {"spectrum": ("kaimal", "davenport")}}

@@ -25,6 +25,9 @@ def _run(path, values, inputs, watch, n=60):
     ("leg_controller_fmu", {"observer_bandwidth": 20.0, "observer_mass": 2600.0},
      {"leg_length[2]": 3.0, "leg_force_measured[2]": 5e3, "leg_force_measured[5]": -2e3},
      ["leg_force[2]", "leg_force[5]", "disturbance_estimate[2]", "disturbance_estimate[5]", "observer_state[5]"]),
+    ("leg_controller_fmu", {"observer_bandwidth": 32.0, "observer_mass": 2606.0, "observer_model": 1},
+     {"leg_length[2]": 3.0, "leg_force_measured[2]": 5e3, "leg_force_measured[5]": -2e3},
+     ["leg_force[2]", "leg_force[5]", "disturbance_estimate[1]", "disturbance_estimate[5]", "observer_state[5]"]),
     ("leg_controller_fmu", {"observer_bandwidth": 20.0, "observer_mass": 2000.0, "observer_on_time": 0.03},
      {"leg_length[2]": 3.0, "leg_force_measured[2]": 5e3, "leg_force_measured[5]": -2e3},
      ["leg_force[5]", "disturbance_estimate[2]", "disturbance_estimate[5]", "observer_state[5]"]),
@@ -35,3 +38,16 @@ def test_native_and_python_agree_bit_for_bit(fmus, native, script, values, input
     python, c = (_run(paths[script], values, inputs, watch) for paths in (fmus, native))
     assert np.array_equal(python, c)
     assert np.ptp(python, axis=0).min() > 0   # every watched output moves
+
+
+def test_the_leg_space_matrix_couples_the_legs_in_the_fmu(native):
+    """observer_model set in initialization mode reaches the kernel: a length wobble on leg 2
+    alone moves leg 1's estimate through the model matrix's off-diagonal term with leg_space,
+    and not with one scalar (the same mean diagonal); leg 2's own estimates differ too."""
+    values = {"observer_bandwidth": 32.0, "observer_mass": 2606.0}
+    inputs = {"leg_length[2]": 3.0}
+    watch = ["disturbance_estimate[1]", "disturbance_estimate[2]"]
+    scalar = _run(native["leg_controller_fmu"], values, inputs, watch)
+    matrix = _run(native["leg_controller_fmu"], {**values, "observer_model": 1}, inputs, watch)
+    assert np.ptp(scalar[:, 0]) == 0 and np.ptp(matrix[:, 0]) > 0
+    assert not np.array_equal(scalar[:, 1], matrix[:, 1])

@@ -21,9 +21,10 @@ from scenarios.runs import metrics, runner, single
 REALISTIC = sorted(p.stem for p in runner.SHIPPED.glob("*.toml")
                    if "coulomb_friction" in p.read_text() or "actuator_bandwidth" in p.read_text())
 # the largest relative error of the compared metrics, measured on the [ci] runs, x2
-# (1.73e-3, 8.64e-4, 2.75e-3, 1.26e-4, 1.62e-3, 1.60e-4 on 2026-12-05, operating-point starts)
-PINNED = {"keyhole_tracking_observer": 3.5e-3, "telescope_slew_gust_front": 1.7e-3,
-          "telescope_slew_observer": 5.5e-3, "telescope_slew_observer_switch_on": 2.5e-4,
+# (1.73e-3, 8.64e-4, 2.75e-3, 1.26e-4, 1.62e-3, 1.60e-4 on 2026-12-05, operating-point starts;
+# the four observer scenes with the 32 Hz leg-space observer: 2.89e-3, 1.30e-4, 6.10e-3, 2.25e-4)
+PINNED = {"keyhole_tracking_observer": 5.8e-3, "telescope_slew_gust_front": 2.6e-4,
+          "telescope_slew_observer": 1.2e-2, "telescope_slew_observer_switch_on": 4.5e-4,
           "telescope_slew_realistic": 3.2e-3, "telescope_slew_wind_feedforward": 3.2e-4}
 TOLERANCE = {"telescope_slew_observer": 3e-11}   # m or rad; the others 1e-10
 COMPARED = {"pose error": ("rms", "peak", "rotation_rms", "rotation_peak"), "leg error": ("rms", "peak")}

@@ -53,7 +53,7 @@ def test_percentiles_are_read_on_the_percent_scale(tmp_path):
 
 def test_the_scene_is_the_shipped_realistic_slew_in_wind_with_the_observer():
     """The campaign's scene runs the slew, plant, controller, wind and load cells of
-    scenarios/files/telescope_slew_observer.toml's 20 Hz run (issue 41), parameter for
+    scenarios/files/telescope_slew_observer.toml's observer run (issue 41), parameter for
     parameter, with an IMU and encoders in place of the ideal base input and leg sensor, and
     each sample draws the gusts (wind.seed) beside the sensors' noise."""
     import tomllib
@@ -69,7 +69,7 @@ def test_the_scene_is_the_shipped_realistic_slew_in_wind_with_the_observer():
     plant = {k: v for k, v in params(scene, "plant").items() if k != "tolerance"}
     assert plant == {k: v for k, v in params(shipped, "plant").items() if k != "tolerance"}
     assert (params(scene, "plant")["tolerance"], params(shipped, "plant")["tolerance"]) == ("0.0001 um", "0.00003 um")
-    assert params(shipped, "controller")["observer_bandwidth"] == "20 Hz" and "20 Hz" in shipped["sweep"]["values"]
+    assert params(shipped, "controller")["observer_bandwidth"] == "32 Hz" and "32 Hz" in shipped["sweep"]["values"]
     assert {k: v for k, v in params(scene, "base").items() if k != "start_delay"} == \
         {k: v for k, v in params(shipped, "base").items() if k != "start_delay"}
     assert params(scene, "encoders") == params(shipped, "leg_sensor")
