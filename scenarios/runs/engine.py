@@ -160,7 +160,7 @@ def run_key(scenario, parameters, fmus):
     what = {"code": code_digest(), "time": [s.start_time, s.stop_time, s.step], "master": s.master,
             "extrapolation": s.extrapolation,
             "fmus": {inst: [s.fmus[inst], fmus[inst]] for inst in sorted(s.fmus)},
-            "connections": s.connections, "record": [s.record_interval, s.record],
+            "connections": s.connections, "record": [s.record_interval, s.record, s.metric_interval],
             "metrics": [[m.name, m.kind, m.args, m.start] for m in s.metrics],
             "parameters": {inst: {k: _plain(v) for k, v in sorted(p.items())} for inst,
                            p in sorted(parameters.items())}}
