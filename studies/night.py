@@ -50,7 +50,7 @@ from plant.telescope import model as telescope
 from plant.telescope import replay
 from scenarios import schedule
 from scenarios.cosim.records import run_records
-from scenarios.output.charts import save
+from scenarios.output.charts import plain_log_axis, save
 from scenarios.runs import engine, regress, runner, status
 from scenarios.runs.metrics import LOSS_BANDS, loss_key
 from scenarios.spec.parsing import parse_quantity
@@ -325,6 +325,7 @@ def error_chart(night, scans):
         ax.annotate(f"requirement: pose error peak < {limit:g} µm", (0.01, limit), xycoords=("axes fraction", "data"),
                     fontsize=7, color="C3", va="bottom")
     ax.set_yscale("log")
+    plain_log_axis(ax.yaxis)
     ax.set_xlim(0, night.time[-1] / 3600)
     ax.set_xlabel("hours after the night's start (UTC " + night.utc_start.strftime("%Y-%m-%d %H:%M") + ")")
     ax.set_ylabel("pose error (position) [µm]")
@@ -363,8 +364,11 @@ def budget_chart(scans):
            color=["C3" if s.findings else "C0" for s in scans], label="the scan (red: breaks a requirement)")
     limit = requirement_limit(scans[0].scenario, "pose error", "peak")
     if limit is not None:
-        ax.axhline(limit, color="C3", lw=1, ls="--", label="requirement")
+        ax.axhline(limit, color="C3", lw=1, ls="--", label=f"requirement: pose error peak < {limit:g} µm")
     ax.set_yscale("log")
+    lowest = min(min(s.run.metrics[m]["peak"] for m in ("pose error", "run pose error")) for s in scans)
+    ax.set_ylim(bottom=lowest / 3)     # a log axis's bars start where the axis does: below them all
+    plain_log_axis(ax.yaxis)
     ax.set_xticks(x, [f"{s.scan.source}\n{s.scan.start / 3600:.1f} h, {s.speed:.1f} m/s" for s in scans], fontsize=7)
     ax.set_ylabel("pose error peak [µm]")
     ax.set_title("The budget over the night: each scan's pose error peak (every step counted), and its run's",
@@ -414,7 +418,6 @@ def main(argv=None):
     error_chart(night, scans)
     sky_chart(night, scans)
     budget_chart(scans)
-    hours = night.time[-1] / 3600
     simulated = sum(s.tile.steps for s in scans) * STEP
     broken = [s for s in scans if s.findings]
     night_path = pathlib.Path(args.night).resolve()
@@ -423,7 +426,7 @@ def main(argv=None):
     text = "\n".join([
         "# A night at the telescope", "",
         "<!-- written by `python -m studies.night`; do not edit -->", "",
-        f"The demonstration night `{shown}` (assumed: 12 real 43 GHz calibrators over {hours:.1f} h at Tianma), "
+        f"The night `{shown}` ({tomllib.loads(night_path.read_text()).get('description', 'no description')}), "
         f"planned by `scenarios/schedule.py` into a {night.time.size:,}-row 20 Hz table in {planned:.1f} s, runs "
         f"whole through the realistic loop with the disturbance observer (the FMUs and parameters of "
         f"`scenarios/files/{SCENE}.toml`: ball-screw actuators, leg encoders, the 0.8 Hz axis servo, load cells, "
@@ -432,8 +435,10 @@ def main(argv=None):
         "its own scan, back to back, started at its operating point (the plant holding the mean wind load, the "
         "observer's estimate with it) and counted from its first second. Each run is a scenario file of its own "
         "(`out/night/scanNN.toml`), the native Telescope FMU replaying its stretch of the table from a prepared "
-        f"table; its Wind FMU holds the night file's mean wind at the scan's start over the run (turbulence "
-        "intensity 0.15, its own gust seed), so the wind's statistics change over the night run by run. The "
+        "table the study writes beside it (`scanNN.mbreplay`: one per scan, replaced by the next run of the study, "
+        "so nothing goes to the kit's replay cache in the temp folder); its Wind FMU holds the night file's mean "
+        "wind at the scan's start over the run (turbulence intensity 0.15, its own gust seed), so the wind's "
+        "statistics change over the night run by run. The "
         f"metrics read every step (`record.metric_interval`), the records keep every {RECORD * 1e3:g} ms.", "",
         "Requirements: the night file's `[requirements]`, each scan file's own "
         f"(`{'`, `'.join(f'{k} {v}' for k, v in requirements.items())}`), judged by the regression machinery "
@@ -460,7 +465,8 @@ def main(argv=None):
         f"{GOAL / 60:g} minutes{'' if cost['wall_s'] <= GOAL else ', which the shared machine missed in wall time'}.",
         "",
         "## The synthetic encoder log", "",
-        f"`{ENCODER_LOG.relative_to(ROOT)}`: {loaded.breakpoints.size:,} rows, 2 arcsec of noise, a 0.6 s "
+        f"`{log.resolve().relative_to(ROOT) if log.resolve().is_relative_to(ROOT) else log}`: "
+        f"{loaded.breakpoints.size:,} rows, 2 arcsec of noise, a 0.6 s "
         f"dropout the spline bridges, the azimuth written in [0, 360) ("
         f"{'wraps at rows ' + str(list(loaded.wraps)) if loaded.wraps else 'no wrap in this slew'}). "
         "With a 3 s dropout the checks refuse it:", "", "```text", refused, "```", ""])
