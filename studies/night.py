@@ -369,7 +369,7 @@ def budget_chart(scans):
     lowest = min(min(s.run.metrics[m]["peak"] for m in ("pose error", "run pose error")) for s in scans)
     ax.set_ylim(bottom=lowest / 3)     # a log axis's bars start where the axis does: below them all
     plain_log_axis(ax.yaxis)
-    ax.set_xticks(x, [f"{s.scan.source}\n{s.scan.start / 3600:.1f} h, {s.speed:.1f} m/s" for s in scans], fontsize=7)
+    ax.set_xticks(x, [f"{s.scan.source}\n{s.scan.start / 3600:.1f} h\n{s.speed:.1f} m/s" for s in scans], fontsize=7)
     ax.set_ylabel("pose error peak [µm]")
     ax.set_title("The budget over the night: each scan's pose error peak (every step counted), and its run's",
                  fontsize=9)
