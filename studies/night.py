@@ -420,6 +420,7 @@ def main(argv=None):
     budget_chart(scans)
     simulated = sum(s.tile.steps for s in scans) * STEP
     broken = [s for s in scans if s.findings]
+    outside = [s for s in scans if s.run.metrics["run pose error"]["peak"] > s.run.metrics["pose error"]["peak"]]
     night_path = pathlib.Path(args.night).resolve()
     shown = night_path.relative_to(ROOT) if night_path.is_relative_to(ROOT) else night_path
     ideal = dealt(cost["run_cpu_s"], 2)
@@ -449,7 +450,9 @@ def main(argv=None):
         "the keyhole, the keyhole; else the wind.", "",
         *table_lines(scans), "",
         f"{status.told([s.status for s in scans], 'scan run')}. {len(broken)} of {len(scans)} scans break a "
-        "requirement" + (f": {', '.join(s.scan.source for s in broken)}." if broken else "."), "",
+        "requirement" + (f": {', '.join(s.scan.source for s in broken)}." if broken else ".")
+        + f" In {len(outside)} runs the run's peak lies outside its scan (in the hold or the slew, the grey bars "
+        "above the blue below), where no requirement reads it.", "",
         "![the night's error](figures/night_error.png)", "", "![the sky track](figures/night_sky.png)", "",
         "![the budget over the night](figures/night_budget.png)", "",
         "## Cost", "",
