@@ -33,6 +33,7 @@ import argparse
 import json
 import math
 import pathlib
+import re
 import sys
 import tomllib
 
@@ -114,6 +115,11 @@ BASE_SENSOR = {"encoder_resolution": "0.484813681109536 urad",   # 0.1 arcsec: G
 
 
 # ------------------------------------------------------------------------ scenario text
+def _toml_key(key):
+    """A key as TOML takes it: bare if it can be, else quoted ("pose error peak")."""
+    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else json.dumps(key, ensure_ascii=False)
+
+
 def _toml_value(value):
     if isinstance(value, bool):
         return "true" if value else "false"
@@ -124,7 +130,7 @@ def _toml_value(value):
     if isinstance(value, list):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
     if isinstance(value, dict):
-        return "{ " + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + " }"
+        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in value.items()) + " }"
     raise TypeError(f"no TOML for {value!r}")
 
 
@@ -135,7 +141,7 @@ def toml_text(data):
              or (isinstance(v, list) and not (v and isinstance(v[0], dict)))]
     for key, value in data.items():
         if isinstance(value, dict) and key != "fmus":
-            lines += ["", f"[{key}]"] + [f"{k} = {_toml_value(v)}" for k, v in value.items()]
+            lines += ["", f"[{key}]"] + [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in value.items()]
         elif key == "fmus":
             for inst, table in value.items():
                 lines += ["", f"[fmus.{inst}]"] + [f"{k} = {_toml_value(v)}" for k, v in table.items()]

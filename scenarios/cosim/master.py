@@ -328,11 +328,13 @@ class Recorder:
     point, one FMI call per instance, and handed over a block at a time (``take``) to
     preallocated arrays (scenarios.cosim.records: one row per record point, units with the
     names), the metrics and the watch (scenarios.runs.flags.Watch). What only the watch needs
-    is read but not recorded."""
+    is read but not recorded. With ``keep`` > 1 the records keep every keep-th row read (the
+    run's first among them), while the metrics and the watch get every row: a peak between
+    two recorded rows is still counted."""
 
     ROWS = 256   # the most rows one C call records before it returns them
 
-    def __init__(self, scenario, instances, metrics, rows, watch=None):
+    def __init__(self, scenario, instances, metrics, rows, watch=None, keep=1):
         md = {inst: i.variables for inst, i in instances.items()}
         wanted = list(dict.fromkeys(scenario.record + [r for m in metrics for r in m.needs]))
         watched = [r for r in dict.fromkeys(watch.needs if watch else []) if r not in wanted]
@@ -347,7 +349,8 @@ class Recorder:
                 units.append(md[inst][n].unit or "1")
         self.kept = self.slices[wanted[-1]].stop if wanted else 0
         self.reads = [(instances[inst], [n for n, _ in cols], [j for _, j in cols]) for inst, cols in columns.items()]
-        self.records = Records(names[:self.kept], units[:self.kept], rows)
+        self.keep, self.read = keep, 0     # rows read so far (every keep-th is recorded)
+        self.records = Records(names[:self.kept], units[:self.kept], (rows - 1) // keep + 1)
         self.block = np.zeros((min(self.ROWS, rows), len(names)))
         self.metrics = [(m, [self.slices[n] for n in m.needs]) for m in metrics]
         self.watch = watch
@@ -360,7 +363,9 @@ class Recorder:
         if not n:
             return
         rows = self.block[:n]
-        self.records.extend(t, rows[:, :self.kept])
+        kept = slice((-self.read) % self.keep, n, self.keep)     # the rows whose count is a multiple of keep
+        self.records.extend(t[kept], rows[kept, :self.kept])
+        self.read += n
         for metric, where in self.metrics:
             first = int(np.searchsorted(t, metric.start - 1e-12))   # t >= start - 1e-12 from here
             if first < n:

@@ -160,7 +160,7 @@ def run_key(scenario, parameters, fmus):
     what = {"code": code_digest(), "time": [s.start_time, s.stop_time, s.step], "master": s.master,
             "extrapolation": s.extrapolation,
             "fmus": {inst: [s.fmus[inst], fmus[inst]] for inst in sorted(s.fmus)},
-            "connections": s.connections, "record": [s.record_interval, s.record],
+            "connections": s.connections, "record": [s.record_interval, s.record, s.metric_interval],
             "metrics": [[m.name, m.kind, m.args, m.start] for m in s.metrics],
             "parameters": {inst: {k: _plain(v) for k, v in sorted(p.items())} for inst,
                            p in sorted(parameters.items())}}
@@ -584,15 +584,23 @@ def run_sweep(scenario, paths, descriptions, values, items, outdir, jobs=None, a
     for job in job_list:
         if store.status(job.key) is None:
             raise RuntimeError(f"run {job.label} of {scenario.name} was not run: {outcome.failed.get(job.key)}")
-        record, record_path = store.read(job.key), None    # no records: refused before the first row
-        if store.path(job.key, RECORDS).exists():
-            record_path = pathlib.Path(outdir) / f"{file_label(job.label)}.npz"
-            write_bytes(record_path, store.path(job.key, RECORDS).read_bytes())
-        run = master.Run(job.label, record_path, record.get("steps", 0), record.get("run_time_s", 0.0),
-                         record.get("sim_time_s", 0.0), record.get("metrics", {}),
-                         store.series(job.key) if store.path(job.key, ".npz").exists() else {})
-        run.flags = flags.from_dicts(record.get("flags"))
-        if record["status"] != "ok":
-            run.failure = f"{scenario.source}: scene {scenario.name}, run {job.label}: {record['error']}"
-        runs.append(run)
+        runs.append(stored_run(store, job, pathlib.Path(outdir) / f"{file_label(job.label)}.npz"))
     return runs
+
+
+def stored_run(store, job, record_path=None):
+    """A job's result in ``store`` as a master.Run (metrics, series, flags, failure); its
+    records copied to ``record_path``, or without one read from the store's own file."""
+    record, path = store.read(job.key), None    # no records: refused before the first row
+    if store.path(job.key, RECORDS).exists():
+        path = record_path or store.path(job.key, RECORDS)
+        if record_path:
+            write_bytes(record_path, store.path(job.key, RECORDS).read_bytes())
+    run = master.Run(job.label, path, record.get("steps", 0), record.get("run_time_s", 0.0),
+                     record.get("sim_time_s", 0.0), record.get("metrics", {}),
+                     store.series(job.key) if store.path(job.key, ".npz").exists() else {})
+    run.flags = flags.from_dicts(record.get("flags"))
+    if record["status"] != "ok":
+        s = job.scenario
+        run.failure = f"{s.source}: scene {s.name}, run {job.label}: {record['error']}"
+    return run

@@ -591,7 +591,7 @@ class Watch:
         # CYCLES periods of the oscillation with which the loop goes unstable (its least-damped
         # pole at its step limit), but at least 20 recorded rows (an envelope needs rows) and at
         # most WINDOW; not a share of the run
-        window = min(WINDOW, max(20 * scenario.record_interval, CYCLES * min(periods, default=math.inf)))
+        window = min(WINDOW, max(20 * scenario.read_interval, CYCLES * min(periods, default=math.inf)))
         return cls(watched, window)
 
     def bind(self, slices):
@@ -758,12 +758,12 @@ def growth(times, envelope, floor, excitation=None):
     return None
 
 
-def sampling_flags(metrics, interval):
+def sampling_flags(metrics, interval, key="record.interval"):
     """``undersampled`` for each metric its recorded rows cannot carry (metrics.undersampled):
     the metrics are computed from the recorded rows, so a coarse record interval gives a
     number with no word (a 2-row run's RMS 1e-4 of the true one)."""
     said = [(m.name, m.undersampled()) for m in metrics]
-    return [Flag("undersampled", f"metric {name!r} {problem}: record.interval {interval * 1e3:g} ms is too coarse "
+    return [Flag("undersampled", f"metric {name!r} {problem}: {key} {interval * 1e3:g} ms is too coarse "
                  "for it; record more often") for name, problem in said if problem]
 
 

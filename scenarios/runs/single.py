@@ -40,19 +40,22 @@ def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), p
     label made a file name: spec.file_label)
     (also those of a run that fails or is interrupted). ``progress(done_fraction)`` is
     called about 200 times. Run.flags: ``flags`` known before the run, the detectors'
-    (scenarios.runs.flags.Watch, fed every recorded row), the FMUs' warnings and a stop before
-    stop_time."""
+    (scenarios.runs.flags.Watch, fed every row read), the FMUs' warnings and a stop before
+    stop_time. The metrics and the watch read a row every record.metric_interval (default:
+    record.interval); the records keep every record.interval's, so a long run's records stay
+    small while its peaks are still seen at every row read."""
     instances = {}
     recorder = None
     h, t0 = scenario.step, scenario.start_time
     steps = int(round((scenario.stop_time - t0) / h))
-    every = int(round(scenario.record_interval / h))
+    every = int(round(scenario.read_interval / h))            # steps between the rows the metrics read
+    keep = int(round(scenario.record_interval / scenario.read_interval))   # read rows per recorded row
     path = None if outdir is None else pathlib.Path(outdir) / f"{file_label(label)}.npz"
     done, failure, began, cpu_began, watch = 0, None, time.perf_counter(), time.thread_time(), None
     try:
         exchange, _ = start(scenario, fmu_paths, parameters, instances)
         watch = run_flags.Watch.for_scenario(scenario, {k: i.md for k, i in instances.items()}, parameters)
-        recorder = Recorder(scenario, instances, list(metrics), steps // every + 1, watch)
+        recorder = Recorder(scenario, instances, list(metrics), steps // every + 1, watch, keep)
         order = step_order(scenario, parameters) if scenario.master == "gauss-seidel" else list(scenario.fmus)
         loop = Loop(exchange, instances, order, scenario.master == "gauss-seidel", scenario.extrapolation, t0, h,
                     recorder, every)
@@ -89,7 +92,8 @@ def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), p
     if failure is not None:
         result.failure = failure_line(failure, instances)
     result.flags = run_flags.run_flags(watch, result, instances, flags) + (run_flags.sampling_flags(
-        metrics, scenario.record_interval) if failure is None else [])   # cut short: its rows end early
+        metrics, scenario.read_interval, "record.metric_interval" if scenario.metric_interval else "record.interval")
+        if failure is None else [])   # cut short: its rows end early
     if failure is not None:
         raise RunFailed(str(failure), result) from None
     return result

@@ -212,7 +212,8 @@ def as_data(scenario):
             "extrapolation": scenario.extrapolation, "fmus": tables if isinstance(scenario.fmus,
                                                                                   dict) else scenario.fmus,
             "connections": connections, "metrics": metrics,
-            "record": {"interval": plain(scenario.record_interval), "variables": plain(scenario.record)}}
+            "record": {"interval": plain(scenario.record_interval), "variables": plain(scenario.record),
+                       **({"metric_interval": plain(scenario.metric_interval)} if scenario.metric_interval else {})}}
     if scenario.name != pathlib.Path(scenario.source).stem:     # the file's own name is not checked as a name
         data["name"] = scenario.name
     if scenario.sweep is not None:

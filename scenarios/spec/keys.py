@@ -78,6 +78,9 @@ KEYS = {
                          "the inputs it feeds; every input has exactly one source"),
     "record.interval": ("time", "step", "recording interval: a whole multiple of step"),
     "record.variables": ('list of "instance.variable"', "none", "what the records (npz, CSV on request) hold"),
+    "record.metric_interval": ("time", "record.interval", "the interval the metrics and the guard read the loop at: "
+                               "a whole multiple of step that divides record.interval (a long run kept every "
+                               "second, its peaks found every step)"),
     "metrics[].kind": (", ".join(METRIC_KINDS), _REQUIRED, "what the metric computes (table below)"),
     "metrics[].name": ("string", "the kind", "the metric's name in the report and metrics.json"),
     "metrics[].from": ("time", "0 s", "the metric counts from this time on (after settling)"),
@@ -199,6 +202,12 @@ class Scenario:
     fmi_versions: dict = field(default_factory=dict)     # instance -> one of FMI_VERSIONS
     short: bool = False         # its [ci] settings applied: a run cut short on purpose, not motion_unfinished
     requirements: list = field(default_factory=list)     # Requirement: absolute specs every run is judged by
+    metric_interval: float | None = None     # [s] the metrics and the guard read this often (None: record_interval)
+
+    @property
+    def read_interval(self):
+        """How often the metrics and the guard read the loop [s]: record.metric_interval, else record.interval."""
+        return self.metric_interval or self.record_interval
 
 
 def enumeration(var):

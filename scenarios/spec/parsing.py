@@ -212,17 +212,26 @@ def parse_data(data, source="<string>", overrides=None):
                                                                                            conn["to"])]
             connections.append((parse_reference(source, f"{key}.from", conn["from"], fmus), targets))
 
-    interval, recorded, last_record = step, [], stop
+    interval, metric_interval, recorded, last_record = step, None, [], stop
     with problems.part():
         record = data.get("record", {})
-        for extra, problem in unknown_keys(set(record) - {"interval", "variables"}, ["interval", "variables"]):
+        record_keys = ["interval", "variables", "metric_interval"]
+        for extra, problem in unknown_keys(set(record) - set(record_keys), record_keys):
             problems.errors.append(ScenarioError(source, f"record.{extra}", problem))
         interval = parse_quantity(source, "record.interval", record.get("interval", data["step"]), "s")
         ratio = interval / step
         if grid_ok and (interval < step or abs(ratio - round(ratio)) > 1e-9 * ratio):
             raise ScenarioError(source, "record.interval", f"{record.get('interval', data['step'])!r} must be a whole "
                                 f"multiple of step ({data['step']!r})")
-        every = max(1, int(round(ratio)))
+        if "metric_interval" in record:
+            metric_interval = parse_quantity(source, "record.metric_interval", record["metric_interval"], "s")
+            steps_per, per_record = metric_interval / step, interval / metric_interval
+            if grid_ok and (metric_interval < step or abs(steps_per - round(steps_per)) > 1e-9 * steps_per
+                            or per_record < 1 - 1e-9 or abs(per_record - round(per_record)) > 1e-9 * per_record):
+                raise ScenarioError(source, "record.metric_interval", f"{record['metric_interval']!r} must be a whole "
+                                    f"multiple of step ({data['step']!r}) that divides record.interval "
+                                    f"({record.get('interval', data['step'])!r})")
+        every = max(1, int(round((metric_interval or interval) / step)))   # the rows the metrics read
         last_record = start + (steps // every) * every * step if grid_ok else math.inf
         recorded = [parse_reference(source, "record.variables", v, fmus)
                     for v in _string_list(source, "record.variables", record.get("variables", []))] \
@@ -328,7 +337,8 @@ def parse_data(data, source="<string>", overrides=None):
     problems.raise_any()
     return Scenario(source, name, data.get("description", ""), start, stop, step, master, extrapolation,
                     fmus, parameters, connections, interval, recorded, metrics, sweep, ci, tolerance,
-                    implementations=implementations, fmi_versions=versions, requirements=requirements)
+                    implementations=implementations, fmi_versions=versions, requirements=requirements,
+                    metric_interval=metric_interval)
 
 
 _RELATION = re.compile(r"^\s*(<=|>=|<|>)\s*(.*)$")

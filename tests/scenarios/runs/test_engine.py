@@ -285,7 +285,7 @@ def test_every_setting_that_decides_the_numbers_changes_the_run_key():
     key = engine.run_key(base, parameters, fmus)
     changed = {"start_time": 0.5, "stop_time": 59.0, "step": 5e-4, "master": "gauss-seidel", "extrapolation": "none",
                "fmus": {**base.fmus, "plant": "mechanism3t_plant"}, "connections": base.connections[:-1],
-               "record_interval": 0.02, "record": base.record[:-1],
+               "record_interval": 0.02, "record": base.record[:-1], "metric_interval": 1e-3,
                "metrics": [dataclasses.replace(base.metrics[0], start=1.0), *base.metrics[1:]],
                "parameters": {}}
     fields = {f.name for f in dataclasses.fields(spec.Scenario)}
