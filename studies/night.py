@@ -9,7 +9,7 @@ scenarios/schedule.py. The night is cut into runs that tile it: run i covers the
 scan i-1, the slew to scan i and scan i itself, back to back (``tiles``), so the runs
 together simulate the whole night at 1 ms once. Each run is a scenario file of its own
 (``scan_data``): the shipped wind configuration (scenarios/files/telescope_slew_observer.toml:
-the realistic loop, load cells, the 20 Hz disturbance observer, Kaimal wind), replaying its
+the realistic loop, load cells, the disturbance observer as that scene ships it, Kaimal wind), replaying its
 stretch of the table from a prepared replay table this study writes beside it, in the mean
 wind the night file gives at the scan's start (held over the run), started at its operating
 point (start_equilibrium, start_force). The night file's [requirements] are the files'
@@ -431,7 +431,7 @@ def main(argv=None):
         f"planned by `scenarios/schedule.py` into a {night.time.size:,}-row 20 Hz table in {planned:.1f} s, runs "
         f"whole through the realistic loop with the disturbance observer (the FMUs and parameters of "
         f"`scenarios/files/{SCENE}.toml`: ball-screw actuators, leg encoders, the 0.8 Hz axis servo, load cells, "
-        "the 20 Hz observer, Kaimal wind; no flexible support, which the night file does not ask for) at "
+        "the observer as that scene ships it (leg-space mass, 32 Hz), Kaimal wind; no flexible support, which the night file does not ask for) at "
         f"{STEP * 1e3:g} ms, in {len(scans)} runs that tile it: each the hold after the scan before, the slew and "
         "its own scan, back to back, started at its operating point (the plant holding the mean wind load, the "
         "observer's estimate with it) and counted from its first second. Each run is a scenario file of its own "
