@@ -1,4 +1,7 @@
 """Shared fixtures: the FMUs are built once per test session into a temporary folder."""
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import pytest
 
 from fmu_src import native_build
@@ -21,9 +24,11 @@ def fmus(tmp_path_factory):
 @pytest.fixture(scope="session")
 def native_fmus(fmus, tmp_path_factory):
     """The native twin of every FMU by script name, built once per session from the
-    session's pythonfmu FMUs (each build compiles the kernels: seconds a file)."""
+    session's pythonfmu FMUs (each build compiles the kernels: seconds a file, on every core)."""
     out = tmp_path_factory.mktemp("native")
-    return {script: native_build.build_native(path, out) for script, path in fmus.items()}
+    with ThreadPoolExecutor(os.cpu_count()) as pool:   # the compilers run beside each other
+        built = {script: pool.submit(native_build.build_native, path, out) for script, path in fmus.items()}
+    return {script: future.result() for script, future in built.items()}
 
 
 def pytest_sessionfinish(session, exitstatus):
