@@ -169,7 +169,7 @@ for owner, name, phase in ((runner, "prepare", "checks"), (runner, "pre_run_flag
                            (runner, "write_results", "results"), (report, "_error_chart", "charts"),
                            (report, "_summary_chart", "charts")):
     clock(owner, name, phase)
-run = single.run
+run = runner.single.run
 steps = []
 def counted(*args, **kwargs):
     result = run(*args, **kwargs)

@@ -159,7 +159,6 @@ def _run(args, shipped):
     from scenarios.cosim.fmi import FmuFileError
     from scenarios.cosim.records import run_records
     from scenarios.runs import status
-    from scenarios.runs.engine import EngineError, check_address
     from scenarios.runs.estimates import ResourceError, check_jobs
     from scenarios.runs.runner import OutputError, not_found, resolve, run_scenario
     from scenarios.spec import ScenarioError, judge, unmet
@@ -186,10 +185,14 @@ def _run(args, shipped):
         for warning in (check_jobs(args.jobs),):
             if warning:
                 print(warning, file=sys.stderr)
-        if args.dask is not None:   # "" too: it once ran locally, silently
-            check_address(args.dask)
-    except (ResourceError, EngineError) as exc:
+    except ResourceError as exc:
         sys.exit(f"command error: {exc}")
+    if args.dask is not None:   # "" too: it once ran locally, silently
+        from scenarios.runs.engine import EngineError, check_address  # only here: a local run need not import it
+        try:
+            check_address(args.dask)
+        except EngineError as exc:
+            sys.exit(f"command error: {exc}")
     if args.ssp:
         if len(names) > 1:   # one file holds one scenario: the others were dropped without a word
             sys.exit(f"command error: --ssp {args.ssp}: exports one scenario, {len(names)} given "

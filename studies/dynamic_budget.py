@@ -147,7 +147,8 @@ def page(result):
              "45 deg at the axes' rate and acceleration limits, 51.2 s of motion from t = 1 s, 56 s run) in the "
              "realistic loop of [wind rejection](wind-rejection.md) (ball-screw actuators with lag and friction, "
              "the antenna's 0.8 Hz axis servo, a 10 m/s Kaimal wind at turbulence intensity 0.15, load cells and "
-             "the disturbance observer (leg-space, 32 Hz); started at its operating point, counted from 1 s; the moving-base "
+             "the disturbance observer (leg-space, 32 Hz); "
+             "started at its operating point, counted from 1 s; the moving-base "
              "feedforward fed by an IMU on the base, leg encoders) with a model that is wrong: the payload's mass "
              "(sd 43 kg, 2 %), principal moments (uniform ±550 kg.m², 15 % of the "
              "smallest, each sample a rigid body: see below) and centre of mass (uniform ±20 mm along each axis "
@@ -211,8 +212,10 @@ def _against_short(m):
             "from the load cells whatever force the model misses, the payload's wrong weight and inertia as well "
             "as the wind's, while a sensor's error (an encoder's scale) is tracked as if it were true: that reads "
             "the shares, it is not a run that separates them. Peaks are counted from 1 s, over the whole run, and "
-            "sit where the slew's acceleration changes: in the scene's own run (its seeds) 5.35 µm at t = 1.99 s, in "
-            "its first 2 s, and 5.26 µm at t = 52.4 s as the slew stops; samples 0-3 peak in those first 2 s (the [ci] campaign, cut "
+            "sit where the slew's acceleration changes: in the scene's own run (its seeds) 5.35 µm at "
+            "t = 1.99 s, in "
+            "its first 2 s, and 5.26 µm at t = 52.4 s as the slew stops; samples 0-3 peak in those first 2 s "
+            "(the [ci] campaign, cut "
             "at 3 s, gives their peaks to the last digit)."]
 
 

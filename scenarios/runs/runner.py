@@ -20,7 +20,7 @@ from scenarios import spec
 from scenarios.cosim import master
 from scenarios.cosim.fmi import description
 from scenarios.output import report
-from scenarios.runs import auto_fidelity, engine, flags, metrics, single
+from scenarios.runs import auto_fidelity, flags, metrics, single
 from scenarios.runs import estimates as resources
 
 SHIPPED = pathlib.Path(__file__).resolve().parents[1] / "files"
@@ -370,6 +370,7 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
     before = before or {}
     runs, todo = [], list(sweep_runs(scenario, descriptions, values))
     if jobs or dask:   # the values on worker processes or a Dask cluster (scenarios.runs.engine)
+        from scenarios.runs import engine  # here: a run in this process need not import it (17 ms)
         items = scenario.sweep[1] if scenario.sweep else [None]
         runs, todo = engine.run_sweep(scenario, paths, descriptions, values, items, outdir, jobs, dask, progress), []
         for run in runs:

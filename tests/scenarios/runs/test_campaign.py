@@ -7,7 +7,7 @@ import csv
 import pytest
 
 from scenarios import spec
-from scenarios.runs import campaign, flags, metrics, runner, single
+from scenarios.runs import campaign, engine, flags, metrics, runner, single
 from scenarios.spec.units import to_si
 
 HEAD = 'name = "t"\nscenario = "telescope_slew"\n'
@@ -161,7 +161,7 @@ def test_every_path_runs_the_implementation_the_scenario_names(tmp_path):
     job_list, files = campaign.jobs(campaign.load(path))
     job = next(iter(job_list))
     assert {inst: _implementation(files[digest]) for inst, digest in job.fmus.items()} == chosen
-    sweep_jobs, sweep_files = runner.engine.prepared_jobs(scenario, paths, values, [("run", {})])
+    sweep_jobs, sweep_files = engine.prepared_jobs(scenario, paths, values, [("run", {})])
     assert {inst: _implementation(sweep_files[d]) for inst, d in sweep_jobs[0].fmus.items()} == chosen
 
 

@@ -140,7 +140,7 @@ def test_the_prediction_reuses_what_a_sample_does_not_change(monkeypatch):
     other = flags.predict(scenario, paths, descriptions, drawn(payload_mass_error=43.0), cache=cache)
     assert len(cache) == 4 and calls == {"limit": 1, "motion": 1}   # two predictions, one motion, one limit
     alone = flags.predict(scenario, paths, descriptions, drawn(payload_mass_error=43.0))
-    assert other.limit == first.limit == alone.limit == pytest.approx(1.463e-3, rel=1e-3)   # the shipped leg-space 32 Hz observer
+    assert other.limit == first.limit == alone.limit == pytest.approx(1.463e-3, rel=1e-3)   # leg-space, 32 Hz
     heavier = flags.predict(scenario, paths, descriptions, drawn(reflected_mass=1500.0), cache=cache)
     assert calls == {"limit": 3, "motion": 2} and heavier.limit != first.limit
 
