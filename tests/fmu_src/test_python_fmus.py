@@ -211,14 +211,9 @@ def test_an_earlier_initialization_mode_evaluation_leaves_no_state_behind(fmus, 
     """The plant evaluated in initialization mode with an actuator bandwidth (the motor
     forces become states), then set back to none: the FMU state it ends initialization
     with is, byte for byte, the one of a plant initialized without the detour."""
-    path = (fmus if implementation == "python" else native)["hexapod_plant_fmu"]
     forces = inverse_dynamics(StewartParams.paper(), HOME_POSE, np.zeros(6), np.zeros(6))
-    blobs = []
-    for detour in (True, False):
-        inst = Instance(path, f"detour{detour}")
-        OPENED.append(inst)
-        inst.call("setupExperiment", startTime=0.0)
-        inst.call("enterInitializationMode")
+
+    def initialize(inst, detour):
         inst.set("moving_base", 0)
         for k, f in enumerate(forces):
             inst.set(f"leg_force[{k + 1}]", f)
@@ -226,9 +221,27 @@ def test_an_earlier_initialization_mode_evaluation_leaves_no_state_behind(fmus, 
             inst.set("actuator_bandwidth", 50.0)
             assert inst.get_real("leg_force_actual[1]") == pytest.approx(forces[0])
             inst.set("actuator_bandwidth", 0.0)
+
+    with_detour, without = _states_with_and_without_a_detour(
+        (fmus if implementation == "python" else native)["hexapod_plant_fmu"], initialize)
+    assert with_detour == without
+
+
+def _states_with_and_without_a_detour(path, initialize, after_exit=lambda inst: None):
+    """The serialized FMU states of two HexapodPlant instances of ``path``, each set up by
+    ``initialize(inst, detour)`` in initialization mode, with the detour and without;
+    ``after_exit(inst)`` runs on each after exitInitializationMode."""
+    blobs = []
+    for detour in (True, False):
+        inst = Instance(path, f"detour{detour}")
+        OPENED.append(inst)
+        inst.call("setupExperiment", startTime=0.0)
+        inst.call("enterInitializationMode")
+        initialize(inst, detour)
         inst.call("exitInitializationMode")
+        after_exit(inst)
         blobs.append(bytes(inst.fmu.serializeFMUstate(inst.fmu.getFMUstate())))
-    assert blobs[0] == blobs[1]
+    return blobs
 
 
 @pytest.mark.parametrize("implementation", ["python", "native"])
@@ -240,14 +253,9 @@ def test_an_initialization_mode_evaluation_leaves_the_inputs_as_they_were_set(fm
     off the calm ones), then set back to 0: the input reads the calm start forces it was
     set to, before and after exit, and the FMU state is, byte for byte, the one of a plant
     initialized without the detour."""
-    path = (fmus if implementation == "python" else native)["hexapod_plant_fmu"]
     names = [f"leg_force[{k}]" for k in range(1, 7)]
-    blobs = []
-    for detour in (True, False):
-        inst = Instance(path, f"detour{detour}")
-        OPENED.append(inst)
-        inst.call("setupExperiment", startTime=0.0)
-        inst.call("enterInitializationMode")
+
+    def initialize(inst, detour):
         inst.set("platform_wrench[1]", 1219.0)
         if detour:
             inst.set("start_equilibrium", 1)
@@ -255,7 +263,10 @@ def test_an_initialization_mode_evaluation_leaves_the_inputs_as_they_were_set(fm
             assert abs(held - STATIC_LEG_FORCES[0]) > 100.0   # the evaluation held the wind
             assert [inst.get_real(n) for n in names] == list(STATIC_LEG_FORCES)
             inst.set("start_equilibrium", 0)
-        inst.call("exitInitializationMode")
+
+    def after_exit(inst):
         assert [inst.get_real(n) for n in names] == list(STATIC_LEG_FORCES)
-        blobs.append(bytes(inst.fmu.serializeFMUstate(inst.fmu.getFMUstate())))
-    assert blobs[0] == blobs[1]
+
+    with_detour, without = _states_with_and_without_a_detour(
+        (fmus if implementation == "python" else native)["hexapod_plant_fmu"], initialize, after_exit)
+    assert with_detour == without
