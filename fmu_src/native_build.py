@@ -20,6 +20,7 @@ import tempfile
 import uuid
 import xml.etree.ElementTree as ET
 import zipfile
+from concurrent.futures import ThreadPoolExecutor
 
 import fmpy
 import numpy as np
@@ -337,13 +338,16 @@ def _ensure(version, python, out):
     out.mkdir(parents=True, exist_ok=True)
     newest = max(p.stat().st_mtime for p in _inputs(version))
     build = build_native if version == 2 else build_native3
-    paths = {}
+    paths, due = {}, []
     for script, source in python.items():
         target = out / source.name
         if not (target.exists() and target.stat().st_mtime >= max(newest, source.stat().st_mtime)):
             builder.LOG.info("building the native FMI %d.0 FMU of %s", version, script)
-            build(source, out)
+            due.append(source)
         paths[script] = target
+    with ThreadPoolExecutor(os.cpu_count()) as pool:   # each build compiles in its own folder: side by side
+        for _ in pool.map(lambda source: build(source, out), due):   # an error is raised here, as before
+            pass
     return paths
 
 
