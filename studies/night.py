@@ -126,6 +126,13 @@ def window_table(night, tile, path):
     return path
 
 
+def shipped_observer():
+    """The observer SCENE ships, as the page names it (its model's mass, its bandwidth)."""
+    shipped = tomllib.loads(runner.resolve(SCENE).read_text())["fmus"]["controller"]["parameters"]
+    model = {"leg_space": "leg-space mass", "scalar": "one mass"}[shipped.get("observer_model", "scalar")]
+    return f"{model}, {shipped['observer_bandwidth']}"
+
+
 def scan_data(scan, index, tile, table, speed, requirements, name="night"):
     """The scenario file (as a dict, studies.realistic_loop.toml_text writes it) of one scan's
     run: SCENE's FMUs, parameters and connections, replaying ``table`` (a prepared table) over
@@ -431,7 +438,7 @@ def main(argv=None):
         f"planned by `scenarios/schedule.py` into a {night.time.size:,}-row 20 Hz table in {planned:.1f} s, runs "
         f"whole through the realistic loop with the disturbance observer (the FMUs and parameters of "
         f"`scenarios/files/{SCENE}.toml`: ball-screw actuators, leg encoders, the 0.8 Hz axis servo, load cells, "
-        "the observer as that scene ships it (leg-space mass, 32 Hz), Kaimal wind; no flexible support, which "
+        f"the observer as that scene ships it ({shipped_observer()}), Kaimal wind; no flexible support, which "
         "the night file does not ask for) at "
         f"{STEP * 1e3:g} ms, in {len(scans)} runs that tile it: each the hold after the scan before, the slew and "
         "its own scan, back to back, started at its operating point (the plant holding the mean wind load, the "
