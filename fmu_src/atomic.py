@@ -10,6 +10,7 @@ Here, in fmu_src, because the FMU builds write stamps too and the data flows one
 (fmu_src -> scenarios): the scenarios import it from here.
 """
 import contextlib
+import fcntl
 import os
 import pathlib
 import tempfile
@@ -61,3 +62,19 @@ def write_text(path, text):
     with replacing(path, text=True) as f:
         f.write(text)
     return pathlib.Path(path)
+
+
+@contextlib.contextmanager
+def building(folder):
+    """``folder`` held for this block against other processes building into it (fcntl.flock
+    on ``folder``/.build.lock, waited for): two processes (parallel test workers, a campaign's
+    workers, two shells) that find the same FMU due build it once, one after the other,
+    instead of writing one file from two compilers."""
+    folder = pathlib.Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    fd = os.open(folder / ".build.lock", os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield folder
+    finally:
+        os.close(fd)                  # closing the descriptor releases the lock

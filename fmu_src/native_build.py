@@ -322,12 +322,13 @@ def _inputs(version=2):
     return files
 
 
-def ensure_native(scripts, out=None):
+def ensure_native(scripts, out=None, python=None):
     """Paths of the native FMUs of ``scripts`` (fmu_src/<script>.py names), rebuilt when
-    missing or older than their pythonfmu FMU or any file they are made from."""
+    missing or older than their pythonfmu FMU or any file they are made from; ``python``
+    (script -> path) names the pythonfmu FMUs to make them from, else those of build/fmu."""
     from fmu_src import python_build as builder
     out = pathlib.Path(out) if out is not None else builder.OUT / "native"
-    python = builder.ensure_built(scripts)
+    python = {script: python[script] for script in scripts} if python is not None else builder.ensure_built(scripts)
     return _ensure(2, python, out)
 
 
@@ -335,19 +336,19 @@ def _ensure(version, python, out):
     """script -> native FMU of the FMI ``version`` in ``out`` of the pythonfmu FMUs ``python``
     (script -> path), rebuilt when missing or older than its pythonfmu FMU or any of _inputs."""
     from fmu_src import python_build as builder
-    out.mkdir(parents=True, exist_ok=True)
     newest = max(p.stat().st_mtime for p in _inputs(version))
     build = build_native if version == 2 else build_native3
     paths, due = {}, []
-    for script, source in python.items():
-        target = out / source.name
-        if not (target.exists() and target.stat().st_mtime >= max(newest, source.stat().st_mtime)):
-            builder.LOG.info("building the native FMI %d.0 FMU of %s", version, script)
-            due.append(source)
-        paths[script] = target
-    with ThreadPoolExecutor(os.cpu_count()) as pool:   # each build compiles in its own folder: side by side
-        for _ in pool.map(lambda source: build(source, out), due):   # an error is raised here, as before
-            pass
+    with atomic.building(out):        # another process building here: wait, then find it built
+        for script, source in python.items():
+            target = out / source.name
+            if not (target.exists() and target.stat().st_mtime >= max(newest, source.stat().st_mtime)):
+                builder.LOG.info("building the native FMI %d.0 FMU of %s", version, script)
+                due.append(source)
+            paths[script] = target
+        with ThreadPoolExecutor(os.cpu_count()) as pool:   # each build compiles in its own folder: side by side
+            for _ in pool.map(lambda source: build(source, out), due):   # an error is raised here, as before
+                pass
     return paths
 
 

@@ -268,13 +268,13 @@ def _sources():
 def ensure_built(scripts, out=OUT):
     """Paths of the FMUs of ``scripts``, (re)building those missing or older than the
     kit's FMU and controller sources."""
-    out.mkdir(parents=True, exist_ok=True)
     newest = max(p.stat().st_mtime for p in _sources())
     paths = {}
-    for script in scripts:
-        paths[script] = stamped(out / f"{script}.built", newest)
-        if paths[script] is None:
-            LOG.info("building the pythonfmu FMU of %s (a first build takes ~10 s)", script)
-            paths[script] = build(script, out)
-            write_stamp(out / f"{script}.built", paths[script])
+    with atomic.building(out):        # another process building here: wait, then find it built
+        for script in scripts:
+            paths[script] = stamped(out / f"{script}.built", newest)
+            if paths[script] is None:
+                LOG.info("building the pythonfmu FMU of %s (a first build takes ~10 s)", script)
+                paths[script] = build(script, out)
+                write_stamp(out / f"{script}.built", paths[script])
     return paths

@@ -1,6 +1,5 @@
 """Shared fixtures: the FMUs are built once per test session into a temporary folder."""
 import os
-from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 
@@ -15,20 +14,24 @@ def _free_fmu_instances():
     free_all()
 
 
+def _shared(tmp_path_factory, name):
+    """A session folder every pytest-xdist worker of this run shares (the workers' common
+    base), so the FMUs are built once per run: the builds lock it (fmu_src.atomic.building)."""
+    base = tmp_path_factory.getbasetemp()
+    return (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / name
+
+
 @pytest.fixture(scope="session")
 def fmus(tmp_path_factory):
     """Paths of every FMU, built once per session into a temporary folder, by script name."""
-    return builder.ensure_built(builder.available(), tmp_path_factory.mktemp("fmu"))
+    return builder.ensure_built(builder.available(), _shared(tmp_path_factory, "fmu"))
 
 
 @pytest.fixture(scope="session")
 def native_fmus(fmus, tmp_path_factory):
     """The native twin of every FMU by script name, built once per session from the
     session's pythonfmu FMUs (each build compiles the kernels: seconds a file, on every core)."""
-    out = tmp_path_factory.mktemp("native")
-    with ThreadPoolExecutor(os.cpu_count()) as pool:   # the compilers run beside each other
-        built = {script: pool.submit(native_build.build_native, path, out) for script, path in fmus.items()}
-    return {script: future.result() for script, future in built.items()}
+    return native_build.ensure_native(sorted(fmus), _shared(tmp_path_factory, "native"), python=fmus)
 
 
 def pytest_sessionfinish(session, exitstatus):

@@ -240,7 +240,7 @@ def _loop_cases():
             yield pytest.param(name, master_kind, extrapolation, "python", marks=slow)
 
 
-@pytest.mark.parametrize("name, master_kind, extrapolation, implementation", _loop_cases())
+@pytest.mark.parametrize("name, master_kind, extrapolation, implementation", list(_loop_cases()))
 def test_the_c_loop_gives_byte_identical_csvs(name, master_kind, extrapolation, implementation, tmp_path):
     scenario, paths, values = prepared(name, implementation, master_kind, extrapolation)
     (ref, ref_csv), (c, c_csv) = both(scenario, paths, values, tmp_path)

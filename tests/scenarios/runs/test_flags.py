@@ -292,7 +292,7 @@ def _shipped_cases():
             yield pytest.param(name, ci, marks=marks, id=f"{name}-{'ci' if ci else 'full'}")
 
 
-@pytest.mark.parametrize("name, ci", _shipped_cases())
+@pytest.mark.parametrize("name, ci", list(_shipped_cases()))
 def test_no_shipped_scene_is_flagged(tmp_path, name, ci):
     _, runs, _ = runner.run_scenario(name, tmp_path, ci=ci, progress=False)
     assert [r.flags for r in runs] == [[]] * len(runs)
