@@ -64,11 +64,7 @@ def test_the_scene_is_the_shipped_realistic_slew_in_wind_with_the_observer():
     params = lambda table, inst: table["fmus"][inst]["parameters"]   # noqa: E731
     for inst in ("controller", "wind", "load_cell"):
         assert params(scene, inst) == params(shipped, inst), inst
-    # the plant's but its substep tolerance: the shipped scene holds its rotation peak within 1 % of a
-    # converged reference at 0.03 nm (2.3 % at 0.1 nm); the budget's page was computed at 0.1 nm
-    plant = {k: v for k, v in params(scene, "plant").items() if k != "tolerance"}
-    assert plant == {k: v for k, v in params(shipped, "plant").items() if k != "tolerance"}
-    assert (params(scene, "plant")["tolerance"], params(shipped, "plant")["tolerance"]) == ("0.0001 um", "0.00003 um")
+    assert params(scene, "plant") == params(shipped, "plant")   # 0.1 nm substeps both
     assert params(shipped, "controller")["observer_bandwidth"] == "32 Hz" and "32 Hz" in shipped["sweep"]["values"]
     assert {k: v for k, v in params(scene, "base").items() if k != "start_delay"} == \
         {k: v for k, v in params(shipped, "base").items() if k != "start_delay"}
