@@ -172,7 +172,9 @@ def write_scan(night, scan, index, tile, speed, requirements, folder, params, na
     log = window_table(night, tile, stem.with_suffix(".csv"))
     table = replay_table.write(log, stem.with_suffix(replay.PREPARED_SUFFIX), params)
     scene = stem.with_suffix(".toml")
-    atomic.write_text(scene, toml_text(scan_data(scan, index, tile, table, speed, requirements, name)))
+    # the table by its name: a scenario file's paths are read from its own folder, where the table is
+    atomic.write_text(scene, toml_text(scan_data(scan, index, tile, pathlib.Path(table.name), speed, requirements,
+                                                 name)))
     return scene
 
 
