@@ -108,7 +108,9 @@ def summary(flags):
 @dataclass(frozen=True)
 class Prediction:
     """The predicted step limit [s] of a scenario's hexapod loop, the loop and the
-    leg-space masses [kg] it was taken over, and the scene's flags known before it runs."""
+    leg-space masses [kg] it was taken over (with an observer: (mass, observer's mass)
+    pairs), the scene's flags known before it runs, and the plant's payload errors in
+    words with the limit the payload as modelled would have."""
 
     limit: float
     step: float
@@ -118,8 +120,8 @@ class Prediction:
     flags: tuple = ()
     controller: str = "controller"
     coulomb: tuple = (0.0, 1.0)   # the plant's Coulomb friction [N] and its smoothing velocity [m/s]
-    payload: str = ""             # the plant's payload errors, said ("" without), and the limit the
-    modelled_limit: float = math.nan   # payload as modelled would have (nan: the same payload)
+    payload: str = ""                  # "": the payload as modelled
+    modelled_limit: float = math.nan   # nan: the payload as modelled
 
     @property
     def beyond(self):
@@ -247,7 +249,7 @@ def plant_params(values, descriptions, plant):
 def _payload(values, descriptions, plant):
     """The plant's payload errors in words ("the payload's -1065 kg mass error and ..."), ''
     if it has none (or no payload parameters: the 3T mechanism)."""
-    if not {v.name for v in descriptions[plant].modelVariables} >= {PAYLOAD[0]}:
+    if PAYLOAD[0] not in {v.name for v in descriptions[plant].modelVariables}:
         return ""
     mass, inertia, com = (np.asarray(_value(values, descriptions, plant, n), dtype=float) for n in PAYLOAD)
     said = [f"{mass:+.4g} kg mass error"] if mass else []
