@@ -723,7 +723,8 @@ class LoopAnalysis:
     def table(self) -> pandas.DataFrame:
         """One row per mode: its mass, crossover, phase and gain margins (python-control's,
         on the frequency response up to Nyquist) and the closed loop's largest pole radius
-        (< 1: stable); units in ``attrs``."""
+        (< 1: stable), with an observer the mass it assumes (a payload error: a row per end
+        of it); units in ``attrs``."""
         pd = _pandas()
         rows = []
         for k, mass in enumerate(self.masses):
@@ -734,9 +735,12 @@ class LoopAnalysis:
             rows.append({"mass": float(mass), "crossover": float(w_gc / (2 * np.pi)), "phase margin": float(pm),
                          "gain margin": float(decibels[0]), "lower gain margin": float(decibels[1]),
                          "pole radius": float(np.abs(self.closed_loop(k).poles()).max())})
+            if self.observer_masses is not None:   # a payload error: a mode once per end of its observer mass
+                rows[-1]["observer mass"] = float(self.observer_masses[k])
         table = pd.DataFrame(rows)
         table.attrs["units"] = {"mass": "kg", "crossover": "Hz", "phase margin": "deg", "gain margin": "dB",
-                                "lower gain margin": "dB", "pole radius": "1"}
+                                "lower gain margin": "dB", "pole radius": "1"} | (
+            {} if self.observer_masses is None else {"observer mass": "kg"})
         return table
 
     def __repr__(self) -> str:

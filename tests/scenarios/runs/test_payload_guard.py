@@ -204,6 +204,23 @@ def test_a_campaigns_payloads_get_their_own_limits_and_equal_ones_share_it(shipp
         "payload_com_error[1]": 0.3, "payload_com_error[3]": 0.4}), descriptions, "plant")
 
 
+def test_the_loop_analysis_shows_each_modes_observer_mass():
+    """movingbase.loop_analysis of a payload 50 % light: the guard's modes, each with the
+    observer's mass at both ends of its bracket, and each mode's python-control loop closes
+    at the pole radius the guard's numpy loop finds for that pair (within 1e-9)."""
+    import control
+
+    import movingbase
+    analysis = movingbase.loop_analysis("telescope_slew_observer", set={"plant.payload_mass_error": -1064.85},
+                                        ci=True)
+    assert analysis.step_limit == pytest.approx(1.1583e-3, rel=1e-3)
+    assert len(analysis.observer_masses) == len(analysis.masses) > 4   # the four modes (with pairs), bracketed
+    for k in (0, -1):
+        pair = (analysis.masses[k], analysis.observer_masses[k])
+        assert np.abs(control.feedback(analysis.open_loop(k)).poles()).max() == pytest.approx(
+            design._radius(pair, analysis.gains, analysis.step, analysis.model), abs=1e-9)
+
+
 def _light_scene(tmp_path, step):
     """The shipped observer slew with a payload 1064.85 kg (50 %) lighter than modelled, at
     ``step`` ms for 2.7 s in calm air without the screws' Coulomb friction (the prediction
