@@ -170,8 +170,11 @@ class LoopModel:
     mass m (m_r included) meets m - m_r + observer_mass - ``observer_model_mean`` (the
     model's mean diagonal): its own mass when observer_mass is that mean plus m_r; the
     modes of M_leg and of the model's shifted matrix share their shapes, so each stays one
-    SISO loop; along a motion the model keeps its home matrix, which this leaves out: the
-    modal masses move about 0.5 % per cm of heave from home, 1.6 % at 3 cm). F_meas: the
+    SISO loop (with a payload error they do not: observer_masses gives each plant mode
+    its Rayleigh quotient of the observer's matrix less and plus its coupling, and
+    (mass, observer's mass) pairs carry them); along a motion the model keeps its home
+    matrix, which this leaves out: the modal masses move about 0.5 % per cm of heave from
+    home, 1.6 % at 3 cm). F_meas: the
     force the plant delivers (its lag state less the viscous friction) through the LoadCell
     FMU (``load_cell``: its first-order low-pass
     ``load_cell_bandwidth`` [Hz], ``load_cell_delay_steps`` samples late, one communication
@@ -228,9 +231,10 @@ def modal_masses(params, loop=IDEAL, pose=HOME_POSE):
     return np.linalg.eigvalsh(leg_mass_matrix(params, pose)) + loop.reflected_mass
 
 
-def mode_loop(mass, gains, comm_step, loop=IDEAL):
+def mode_loop(mass, gains, comm_step, loop=IDEAL, observer_mass=None):
     """Discrete SISO loop transfer of one leg-space mode of ``mass`` [kg] (its reflected
-    mass included, see modal_masses) in the loop ``loop``: force command held over the
+    mass included, see modal_masses) in the loop ``loop`` (``observer_mass``: the mass [kg]
+    its observer assumes for it, by default observer_mode_mass's): force command held over the
     step (ZOH) -> actuator lag -> mass with viscous friction -> (leg sensor) -> PID of
     controller.pid -> one step of controller delay; the master's extrapolation on every
     connection of the loop. With IDEAL: ZOH plant 1/(mass s^2) with sampled length
@@ -256,8 +260,8 @@ def mode_loop(mass, gains, comm_step, loop=IDEAL):
         feedback, reads, length = plant, pick(0, 1), pick(0)
     outer = 1 / z * lead if stale > 1 else lead * control.tf([1], [1], h)
     if loop.observer_bandwidth > 0:   # the plant once, read by the PID and the observer
-        return control.ss(outer) * (pid * reads + _observer(loop, observer_mode_mass(mass, loop), h, z, length,
-                                                            pick(2))) * full
+        assumed = observer_mode_mass(mass, loop) if observer_mass is None else observer_mass
+        return control.ss(outer) * (pid * reads + _observer(loop, assumed, h, z, length, pick(2))) * full
     return control.ss(outer) * pid * feedback
 
 
@@ -284,7 +288,8 @@ def _observer_filter(loop):
 def observer_mode_mass(mass, loop):
     """The mass [kg] the observer of ``loop`` assumes for the leg-space mode of ``mass`` (its
     reflected mass included): loop.observer_mass, or with observer_leg_space the model's
-    mode shifted as its matrix is."""
+    mode shifted as its matrix is (the plant's modes then the model's: a payload as modelled;
+    a payload error gives each mode its own, observer_masses)."""
     if loop.observer_leg_space:
         return mass - loop.reflected_mass + loop.observer_mass - loop.observer_model_mean
     return loop.observer_mass
@@ -335,8 +340,42 @@ def _distinct(masses):
 
 def distinct_modes(masses):
     """The leg-space modes' masses [kg], sorted, each distinct mode once (the loops a
-    scenario's prediction is taken over: flags.Prediction.masses)."""
-    return _distinct(np.sort(np.asarray(masses, dtype=float)))
+    scenario's prediction is taken over: flags.Prediction.masses); (mass, observer's mass)
+    pairs (n, 2) stay pairs, sorted by the mass."""
+    masses = np.asarray(masses, dtype=float)
+    return _distinct(np.sort(masses)) if masses.ndim == 1 else _modes(masses, IDEAL)
+
+
+def _modes(masses, loop):
+    """The modes as rows (mass, the mass the observer assumes for it) [kg], sorted by mass,
+    each distinct once: ``masses`` (n,) (the observer's from ``loop``, observer_mode_mass)
+    or already such pairs (n, 2) (observer_masses: an observer whose matrix does not share
+    the plant's mode shapes)."""
+    masses = np.asarray(masses, dtype=float)
+    if masses.ndim == 1:
+        masses = _distinct(np.sort(masses))
+        return np.column_stack([masses, [observer_mode_mass(m, loop) for m in masses]])
+    pairs = masses[np.lexsort((masses[:, 1], masses[:, 0]))]
+    step = np.abs(np.diff(pairs, axis=0)).max(axis=1, initial=0.0)
+    return pairs[np.r_[True, step > 1e-9 * pairs[1:, 0]]]
+
+
+def observer_masses(plant, observer, reflected_mass=0.0):
+    """(mass, the observer's mass) of each mode [kg] (2 n, 2): the eigenvalues of the plant's
+    leg-space matrix ``plant`` (n, n; M_leg) plus ``reflected_mass``, each with the
+    observer's matrix ``observer`` (n, n; controller.observer.observer_mass_matrix) in its
+    eigenvector v: the Rayleigh quotient R = v^T M_o v less and plus r = |(M_o - R) v|, the
+    coupling to the other modes (M_o has an eigenvalue within r of R). Exact when the two
+    commute (a payload as the model has it: same mode shapes, r = 0); with a payload error
+    the mode is taken to meet either end, and the coupled 6-leg loop bears that out
+    (conservative by 0-7 % on its step and observer limits where R alone is up to 11 %
+    optimistic: tests/scenarios/runs/test_payload_guard.py)."""
+    mass, shapes = np.linalg.eigh(plant)
+    seen = shapes.T @ observer @ shapes
+    quotient = np.diag(seen)
+    coupling = np.linalg.norm(seen - np.diag(quotient), axis=1)
+    mass = mass + reflected_mass
+    return np.r_[np.c_[mass, quotient - coupling], np.c_[mass, quotient + coupling]]
 
 
 def modal_margins(gains, comm_step, masses, loop=IDEAL):
@@ -344,18 +383,20 @@ def modal_margins(gains, comm_step, masses, loop=IDEAL):
     step ``comm_step`` [s] on the leg-space modes ``masses`` [kg] in the loop model ``loop``
     (LoopModel): the heaviest mode's crossover and margins, the worst over every mode.
     ValueError naming the modes if a mode's closed loop is unstable."""
-    design = _modal_design(gains, comm_step, np.sort(np.asarray(masses, dtype=float)), loop)
+    design = _modal_design(gains, comm_step, masses, loop)
     if design is None:
-        raise ValueError(f"gains {gains} destabilise a leg-space mode of {_distinct(np.sort(masses))} kg at "
+        raise ValueError(f"gains {gains} destabilise a leg-space mode of {_modes(masses, loop)[:, 0]} kg at "
                          f"{comm_step * 1e3:g} ms in {loop}")
     return design
 
 
 def _modal_design(gains, comm_step, masses, loop, points=4000):
-    """The Design of ``gains`` on the modes ``masses`` (heaviest last) in ``loop``; None
-    if a mode's closed loop is unstable."""
+    """The Design of ``gains`` on the modes ``masses`` (or (mass, observer's mass) pairs) in
+    ``loop``; None if a mode's closed loop is unstable."""
     import control
-    loops = [mode_loop(m, gains, comm_step, loop) for m in _distinct(masses)]
+    modes = _modes(masses, loop)
+    loops = [mode_loop(m, gains, comm_step, loop, assumed) for m, assumed in modes]
+    masses = np.sort(np.asarray(masses, dtype=float).reshape(len(masses), -1)[:, 0])
     if any(np.abs(control.feedback(one).poles()).max() >= 1 for one in loops):
         return None
     modal = np.array([loop_margins(one, points) for one in loops])
@@ -635,7 +676,7 @@ def _zoh(A, B, h):
     return zoh[:n, :n], zoh[:n, n:]
 
 
-def _observer_loop_poles(mass, gains, comm_step, loop):
+def _observer_loop_poles(mass, gains, comm_step, loop, observer_mass=None):
     """The closed-loop poles of mode_loop with the observer (its feedback's), from numpy's
     state space of the same blocks in the same order (tests hold the two together)."""
     h = comm_step
@@ -660,7 +701,8 @@ def _observer_loop_poles(mass, gains, comm_step, loop):
         reads, length = pick(0, 1), pick(0)
     A, B, C = _observer_filter(loop)
     q = (*_zoh(A, B, h), C, np.zeros((1, 1)))
-    acc = _ss_series(_ss_tf(observer_mode_mass(mass, loop) * np.array([1.0, -2, 1]) / (h * h), delay(2)), length)
+    assumed = observer_mode_mass(mass, loop) if observer_mass is None else observer_mass
+    acc = _ss_series(_ss_tf(assumed * np.array([1.0, -2, 1]) / (h * h), delay(2)), length)
     if loop.load_cell:
         b = 1 - np.exp(-2 * np.pi * loop.load_cell_bandwidth * h) if loop.load_cell_bandwidth > 0 else 1.0
         num, den = [b, 0.0], np.convolve([1.0, -(1 - b)], delay(loop.load_cell_delay_steps
@@ -673,25 +715,27 @@ def _observer_loop_poles(mass, gains, comm_step, loop):
     return np.linalg.eigvals(A - B @ C / (1 + D[0, 0]))
 
 
-def _poles(mass, gains, comm_step, loop):
-    """The closed loop's poles in z: from closed_loop_polynomial, or with the observer (no
-    closed-form polynomial) from _observer_loop_poles, mode_loop's state space in numpy."""
+def _poles(mode, gains, comm_step, loop):
+    """The closed loop's poles in z of a ``mode`` (mass, the observer's mass) [kg]: from
+    closed_loop_polynomial, or with the observer (no closed-form polynomial) from
+    _observer_loop_poles, mode_loop's state space in numpy."""
     if loop.observer_bandwidth > 0:
-        return _observer_loop_poles(mass, gains, comm_step, loop)
-    return 1 + comm_step * np.roots(closed_loop_polynomial(mass, gains, comm_step, loop))
+        return _observer_loop_poles(mode[0], gains, comm_step, loop, mode[1])
+    return 1 + comm_step * np.roots(closed_loop_polynomial(mode[0], gains, comm_step, loop))
 
 
-def _radius(mass, gains, comm_step, loop):
-    return float(np.abs(_poles(mass, gains, comm_step, loop)).max())
+def _radius(mode, gains, comm_step, loop):
+    return float(np.abs(_poles(mode, gains, comm_step, loop)).max())
 
 
 def least_damped_period(masses, gains, comm_step, loop=IDEAL):
     """Period [s] of the closed loop's least-damped oscillating pole (the largest |z| off
-    the real axis) over the modes ``masses`` [kg] at ``comm_step``: the oscillation of the
-    loop that lasts longest, or grows. inf if no pole oscillates."""
+    the real axis) over the modes ``masses`` [kg] (or (mass, observer's mass) pairs) at
+    ``comm_step``: the oscillation of the loop that lasts longest, or grows. inf if no pole
+    oscillates."""
     largest, period = -1.0, float("inf")
-    for mass in _distinct(np.sort(np.asarray(masses, dtype=float))):
-        z = _poles(mass, gains, comm_step, loop)
+    for mode in _modes(masses, loop):
+        z = _poles(mode, gains, comm_step, loop)
         turning = z[np.abs(np.angle(z)) > 1e-9]
         if len(turning) and np.abs(turning).max() > largest:
             pole = turning[np.argmax(np.abs(turning))]
@@ -700,13 +744,14 @@ def least_damped_period(masses, gains, comm_step, loop=IDEAL):
 
 
 def step_limit(masses, gains, loop=IDEAL, low=1e-5, high=0.2, rtol=1e-3):
-    """The communication step [s] at which the first mode of ``masses`` goes unstable
-    (each mode taken to be stable below a step and unstable above it, as the loops here
-    are): the lightest mode's boundary by a geometric scan (factor 1.5) from ``low`` and
-    bisection to ``rtol``, then every mode checked just below it; a mode unstable there
-    is bisected next. 0.0 if unstable already at ``low``, inf if stable up to ``high``. With
-    a gravity rate, the lower of the limits with and without it (given every mode, it may
-    soften a light mode that gravity does not touch, and so raise its limit)."""
+    """The communication step [s] at which the first mode of ``masses`` [kg] (or (mass,
+    observer's mass) pairs (n, 2): observer_masses) goes unstable (each mode taken to be
+    stable below a step and unstable above it, as the loops here are): the lightest mode's
+    boundary by a geometric scan (factor 1.5) from ``low`` and bisection to ``rtol``, then
+    every mode checked just below it; a mode unstable there is bisected next. 0.0 if
+    unstable already at ``low``, inf if stable up to ``high``. With a gravity rate, the
+    lower of the limits with and without it (given every mode, it may soften a light mode
+    that gravity does not touch, and so raise its limit)."""
     limit = _step_limit(masses, gains, loop, low, high, rtol)
     if loop.gravity_rate > 0:
         limit = min(limit, _step_limit(masses, gains, replace(loop, gravity_rate=0.0), low, high, rtol))
@@ -714,18 +759,20 @@ def step_limit(masses, gains, loop=IDEAL, low=1e-5, high=0.2, rtol=1e-3):
 
 
 def modes_stable(masses, gains, comm_step, loop):
-    """Whether the closed loop of every mode of ``masses`` [kg] is stable at ``comm_step``."""
-    return all(_radius(m, gains, comm_step, loop) < 1 for m in _distinct(np.sort(np.asarray(masses, dtype=float))))
+    """Whether the closed loop of every mode of ``masses`` [kg] (or (mass, observer's mass)
+    pairs) is stable at ``comm_step``."""
+    return all(_radius(mode, gains, comm_step, loop) < 1 for mode in _modes(masses, loop))
 
 
 def observer_limit(masses, gains, comm_step, loop, high_hz=1000.0, rtol=1e-2, low_hz=0.25, factor=1.5):
     """The observer bandwidth [Hz] (loop.observer_bandwidth's limit) above which a mode of
-    ``masses`` goes unstable at ``comm_step``: the first unstable bandwidth of a geometric
-    scan (``factor``) from ``low_hz`` up to ``high_hz``, bisected to ``rtol`` against the
-    stable one before it (0.0 if unstable already at ``low_hz``, inf if stable all the way).
-    Scanned up, not bisected down from ``high_hz``: the boundary need not be monotonic, as
-    with load cells samples late under Gauss-Seidel, where a loop unstable at 260 Hz is
-    stable again at 1 kHz (the observer's Q then passes the delay's phase whole)."""
+    ``masses`` (or (mass, observer's mass) pairs) goes unstable at ``comm_step``: the first
+    unstable bandwidth of a geometric scan (``factor``) from ``low_hz`` up to ``high_hz``,
+    bisected to ``rtol`` against the stable one before it (0.0 if unstable already at
+    ``low_hz``, inf if stable all the way). Scanned up, not bisected down from ``high_hz``:
+    the boundary need not be monotonic, as with load cells samples late under Gauss-Seidel,
+    where a loop unstable at 260 Hz is stable again at 1 kHz (the observer's Q then passes
+    the delay's phase whole)."""
     stable = lambda hz: modes_stable(masses, gains, comm_step, replace(loop, observer_bandwidth=hz))
     if not stable(low_hz):
         return 0.0
@@ -744,7 +791,7 @@ def observer_limit(masses, gains, comm_step, loop, high_hz=1000.0, rtol=1e-2, lo
 
 
 def _step_limit(masses, gains, loop, low, high, rtol):
-    masses = _distinct(np.sort(np.asarray(masses, dtype=float)))
+    masses = _modes(masses, loop)
     stable = lambda m, h: _radius(m, gains, h, loop) < 1
     good, bad, mode = low, None, masses[0]
     while True:

@@ -670,7 +670,9 @@ class LoopAnalysis:
     ``step`` the scenario's communication step [s]; ``step_limit`` the step [s] beyond
     which a mode goes unstable (the guard refuses a run beyond it); ``observer_limit`` the
     disturbance observer's bandwidth limit [Hz] at this step (None without an observer);
-    ``masses`` the distinct modes' masses [kg], lightest first; ``gains``
+    ``masses`` the distinct modes' masses [kg], lightest first (the plant's payload as built),
+    ``observer_masses`` the mass [kg] the observer assumes for each (its matrix's Rayleigh
+    quotient in the mode's shape; None without an observer); ``gains``
     (controller.pid.PIDGains) and ``model`` (controller.design.LoopModel: master,
     extrapolation, reflected mass, actuator, sensors, observer) as the scenario sets them.
     ``open_loop(k)`` / ``closed_loop(k)`` mode k's discrete loop (python-control LTI, dt =
@@ -684,7 +686,10 @@ class LoopAnalysis:
         self.name, self.controller = name, prediction.controller
         self.step, self.step_limit = prediction.step, prediction.limit
         self.gains, self.model = prediction.gains, prediction.loop
-        self.masses = design.distinct_modes(prediction.masses)
+        self._modes = design.distinct_modes(prediction.masses)   # masses, or (mass, observer's mass) pairs
+        paired = self._modes.ndim == 2
+        self.masses = self._modes[:, 0] if paired else self._modes
+        self.observer_masses = self._modes[:, 1] if paired else None
 
     @functools.cached_property
     def observer_limit(self) -> float | None:
@@ -692,7 +697,7 @@ class LoopAnalysis:
         step (None without an observer; bisected: seconds)."""
         if self.model.observer_bandwidth <= 0:
             return None
-        return float(self._design.observer_limit(self.masses, self.gains, self.step, self.model))
+        return float(self._design.observer_limit(self._modes, self.gains, self.step, self.model))
 
     @property
     def stable(self) -> bool:
@@ -702,7 +707,8 @@ class LoopAnalysis:
     def open_loop(self, mode: int = -1) -> Any:
         """Mode ``mode``'s loop transfer L(z) (python-control StateSpace, dt = step): for
         ``control.stability_margins``, ``bode_plot``, ``nyquist_plot``."""
-        return self._design.mode_loop(self.masses[mode], self.gains, self.step, self.model)
+        assumed = None if self.observer_masses is None else self.observer_masses[mode]
+        return self._design.mode_loop(self.masses[mode], self.gains, self.step, self.model, assumed)
 
     def closed_loop(self, mode: int = -1) -> Any:
         """Mode ``mode``'s closed loop L / (1 + L) (its poles: ``.poles()``)."""
@@ -712,12 +718,13 @@ class LoopAnalysis:
     def margins(self) -> Any:
         """controller.design.Design: the heaviest mode's crossover [Hz] and margins, the worst
         phase and gain margin over every mode (ValueError if a mode is unstable)."""
-        return self._design.modal_margins(self.gains, self.step, self.masses, self.model)
+        return self._design.modal_margins(self.gains, self.step, self._modes, self.model)
 
     def table(self) -> pandas.DataFrame:
         """One row per mode: its mass, crossover, phase and gain margins (python-control's,
         on the frequency response up to Nyquist) and the closed loop's largest pole radius
-        (< 1: stable); units in ``attrs``."""
+        (< 1: stable), with an observer the mass it assumes (a payload error: a row per end
+        of it); units in ``attrs``."""
         pd = _pandas()
         rows = []
         for k, mass in enumerate(self.masses):
@@ -728,9 +735,12 @@ class LoopAnalysis:
             rows.append({"mass": float(mass), "crossover": float(w_gc / (2 * np.pi)), "phase margin": float(pm),
                          "gain margin": float(decibels[0]), "lower gain margin": float(decibels[1]),
                          "pole radius": float(np.abs(self.closed_loop(k).poles()).max())})
+            if self.observer_masses is not None:   # a payload error: a mode once per end of its observer mass
+                rows[-1]["observer mass"] = float(self.observer_masses[k])
         table = pd.DataFrame(rows)
         table.attrs["units"] = {"mass": "kg", "crossover": "Hz", "phase margin": "deg", "gain margin": "dB",
-                                "lower gain margin": "dB", "pole radius": "1"}
+                                "lower gain margin": "dB", "pole radius": "1"} | (
+            {} if self.observer_masses is None else {"observer mass": "kg"})
         return table
 
     def __repr__(self) -> str:

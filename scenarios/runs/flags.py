@@ -7,8 +7,9 @@ Before (``predict``, ``check``): each loop as controller.design models it, with 
 scenario's master, extrapolation, gains and plant (reflected mass, actuator lag,
 friction, sensor), and its modal masses along the reference motion (MODAL_MASSES per
 plant: the hexapod's leg-space masses at poses of the telescope's motion, stepped alone
-as fidelity="auto" does; the 3T mechanism's slider-space masses along the slider
-controller's reference). Its predicted step limit is the smallest over those masses, and
+as fidelity="auto" does, of the payload as built (the plant's payload errors), each with
+the mass its observer assumes for it; the 3T mechanism's slider-space masses along the
+slider controller's reference). Its predicted step limit is the smallest over those masses, and
 a scenario's the smallest over its loops. It is predicted for every run at its own
 values (runner.pre_run_flags: every sweep value; campaign: every case), each distinct
 loop once. A step beyond it is refused (ScenarioError naming the runs and their limits)
@@ -107,7 +108,9 @@ def summary(flags):
 @dataclass(frozen=True)
 class Prediction:
     """The predicted step limit [s] of a scenario's hexapod loop, the loop and the
-    leg-space masses [kg] it was taken over, and the scene's flags known before it runs."""
+    leg-space masses [kg] it was taken over (with an observer: (mass, observer's mass)
+    pairs), the scene's flags known before it runs, and the plant's payload errors in
+    words with the limit the payload as modelled would have."""
 
     limit: float
     step: float
@@ -117,6 +120,8 @@ class Prediction:
     flags: tuple = ()
     controller: str = "controller"
     coulomb: tuple = (0.0, 1.0)   # the plant's Coulomb friction [N] and its smoothing velocity [m/s]
+    payload: str = ""                  # "": the payload as modelled
+    modelled_limit: float = math.nan   # nan: the payload as modelled
 
     @property
     def beyond(self):
@@ -229,17 +234,58 @@ def _targets(scenario, target):
     return [s for s, targets in scenario.connections if target in targets]
 
 
+PAYLOAD = ("payload_mass_error", "payload_inertia_error", "payload_com_error")   # the hexapod plant's
+
+
 def plant_params(values, descriptions, plant):
-    return StewartParams.paper(stroke=(-_value(values, descriptions, plant, "stroke"),
-                                       _value(values, descriptions, plant, "stroke")))
+    """The hexapod the plant FMU integrates: the paper's, its stroke and its payload as built
+    (the payload errors added to the paper's platform, as fmu_src/hexapod_plant_fmu.py does)."""
+    get = lambda name: _value(values, descriptions, plant, name)   # noqa: E731
+    paper, (mass, inertia, com) = StewartParams.paper(), (np.asarray(get(n), dtype=float) for n in PAYLOAD)
+    return StewartParams.paper(stroke=(-get("stroke"), get("stroke")), platform_mass=paper.platform_mass + float(mass),
+                               platform_inertia=paper.platform_inertia + inertia, platform_com=paper.platform_com + com)
+
+
+def _payload(values, descriptions, plant):
+    """The plant's payload errors in words ("the payload's -1065 kg mass error and ..."), ''
+    if it has none (or no payload parameters: the 3T mechanism)."""
+    if PAYLOAD[0] not in {v.name for v in descriptions[plant].modelVariables}:
+        return ""
+    mass, inertia, com = (np.asarray(_value(values, descriptions, plant, n), dtype=float) for n in PAYLOAD)
+    said = [f"{mass:+.4g} kg mass error"] if mass else []
+    said += [f"({', '.join(f'{i:+.4g}' for i in inertia)}) kg.m2 inertia error"] if inertia.any() else []
+    said += [f"centre of mass ({', '.join(f'{c * 1e3:+.4g}' for c in com)}) mm off"] if com.any() else []
+    return "the payload's " + " and ".join(said) if said else ""
+
+
+def _as_modelled(values, plant):
+    """``values`` with the plant's payload errors dropped (their start values: 0, the paper's payload)."""
+    return {**values, plant: {n: v for n, v in values.get(plant, {}).items() if n.split("[", 1)[0] not in PAYLOAD}}
 
 
 def leg_masses(params, poses, loop, fidelity="full"):
-    """Leg-space modal masses [kg] (M_leg + m_r I) at every pose (n, 6), one array."""
+    """Leg-space modal masses [kg] (M_leg + m_r I) at every pose (n, 6): one array, or with
+    the loop's observer on (mass, the observer's mass) pairs (design.observer_masses) of
+    its matrix M_o: observer_mass I, or (observer_model leg_space) the controller's model,
+    the paper's payload, shifted by observer_mass less its mean diagonal at home
+    (controller/c/observer.c). The model matrix is taken at each pose as the plant's (the
+    guard's convention before payloads: that the model keeps its home matrix along a
+    motion is left out, LoopModel), so a payload as modelled gives each mode its own mass."""
+    m_leg = _leg_matrices(params, poses, fidelity)
+    if loop.observer_bandwidth <= 0:
+        return np.linalg.eigvalsh(m_leg).ravel() + loop.reflected_mass
+    shift = (loop.observer_mass - loop.observer_model_mean) * np.eye(6)
+    observer = _leg_matrices(StewartParams.paper(), poses, fidelity) + shift if loop.observer_leg_space else \
+        [loop.observer_mass * np.eye(6)] * len(poses)
+    return np.concatenate([design.observer_masses(plant, own, loop.reflected_mass)
+                           for plant, own in zip(m_leg, observer)])
+
+
+def _leg_matrices(params, poses, fidelity):
+    """M_leg = J^-T M J^-1 at every pose (n, 6, 6) [kg]."""
     terms = dynamics_terms(params, poses, np.zeros_like(poses), fidelity=fidelity)
     inverse = np.linalg.inv(terms.jacobian)
-    m_leg = np.swapaxes(inverse, -1, -2) @ terms.mass @ inverse
-    return np.linalg.eigvalsh(m_leg).ravel() + loop.reflected_mass
+    return np.swapaxes(inverse, -1, -2) @ terms.mass @ inverse
 
 
 def _hexapod_masses(scenario, paths, descriptions, values, loop, motion):
@@ -303,12 +349,17 @@ GRAVITY = {"mechanism3t_plant": _mechanism3t_gravity}
 
 def _merge(masses, rtol=1e-3):
     """The masses with those within ``rtol`` of a kept one left out: the limit moves
-    smoothly with the mass, so near-equal modes need no evaluation of their own."""
+    smoothly with the mass, so near-equal modes need no evaluation of their own. (mass,
+    observer's mass) pairs: a pair is left out when both are within ``rtol`` of the kept
+    mode's mass of the kept pair's."""
+    masses = np.asarray(masses, dtype=float)
+    pairs = masses.reshape(len(masses), -1)
     kept = []
-    for m in np.sort(masses):
-        if not kept or m > kept[-1] * (1 + rtol):
-            kept.append(m)
-    return np.array(kept)
+    for row in pairs[np.lexsort(pairs.T[::-1])]:
+        if not kept or row[0] > kept[-1][0] * (1 + rtol) or np.abs(row[1:] - kept[-1][1:]).max(
+                initial=0.0) > rtol * kept[-1][0]:
+            kept.append(row)
+    return np.array(kept).reshape(-1, *masses.shape[1:])
 
 
 def _key(scenario, values, loop, telescope):
@@ -329,7 +380,8 @@ def predict(scenario, paths, descriptions, values, ci=False, cache=None):
     its loop with the lowest limit (None if it has no loop to predict). ``cache`` (a dict
     kept over the runs of a sweep or campaign) predicts each distinct loop once, and within
     it the telescope's motion and the step limit once per distinct input of theirs: the runs
-    of a sampled campaign differ in what neither reads (seeds, a payload's errors)."""
+    of a sampled campaign differ in what the motion does not read (seeds, a payload's
+    errors), and the limit reads the payload's masses only (the same payload: one search)."""
     cache = {} if cache is None else cache
     found = []
     for loop in loops(scenario, descriptions, values):
@@ -344,16 +396,27 @@ def predict(scenario, paths, descriptions, values, ci=False, cache=None):
             unfinished = tuple(_unfinished(scenario, telescope, axis_rate, _delay(values, descriptions, telescope),
                                            motion_end(scenario, values, descriptions, telescope))
                                ) if telescope else ()
-            limit = ("step limit", masses.tobytes(), repr(loop.gains), repr(loop.model))   # all step_limit reads
-            if limit not in cache:
-                cache[limit] = design.step_limit(masses, loop.gains, loop.model)
-            cache[key] = (Prediction(cache[limit], scenario.step, loop.model, loop.gains, masses, unfinished,
-                                     loop.controller, _coulomb(values, descriptions, loop)))
+            limit = _limit(masses, loop, cache)
+            payload = _payload(values, descriptions, loop.plant)
+            modelled = math.nan
+            if payload:   # the limit the payload as modelled has: said where the payload moved it
+                modelled = _limit(_merge(masses_of(scenario, paths, descriptions, _as_modelled(values, loop.plant),
+                                                   loop, motion)), loop, cache)
+            cache[key] = (Prediction(limit, scenario.step, loop.model, loop.gains, masses, unfinished,
+                                     loop.controller, _coulomb(values, descriptions, loop), payload, modelled))
         found.append(cache[key])
     if not found:
         return None
     best = min(found, key=lambda p: p.limit)
     return replace(best, flags=() if ci else tuple(f for p in found for f in p.flags))
+
+
+def _limit(masses, loop, cache):
+    """design.step_limit of the masses in the loop, once per what it reads in ``cache``."""
+    key = ("step limit", masses.tobytes(), masses.shape, repr(loop.gains), repr(loop.model))
+    if key not in cache:
+        cache[key] = design.step_limit(masses, loop.gains, loop.model)
+    return cache[key]
 
 
 def _coulomb(values, descriptions, loop):
@@ -499,14 +562,18 @@ def check(scenario, prediction, allow_unstable=False):
                 other = design.step_limit(prediction.masses, prediction.gains, loop)
                 if other >= scenario.step:
                     others.append(f"{_describe(loop)} (a step of at most {_ms(other, down=True)})")
+    plant = "its gains and plant"
+    if prediction.payload and prediction.modelled_limit != prediction.limit:   # the payload moved it: say so
+        plant += (f" with {prediction.payload} (as modelled it would be {_ms(prediction.modelled_limit)}: the "
+                  "payload shifts the leg-space modes and the observer's mass for them)")
     if prediction.limit > 0:
         text = (f"{scenario.step * 1e3:g} ms is beyond the predicted stability limit {_ms(prediction.limit)} of "
-                f"this loop ({_describe(prediction.loop, scenario.extrapolation)}, its gains and plant, along the "
+                f"this loop ({_describe(prediction.loop, scenario.extrapolation)}, {plant}, along the "
                 f"motion): the loop of {prediction.controller!r} would oscillate and grow")
         hint = f"use a step of at most {_ms(prediction.limit, down=True)}"
     else:
         text = (f"no step is stable with these gains ({_describe(prediction.loop, scenario.extrapolation)}, "
-                f"along the motion): the loop of {prediction.controller!r} would drift or grow at "
+                f"{plant}, along the motion): the loop of {prediction.controller!r} would drift or grow at "
                 f"{scenario.step * 1e3:g} ms as at any step")
         hint = "choose gains that stabilise the loop (controller.design)"
     if prediction.loop.observer_bandwidth > 0:
