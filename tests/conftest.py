@@ -6,6 +6,7 @@ import pytest
 
 from fmu_src import native_build
 from fmu_src import python_build as builder
+from scenarios.cosim import fmi
 from tests.fmu_helpers import free_all
 
 
@@ -13,6 +14,14 @@ from tests.fmu_helpers import free_all
 def _free_fmu_instances():
     yield
     free_all()
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _fmu_cache(tmp_path_factory):
+    """The session's unpacked FMUs in a cache of its own (scenarios.cosim.fmi.cache_folder),
+    its subprocesses' too: each session builds its FMUs anew, and they would pile up in the
+    user's cache (a week) otherwise."""
+    os.environ.setdefault(fmi.CACHE, str(tmp_path_factory.mktemp("fmu-cache")))
 
 
 @pytest.fixture(scope="session")
