@@ -123,9 +123,10 @@ def _unpacked(data, folder):
 # members and its parsed model description (pickled) in a folder named by the SHA-256 of
 # the file's bytes: a rebuilt FMU is another entry, never a stale one. An entry is made in
 # a temporary folder beside it and renamed into place whole, so concurrent processes
-# (campaign workers, tests) see a complete entry or none; each use checks it (every
-# member's size and CRC-32 against the FMU's zip listing, the description's SHA-256), and
-# one that fails is made again. Entries unused for STALE_DAYS are removed when one is made.
+# (campaign workers, tests) see a complete entry or none; each use checks it (_checked:
+# every member's size and modification time as written, the binaries' CRC-32 against the
+# FMU's zip listing, the description's SHA-256; a CRC of every member took 3 ms an FMU),
+# and one that fails is made again. Entries unused for STALE_DAYS go when one is made.
 CACHE = "MOVINGBASE_FMU_CACHE"   # the cache's folder; "off": each process unpacks into its own temporary folder
 CACHE_REVISION = 1               # in each entry's name: raised when an entry's layout changes
 STALE_DAYS = 7
@@ -149,21 +150,34 @@ def _entry_name(data):
 
 
 def _checked(entry, members):
-    """The model description an entry holds if every member is there whole and the
-    description is the one written with them, else None."""
+    """The model description an entry holds if it is whole and unchanged, else None:
+    every member there with the size of the FMU's listing and the size and modification
+    time it was written with, the FMU's binaries (the code a run loads) with the listing's
+    CRC-32 too, and the description the one written with them (its SHA-256)."""
     try:
         manifest = json.loads((entry / _MANIFEST).read_text(encoding="utf-8"))
         pickled = (entry / "description.pickle").read_bytes()
         if hashlib.sha256(pickled).hexdigest() != manifest["description_sha256"]:
             return None
+        written = manifest["files"]
         for member in members:
-            if not member.is_dir():
-                data = (entry / "fmu" / member.filename).read_bytes()
-                if len(data) != member.file_size or zlib.crc32(data) != member.CRC:
-                    return None
+            if member.is_dir():
+                continue
+            file = entry / "fmu" / member.filename
+            stat = file.stat()
+            if stat.st_size != member.file_size or written.get(member.filename) != [stat.st_size, stat.st_mtime_ns]:
+                return None
+            if member.filename.startswith("binaries/") and zlib.crc32(file.read_bytes()) != member.CRC:
+                return None
         return pickle.loads(pickled)
     except Exception:   # missing, unreadable, torn or foreign: not trusted
         return None
+
+
+def _written(folder, members):
+    """{member: [size, modification time (ns)]} of the members as extracted into ``folder``."""
+    stats = {m.filename: (folder / m.filename).stat() for m in members if not m.is_dir()}
+    return {name: [stat.st_size, stat.st_mtime_ns] for name, stat in stats.items()}
 
 
 def _cached(data, members, cache):
@@ -181,8 +195,8 @@ def _cached(data, members, cache):
         description = _unpacked(data, made / "fmu")
         pickled = pickle.dumps(description, protocol=pickle.HIGHEST_PROTOCOL)
         (made / "description.pickle").write_bytes(pickled)
-        (made / _MANIFEST).write_text(json.dumps({"description_sha256": hashlib.sha256(pickled).hexdigest()}),
-                                      encoding="utf-8")
+        (made / _MANIFEST).write_text(json.dumps({"description_sha256": hashlib.sha256(pickled).hexdigest(),
+                                                  "files": _written(made / "fmu", members)}), encoding="utf-8")
         _prune(cache)
         for _ in range(2):
             try:

@@ -90,13 +90,27 @@ def _flip_a_byte(entry):
     so.write_bytes(bytes(data))
 
 
+def _flip_a_byte_keeping_its_time(entry):
+    """As bit rot, or a copy that keeps the times: only the binary's CRC-32 tells."""
+    so = entry / "fmu" / "binaries" / "linux64" / "LegSensor.so"
+    stat = so.stat()
+    _flip_a_byte(entry)
+    os.utime(so, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+
+
+def _edit_a_source(entry):
+    source = next((entry / "fmu" / "sources").glob("*.c"))
+    time.sleep(0.05)                                           # a clock tick after it was written (mtime)
+    source.write_text(source.read_text().replace("(", "[", 1))   # same size, other text
+
+
 @pytest.mark.parametrize("damage", [
-    _damage_library, _flip_a_byte,
+    _damage_library, _flip_a_byte, _flip_a_byte_keeping_its_time, _edit_a_source,
     lambda entry: (entry / "description.pickle").write_bytes(b"not a pickle"),
     lambda entry: (entry / "manifest.json").unlink(),
     lambda entry: (entry / "fmu" / "modelDescription.xml").unlink(),
     lambda entry: [p.unlink() for p in entry.rglob("*") if p.is_file()],   # a foreign, empty one
-], ids=["truncated", "flipped", "pickle", "manifest", "member", "emptied"])
+], ids=["truncated", "flipped", "rot", "source", "pickle", "manifest", "member", "emptied"])
 def test_a_damaged_entry_is_made_again_not_trusted(built, cache, damage):
     path = built["leg_sensor_fmu"]
     md, folder = fmi.unpack(path)
@@ -106,6 +120,7 @@ def test_a_damaged_entry_is_made_again_not_trusted(built, cache, damage):
     again, again_folder = fmi.unpack(path)
     assert again_folder == folder and again.guid == md.guid and len(again.modelVariables) == len(md.modelVariables)
     with zipfile.ZipFile(path) as archive:                    # every member whole again
+        assert any(m.filename.startswith("sources/") for m in archive.infolist())
         for member in archive.infolist():
             if not member.is_dir():
                 assert zlib.crc32((entry / "fmu" / member.filename).read_bytes()) == member.CRC, member.filename
