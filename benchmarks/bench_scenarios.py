@@ -7,6 +7,7 @@ of one scenario against its stepping, phase by phase (the goal: <= 1.5x). Prints
 figures; asserts nothing.
 
     python -m benchmarks.bench_scenarios [--ci] [--only recording|checks|process]   (--ci: the [ci] versions)
+    python -m benchmarks.bench_scenarios --against OLD_TREE [--pairs N]   (goal 5 of issue 41, old and new)
 """
 import argparse
 import dataclasses
@@ -14,6 +15,8 @@ import json
 import os
 import pathlib
 import resource
+import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -186,20 +189,23 @@ program.main()   # as the command ends: exit handlers, no teardown
 """
 
 
-def _cli(args, phased):
+def _cli(args, phased, tree=None):
     """Wall and CPU seconds of one CLI process, its stepping [s] (metrics.json) and, if
-    ``phased``, its phases {name: s}."""
+    ``phased``, its phases {name: s}; ``tree``: the kit's code from that folder (another
+    checkout's copy, its compiled modules beside the sources) instead of this one."""
     out = pathlib.Path(tempfile.mkdtemp())
     command = [sys.executable, "-c", _PHASED] if phased else [sys.executable, "-m", "movingbase", "run"]
+    env = {**os.environ, "PYTHONPATH": str(tree)} if tree else None
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     began = time.perf_counter()
     done = subprocess.run(command + args + ["--quiet", "--out", str(out)], capture_output=True, text=True,
-                          check=True)
+                          check=True, env=env, cwd=tree)
     wall = time.perf_counter() - began
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
     stem = pathlib.Path(args[0]).stem
     stepping = sum(r["wall_time_s"] for r in json.loads((out / stem / "metrics.json").read_text()).values())
+    shutil.rmtree(out)   # ~9 MB of records a process
     phases = eval(done.stdout.split("PHASES ", 1)[1]) if phased else {}
     return wall, cpu, stepping, phases
 
@@ -237,11 +243,34 @@ def process_cost(ci, names=("telescope_slew", "paper_manoeuvre"), repeats=3):
             print(f"  {phase:30s} {seconds:6.2f} s  {100 * seconds / wall:5.1f} %")
 
 
+def process_pairs(tree, pairs=10, name="telescope_slew"):
+    """Issue 41's goal 5: ``movingbase run NAME --charts none`` against its stepping, this
+    tree and the one in ``tree`` (an older commit's files with its compiled extension
+    modules, e.g. ``git worktree add``) in interleaved pairs, each pair's ratios and the
+    medians (ranges)."""
+    print(f"\n{name} --charts none, process / stepping, {pairs} interleaved pairs (load {os.getloadavg()[0]:.1f}):")
+    ratios = {"this": [], "other": []}
+    for k in range(pairs):
+        for which in (("other", "this") if k % 2 == 0 else ("this", "other")):
+            wall, _, stepping, _ = _cli([name, "--charts", "none"], False, tree if which == "other" else None)
+            ratios[which].append(wall / stepping)
+        print(f"  pair {k + 1}: this tree {ratios['this'][-1]:.3f}x, {tree} {ratios['other'][-1]:.3f}x")
+    for which, values in ratios.items():
+        print(f"  {which:5s}: median {statistics.median(values):.3f}x ({min(values):.3f}-{max(values):.3f}x)")
+    print(f"  (load at the end {os.getloadavg()[0]:.1f})")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ci", action="store_true", help="run the short [ci] versions")
     parser.add_argument("--only", choices=["recording", "checks", "process"], help="only this part")
+    parser.add_argument("--against", metavar="TREE", help="with --only process: issue 41's goal, this tree "
+                        "against the kit in TREE, in interleaved pairs")
+    parser.add_argument("--pairs", type=int, default=10, help="pairs for --against (default 10)")
     args = parser.parse_args()
+    if args.against:
+        process_pairs(pathlib.Path(args.against).resolve(), args.pairs)
+        return
     if args.only is None:
         scenario_table(args.ci)
         master_overhead()

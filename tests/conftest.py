@@ -5,6 +5,7 @@ import pytest
 
 from fmu_src import native_build
 from fmu_src import python_build as builder
+from scenarios.cosim import fmi
 from tests.fmu_helpers import free_all
 
 
@@ -19,6 +20,14 @@ def _shared(tmp_path_factory, name):
     base), so the FMUs are built once per run: the builds lock it (fmu_src.atomic.building)."""
     base = tmp_path_factory.getbasetemp()
     return (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / name
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _fmu_cache(tmp_path_factory):
+    """The session's unpacked FMUs in a cache of its own (scenarios.cosim.fmi.cache_folder),
+    its subprocesses' too: each session builds its FMUs anew, and they would pile up in the
+    user's cache (a week) otherwise."""
+    os.environ.setdefault(fmi.CACHE, str(_shared(tmp_path_factory, "fmu-cache")))
 
 
 @pytest.fixture(scope="session")

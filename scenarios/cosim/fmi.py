@@ -1,24 +1,32 @@
-"""A thin layer over fmpy's FMU2Slave: one extracted copy per FMU file, variables by
-name, preallocated ctypes buffers for the per-step exchange, the FMU's log captured,
-and every failing call turned into an error that names the instance, time and log.
+"""A thin layer over fmpy's FMU2Slave: one extracted copy per FMU file (kept between
+processes in a cache keyed by the file's bytes), variables by name, preallocated ctypes
+buffers for the per-step exchange, the FMU's log captured, and every failing call turned
+into an error that names the instance, time and log.
 
 The per-step calls (doStep, getReal, setReal) go to fmpy's loaded C functions directly
 and check the returned status here: fmpy's Python wrapper around each call costs more
 than the call itself at a 1 ms step (benchmarks/bench_scenarios.py)."""
 import atexit
+import contextlib
 import copy
 import errno
 import hashlib
+import io
+import json
 import os
 import pathlib
+import pickle
 import re
 import shutil
 import tempfile
+import time
 import zipfile
+import zlib
 from ctypes import CFUNCTYPE, POINTER, byref, c_bool, c_double, c_int, c_int32, c_size_t, c_uint, c_void_p
 from functools import lru_cache
 
 import numpy as np
+from fmpy import __version__ as fmpy_version
 from fmpy import calloc, extract, free, read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (
@@ -48,17 +56,18 @@ class FmuFileError(ValueError):
     """An FMU path that is not a usable FMU file (a folder, not a zip, truncated, huge)."""
 
 
-def check_file(path):
+def check_file(path, data=None):
     """The zip listing of an FMU file; FmuFileError naming the path and the problem for
     a folder, a missing file, a file that is not a zip, a truncated zip, one without
-    modelDescription.xml or with a member too large to extract. Reads the listing only."""
+    modelDescription.xml or with a member too large to extract. Reads the listing only
+    (of ``data``, the file's bytes, if given)."""
     path = pathlib.Path(path)
     if path.is_dir():
         raise FmuFileError(f"FMU {path}: is a folder; an FMU is a .fmu (zip) file")
     if not path.is_file():
         raise FmuFileError(f"FMU {path}: does not exist")
     try:
-        with zipfile.ZipFile(path) as archive:
+        with zipfile.ZipFile(path if data is None else io.BytesIO(data)) as archive:
             members = archive.infolist()
     except (zipfile.BadZipFile, OSError, ValueError) as exc:
         raise FmuFileError(f"FMU {path}: not a readable zip file ({exc}); it may be truncated, rebuild it") from None
@@ -74,20 +83,155 @@ def check_file(path):
 
 @lru_cache(maxsize=None)
 def unpack(path):
-    """Model description and extraction folder of an FMU file, once per process; the
-    folder is removed when the process ends."""
-    check_file(path)
+    """Model description and extraction folder of an FMU file, once per process: from the
+    cache of unpacked FMUs (cache_folder) when there is one, else unpacked into a folder
+    removed when the process ends (also when the cache cannot be written: read-only, full)."""
+    try:
+        data = pathlib.Path(path).read_bytes()
+    except OSError:
+        data = None                                            # check_file names the problem
+    members = check_file(path, data)
+    cache = cache_folder()
+    if cache is not None:
+        try:
+            return _cached(data, members, cache)
+        except OSError:
+            pass
+        except (zipfile.BadZipFile, ValueError) as exc:        # a member's CRC or XML fails
+            raise FmuFileError(f"FMU {path}: cannot be read ({exc}); rebuild it") from None
     folder = scratch("movingbase-fmu-")
     try:
-        description = read_model_description(str(path))
-        extract(str(path), unzipdir=folder)
+        return _unpacked(data, folder), folder
     except (zipfile.BadZipFile, OSError, ValueError) as exc:   # a member's CRC or XML fails, a full disk
         shutil.rmtree(folder, ignore_errors=True)               # nothing half-unpacked is left behind
         if isinstance(exc, OSError) and exc.errno == errno.ENOSPC:
             raise FmuFileError(f"FMU {path}: no space left to unpack it in {pathlib.Path(folder).parent} "
                                "(TMPDIR): free some, or set TMPDIR to a larger disk") from None
         raise FmuFileError(f"FMU {path}: cannot be read ({exc}); rebuild it") from None
-    return description, folder
+
+
+def _unpacked(data, folder):
+    """The model description of the FMU file's bytes ``data``, its members extracted into ``folder``."""
+    description = read_model_description(io.BytesIO(data))
+    extract(io.BytesIO(data), unzipdir=folder)
+    return description
+
+
+# ----------------------------------------------------------- the cache of unpacked FMUs
+# Unpacking an FMU (fmpy's modelDescription parse with lxml, the zip extracted to a new
+# folder) cost ~10 ms an FMU in every process. The cache keeps each FMU file's unpacked
+# members and its parsed model description (pickled) in a folder named by the SHA-256 of
+# the file's bytes: a rebuilt FMU is another entry, never a stale one. An entry is made in
+# a temporary folder beside it and renamed into place whole, so concurrent processes
+# (campaign workers, tests) see a complete entry or none; each use checks it (_checked:
+# every member's size and modification time as written, the binaries' CRC-32 against the
+# FMU's zip listing, the description's SHA-256; a CRC of every member took 3 ms an FMU),
+# and one that fails is made again. Entries unused for STALE_DAYS go when one is made.
+CACHE = "MOVINGBASE_FMU_CACHE"   # the cache's folder; "off": each process unpacks into its own temporary folder
+CACHE_REVISION = 1               # in each entry's name: raised when an entry's layout changes
+STALE_DAYS = 7
+_MANIFEST = "manifest.json"
+
+
+def cache_folder():
+    """The folder of the unpacked-FMU cache: $MOVINGBASE_FMU_CACHE, else movingbase/fmu
+    in $XDG_CACHE_HOME (~/.cache); None if $MOVINGBASE_FMU_CACHE is "off"."""
+    chosen = os.environ.get(CACHE)
+    if chosen == "off":
+        return None
+    if chosen:
+        return pathlib.Path(chosen)
+    return pathlib.Path(os.environ.get("XDG_CACHE_HOME") or pathlib.Path.home() / ".cache") / "movingbase" / "fmu"
+
+
+def _entry_name(data):
+    salt = f"movingbase FMU cache {CACHE_REVISION}, fmpy {fmpy_version}\0".encode()
+    return hashlib.sha256(salt + data).hexdigest()[:32]
+
+
+def _checked(entry, members):
+    """The model description an entry holds if it is whole and unchanged, else None:
+    every member there with the size of the FMU's listing and the size and modification
+    time it was written with, the FMU's binaries (the code a run loads) with the listing's
+    CRC-32 too, and the description the one written with them (its SHA-256)."""
+    try:
+        manifest = json.loads((entry / _MANIFEST).read_text(encoding="utf-8"))
+        pickled = (entry / "description.pickle").read_bytes()
+        if hashlib.sha256(pickled).hexdigest() != manifest["description_sha256"]:
+            return None
+        written = manifest["files"]
+        for member in members:
+            if member.is_dir():
+                continue
+            file = entry / "fmu" / member.filename
+            stat = file.stat()
+            if stat.st_size != member.file_size or written.get(member.filename) != [stat.st_size, stat.st_mtime_ns]:
+                return None
+            if member.filename.startswith("binaries/") and zlib.crc32(file.read_bytes()) != member.CRC:
+                return None
+        return pickle.loads(pickled)
+    except Exception:   # missing, unreadable, torn or foreign: not trusted
+        return None
+
+
+def _written(folder, members):
+    """{member: [size, modification time (ns)]} of the members as extracted into ``folder``."""
+    stats = {m.filename: (folder / m.filename).stat() for m in members if not m.is_dir()}
+    return {name: [stat.st_size, stat.st_mtime_ns] for name, stat in stats.items()}
+
+
+def _cached(data, members, cache):
+    """(model description, extraction folder) of the FMU file's bytes ``data`` from the
+    cache, the entry made (or made again) first if it is missing or fails its check."""
+    entry = cache / _entry_name(data)
+    description = _checked(entry, members)
+    if description is not None:
+        with contextlib.suppress(OSError):   # a cache this process may read but not write
+            os.utime(entry)                  # used: kept by the pruning
+        return description, str(entry / "fmu")
+    cache.mkdir(parents=True, exist_ok=True)
+    made = pathlib.Path(tempfile.mkdtemp(prefix=".part-", dir=cache))
+    try:
+        description = _unpacked(data, made / "fmu")
+        pickled = pickle.dumps(description, protocol=pickle.HIGHEST_PROTOCOL)
+        (made / "description.pickle").write_bytes(pickled)
+        (made / _MANIFEST).write_text(json.dumps({"description_sha256": hashlib.sha256(pickled).hexdigest(),
+                                                  "files": _written(made / "fmu", members)}), encoding="utf-8")
+        _prune(cache)
+        for _ in range(2):
+            try:
+                os.rename(made, entry)   # atomic; refused while a (non-empty) entry of that name exists
+                return description, str(entry / "fmu")
+            except OSError:
+                found = _checked(entry, members)
+                if found is not None:    # another process made it meanwhile
+                    return found, str(entry / "fmu")
+                _discard(entry)          # a damaged entry: moved aside, ours takes its place
+        raise OSError(errno.EEXIST, f"cache entry {entry} keeps being replaced")   # unpacked for this process
+    finally:
+        shutil.rmtree(made, ignore_errors=True)   # (gone once renamed into place)
+
+
+def _discard(folder):
+    """Move ``folder`` aside (one rename: no process finds it half-removed), then remove it."""
+    aside = folder.with_name(f".stale-{folder.name}-{os.getpid()}-{time.monotonic_ns()}")
+    try:
+        os.rename(folder, aside)
+    except OSError:
+        return
+    shutil.rmtree(aside, ignore_errors=True)
+
+
+def _prune(cache):
+    """Remove the entries unused for STALE_DAYS, and the parts that killed processes left."""
+    now = time.time()
+    for folder in cache.iterdir():
+        try:
+            age = now - folder.stat().st_mtime
+        except OSError:
+            continue
+        if age > STALE_DAYS * 86400 or (folder.name.startswith((".part-", ".stale-")) and age > 3600):
+            _discard(folder)
 
 
 SCRATCH = "MOVINGBASE_SCRATCH"   # where a process makes its temporary folders (the campaign workers': the

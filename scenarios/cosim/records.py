@@ -12,6 +12,7 @@ with the same header and each float as its shortest repr (exact).
 """
 from __future__ import annotations
 
+import io
 import os
 import pathlib
 import re
@@ -21,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from fmu_src.atomic import replacing
+from fmu_src.atomic import replacing, write_bytes_later
 
 TIME = "time [s]"
 _HEADER = re.compile(r"(.*) \[(.*)\]")
@@ -78,13 +79,20 @@ class Records:
             raise KeyError(f"no recorded variable {name!r}; recorded: {', '.join(self.names)}")
         return self._data[:self.count, 1 + self.names.index(name)]
 
-    def save(self, path: str | os.PathLike[str]) -> pathlib.Path:
+    def save(self, path: str | os.PathLike[str], later: bool = False) -> pathlib.Path:
         """Write the npz file (one array per column, keyed by its header cell), atomically
-        (fmu_src.atomic: a reader never finds a torn file); ".npz" is added as numpy would."""
+        (fmu_src.atomic: a reader never finds a torn file); ".npz" is added as numpy would.
+        ``later``: made in memory now, written to disk on a thread (atomic.write_bytes_later),
+        in place once atomic.settle() has returned."""
         path = pathlib.Path(path)
         if path.suffix != ".npz":
             path = path.with_name(path.name + ".npz")
         columns: dict[str, Any] = self.columns
+        if later:
+            made = io.BytesIO()
+            np.savez(made, **columns)
+            write_bytes_later(path, made.getbuffer())
+            return path
         with replacing(path) as file:
             np.savez(file, **columns)
         return path

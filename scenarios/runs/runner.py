@@ -375,38 +375,42 @@ def run_prepared(scenario, paths, descriptions, values, outdir=None, progress=Tr
         runs, todo = engine.run_sweep(scenario, paths, descriptions, values, items, outdir, jobs, dask, progress), []
         for run in runs:
             run.flags[:0] = before.get(run.label, ())
-    for label, params in todo:
-        desc = f"{scenario.name} [{label}]"
-        bar = single.progress_bar(total=100, desc=f"{desc} loading and initialising the FMUs", unit="%",
-                                  disable=not progress,
-                                  bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
+    try:   # the records are written on a thread while the next run loads and steps (~15 ms a run)
+        for label, params in todo:
+            desc = f"{scenario.name} [{label}]"
+            bar = single.progress_bar(total=100, desc=f"{desc} loading and initialising the FMUs", unit="%",
+                                      disable=not progress,
+                                      bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}")
 
-        def update(fraction, bar=bar, desc=desc, begun=[]):
-            if not begun:   # stepping has begun: the FMUs are loaded
-                begun.append(True)
-                bar.set_description_str(desc, refresh=False)
-            bar.update(round(100 * fraction) - bar.n)
-        try:
-            runs.append(single.run(scenario, paths, params, outdir, label,
-                                   [metrics.make(m) for m in scenario.metrics], update, before.get(label, ())))
-            if runs[-1].flags:
-                bar.set_description_str(f"{desc} flagged", refresh=False)
-        except master.RunFailed as failed:   # keep what it did; the other runs still run
-            failed.run.failure = f"{scenario.source}: scene {scenario.name}, run {label}: {failed.run.failure}"
-            runs.append(failed.run)
-            bar.set_description_str(f"{desc} FAILED at t = {failed.run.sim_time:g} s", refresh=False)
-            bar.close()                      # where it stopped, not 100 %
-            continue
-        except KeyboardInterrupt:            # Ctrl-C: the finished runs are kept (Interrupted)
+            def update(fraction, bar=bar, desc=desc, begun=[]):
+                if not begun:   # stepping has begun: the FMUs are loaded
+                    begun.append(True)
+                    bar.set_description_str(desc, refresh=False)
+                bar.update(round(100 * fraction) - bar.n)
+            try:
+                runs.append(single.run(scenario, paths, params, outdir, label,
+                                       [metrics.make(m) for m in scenario.metrics], update, before.get(label, ()),
+                                       save_later=True))
+                if runs[-1].flags:
+                    bar.set_description_str(f"{desc} flagged", refresh=False)
+            except master.RunFailed as failed:   # keep what it did; the other runs still run
+                failed.run.failure = f"{scenario.source}: scene {scenario.name}, run {label}: {failed.run.failure}"
+                runs.append(failed.run)
+                bar.set_description_str(f"{desc} FAILED at t = {failed.run.sim_time:g} s", refresh=False)
+                bar.close()                      # where it stopped, not 100 %
+                continue
+            except KeyboardInterrupt:            # Ctrl-C: the finished runs are kept (Interrupted)
+                bar.close()
+                done = {r.label for r in runs}
+                raise Interrupted(runs, label, [lb for lb, _ in sweep_runs(scenario, descriptions, values)
+                                                if lb not in done]) from None
+            except BaseException:                # an error that ends the command
+                bar.close()                      # where it stopped, not 100 %
+                raise
+            bar.update(100 - bar.n)
             bar.close()
-            done = {r.label for r in runs}
-            raise Interrupted(runs, label, [lb for lb, _ in sweep_runs(scenario, descriptions, values)
-                                            if lb not in done]) from None
-        except BaseException:                # an error that ends the command
-            bar.close()                      # where it stopped, not 100 %
-            raise
-        bar.update(100 - bar.n)
-        bar.close()
+    finally:
+        atomic.settle()   # every finished run's file in place before anything says it is (or an error)
     return runs
 
 

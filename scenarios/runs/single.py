@@ -18,7 +18,10 @@ from scenarios.spec import file_label
 def progress_bar(**kwargs):
     """A tqdm bar; in a Jupyter kernel its notebook form (a widget, where ipywidgets is
     installed), else one that redraws at most every NOTEBOOK_INTERVAL s: a notebook keeps
-    every carriage-return update of a terminal bar in its saved output."""
+    every carriage-return update of a terminal bar in its saved output. With ``disable``
+    a Hidden bar: tqdm is not imported for it (18 ms of a run's process)."""
+    if kwargs.get("disable"):
+        return Hidden()
     from tqdm import tqdm
     if "ipykernel" not in sys.modules:
         return tqdm(**kwargs)
@@ -29,16 +32,36 @@ def progress_bar(**kwargs):
     return tqdm(mininterval=NOTEBOOK_INTERVAL, **kwargs)
 
 
+class Hidden:
+    """A progress bar not shown: the calls of a tqdm bar the runs make, doing nothing."""
+
+    n = 0
+
+    def update(self, n=1):
+        pass
+
+    def set_description_str(self, desc=None, refresh=True):
+        pass
+
+    def set_postfix(self, ordered_dict=None, refresh=True, **kwargs):
+        pass
+
+    def close(self):
+        pass
+
+
 NOTEBOOK_INTERVAL = 5.0
 CHUNK = 2048   # most macro steps per C call: Ctrl-C is seen within one (~10 ms native, ~0.1 s pythonfmu)
 
 
-def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), progress=None, flags=()):
+def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), progress=None, flags=(),
+        save_later=False):
     """Co-simulate ``scenario`` once. ``fmu_paths``: instance -> FMU file; ``parameters``:
     instance -> {variable: value} (already converted, see spec.bind). The records stay in
     memory (Run.records); with an ``outdir`` they are also written to outdir/<label>.npz (the
     label made a file name: spec.file_label)
-    (also those of a run that fails or is interrupted). ``progress(done_fraction)`` is
+    (also those of a run that fails or is interrupted); ``save_later``: on a thread, in
+    place once fmu_src.atomic.settle() has returned (Records.save). ``progress(done_fraction)`` is
     called about 200 times. Run.flags: ``flags`` known before the run, the detectors'
     (scenarios.runs.flags.Watch, fed every row read), the FMUs' warnings and a stop before
     stop_time. The metrics and the watch read a row every record.metric_interval (default:
@@ -81,7 +104,7 @@ def run(scenario, fmu_paths, parameters, outdir=None, label="run", metrics=(), p
     finally:
         wall, cpu = time.perf_counter() - began, time.thread_time() - cpu_began
         if recorder and path:
-            recorder.records.save(path)
+            recorder.records.save(path, later=save_later)
         for instance in instances.values():
             instance.terminate()
     series = {m.name: m.series() for m in metrics}

@@ -319,9 +319,13 @@ def test_fmu_paths_that_are_not_fmus_are_refused_naming_the_problem(fmus, tmp_pa
 
 
 def test_unpacked_fmus_are_removed_when_the_process_ends(fmus, tmp_path):
+    """Without the cache of unpacked FMUs (MOVINGBASE_FMU_CACHE=off), or when it cannot be
+    written, a process unpacks into a folder of its own, which goes when it ends."""
+    import os
     code = ("import sys; from scenarios.cosim.fmi import unpack; "
             f"print(unpack({str(fmus['leg_sensor_fmu'])!r})[1])")
-    folder = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    folder = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                            env={**os.environ, "MOVINGBASE_FMU_CACHE": "off"}).stdout.strip()
     assert folder and not pathlib.Path(folder).exists()
 
 
@@ -642,7 +646,8 @@ def test_sigterm_leaves_no_unpacked_fmu_behind(tmp_path):
     scratch = tmp_path / "tmp"
     scratch.mkdir()
     process = subprocess.Popen([sys.executable, "-m", "movingbase", "campaign", "sky_slews", "--jobs", "2", "--out",
-                                str(tmp_path / "c")], cwd=tmp_path, env={**os.environ, "TMPDIR": str(scratch)},
+                                str(tmp_path / "c")], cwd=tmp_path,
+                               env={**os.environ, "TMPDIR": str(scratch), "MOVINGBASE_FMU_CACHE": "off"},
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     deadline = time.monotonic() + 300
     while time.monotonic() < deadline and not list(scratch.glob("movingbase-workers-*/movingbase-fmu-*")):

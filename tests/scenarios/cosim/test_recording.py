@@ -233,3 +233,33 @@ def test_a_metric_interval_off_the_grid_is_refused(metric_interval, tmp_path):
     path.write_text(text)
     with pytest.raises(spec.ScenarioError, match="record.metric_interval.*whole multiple of step"):
         spec.load(path)
+
+
+def test_records_written_later_are_the_records_written_now_and_settle_says_a_failure(tmp_path, monkeypatch):
+    """Records.save(later=True), as a scene's runs write theirs while the next one steps:
+    once atomic.settle() returns, the same bytes as a save now; a write that fails is raised
+    by settle (the caller's thread) and leaves no file and no part behind."""
+    import time
+
+    from fmu_src import atomic
+    from scenarios.cosim.records import Records, read_records
+    rng = np.random.default_rng(3)
+    records = Records.of(np.arange(500) * 1e-3, ["a.x", "b.y [1]"], ["m", "N"], rng.normal(size=(500, 2)))
+    records.save(tmp_path / "now.npz")
+    assert records.save(tmp_path / "later", later=True) == tmp_path / "later.npz"
+    atomic.settle()
+    assert (tmp_path / "later.npz").read_bytes() == (tmp_path / "now.npz").read_bytes()
+    assert read_records(tmp_path / "later.npz").values.tobytes() == records.values.tobytes()
+    records.save(tmp_path / "gone" / "x.npz", later=True)          # its folder does not exist
+    with pytest.raises(FileNotFoundError):
+        atomic.settle()
+    assert not (tmp_path / "gone").exists() and atomic._LATER == []
+    calls = []
+    def write(path, data):
+        time.sleep(0.05 if data == b"1" else 0.0)                     # the first write is the slower
+        calls.append(data)
+    monkeypatch.setattr(atomic, "write_bytes", write)
+    for value in (b"1", b"2"):                                       # the same path twice: in order
+        atomic.write_bytes_later(tmp_path / "twice", value)
+    atomic.settle()
+    assert calls == [b"1", b"2"]

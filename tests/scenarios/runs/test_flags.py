@@ -191,6 +191,17 @@ def test_growth_needs_its_windows_a_trend_and_to_last():
     assert flags.growth(np.arange(len(decays)), decays, floor) is None
 
 
+
+def test_the_growth_s_median_is_numpy_s():
+    """flags.median (np.median without its import of numpy.ma) against np.median, bit for
+    bit: odd and even lengths, magnitudes 1e-6 to 1e6, repeated values, a NaN."""
+    rng = np.random.default_rng(7)
+    for n in range(1, 41):
+        values = rng.normal(size=n) * 10.0 ** rng.integers(-6, 7, size=n)
+        assert flags.median(values) == np.median(values), n
+        assert flags.median(np.round(values)) == np.median(np.round(values)), n
+    assert math.isnan(flags.median([1.0, math.nan, 2.0])) and math.isnan(np.median([1.0, math.nan, 2.0]))
+
 # ------------------------------------------------------------------ the issue's examples
 SHIPPED = runner.SHIPPED / "telescope_slew.toml"
 
