@@ -674,6 +674,7 @@ def test_an_fmu_that_cannot_be_unpacked_leaves_nothing_behind(tmp_path, monkeypa
         raise OSError(errno.ENOSPC, "No space left on device")
     monkeypatch.setattr(fmi, "extract", full)
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.setenv(fmi.CACHE, "off")   # unpacked per process, into TMPDIR (a cached entry would be served)
     fmi.unpack.cache_clear()
     try:
         with pytest.raises(fmi.FmuFileError, match=r"no space left to unpack it in .* \(TMPDIR\)"):
