@@ -514,14 +514,15 @@ static void save_model(mb_instance *inst) { memcpy(inst->backup, inst->block + i
    cost that FMU as much as its sum). The backup keeps the block's offsets. */
 static void step_bytes(mb_instance *inst, int save)
 {
-    size_t fixed = MB_MODEL.step_fixed, start = inst->r_off;
-    size_t parts[2][2] = {{start, fixed ? inst->m_off : inst->size}, {inst->m_off + fixed, inst->size}};
-    for (int k = 0; k < (fixed ? 2 : 1); k++) {   /* one copy when nothing is fixed */
-        unsigned char *block = inst->block + parts[k][0], *backup = inst->backup + (parts[k][0] - start);
-        size_t n = parts[k][1] - parts[k][0];
-        if (save) memcpy(backup, block, n);
-        else memcpy(block, backup, n);
-    }
+    size_t start = inst->r_off, fixed = inst->m_off + MB_MODEL.step_fixed;
+    size_t n = MB_MODEL.step_fixed ? inst->m_off - start : inst->size - start;   /* r, i (and all the model) */
+    unsigned char *block = inst->block, *backup = inst->backup;
+    if (save) memcpy(backup, block + start, n);
+    else memcpy(block + start, backup, n);
+    if (!MB_MODEL.step_fixed) return;
+    n = inst->size - fixed;   /* the model after its fixed start */
+    if (save) memcpy(backup + (fixed - start), block + fixed, n);
+    else memcpy(block + fixed, backup + (fixed - start), n);
 }
 
 mbi_status mbi_do_step(mb_instance *inst, double t, double h)
