@@ -48,6 +48,8 @@ def observer_update(bandwidth, mass, state, force_gap, length_error, dt):
     mass = np.ascontiguousarray(mass, dtype=float)
     if mass.shape != (n, n):
         raise ValueError(f"observer mass matrix must be ({n}, {n}), got {mass.shape}")
+    if not 1 <= n <= lib.MB_OBSERVER_MAX_LEGS:
+        raise ValueError(f"the observer takes 1 to {lib.MB_OBSERVER_MAX_LEGS} legs, got {n}")
     lib.mb_observer_update(n, bandwidth, buf(mass), dt, buf(state), buf(force_gap), buf(length_error), buf(estimate),
                            buf(new_state))
     return estimate, new_state

@@ -40,30 +40,49 @@ void mb_observer_mass(int n, int leg_space, double mass, const double *model, do
             out[i * n + j] = leg_space ? model[i * n + j] + (i == j ? mass - mean : 0.0) : (i == j ? mass : 0.0);
 }
 
-void mb_observer_update(int n, double bandwidth, const double *mass, double h, const double *state, const double *force_gap,
-                        const double *length_error, double *estimate, double *new_state)
+void mb_observer_make_gains(int n, double bandwidth, const double *mass, double h, mb_observer_gains *g)
 {
     const double zeta = 0.7071067811865476, w = 6.283185307179586 * bandwidth, w2 = w * w;
     double sigma = -zeta * w, wd = w * sqrt(1.0 - zeta * zeta), decay = exp(sigma * h);
     double c = cos(wd * h), s = sin(wd * h) / wd;
     /* Ad = e^{sigma h} (c I + s (A - sigma I)), A = [[0, 1], [-w^2, -2 zeta w]] */
-    double a11 = decay * (c - s * sigma), a12 = decay * s;
-    double a21 = -decay * s * w2, a22 = decay * (c + s * (-2.0 * zeta * w - sigma));
+    g->a11 = decay * (c - s * sigma);
+    g->a12 = decay * s;
+    g->a21 = -decay * s * w2;
+    g->a22 = decay * (c + s * (-2.0 * zeta * w - sigma));
     /* Bd = A^-1 (Ad - I) (0, w^2), A^-1 = [[-2 zeta / w, -1 / w^2], [1, 0]] */
-    double v1 = a12 * w2, v2 = (a22 - 1.0) * w2;
-    double b1 = -2.0 * zeta * v1 / w - v2 / w2, b2 = v1;
-    double h2 = h * h, acc[n];   /* every leg's second difference first: each leg's u reads them all */
+    double v1 = g->a12 * w2, v2 = (g->a22 - 1.0) * w2;
+    g->b1 = -2.0 * zeta * v1 / w - v2 / w2;
+    g->b2 = v1;
+    double h2 = h * h;
+    for (int k = 0; k < n * n; k++) g->mass_h2[k] = mass[k] / h2;
+    g->bandwidth = bandwidth;
+    g->h = h;
+}
+
+void mb_observer_step(int n, const mb_observer_gains *g, const double *state, const double *force_gap,
+                      const double *length_error, double *estimate, double *new_state)
+{
+    double acc[n];   /* every leg's second difference first: each leg's u reads them all */
     for (int j = 0; j < n; j++) acc[j] = length_error[j] - 2.0 * state[4 * j + 2] + state[4 * j + 3];
     for (int i = 0; i < n; i++) {
         const double *x = state + 4 * i;
         double *y = new_state + 4 * i;
         double u = 0.0;   /* a diagonal M: mass / h^2 times the leg's own, as one scalar gives it */
-        for (int j = 0; j < n; j++) u += mass[i * n + j] / h2 * acc[j];
+        for (int j = 0; j < n; j++) u += g->mass_h2[i * n + j] * acc[j];
         u = force_gap[i] + u;
         estimate[i] = x[0];
-        y[0] = a11 * x[0] + a12 * x[1] + b1 * u;
-        y[1] = a21 * x[0] + a22 * x[1] + b2 * u;
+        y[0] = g->a11 * x[0] + g->a12 * x[1] + g->b1 * u;
+        y[1] = g->a21 * x[0] + g->a22 * x[1] + g->b2 * u;
         y[3] = x[2];
         y[2] = length_error[i];
     }
+}
+
+void mb_observer_update(int n, double bandwidth, const double *mass, double h, const double *state, const double *force_gap,
+                        const double *length_error, double *estimate, double *new_state)
+{
+    mb_observer_gains g;
+    mb_observer_make_gains(n, bandwidth, mass, h, &g);
+    mb_observer_step(n, &g, state, force_gap, length_error, estimate, new_state);
 }

@@ -159,4 +159,4 @@ static int step(mb_instance *inst, double *r, int *i, void *model, double t, dou
     return advance(inst, r, model, t, h);
 }
 
-const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), init, step};
+const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), 0, init, step};

@@ -508,7 +508,22 @@ void mbi_reset(mb_instance *inst)
    failure goes to inst->kind and message): the rollback of a refused step saves and
    restores those, not the 1 KB mbi_core_state before them. */
 static void save_model(mb_instance *inst) { memcpy(inst->backup, inst->block + inst->r_off, inst->size - inst->r_off); }
-static void restore_model(mb_instance *inst) { memcpy(inst->block + inst->r_off, inst->backup, inst->size - inst->r_off); }
+
+/* What a doStep may change, saved and restored: r, i and the model but its step-fixed
+   start (MB_MODEL.step_fixed: the Wind's 12 KB of gust components, whose copy every step
+   cost that FMU as much as its sum). The backup keeps the block's offsets. */
+static void step_bytes(mb_instance *inst, int save)
+{
+    size_t start = inst->r_off, fixed = inst->m_off + MB_MODEL.step_fixed;
+    size_t n = MB_MODEL.step_fixed ? inst->m_off - start : inst->size - start;   /* r, i (and all the model) */
+    unsigned char *block = inst->block, *backup = inst->backup;
+    if (save) memcpy(backup, block + start, n);
+    else memcpy(block + start, backup, n);
+    if (!MB_MODEL.step_fixed) return;
+    n = inst->size - fixed;   /* the model after its fixed start */
+    if (save) memcpy(backup + (fixed - start), block + fixed, n);
+    else memcpy(block + fixed, backup + (fixed - start), n);
+}
 
 mbi_status mbi_do_step(mb_instance *inst, double t, double h)
 {
@@ -517,12 +532,12 @@ mbi_status mbi_do_step(mb_instance *inst, double t, double h)
         mbi_logf(inst, MBI_DISCARD, "refusing doStep at t=%.6g s after: %s", t, s->failure);
         return MBI_DISCARD;
     }
-    save_model(inst);
+    step_bytes(inst, 1);
     if (!MODEL_STEP(inst, t, h) && !nonfinite_outputs(inst)) {
         s->time = t + h;
         return MBI_OK;
     }
-    restore_model(inst);   /* outputs keep the last accepted state */
+    step_bytes(inst, 0);   /* outputs keep the last accepted state */
     char when[64];
     snprintf(when, sizeof when, "at t=%.6g s", t);
     PHASE(inst) = MBI_STEP_FAILED;

@@ -18,6 +18,7 @@ typedef struct {
     int base_mode, legs, feedforward_on, saturated;
     double wind_filtered;   /* the wind speed filter's state */
     double observer_mass[36];   /* the observer's leg-space mass matrix (mb_observer_mass) */
+    mb_observer_gains gains;    /* the observer's constants for its bandwidth and step (made when they change) */
 } Model;
 
 static const char *const INPUT_NAMES[8] = {"reference_pose", "reference_rate", "reference_acc", "leg_length",
@@ -42,7 +43,7 @@ static int wind_forces(mb_instance *inst, const double *r, Model *m, const doubl
 
 /* The disturbance observer: command = ff - its estimate; advances its state. error is
    reference - measured length, the observer takes measured - reference. */
-static int observe(mb_instance *inst, double *r, const Model *m, const double *ff, const double *error, double h,
+static int observe(mb_instance *inst, double *r, Model *m, const double *ff, const double *error, double h,
                    double *command)
 {
     static const char *const name[1] = {"leg_force_measured"};
@@ -58,8 +59,9 @@ static int observe(mb_instance *inst, double *r, const Model *m, const double *f
         off[k] = -error[k];
     }
     memcpy(state, &r[VR_observer_state], sizeof state);
-    mb_observer_update(6, r[VR_observer_bandwidth], m->observer_mass, h, state, gap, off, &r[VR_disturbance_estimate],
-                       &r[VR_observer_state]);
+    if (m->gains.bandwidth != r[VR_observer_bandwidth] || m->gains.h != h)
+        mb_observer_make_gains(6, r[VR_observer_bandwidth], m->observer_mass, h, &m->gains);
+    mb_observer_step(6, &m->gains, state, gap, off, &r[VR_disturbance_estimate], &r[VR_observer_state]);
     for (int k = 0; k < 6; k++) command[k] -= r[VR_disturbance_estimate + k];
     return 0;
 }
@@ -163,6 +165,7 @@ static int init(mb_instance *inst, double *r, int *i, void *model, double start_
         return 1;
     }
     mb_observer_mass(6, observer_model, r[VR_observer_mass], LEG_MASS_HOME, m->observer_mass);
+    m->gains.bandwidth = m->gains.h = NAN;   /* made at the first step, for the mass made here */
     int fidelity = FEEDFORWARD_FIDELITY[mode];
     m->base_mode = FIDELITY_BASE_MODE[fidelity];
     m->legs = FIDELITY_LEGS[fidelity];
@@ -192,4 +195,4 @@ static int step(mb_instance *inst, double *r, int *i, void *model, double t, dou
     return 0;
 }
 
-const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), init, step};
+const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), 0, init, step};

@@ -29,4 +29,4 @@ static int step(mb_instance *inst, double *r, int *i, void *model, double t, dou
     return 0;
 }
 
-const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), init, step};
+const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), 0, init, step};

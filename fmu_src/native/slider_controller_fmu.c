@@ -96,4 +96,4 @@ static int step(mb_instance *inst, double *r, int *i, void *model, double t, dou
 }
 
 /* the integral is an output; the model keeps whether the forces were saturated (one warning per episode) */
-const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), init, step};
+const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), 0, init, step};

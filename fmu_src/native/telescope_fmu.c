@@ -320,4 +320,4 @@ static int step(mb_instance *inst, double *r, int *i, void *model, double t, dou
     return publish(inst, r, m, t + h, h) || sway(inst, r, m, h);
 }
 
-const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), init, step};
+const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), 0, init, step};

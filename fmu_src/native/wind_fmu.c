@@ -2,7 +2,8 @@
    (plant/c/wind.h; this file is not wind.c because the kernel's wind.c lands in the same
    flat sources/ folder of the FMU). The gust's components are drawn from the seed at initialization and
    fixed afterwards, the phasors the steps turn (mb_wind_sample_stepped) change: the model struct
-   holds both, so an FMU state carries them too. */
+   holds both, so an FMU state carries them too; a doStep's backup only the phasors (step_fixed). */
+#include <stddef.h>
 #include <string.h>
 
 #include "Wind_vars.h"
@@ -61,4 +62,4 @@ static int step(mb_instance *inst, double *r, int *i, void *model, double t, dou
     return publish(inst, r, model, t + h, h);
 }
 
-const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), init, step};
+const mb_model_info MB_MODEL = {MB_IDENTIFIER, MB_GUID, MB_NVARS, MB_VARS, sizeof(Model), offsetof(Model, phasors), init, step};

@@ -98,3 +98,9 @@ def test_leg_space_matrix_estimates_a_constant_leg_force_on_the_plants_own_mass(
     scalar = run(bw, mean, np.zeros((n, 6)), lengths, h)[-1]
     assert np.allclose(scalar, mean * np.linalg.solve(plant, force), rtol=1e-3)
     assert np.abs(scalar - force).max() > 0.1 * np.abs(force).max()
+
+
+def test_more_legs_than_the_kernel_holds_are_refused_by_name():
+    """The kernel's kept constants hold a 6 x 6 mass matrix: 7 legs are refused before the call."""
+    with pytest.raises(ValueError, match="1 to 6 legs, got 7"):
+        observer_update(10.0, np.eye(7), observer_start(np.zeros(7)), np.zeros(7), np.zeros(7), 1e-3)

@@ -51,3 +51,30 @@ def test_the_leg_space_matrix_couples_the_legs_in_the_fmu(native):
     matrix = _run(native["leg_controller_fmu"], {**values, "observer_model": 1}, inputs, watch)
     assert np.ptp(scalar[:, 0]) == 0 and np.ptp(matrix[:, 0]) > 0
     assert not np.array_equal(scalar[:, 1], matrix[:, 1])
+
+
+def test_the_native_observer_remakes_its_kept_gains_when_the_step_changes(fmus, native):
+    """The native LegController keeps the observer's constants for its bandwidth and step
+    (mb_observer_gains); the pythonfmu twin makes them every step (mb_observer_update). A run
+    whose step goes 1 ms -> 0.5 ms -> 1 ms gives the same numbers bit for bit in both, and
+    differs from the same inputs at 1 ms throughout (the kept gains were remade)."""
+    values = {"observer_bandwidth": 32.0, "observer_mass": 2606.0, "observer_model": 1}
+    watch = ["leg_force[2]", "disturbance_estimate[2]", "disturbance_estimate[5]", "observer_state[6]"]
+
+    def run(path, steps):
+        inst, status = opened(path, **values)
+        assert status == OK
+        rows, t = [], 0.0
+        for k, h in enumerate(steps):
+            inst.set("leg_length[2]", 3.0 * (1 + 1e-3 * np.sin(0.3 * k)))
+            inst.set("leg_force_measured[2]", 5e3 * (1 + 1e-3 * np.sin(0.3 * k)))
+            assert step(inst, t, h) == OK
+            t += h
+            rows.append(reals(inst, watch))
+        return np.array(rows)
+
+    changing = [1e-3] * 20 + [5e-4] * 20 + [1e-3] * 20
+    python, c = run(fmus["leg_controller_fmu"], changing), run(native["leg_controller_fmu"], changing)
+    assert np.array_equal(python, c)
+    steady = run(native["leg_controller_fmu"], [1e-3] * 60)
+    assert np.array_equal(c[:20], steady[:20]) and not np.array_equal(c[20:], steady[20:])
