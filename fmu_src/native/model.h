@@ -41,7 +41,7 @@ typedef struct {
     size_t model_size;
     /* Bytes at the start of the model struct that init writes and doStep only reads (the
        Wind's gust components; 0 for most): a doStep's backup, what a refused step restores,
-       leaves them out (instance.c, save_step). A step must not write them. */
+       leaves them out (instance.c, step_bytes). A step must not write them. */
     size_t step_fixed;
     /* exitInitializationMode: outputs at the start time from the parameters and inputs.
        Returns 0, or 1 after mb_error. */

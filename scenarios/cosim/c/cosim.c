@@ -63,33 +63,22 @@ static int write_inputs(cosim_master *m, size_t i, int extrapolate)
     int status;
     if (f->n_write == 0)
         return 0;
-    /* the usual cases in loops of their own (no per-value branches: the realistic loops move
-       ~100 values a step), the same arithmetic as the general loop below */
-    if (!extrapolate)
-        for (j = 0; j < f->n_write; j++)
-            f->write_buf[j] = m->y[f->write_from[j]];
-    else if (extrapolate == 1 && !m->gauss_seidel)
-        for (j = 0; j < f->n_write; j++) {
-            double u = m->y[f->write_from[j]];
-            f->write_buf[j] = u + 0.5 * (u - m->y_prev[f->write_from[j]]);
-        }
-    else
-        for (j = 0; j < f->n_write; j++) {
-            size_t s = f->write_from[j];
-            double u = m->y[s];
-            if (extrapolate == 2 && m->y_order[s] > 0) {
-                /* the mean over the coming step of the source's Taylor polynomial at its time:
-                   u + h/2 u' + h^2/6 u'' (Gauss-Seidel: only where the source has not stepped) */
-                double du = 0.5 * m->h * m->y_d1[s];
-                if (m->y_order[s] > 1)
-                    du += m->h * m->h / 6.0 * m->y_d2[s];
-                u = u + (m->gauss_seidel ? 2.0 * f->write_half[j] : 1.0) * du;
-            } else if (extrapolate && !m->gauss_seidel)
-                u = u + 0.5 * (u - m->y_prev[s]);
-            else if (extrapolate)
-                u = u + f->write_half[j] * (u - m->y_prev[s]);
-            f->write_buf[j] = u;
-        }
+    for (j = 0; j < f->n_write; j++) {
+        size_t s = f->write_from[j];
+        double u = m->y[s];
+        if (extrapolate == 2 && m->y_order[s] > 0) {
+            /* the mean over the coming step of the source's Taylor polynomial at its time:
+               u + h/2 u' + h^2/6 u'' (Gauss-Seidel: only where the source has not stepped) */
+            double du = 0.5 * m->h * m->y_d1[s];
+            if (m->y_order[s] > 1)
+                du += m->h * m->h / 6.0 * m->y_d2[s];
+            u = u + (m->gauss_seidel ? 2.0 * f->write_half[j] : 1.0) * du;
+        } else if (extrapolate && !m->gauss_seidel)
+            u = u + 0.5 * (u - m->y_prev[s]);
+        else if (extrapolate)
+            u = u + f->write_half[j] * (u - m->y_prev[s]);
+        f->write_buf[j] = u;
+    }
     status = f->fmi3 ? set_float64(f) : f->set_real(f->component, f->write_vr, f->n_write, f->write_buf);
     return status > 1 ? failed(m, i, COSIM_SET_REAL, status) : 0;
 }
